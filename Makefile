@@ -1,0 +1,42 @@
+# lotsen: two commands set everything up.
+#   make run   - virtual environment + the on-board dependencies, then the full stack on the simulated boat
+#   make test  - virtual environment + test dependencies (and Debian's Chromium for browser tests), then all tests
+#   make bench - benchmarks, results in bench/results/ (table .md + .json)
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+PIP := $(PY) -m pip --disable-pip-version-check
+RUN_ARGS ?=
+
+.PHONY: run test bench bench-quick venv venv-dev browser clean
+
+$(VENV)/.run-installed: pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PIP) install -q -e .
+	touch $@
+
+$(VENV)/.dev-installed: pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PIP) install -q -e '.[dev]'
+	touch $@ $(VENV)/.run-installed
+
+venv: $(VENV)/.run-installed
+venv-dev: $(VENV)/.dev-installed
+
+browser:
+	@bash tools/ensure-chromium.sh
+
+run: venv
+	$(PY) -m lotsen run --sim $(RUN_ARGS)
+
+test: venv-dev browser
+	$(PY) -m pytest -q -n 2 --dist loadfile
+
+bench: venv-dev
+	$(PY) bench/run.py
+
+bench-quick: venv-dev
+	$(PY) bench/run.py --quick
+
+clean:
+	rm -rf $(VENV) .pytest_cache build *.egg-info

@@ -1,0 +1,71 @@
+"""Simulator real-time factor (vessel + actuators + sensors) on one core; target >= 1000x.
+
+Rows: the simulator alone at two IMU rates, truth only, through the runtime's node graph (bus
+delivery of every sensor message), and the same truth-only run with numba switched off (the
+pure-Python peer of the same code) for the speed-up ratio.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+TARGET_RTF = 1000.0
+
+
+def _rtf_simulator(seconds: float, imu_rate_hz: float, sensors: bool = True) -> float:
+    from lotsen.sim import ImuConfig, SimConfig, Simulator
+
+    sim = Simulator(config=SimConfig(seed=1, sensors=sensors, imu=ImuConfig(rate_hz=imu_rate_hz)))
+    sim.command([0.1, 0.1, 60, 60, 10])
+    sim.advance(1.0)  # compile and warm up
+    best = 0.0
+    for _ in range(3):
+        t = time.perf_counter()
+        sim.advance(seconds)
+        best = max(best, seconds / (time.perf_counter() - t))
+    return best
+
+
+def _rtf_runtime(seconds: float) -> float:
+    from lotsen.runtime.config import LaunchConfig
+    from lotsen.runtime.launch import build_stack
+    from lotsen.runtime.schedule import DEMO_SCHEDULE, ScheduleNode
+
+    stack = build_stack(LaunchConfig(), realtime=False, parts=())
+    stack.add(ScheduleNode(DEMO_SCHEDULE))
+    stack.executor.run_until(1.0)
+    t = time.perf_counter()
+    stack.executor.run_until(1.0 + seconds)
+    return seconds / (time.perf_counter() - t)
+
+
+def _rtf_pure_python(seconds: float) -> float:
+    code = ("import json,sys; sys.path.insert(0, '.'); from bench.bench_sim import _rtf_simulator; "
+            f"print(json.dumps(_rtf_simulator({seconds}, 100.0, sensors=False)))")
+    env = {**os.environ, "LOTSEN_NO_JIT": "1"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True,
+                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    return float(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def run(quick: bool = False) -> list[dict]:
+    seconds = 60.0 if quick else 600.0
+    rows = []
+    rtf_jit_truth = _rtf_simulator(seconds, 100.0, sensors=False)
+    for label, rtf in (
+        ("simulator, IMU 100 Hz, mag 50 Hz, GNSS 8 Hz, tacho 20 Hz", _rtf_simulator(seconds, 100.0)),
+        ("simulator, IMU 50 Hz (other sensors as above)", _rtf_simulator(seconds, 50.0)),
+        ("simulator, truth only (no sensors)", rtf_jit_truth),
+        ("runtime node graph: sim node + schedule + bus, IMU 100 Hz", _rtf_runtime(seconds / 4)),
+    ):
+        rows.append({"case": label, "sim_seconds": seconds, "real_time_factor": round(rtf, 1),
+                     "target": TARGET_RTF, "pass": rtf >= TARGET_RTF})
+    py = _rtf_pure_python(seconds / 10)
+    rows.append({"case": "truth only, pure Python (LOTSEN_NO_JIT=1): peer of the same code",
+                 "sim_seconds": seconds / 10, "real_time_factor": round(py, 1), "target": None, "pass": None,
+                 "numba_speedup": round(rtf_jit_truth / py, 1)})
+    return rows

@@ -1,0 +1,5 @@
+import sys
+
+from lotsen.cli.main import main
+
+sys.exit(main())

@@ -1,0 +1,259 @@
+"""Typed messages exchanged between nodes, and the topic names (seed Table 3 where one exists).
+
+This module imports nothing from lotsen: sensors in `lotsen.sim`, drivers, fusion, control,
+logs and the web all speak these types. `lotsen.runtime.messages` re-exports them.
+Every message carries `stamp_s`, the time the measurement or command refers to (simulated or
+wall seconds of the runtime's clock).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+
+__all__ = [
+    "Topic", "ThrustCommand", "ActuatorState", "ImuSample", "MagSample", "MagCalibrated", "GnssFixType",
+    "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
+    "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent",
+]
+
+
+class Topic:
+    """Topic names. Seed Table 3 names are kept so people who know the original find their way."""
+
+    SHIP_COMMAND = "ship_command"  # ThrustCommand to the actuators (seed: Ship node)
+    IMU_RAW = "imu/data_raw"  # ImuSample
+    IMU_MAG = "imu/mag"  # MagSample, raw
+    IMU_MAG_CALIBRATED = "imu/mag_calibrated"  # MagCalibrated
+    GNSS = "gps_chatter"  # GnssFix
+    RPM = "rpm_chatter"  # RpmSample
+    SENS_FUS = "imu/sens_fus"  # VesselState, the seed's fusion output
+    RTCM = "gps_rtk/rtcm_data"  # RtcmData, corrections to the receiver
+    STATE = "state/estimate"  # VesselState, the full estimate used by control
+    TRUTH = "sim/truth"  # VesselState, ground truth (simulation only)
+    ACTUATORS = "sim/actuators"  # ActuatorState, achieved actuator values (simulation / tachometers)
+    PATH = "planning/path"  # PathMessage
+    CONTROL_STATUS = "control/status"  # ControllerStatus
+    SUPERVISOR = "supervisor/status"  # SupervisorStatus
+    OPERATOR = "operator/command"  # OperatorCommand (mode changes, start/stop)
+    MANUAL = "operator/manual"  # ManualCommand from the keyboard
+    RC = "rc/override"  # RcOverride from the FrSky receiver
+    BATTERY = "battery"  # BatteryStatus
+    LOG = "log"  # LogEvent
+
+
+@dataclass(slots=True, kw_only=True)
+class ThrustCommand:
+    """Actuator set-points: azimuth angles (rad, + turns thrust to starboard) and signed rev/s."""
+
+    stamp_s: float
+    alpha1_rad: float = 0.0
+    alpha2_rad: float = 0.0
+    n1_rps: float = 0.0
+    n2_rps: float = 0.0
+    nt_rps: float = 0.0
+    source: str = ""
+
+    def as_tuple(self) -> tuple[float, float, float, float, float]:
+        return (self.alpha1_rad, self.alpha2_rad, self.n1_rps, self.n2_rps, self.nt_rps)
+
+    def is_finite(self) -> bool:
+        return all(math.isfinite(v) for v in self.as_tuple())
+
+    @classmethod
+    def from_tuple(cls, stamp_s: float, u: "tuple[float, ...] | list[float]", source: str = "") -> "ThrustCommand":
+        return cls(stamp_s=stamp_s, alpha1_rad=float(u[0]), alpha2_rad=float(u[1]), n1_rps=float(u[2]),
+                   n2_rps=float(u[3]), nt_rps=float(u[4]), source=source)
+
+    @classmethod
+    def neutral(cls, stamp_s: float, source: str = "neutral") -> "ThrustCommand":
+        return cls(stamp_s=stamp_s, source=source)
+
+
+@dataclass(slots=True, kw_only=True)
+class ActuatorState:
+    """Achieved actuator values (servo angles, propeller speeds)."""
+
+    stamp_s: float
+    alpha1_rad: float
+    alpha2_rad: float
+    n1_rps: float
+    n2_rps: float
+    nt_rps: float
+
+    def as_tuple(self) -> tuple[float, float, float, float, float]:
+        return (self.alpha1_rad, self.alpha2_rad, self.n1_rps, self.n2_rps, self.nt_rps)
+
+
+@dataclass(slots=True, kw_only=True)
+class ImuSample:
+    """Body frame (x fwd, y stbd, z down). Specific force: at rest level, accel_z = -g."""
+
+    stamp_s: float
+    gyro_radps: tuple[float, float, float]
+    accel_mps2: tuple[float, float, float]
+
+
+@dataclass(slots=True, kw_only=True)
+class MagSample:
+    stamp_s: float
+    field_uT: tuple[float, float, float]  # body frame, raw (distorted)
+
+
+@dataclass(slots=True, kw_only=True)
+class MagCalibrated:
+    stamp_s: float
+    mag_x: float  # calibrated, normalised horizontal field in the body frame
+    mag_y: float
+    heading_rad: float  # atan2(-mag_y, mag_x), clockwise from magnetic north
+
+
+class GnssFixType(IntEnum):
+    """u-blox NAV-PVT fixType, with carrSoln folded in as RTK_FLOAT / RTK_FIXED."""
+
+    NO_FIX = 0
+    DEAD_RECKONING = 1
+    FIX_2D = 2
+    FIX_3D = 3
+    RTK_FLOAT = 4
+    RTK_FIXED = 5
+
+
+@dataclass(slots=True, kw_only=True)
+class GnssFix:
+    stamp_s: float
+    lat_deg: float
+    lon_deg: float
+    height_m: float
+    fix_type: GnssFixType
+    h_acc_m: float
+    v_acc_m: float = float("nan")
+    vel_n_mps: float = float("nan")
+    vel_e_mps: float = float("nan")
+    num_sv: int = 0
+    correction_age_s: float = float("nan")
+
+    @property
+    def usable(self) -> bool:
+        return self.fix_type >= GnssFixType.FIX_3D and math.isfinite(self.lat_deg) and math.isfinite(self.lon_deg)
+
+
+@dataclass(slots=True, kw_only=True)
+class RpmSample:
+    stamp_s: float
+    n1_rps: float
+    n2_rps: float
+    nt_rps: float
+
+
+@dataclass(slots=True, kw_only=True)
+class RtcmData:
+    stamp_s: float
+    data: bytes
+
+
+@dataclass(slots=True, kw_only=True)
+class VesselState:
+    """Pose in local NED and body velocities; std fields are NaN for ground truth."""
+
+    stamp_s: float
+    north_m: float
+    east_m: float
+    heading_rad: float
+    u_mps: float
+    v_mps: float
+    r_radps: float
+    source: str = ""
+    std: tuple[float, ...] = ()  # standard deviations of the six states, when estimated
+    gyro_bias_radps: float = 0.0
+
+    def as_array_tuple(self) -> tuple[float, float, float, float, float, float]:
+        return (self.north_m, self.east_m, self.heading_rad, self.u_mps, self.v_mps, self.r_radps)
+
+    @property
+    def speed_mps(self) -> float:
+        return math.hypot(self.u_mps, self.v_mps)
+
+
+@dataclass(slots=True, kw_only=True)
+class PathMessage:
+    """A planned path, decimated for display and logging (the controller holds the full path)."""
+
+    stamp_s: float
+    north_m: tuple[float, ...]
+    east_m: tuple[float, ...]
+    speed_mps: tuple[float, ...]
+
+
+@dataclass(slots=True, kw_only=True)
+class ControllerStatus:
+    stamp_s: float
+    controller: str
+    cross_track_error_m: float = float("nan")
+    heading_error_rad: float = float("nan")
+    speed_mps: float = float("nan")
+    speed_ref_mps: float = float("nan")
+    progress_m: float = float("nan")
+    solve_time_ms: float = float("nan")
+    status: str = "ok"
+    predicted_north_m: tuple[float, ...] = ()
+    predicted_east_m: tuple[float, ...] = ()
+    failures: int = 0
+
+
+@dataclass(slots=True, kw_only=True)
+class SupervisorStatus:
+    stamp_s: float
+    mode: str
+    reason: str = ""
+    armed: bool = False
+    warnings: tuple[str, ...] = ()
+    active_failsafes: tuple[str, ...] = ()
+
+
+@dataclass(slots=True, kw_only=True)
+class OperatorCommand:
+    """A mode request from the operator: action is one of
+    'auto', 'hold', 'return', 'manual', 'estop', 'reset_estop', 'arm', 'disarm'."""
+
+    stamp_s: float
+    action: str
+    source: str = "operator"
+
+
+@dataclass(slots=True, kw_only=True)
+class ManualCommand:
+    """Keyboard/joystick driving, each axis in [-1, 1]: surge (fwd +), sway (stbd +), yaw (stbd +)."""
+
+    stamp_s: float
+    surge: float = 0.0
+    sway: float = 0.0
+    yaw: float = 0.0
+
+
+@dataclass(slots=True, kw_only=True)
+class RcOverride:
+    """The RC transmitter (seed: can always take over). active=True wins over everything."""
+
+    stamp_s: float
+    active: bool
+    command: ThrustCommand | None = None
+
+
+@dataclass(slots=True, kw_only=True)
+class BatteryStatus:
+    stamp_s: float
+    voltage_v: float
+    current_a: float = float("nan")
+    remaining_frac: float = float("nan")
+
+
+@dataclass(slots=True, kw_only=True)
+class LogEvent:
+    stamp_s: float
+    level: str  # "info", "warning", "error"
+    source: str
+    text: str
+    data: dict = field(default_factory=dict)

@@ -1,0 +1,23 @@
+"""The 3-DOF grey-box vessel model (seed section 3.2): parameters, forces, dynamics, linearisation."""
+
+from lotsen.model.dynamics import (
+    INPUT_NAMES, NU, NX, STATE_NAMES, VesselModel, geometry_tuple, jacobians, rk4_step, symbolic_rhs,
+    thruster_forces, vessel_rhs,
+)
+from lotsen.model.environment import Environment, WindCoefficients, wind_force
+from lotsen.model.linear import (
+    LinearSwayYaw, StabilityReport, condition_16d, linearise, linearise_straight, stability_report,
+    straight_trim,
+)
+from lotsen.model.parameters import (
+    DEFAULT_GEOMETRY, DEFAULT_LIMITS, DEFAULT_PARAMETERS, ActuatorLimits, VesselGeometry,
+    VesselParameters, parameter_table_markdown,
+)
+
+__all__ = [
+    "INPUT_NAMES", "NU", "NX", "STATE_NAMES", "VesselModel", "jacobians",
+    "thruster_forces", "vessel_rhs", "geometry_tuple", "rk4_step", "symbolic_rhs", "Environment", "WindCoefficients", "wind_force",
+    "LinearSwayYaw", "StabilityReport", "condition_16d", "linearise", "linearise_straight",
+    "stability_report", "straight_trim", "DEFAULT_GEOMETRY", "DEFAULT_LIMITS", "DEFAULT_PARAMETERS",
+    "ActuatorLimits", "VesselGeometry", "VesselParameters", "parameter_table_markdown",
+]

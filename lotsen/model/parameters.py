@@ -1,0 +1,156 @@
+"""Vessel parameters, geometry and actuator limits, with units and physical ranges in one place.
+
+The parameter vector theta follows the seed's eq. (26). Sign convention (Fossen): linear damping
+coefficients are positive, quadratic ones negative, so that every damping term dissipates energy.
+The metadata (unit, range, description) validates files and generates the docs' parameter table.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, Mapping
+
+from lotsen.errors import ConfigError
+
+
+def _p(default: float, unit: str, lo: float, hi: float, doc: str) -> Any:
+    return field(default=default, metadata={"unit": unit, "range": (lo, hi), "doc": doc})
+
+
+@dataclass(frozen=True)
+class VesselParameters:
+    """The unknown parameters theta of the grey-box model (seed eq. 26); defaults: vessel-model.md's set."""
+
+    m11: float = _p(14.0, "kg", 1.0, 200.0, "surge mass incl. added mass")
+    m22: float = _p(24.0, "kg", 1.0, 400.0, "sway mass incl. added mass")
+    m33: float = _p(1.8, "kg m^2", 0.01, 50.0, "yaw inertia incl. added inertia")
+    X_u: float = _p(4.0, "kg/s", 0.0, 500.0, "linear surge damping (seed 16a: > 0)")
+    X_uu: float = _p(-5.0, "kg/m", -500.0, 0.0, "quadratic surge damping X_|u|u")
+    Y_v: float = _p(12.0, "kg/s", 0.0, 1000.0, "linear sway damping (seed 16b: > 0)")
+    Y_r: float = _p(1.0, "kg m/s", -100.0, 100.0, "sway force from yaw rate")
+    Y_uv: float = _p(-8.0, "kg/m", -1000.0, 0.0, "sway damping growing with speed Y_|u|v")
+    Y_vv: float = _p(-40.0, "kg/m", -2000.0, 0.0, "quadratic sway damping Y_|v|v")
+    Y_rv: float = _p(-2.0, "kg", -500.0, 0.0, "cross damping Y_|r|v")
+    N_v: float = _p(0.5, "kg m/s", -100.0, 100.0, "yaw moment from sway velocity")
+    N_r: float = _p(3.0, "kg m^2/s", 0.0, 200.0, "linear yaw damping (seed 16c: > 0)")
+    N_vv: float = _p(-1.0, "kg m", -500.0, 0.0, "yaw moment N_|v|v")
+    N_rr: float = _p(-1.5, "kg m^2", -500.0, 0.0, "quadratic yaw damping N_|r|r")
+    kappa: float = _p(0.02, "m/rev", 0.0, 1.0, "propeller slipstream factor of the housing force")
+    C_N: float = _p(1.0, "-", 0.0, 10.0, "normal-force coefficient of the thruster housing")
+    mu_az: float = _p(0.0011, "N s^2", 1e-6, 0.1, "azimuth thrust per (rev/s)^2")
+    mu_t: float = _p(0.0004, "N s^2", 0.0, 0.1, "bow-thruster thrust per (rev/s)^2")
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"parameter {f.name}: {value!r} is not a finite number")
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    def to_vector(self) -> tuple[float, ...]:
+        """theta in the order of seed eq. (26)."""
+        return tuple(float(getattr(self, n)) for n in self.names())
+
+    @classmethod
+    def from_vector(cls, theta: Any) -> "VesselParameters":
+        names = cls.names()
+        if len(theta) != len(names):
+            raise ConfigError(f"parameter vector has {len(theta)} entries, expected {len(names)}")
+        return cls(**{n: float(v) for n, v in zip(names, theta)})
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "parameters") -> "VesselParameters":
+        """Build from a mapping; unknown keys are an error, missing keys take the defaults.
+
+        A `std` entry (written by identification) is ignored.
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{source}: expected a mapping of parameter names to numbers")
+        known = set(cls.names())
+        values: dict[str, float] = {}
+        for key, value in data.items():
+            if key == "std":
+                continue
+            if key not in known:
+                raise ConfigError(f"{source}: unknown parameter {key!r} (known: {', '.join(cls.names())})")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(f"{source}: {key} = {value!r} is not a number")
+            values[key] = float(value)
+        return cls(**values)
+
+    def with_updates(self, **changes: float) -> "VesselParameters":
+        return replace(self, **changes)
+
+    def physical_violations(self) -> list[str]:
+        """Which parameters lie outside their physical range (seed 16a-c included)."""
+        out = []
+        for f in fields(self):
+            lo, hi = f.metadata["range"]
+            v = getattr(self, f.name)
+            if not lo <= v <= hi:
+                out.append(f"{f.name} = {v:g} outside [{lo:g}, {hi:g}] {f.metadata['unit']}")
+        for name in ("X_u", "Y_v", "N_r"):
+            if getattr(self, name) <= 0.0:
+                out.append(f"{name} = {getattr(self, name):g} must be > 0 (seed eq. 16)")
+        return out
+
+
+# The documented default set of vessel-model.md (sized for a 0.99 m, 13 kg hull).
+DEFAULT_PARAMETERS = VesselParameters()
+
+
+@dataclass(frozen=True)
+class VesselGeometry:
+    """Fixed geometry (seed Table 1). Body frame: x forward, y starboard, origin amidships."""
+
+    length_m: float = 0.99
+    beam_m: float = 0.30
+    mass_kg: float = 13.0
+    l_x1: float = -0.39  # starboard azimuth thruster
+    l_y1: float = 0.07
+    l_x2: float = -0.39  # port azimuth thruster
+    l_y2: float = -0.07
+    l_xt: float = 0.37  # bow tunnel thruster
+    rudder_area_m2: float = 0.001  # A_r, effective housing area
+    rho_water: float = 1000.0
+    # Field notes: reverse thrust is weaker than forward on most propellers. 1.0 is the seed's
+    # symmetric n|n| model; a value < 1 scales thrust for negative propeller speed.
+    reverse_thrust_ratio: float = 1.0
+
+
+@dataclass(frozen=True)
+class ActuatorLimits:
+    """Limits of servos and motors (vessel-model.md 'Actuators'); also the MPC's input bounds (seed 44)."""
+
+    alpha_max_rad: float = math.radians(45.0)
+    alpha_rate_max_radps: float = math.radians(180.0)  # hobby servo, about 0.33 s per 60 deg
+    n_az_max_rps: float = 100.0
+    n_bow_max_rps: float = 80.0
+    n_rate_max_rps2: float = 400.0  # ESC ramp limit
+    motor_time_constant_s: float = 0.08  # first-order ESC + motor speed response
+
+    def clip(self, alpha1: float, alpha2: float, n1: float, n2: float, nt: float) -> tuple[float, ...]:
+        a, na, nb = self.alpha_max_rad, self.n_az_max_rps, self.n_bow_max_rps
+        return (min(max(alpha1, -a), a), min(max(alpha2, -a), a),
+                min(max(n1, -na), na), min(max(n2, -na), na), min(max(nt, -nb), nb))
+
+
+DEFAULT_GEOMETRY = VesselGeometry()
+DEFAULT_LIMITS = ActuatorLimits()
+
+
+def parameter_table_markdown() -> str:
+    """The parameter table of the docs, generated from the metadata above."""
+    rows = ["| parameter | default | unit | range | meaning |", "|---|---|---|---|---|"]
+    for f in fields(VesselParameters):
+        lo, hi = f.metadata["range"]
+        rows.append(f"| {f.name} | {getattr(DEFAULT_PARAMETERS, f.name):g} | {f.metadata['unit']} "
+                    f"| [{lo:g}, {hi:g}] | {f.metadata['doc']} |")
+    return "\n".join(rows)

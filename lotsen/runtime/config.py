@@ -1,0 +1,204 @@
+"""Launch configuration: a YAML file validated into frozen dataclasses.
+
+Every error names the file, the key path and the bad value, e.g.
+``config.yaml: sim.dt_s: expected a number, got 'fast'`` or
+``config.yaml: nodes.controler: unknown key (did you mean 'controller'?)``.
+The same strict loader (`from_mapping`) serves any dataclass tree in the project.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal, Mapping
+
+import yaml
+
+from lotsen.errors import ConfigError
+
+
+def _type_name(tp: Any) -> str:
+    return getattr(tp, "__name__", str(tp))
+
+
+def _convert(tp: Any, value: Any, where: str) -> Any:
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if tp is Any:
+        return value
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        errors = []
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return _convert(a, value, where)
+            except ConfigError as e:
+                errors.append(str(e))
+        raise ConfigError(errors[0] if len(errors) == 1 else f"{where}: {value!r} matches none of the allowed types")
+    if origin is Literal:
+        if value not in args:
+            raise ConfigError(f"{where}: {value!r} is not one of {', '.join(map(repr, args))}")
+        return value
+    if dataclasses.is_dataclass(tp):
+        return from_mapping(tp, value, where)
+    if origin in (list, tuple):
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{where}: expected a list, got {value!r}")
+        if origin is tuple and args and args[-1] is not Ellipsis:
+            if len(value) != len(args):
+                raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
+            return tuple(_convert(a, v, f"{where}[{i}]") for i, (a, v) in enumerate(zip(args, value)))
+        inner = args[0] if args else Any
+        conv = [_convert(inner, v, f"{where}[{i}]") for i, v in enumerate(value)]
+        return tuple(conv) if origin is tuple else conv
+    if origin is dict:
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{where}: expected a mapping, got {value!r}")
+        return dict(value)
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{where}: expected a number, got {value!r}")
+        if not math.isfinite(value):
+            raise ConfigError(f"{where}: {value!r} is not finite")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        return value
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected text, got {value!r}")
+        return value
+    raise ConfigError(f"{where}: unsupported type {_type_name(tp)}")
+
+
+def from_mapping(cls: Any, data: Any, where: str = "") -> Any:
+    """Build dataclass `cls` from a mapping; unknown keys, wrong types and out-of-range values
+    (field metadata "range": (lo, hi)) are ConfigErrors naming the key path."""
+    prefix = f"{where}." if where else ""
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{where or 'config'}: expected a mapping, got {data!r}")
+    hints = typing.get_type_hints(cls)
+    flds = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    kwargs = {}
+    for key, value in data.items():
+        if key not in flds:
+            close = difflib.get_close_matches(str(key), flds, n=1, cutoff=0.5)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (known: {', '.join(flds)})"
+            raise ConfigError(f"{prefix}{key}: unknown key{hint}")
+        f = flds[key]
+        v = _convert(hints[key], value, f"{prefix}{key}")
+        rng = f.metadata.get("range")
+        if rng is not None and isinstance(v, (int, float)) and not rng[0] <= v <= rng[1]:
+            raise ConfigError(f"{prefix}{key}: {v!r} outside the allowed range [{rng[0]}, {rng[1]}]")
+        kwargs[key] = v
+    try:
+        return cls(**kwargs)
+    except ConfigError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where or 'config'}: {exc}") from None
+
+
+def _r(lo: float, hi: float) -> dict:
+    return {"range": (lo, hi)}
+
+
+@dataclass(frozen=True)
+class EnvironmentConfig:
+    current_speed_mps: float = field(default=0.0, metadata=_r(0.0, 2.0))
+    current_to_deg: float = field(default=0.0, metadata=_r(-360.0, 360.0))
+    wind_speed_mps: float = field(default=0.0, metadata=_r(0.0, 20.0))
+    wind_from_deg: float = field(default=0.0, metadata=_r(-360.0, 360.0))
+    wave_force_std_N: float = field(default=0.0, metadata=_r(0.0, 10.0))
+
+
+@dataclass(frozen=True)
+class SimSection:
+    dt_s: float = field(default=0.01, metadata=_r(0.001, 0.05))
+    imu_rate_hz: float = field(default=100.0, metadata=_r(1.0, 100.0))
+    gnss_rate_hz: float = field(default=8.0, metadata=_r(1.0, 20.0))
+    initial_state: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
+
+
+@dataclass(frozen=True)
+class VesselSection:
+    parameters_file: str | None = None  # params.json from `lotsen identify`; defaults if absent
+    reverse_thrust_ratio: float = field(default=1.0, metadata=_r(0.1, 1.0))
+
+
+@dataclass(frozen=True)
+class NodesSection:
+    fusion: Literal["ekf", "seed", "truth"] = "ekf"
+    controller: Literal["mpc", "pursuit", "los", "lq"] = "mpc"
+    control_rate_hz: float = field(default=10.0, metadata=_r(1.0, 50.0))
+    command_deadline_s: float = field(default=0.5, metadata=_r(0.05, 5.0))
+    mag_calibration_file: str | None = None
+
+
+@dataclass(frozen=True)
+class WebSection:
+    enabled: bool = True
+    host: str = "127.0.0.1"  # loopback by default; set 0.0.0.0 to serve the boat's Wi-Fi
+    port: int = field(default=8080, metadata=_r(0, 65535))
+    pilot_token: str | None = None  # printed at start when generated
+    telemetry_rate_hz: float = field(default=20.0, metadata=_r(1.0, 50.0))
+
+
+@dataclass(frozen=True)
+class LoggingSection:
+    enabled: bool = True
+    directory: str = "logs"
+
+
+@dataclass(frozen=True)
+class LaunchConfig:
+    mode: Literal["sim", "hardware"] = "sim"
+    seed: int = 0
+    route: str | None = None  # route YAML loaded at start
+    sim: SimSection = field(default_factory=SimSection)
+    vessel: VesselSection = field(default_factory=VesselSection)
+    nodes: NodesSection = field(default_factory=NodesSection)
+    web: WebSection = field(default_factory=WebSection)
+    logging: LoggingSection = field(default_factory=LoggingSection)
+    extra: dict[str, Any] = field(default_factory=dict)  # sections owned by optional parts (drivers, failsafes)
+
+
+def load_yaml_file(path: str | Path) -> Any:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read: {exc.strerror}") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        loc = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ConfigError(f"{p}: not valid YAML{loc}: {getattr(exc, 'problem', exc)}") from None
+
+
+def load_config(path: str | Path | None) -> LaunchConfig:
+    """Load and validate a launch config; None gives the defaults."""
+    if path is None:
+        return LaunchConfig()
+    data = load_yaml_file(path)
+    try:
+        return from_mapping(LaunchConfig, data)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None

@@ -1,0 +1,196 @@
+"""Executors run nodes' timers. `SimExecutor` jumps from timer to timer on simulated time;
+`RealtimeExecutor` runs the same timers at wall-clock pace in one thread, and accepts work from
+other threads (web handlers) through `call_soon_threadsafe`, so node code is never re-entered
+concurrently."""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import queue
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from lotsen.messages import LogEvent
+from lotsen.runtime.bus import Bus
+from lotsen.runtime.clock import Clock, SimClock, WallClock
+
+
+@dataclass
+class Timer:
+    period_s: float
+    callback: Callable[[], None]
+    name: str
+    next_t: float
+    overruns: int = 0
+    cancelled: bool = False
+
+    def cancel(self) -> None:
+        self.cancelled = True
+
+
+class NodeContext:
+    """What a node may touch: the bus, the clock, timers and the log."""
+
+    def __init__(self, executor: "Executor", node_name: str) -> None:
+        self.executor = executor
+        self.bus: Bus = executor.bus
+        self.clock: Clock = executor.clock
+        self.node_name = node_name
+
+    def now(self) -> float:
+        return self.clock.now()
+
+    def add_timer(self, period_s: float, callback: Callable[[], None], phase_s: float = 0.0) -> Timer:
+        return self.executor.add_timer(period_s, callback, f"{self.node_name}", phase_s)
+
+    def publish(self, topic: str, msg: Any) -> None:
+        self.bus.publish(topic, msg)
+
+    def subscribe(self, topic: str, callback: Callable[[Any], None]) -> Callable[[], None]:
+        return self.bus.subscribe(topic, callback)
+
+    def log(self, level: str, text: str, **data: Any) -> None:
+        self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level=level, source=self.node_name,
+                                         text=text, data=data))
+
+
+class Node:
+    """Base class of runtime nodes: override `start` (subscribe, add timers) and maybe `stop`."""
+
+    name = "node"
+
+    def start(self, ctx: NodeContext) -> None:
+        self.ctx = ctx
+
+    def stop(self) -> None:
+        pass
+
+
+class Executor:
+    def __init__(self, bus: Bus | None = None, clock: Clock | None = None) -> None:
+        self.bus = bus or Bus()
+        self.clock: Clock = clock or SimClock()
+        self._heap: list[tuple[float, int, Timer]] = []
+        self._seq = itertools.count()
+        self.nodes: list[Node] = []
+        self.timer_errors = 0
+
+    def add_node(self, node: Node) -> Node:
+        self.nodes.append(node)
+        node.start(NodeContext(self, node.name))
+        return node
+
+    def add_timer(self, period_s: float, callback: Callable[[], None], name: str = "", phase_s: float = 0.0) -> Timer:
+        if not period_s > 0:
+            raise ValueError(f"timer {name}: period must be > 0, got {period_s}")
+        timer = Timer(period_s, callback, name, self.clock.now() + phase_s)
+        heapq.heappush(self._heap, (timer.next_t, next(self._seq), timer))
+        return timer
+
+    def _run_timer(self, timer: Timer) -> None:
+        try:
+            timer.callback()
+        except Exception as exc:  # a failing node must not stop the others; it is reported
+            self.timer_errors += 1
+            self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source=timer.name,
+                                             text=f"timer callback failed: {exc!r}"))
+
+    def _reschedule(self, timer: Timer, now: float) -> None:
+        timer.next_t += timer.period_s
+        if timer.next_t < now:  # behind schedule: skip missed periods rather than bursting
+            missed = int((now - timer.next_t) / timer.period_s) + 1
+            timer.overruns += missed
+            timer.next_t += missed * timer.period_s
+        heapq.heappush(self._heap, (timer.next_t, next(self._seq), timer))
+
+    def shutdown(self) -> None:
+        for node in reversed(self.nodes):
+            try:
+                node.stop()
+            except Exception:  # noqa: BLE001 - shutting down: keep stopping the rest
+                pass
+
+
+class SimExecutor(Executor):
+    """Deterministic: timers fire in time order (ties in creation order) on simulated time."""
+
+    def __init__(self, bus: Bus | None = None) -> None:
+        super().__init__(bus, SimClock())
+        self.sim_clock: SimClock = self.clock  # type: ignore[assignment]
+        self._pending: list[Callable[[], None]] = []
+
+    def call_soon_threadsafe(self, fn: Callable[[], None]) -> None:
+        self._pending.append(fn)
+
+    def run_until(self, t_end: float, stop: Callable[[], bool] | None = None) -> None:
+        while self._heap and self._heap[0][0] <= t_end + 1e-12:
+            t, _, timer = heapq.heappop(self._heap)
+            if timer.cancelled:
+                continue
+            self.sim_clock.set(t)
+            while self._pending:
+                self._pending.pop(0)()
+            self._run_timer(timer)
+            self._reschedule(timer, t)
+            if stop is not None and stop():
+                return
+        self.sim_clock.set(max(self.sim_clock.now(), t_end))
+
+    def run_for(self, duration_s: float, stop: Callable[[], bool] | None = None) -> None:
+        self.run_until(self.clock.now() + duration_s, stop)
+
+
+class RealtimeExecutor(Executor):
+    """Wall-clock pace, one thread."""
+
+    def __init__(self, bus: Bus | None = None) -> None:
+        super().__init__(bus, WallClock())
+        self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
+        self._stop = threading.Event()
+
+    def call_soon_threadsafe(self, fn: Callable[[], None]) -> None:
+        self._calls.put(fn)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._calls.put(lambda: None)
+
+    def _drain_calls(self) -> None:
+        while True:
+            try:
+                fn = self._calls.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                fn()
+            except Exception as exc:
+                self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source="executor",
+                                                 text=f"external call failed: {exc!r}"))
+
+    def run(self, duration_s: float | None = None) -> None:
+        end = None if duration_s is None else self.clock.now() + duration_s
+        while not self._stop.is_set():
+            now = self.clock.now()
+            if end is not None and now >= end:
+                break
+            self._drain_calls()
+            if not self._heap:
+                time.sleep(0.01)
+                continue
+            t_next = self._heap[0][0]
+            if t_next > now:
+                try:  # sleep until the next timer, but wake for external calls
+                    fn = self._calls.get(timeout=min(t_next - now, 0.05))
+                    self._calls.put(fn)
+                except queue.Empty:
+                    pass
+                continue
+            _, _, timer = heapq.heappop(self._heap)
+            if timer.cancelled:
+                continue
+            self._run_timer(timer)
+            self._reschedule(timer, self.clock.now())
+        self.shutdown()

@@ -1,0 +1,1 @@
+"""Runtime nodes: the glue between pure algorithms, the bus and the clock."""

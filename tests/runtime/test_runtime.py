@@ -1,0 +1,133 @@
+import math
+
+import pytest
+
+from lotsen.errors import ConfigError
+from lotsen.messages import LogEvent, ThrustCommand, Topic
+from lotsen.runtime import Bus, Node, SimExecutor
+from lotsen.runtime.config import LaunchConfig, load_config
+from lotsen.runtime.launch import build_stack
+from lotsen.runtime.nodes.actuator_guard import ActuatorGuard
+from lotsen.runtime.schedule import ScheduleNode, load_schedule
+
+
+def test_bus_isolates_a_failing_subscriber():
+    bus = Bus()
+    got, logs = [], []
+    bus.subscribe("a", lambda m: 1 / 0)
+    bus.subscribe("a", got.append)
+    bus.subscribe("log", logs.append)
+    bus.publish("a", 5)
+    assert got == [5]
+    assert bus.stats.callback_errors == 1
+    assert isinstance(logs[0], LogEvent) and "ZeroDivisionError" in logs[0].text
+
+
+def test_bounded_queue_drops_oldest():
+    bus = Bus()
+    q = bus.queue(["t"], maxlen=3)
+    for i in range(5):
+        bus.publish("t", i)
+    bus.publish("other", 99)
+    assert [m for _, m in q.get_all()] == [2, 3, 4]
+    assert q.dropped == 2
+
+
+def test_sim_executor_runs_timers_in_time_order():
+    ex = SimExecutor()
+    order = []
+    ex.add_timer(0.3, lambda: order.append(("a", round(ex.clock.now(), 6))))
+    ex.add_timer(0.2, lambda: order.append(("b", round(ex.clock.now(), 6))))
+    ex.run_until(0.6)
+    assert order == [("a", 0.0), ("b", 0.0), ("b", 0.2), ("a", 0.3), ("b", 0.4), ("a", 0.6), ("b", 0.6)]
+
+
+def test_failing_timer_is_reported_not_fatal():
+    ex = SimExecutor()
+    logs, ticks = [], []
+    ex.bus.subscribe("log", logs.append)
+    ex.add_timer(0.1, lambda: 1 / 0, "bad")
+    ex.add_timer(0.1, lambda: ticks.append(1), "good")
+    ex.run_until(0.25)
+    assert len(ticks) == 3 and ex.timer_errors == 3 and logs[0].source == "bad"
+
+
+def test_actuator_guard_stale_and_non_finite():
+    g = ActuatorGuard(deadline_s=0.5)
+    assert g.output(0.0) == (0, 0, 0, 0, 0)  # nothing received yet: neutral
+    g.accept(ThrustCommand(stamp_s=0, n1_rps=50, n2_rps=50), 0.0)
+    assert g.output(0.4)[2] == 50
+    assert g.output(0.6) == (0, 0, 0, 0, 0) and g.counters.stale_events == 1
+    g.accept(ThrustCommand(stamp_s=1, n1_rps=50, alpha1_rad=float("nan")), 1.0)
+    assert g.output(1.0) == (0, 0, 0, 0, 0) and g.counters.non_finite == 1
+    g.accept(ThrustCommand(stamp_s=2, n1_rps=500), 2.0)
+    assert g.output(2.0)[2] == 100.0  # clipped to the limit
+
+
+def test_sim_stack_stops_the_boat_when_commands_stop():
+    stack = build_stack(LaunchConfig(), realtime=False, parts=())
+
+    class Burst(Node):
+        name = "burst"
+
+        def start(self, ctx):
+            self.ctx = ctx
+            ctx.add_timer(0.1, self.tick)
+
+        def tick(self):
+            if self.ctx.now() < 3.0:
+                self.ctx.publish(Topic.SHIP_COMMAND, ThrustCommand(stamp_s=self.ctx.now(), n1_rps=60, n2_rps=60))
+
+    stack.add(Burst())
+    logs = []
+    stack.bus.subscribe(Topic.LOG, logs.append)
+    stack.executor.run_until(3.4)
+    assert stack.simulator.actuators.state[2] > 50
+    stack.executor.run_until(5.0)
+    assert abs(stack.simulator.actuators.state[2]) < 0.5
+    assert any("stale thrust command" in e.text for e in logs)
+    assert stack.bus.stats.published[Topic.IMU_RAW] == 501
+
+
+def test_schedule_node_and_loader(tmp_path):
+    f = tmp_path / "s.yaml"
+    f.write_text("segments:\n  - {duration_s: 1.0, n1_rps: 40, n2_rps: 40}\n  - {duration_s: 1.0, alpha1_deg: 10}\n")
+    sched = load_schedule(f)
+    assert sched.duration_s == 2.0
+    ex = SimExecutor()
+    cmds = []
+    ex.bus.subscribe(Topic.SHIP_COMMAND, cmds.append)
+    ex.add_node(ScheduleNode(sched, rate_hz=10))
+    ex.run_until(2.5)
+    assert cmds[0].n1_rps == 40 and cmds[12].alpha1_rad == pytest.approx(math.radians(10))
+    assert cmds[-1].source == "schedule:end"
+    f.write_text("segments:\n  - {duration_s: 1.0, n1: 40}\n")
+    with pytest.raises(ConfigError, match=r"segments\[0\]\.n1: unknown key \(did you mean 'n1_rps'\?\)"):
+        load_schedule(f)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("sim: {dt_s: fast}", "sim.dt_s: expected a number, got 'fast'"),
+    ("nodes: {controler: mpc}", "nodes.controler: unknown key (did you mean 'controller'?)"),
+    ("nodes: {controller: pid}", "nodes.controller: 'pid' is not one of"),
+    ("web: {port: 99999}", "web.port: 99999 outside the allowed range"),
+    ("sim: {initial_state: [1, 2]}", "sim.initial_state: expected 6 values, got 2"),
+    ("sim: {environment: {current_speed_mps: .nan}}", "is not finite"),
+    ("web: [1, 2]", "web: expected a mapping"),
+    ("sim: {dt_s: 1", "not valid YAML at line"),
+])
+def test_config_errors_name_key_and_value(tmp_path, text, message):
+    f = tmp_path / "bad.yaml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as exc:
+        load_config(f)
+    assert message in str(exc.value) and str(f) in str(exc.value)
+
+
+def test_config_defaults_and_missing_file(tmp_path):
+    f = tmp_path / "ok.yaml"
+    f.write_text("seed: 4\nsim: {environment: {current_speed_mps: 0.1}}\n")
+    cfg = load_config(f)
+    assert cfg.seed == 4 and cfg.sim.environment.current_speed_mps == 0.1 and cfg.web.host == "127.0.0.1"
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path / "missing.yaml")
