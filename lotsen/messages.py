@@ -16,7 +16,8 @@ from enum import IntEnum
 __all__ = [
     "Topic", "ThrustCommand", "ActuatorState", "ImuSample", "MagSample", "MagCalibrated", "GnssFixType",
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
-    "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent",
+    "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
+    "OPERATOR_ACTIONS",
 ]
 
 
@@ -34,11 +35,13 @@ class Topic:
     STATE = "state/estimate"  # VesselState, the full estimate used by control
     TRUTH = "sim/truth"  # VesselState, ground truth (simulation only)
     ACTUATORS = "sim/actuators"  # ActuatorState, achieved actuator values (simulation / tachometers)
+    ROUTE = "planning/route"  # RouteMessage: the operator's route (YAML schema as a dict)
     PATH = "planning/path"  # PathMessage
     CONTROL_STATUS = "control/status"  # ControllerStatus
     SUPERVISOR = "supervisor/status"  # SupervisorStatus
     OPERATOR = "operator/command"  # OperatorCommand (mode changes, start/stop)
     MANUAL = "operator/manual"  # ManualCommand from the keyboard
+    LINK = "operator/link"  # LinkStatus: the pilot's connection, published by the web server
     RC = "rc/override"  # RcOverride from the FrSky receiver
     BATTERY = "battery"  # BatteryStatus
     LOG = "log"  # LogEvent
@@ -213,14 +216,45 @@ class SupervisorStatus:
     active_failsafes: tuple[str, ...] = ()
 
 
+OPERATOR_ACTIONS = (
+    "auto",  # start / resume following the route
+    "hold",  # pause: station keeping where the boat is
+    "return",  # plan and follow a route back to the harbour node
+    "manual",  # keyboard driving (ManualCommand)
+    "estop",  # emergency stop: neutral, latched
+    "reset_estop",  # release the latch (to MANUAL, thrusters neutral)
+    "calibrate_mag",  # run the one-turn manoeuvre and fit the magnetometer calibration
+    "rtk_start", "rtk_stop",  # RTK corrections on/off
+    "logging_on", "logging_off",
+)
+
+
 @dataclass(slots=True, kw_only=True)
 class OperatorCommand:
-    """A mode request from the operator: action is one of
-    'auto', 'hold', 'return', 'manual', 'estop', 'reset_estop', 'arm', 'disarm'."""
+    """A request from the operator; `action` is one of OPERATOR_ACTIONS."""
 
     stamp_s: float
     action: str
     source: str = "operator"
+
+
+@dataclass(slots=True, kw_only=True)
+class RouteMessage:
+    """The operator's route in the YAML schema of docs/planning.md, as a plain dict."""
+
+    stamp_s: float
+    route: dict
+    source: str = "operator"
+
+
+@dataclass(slots=True, kw_only=True)
+class LinkStatus:
+    """The operator link as seen by the web server: is a pilot connected, and when was it last heard."""
+
+    stamp_s: float
+    pilot_connected: bool
+    last_heard_s: float
+    viewers: int = 0
 
 
 @dataclass(slots=True, kw_only=True)
