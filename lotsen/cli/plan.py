@@ -1,0 +1,122 @@
+"""`lotsen plan ROUTE.yaml --out path.json --plot path.png`: plan a route, save and draw the path."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path as FilePath
+
+from lotsen.errors import ConfigError
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "plan", help="plan a path through a route's nodes (cubic segments, speed profile)",
+        description="Plan the path harbour -> nodes of ROUTE (YAML or GeoJSON) and write it as JSON "
+                    "and/or a plot.")
+    p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
+    p.add_argument("--out", help="write the path as JSON (lotsen.path format)")
+    p.add_argument("--plot", help="write a PNG of area, obstacles, nodes and the path coloured by speed")
+    p.add_argument("--return-from", nargs=3, type=float, metavar=("NORTH", "EAST", "HEADING_DEG"),
+                   help="plan the return to the harbour from this pose instead of the route")
+    p.add_argument("--length-ratio-max", type=float, help="seed eq. (40g) bound (default 1.15)")
+    p.add_argument("--min-turn-radius", type=float, help="metres (default 1.0)")
+    p.add_argument("--clearance", type=float, help="metres from obstacles (default 0.5)")
+    p.add_argument("--speed-max", type=float, help="m/s (default 1.5)")
+    p.set_defaults(func=run)
+
+
+def _config(args):
+    from lotsen.planning import PlannerConfig
+    kw = {}
+    for arg, name in (("length_ratio_max", "length_ratio_max"), ("min_turn_radius", "min_turn_radius_m"),
+                      ("clearance", "clearance_m"), ("speed_max", "speed_max_mps")):
+        v = getattr(args, arg, None)
+        if v is not None:
+            kw[name] = v
+    return PlannerConfig(**kw)
+
+
+def run(args: argparse.Namespace) -> int:
+    from lotsen.planning import plan_return_route, plan_route
+    from lotsen.planning.io import load_route
+
+    route = load_route(args.route)
+    cfg = _config(args)
+    if args.return_from:
+        n, e, hdg = args.return_from
+        path = plan_return_route(route, n, e, math.radians(hdg), cfg)
+    else:
+        path = plan_route(route, cfg)
+    for m in path.segments:
+        print(f"{m.label}: {m.length_m:.2f} m (ratio {m.length_ratio:.3f}), max curvature "
+              f"{m.max_curvature_1pm:.3f} 1/m, clearance {m.min_clearance_m:.2f} m, "
+              f"{m.candidates_tried} candidates")
+    print(f"path: {path.length_m:.2f} m, {len(path)} points, "
+          f"speed {path.speed_mps.min():.2f}..{path.speed_mps.max():.2f} m/s")
+    if args.out:
+        _write(args.out, lambda f: f.write_text(json.dumps(path.to_dict()), encoding="utf-8"))
+        print(f"wrote {args.out}")
+    if args.plot:
+        _write(args.plot, lambda f: plot_path(route, path, f))
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def _write(target: str, fn) -> None:
+    f = FilePath(target)
+    try:
+        fn(f)
+    except OSError as exc:
+        raise ConfigError(f"{target}: cannot write ({exc.strerror or exc})") from None
+
+
+def plot_path(route, path, filename) -> None:
+    """Area, obstacles (hatched where forbidden), nodes with heading arrows, path coloured by speed."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.collections import LineCollection
+    from matplotlib.patches import Polygon as MplPolygon
+
+    fig, ax = plt.subplots(figsize=(7, 7))
+    # plot x = east, y = north so the map looks like a chart
+    if route.area is not None:
+        ax.add_patch(MplPolygon([(e, n) for n, e in route.area], closed=True, fill=False,
+                                edgecolor="tab:blue", lw=1.5, label="navigable area"))
+    for i, r in enumerate(route.obstacles):
+        xy = [(e, n) for n, e in r.polygon]
+        if r.forbidden == "inside":
+            ax.add_patch(MplPolygon(xy, closed=True, facecolor="0.6", edgecolor="k", hatch="//",
+                                    label="obstacle" if i == 0 else None))
+        else:
+            ax.add_patch(MplPolygon(xy, closed=True, fill=False, edgecolor="tab:red", ls="--"))
+        c = np.mean(r.polygon, axis=0)
+        ax.annotate(f"obstacles[{i}]", (c[1], c[0]), ha="center", fontsize=7)
+    pts = np.column_stack([path.east_m, path.north_m])
+    step = max(1, len(pts) // 4000)   # a few thousand line pieces are plenty for a picture
+    p = pts[::step]
+    segs = np.stack([p[:-1], p[1:]], axis=1)
+    lc = LineCollection(segs, cmap="viridis", linewidths=2.5)
+    lc.set_array(path.speed_mps[::step][:-1])
+    ax.add_collection(lc)
+    fig.colorbar(lc, ax=ax, label="speed reference [m/s]", shrink=0.8)
+    nodes = route.all_nodes()
+    L = 0.06 * max(np.ptp(path.north_m), np.ptp(path.east_m), 5.0)   # arrow length
+    for k, nd in enumerate(nodes):
+        ax.annotate("", xy=(nd.east_m + L * math.sin(nd.heading_rad), nd.north_m + L * math.cos(nd.heading_rad)),
+                    xytext=(nd.east_m, nd.north_m),
+                    arrowprops={"arrowstyle": "->", "color": "tab:red" if k == 0 else "k", "lw": 1.5})
+        ax.plot(nd.east_m, nd.north_m, "s" if k == 0 else "o", color="tab:red" if k == 0 else "k", ms=5)
+        ax.annotate("harbour" if k == 0 else str(k - 1), (nd.east_m, nd.north_m), xytext=(4, 4),
+                    textcoords="offset points", fontsize=8)
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_title(f"planned path: {path.length_m:.1f} m, {len(path)} points")
+    ax.grid(True, alpha=0.3)
+    fig.savefig(filename, dpi=110, bbox_inches="tight")
+    plt.close(fig)
