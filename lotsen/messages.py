@@ -17,7 +17,7 @@ __all__ = [
     "Topic", "ThrustCommand", "ActuatorState", "ImuSample", "MagSample", "MagCalibrated", "GnssFixType",
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
-    "OPERATOR_ACTIONS",
+    "OPERATOR_ACTIONS", "MagCalibrationResult",
 ]
 
 
@@ -28,6 +28,7 @@ class Topic:
     IMU_RAW = "imu/data_raw"  # ImuSample
     IMU_MAG = "imu/mag"  # MagSample, raw
     IMU_MAG_CALIBRATED = "imu/mag_calibrated"  # MagCalibrated
+    MAG_CALIBRATION = "imu/mag_calibration"  # MagCalibrationResult of the one-turn manoeuvre
     GNSS = "gps_chatter"  # GnssFix
     RPM = "rpm_chatter"  # RpmSample
     SENS_FUS = "imu/sens_fus"  # VesselState, the seed's fusion output
@@ -111,6 +112,19 @@ class MagCalibrated:
     mag_x: float  # calibrated, normalised horizontal field in the body frame
     mag_y: float
     heading_rad: float  # atan2(-mag_y, mag_x), clockwise from magnetic north
+
+
+@dataclass(slots=True, kw_only=True)
+class MagCalibrationResult:
+    """Hard iron (center) and soft iron (symmetric matrix) from one full turn; ok=False with a reason."""
+
+    stamp_s: float
+    ok: bool
+    center: tuple[float, float] = (0.0, 0.0)
+    matrix: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+    residual: float = float("nan")
+    coverage_deg: float = float("nan")
+    text: str = ""
 
 
 class GnssFixType(IntEnum):

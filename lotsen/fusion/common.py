@@ -1,0 +1,71 @@
+"""Pieces shared by the seed filters and the EKF: local NED frame, GNSS noise, counters, checks."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from lotsen.messages import GnssFix, GnssFixType
+
+TWO_PI = 2.0 * math.pi
+
+
+def wrap_angle(a: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (a + math.pi) % TWO_PI - math.pi
+
+
+def finite(*values: float) -> bool:
+    for v in values:
+        if not math.isfinite(v):
+            return False
+    return True
+
+
+class LocalFrame:
+    """Geodetic -> local NED at a fixed origin (pymap3d.geodetic2ned, WGS84)."""
+
+    def __init__(self, lat0_deg: float, lon0_deg: float, h0_m: float = 0.0) -> None:
+        if not finite(lat0_deg, lon0_deg, h0_m):
+            raise ValueError(f"local frame origin must be finite, got {(lat0_deg, lon0_deg, h0_m)}")
+        self.origin = (float(lat0_deg), float(lon0_deg), float(h0_m))
+
+    def to_ne(self, lat_deg: float, lon_deg: float, height_m: float | None = None) -> tuple[float, float]:
+        import pymap3d
+
+        h = self.origin[2] if height_m is None or not math.isfinite(height_m) else height_m
+        n, e, _ = pymap3d.geodetic2ned(lat_deg, lon_deg, h, *self.origin)
+        return float(n), float(e)
+
+
+@dataclass(frozen=True)
+class GnssNoise:
+    """Per-axis horizontal position standard deviation from a fix: max(h_acc / sqrt(2), floor) x
+    inflation, floor and inflation by fix type (non-RTK fixes also wander, hence the inflation)."""
+
+    floor_m: dict = field(default_factory=lambda: {
+        GnssFixType.RTK_FIXED: 0.01, GnssFixType.RTK_FLOAT: 0.1, GnssFixType.FIX_3D: 1.0})
+    inflation: dict = field(default_factory=lambda: {
+        GnssFixType.RTK_FIXED: 1.0, GnssFixType.RTK_FLOAT: 1.5, GnssFixType.FIX_3D: 2.0})
+    velocity_floor_mps: float = 0.03
+
+    def position_sigma_m(self, fix: GnssFix) -> float:
+        ft = GnssFixType(fix.fix_type)
+        h = fix.h_acc_m if math.isfinite(fix.h_acc_m) and fix.h_acc_m > 0 else 5.0
+        return max(h / math.sqrt(2.0), self.floor_m.get(ft, 2.0)) * self.inflation.get(ft, 3.0)
+
+
+@dataclass
+class Counters:
+    """What happened to the measurements: used, rejected by a gate, skipped (NaN, stale, unusable)."""
+
+    used: dict = field(default_factory=dict)
+    rejected: dict = field(default_factory=dict)
+    skipped: dict = field(default_factory=dict)
+
+    def count(self, kind: str, sensor: str) -> None:
+        d = getattr(self, kind)
+        d[sensor] = d.get(sensor, 0) + 1
+
+    def as_dict(self) -> dict:
+        return {"used": dict(self.used), "rejected": dict(self.rejected), "skipped": dict(self.skipped)}
