@@ -1,0 +1,202 @@
+"""`lotsen experiment run|check|design`: identification experiments on the simulator (or, later, the boat).
+
+`run --sim` drives `lotsen.sim.Simulator` (sensors on) with the experiment's input generator and
+writes the measured data as the identification CSV (docs/sysid.md, "Simulated runs"):
+  - rows at the command ticks (20 Hz default) and at every GNSS fix; the inputs of a row are the
+    mean achieved actuator values over the interval to the next row (what a tachometer's pulse
+    count over its window measures), so the identification's zero-order hold sees no lag error;
+  - north/east: the GNSS fix converted to local NED around the GnssConfig origin (pymap3d),
+    only on rows with a fix (8 Hz); psi: the true heading plus white noise (`psi_noise_rad`,
+    default 0.01 rad, a calibrated compass / fused heading), r: the gyro's z rate minus its bias
+    estimated over a 2 s rest before the run (the residual bias walk stays in the data);
+    psi and r are written on the GNSS rows only (8 Hz outputs).
+Without `--sim` the command refuses: hardware runs go through `lotsen run --hardware`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lotsen.errors import ConfigError, LotsenError
+from lotsen.model import DEFAULT_LIMITS, DEFAULT_PARAMETERS, VesselModel, VesselParameters
+from lotsen.sysid.data import IdRecord, save_csv
+from lotsen.sysid.experiment import Experiment, InputGenerator, check_experiment, load_experiment
+
+
+@dataclass
+class SimulatedRun:
+    record: IdRecord  # measured (noisy) data as written to the CSV
+    truth_t: np.ndarray  # truth at every simulator step, for tests
+    truth_x: np.ndarray
+    gyro_bias_estimate_radps: float
+
+
+def run_on_simulator(experiment: Experiment, model: VesselModel | None = None, seed: int = 0,
+                     psi_noise_rad: float = 0.01, environment: Any = None, preroll_s: float = 2.0,
+                     keep_truth: bool = False) -> SimulatedRun:
+    """Run `experiment` on the simulated boat with sensors; returns the measured record."""
+    import pymap3d
+
+    from lotsen.messages import GnssFix, ImuSample
+    from lotsen.sim import SimConfig, Simulator
+
+    cfg = SimConfig(seed=seed, sensors=True) if environment is None else SimConfig(
+        seed=seed, sensors=True, environment=environment)
+    sim = Simulator(model or VesselModel(), DEFAULT_LIMITS, cfg, x0=(0.0, 0.0, experiment.start_heading_rad,
+                                                                     0.0, 0.0, 0.0))
+    g = cfg.gnss
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
+    # gyro bias calibration at rest before the run
+    gyro = [m.gyro_radps[2] for m in sim.advance(preroll_s) if isinstance(m, ImuSample)]
+    bias = float(np.mean(gyro)) if gyro else 0.0
+    sim.x = (0.0, 0.0, experiment.start_heading_rad, experiment.start_speed_mps, 0.0, 0.0)
+    dt = cfg.dt_s
+    gen = InputGenerator(experiment)
+    steps_per_tick = max(1, int(round(1.0 / (experiment.command_rate_hz * dt))))
+    n_steps = int(math.ceil(experiment.duration_s / dt))
+    rows_t: list[float] = []
+    rows_u: list[np.ndarray] = []
+    rows_n: list[int] = []
+    rows_y: list[list[float]] = []
+    truth_t, truth_x = [], []
+    last_gyro = 0.0
+    for k in range(n_steps):
+        t = k * dt
+        x_true = sim.x
+        psi_meas = x_true[2] + psi_noise_rad * float(rng.standard_normal())
+        tick = k % steps_per_tick == 0
+        if tick:
+            sim.command(gen.command(t, (math.nan, math.nan, psi_meas)))
+        msgs = sim.step()
+        fix = None
+        for m in msgs:
+            if isinstance(m, ImuSample):
+                last_gyro = m.gyro_radps[2]
+            elif isinstance(m, GnssFix) and math.isfinite(m.lat_deg):
+                fix = m
+        if tick or fix is not None:
+            y = [math.nan] * 4
+            if fix is not None:
+                n, e, _ = pymap3d.geodetic2ned(fix.lat_deg, fix.lon_deg, fix.height_m,
+                                               g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m)
+                y = [float(n), float(e), math.remainder(psi_meas, 2 * math.pi), last_gyro - bias]
+            rows_t.append(t)
+            rows_u.append(np.zeros(5))
+            rows_n.append(0)
+            rows_y.append(y)
+        rows_u[-1] += np.array(sim.actuators.state)
+        rows_n[-1] += 1
+        if keep_truth:
+            truth_t.append(t)
+            truth_x.append(x_true)
+    U = np.array(rows_u) / np.array(rows_n)[:, None]
+    rec = IdRecord(np.array(rows_t), U, np.array(rows_y), source=f"sim:{experiment.name}")
+    return SimulatedRun(rec, np.array(truth_t), np.array(truth_x).reshape(-1, 6), bias)
+
+
+def load_params(path: str | None) -> VesselParameters:
+    if not path:
+        return DEFAULT_PARAMETERS
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from exc
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{path}: invalid JSON: {exc}") from exc
+    return VesselParameters.from_dict(data, source=str(path))
+
+
+def parse_area(text: str) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ConfigError(f"--area {text!r}: expected NORTHxEAST in metres, e.g. 30x30") from None
+    if a <= 2 or b <= 2:
+        raise ConfigError(f"--area {text!r}: both sizes must exceed 2 m")
+    return a, b
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    exp = load_experiment(args.experiment)
+    if not args.sim:
+        raise LotsenError("experiments on the real boat run through `lotsen run --hardware` (drivers work, not "
+                          "available yet); use --sim to run this experiment on the simulated boat")
+    model = VesselModel(load_params(args.params))
+    check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
+                     margin_m=args.margin)
+    run = run_on_simulator(exp, model, seed=args.seed, psi_noise_rad=args.psi_noise)
+    save_csv(run.record, args.out)
+    print(f"{args.out}: {len(run.record.t)} rows, {exp.duration_s:.1f} s of '{exp.name}' on the simulator "
+          f"(gyro bias estimate {run.gyro_bias_estimate_radps:+.4f} rad/s)", file=sys.stderr)
+    return 0
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    exp = load_experiment(args.experiment)
+    pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin)
+    print(f"{args.experiment}: OK ({exp.duration_s:.1f} s, predicted north {pred.x[:, 0].min():.1f}..{pred.x[:, 0].max():.1f} m, "
+          f"east {pred.x[:, 1].min():.1f}..{pred.x[:, 1].max():.1f} m, inside the area)")
+    return 0
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    import yaml
+
+    from lotsen.sysid.design import DesignConfig, design_experiment
+
+    size = parse_area(args.area)
+    params = load_params(args.params)
+    cfg = DesignConfig(duration_s=args.duration, area_size_m=size, segment_s=args.segment,
+                       criterion=args.criterion, seed=args.seed, iterations=args.iterations,
+                       fixed=tuple(args.fixed.split(",")) if args.fixed else DesignConfig().fixed)
+    from tqdm import tqdm
+
+    bar = tqdm(total=cfg.iterations, file=sys.stderr, desc="design", unit="it")
+    result = design_experiment(params, cfg, progress=lambda i, v: (bar.update(1), bar.set_postfix(J=f"{v:.3g}")))
+    bar.close()
+    check_experiment(result.experiment, VesselModel(params), margin_m=0.0)
+    from lotsen.sysid.experiment import experiment_to_dict
+
+    Path(args.out).write_text(yaml.safe_dump(experiment_to_dict(result.experiment), sort_keys=False, width=120))
+    print(f"{args.out}: {result.summary()}", file=sys.stderr)
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser("experiment", help="identification experiments: run, check, design")
+    sub = p.add_subparsers(dest="experiment_command", required=True)
+    r = sub.add_parser("run", help="run an experiment YAML on the simulator (--sim) and write the data CSV")
+    r.add_argument("experiment")
+    r.add_argument("--sim", action="store_true", help="run on the simulated boat (hardware: lotsen run --hardware)")
+    r.add_argument("--out", required=True, help="output CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r)")
+    r.add_argument("--params", help="vessel parameters JSON of the simulated boat (default: the defaults)")
+    r.add_argument("--model-params", help="parameters of the model used for the area check (default: --params)")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--psi-noise", type=float, default=0.01, help="heading noise std, rad (default 0.01)")
+    r.add_argument("--margin", type=float, default=1.0, help="area safety margin in metres (default 1)")
+    r.set_defaults(func=_cmd_run)
+    c = sub.add_parser("check", help="check limits and the predicted area of an experiment")
+    c.add_argument("experiment")
+    c.add_argument("--params", help="vessel parameters JSON for the prediction")
+    c.add_argument("--margin", type=float, default=1.0)
+    c.set_defaults(func=_cmd_check)
+    d = sub.add_parser("design", help="optimise an experiment's inputs for the Fisher information")
+    d.add_argument("--duration", type=float, default=60.0, help="experiment length, s")
+    d.add_argument("--area", default="30x30", help="allowed area NORTHxEAST in metres, centred on the start")
+    d.add_argument("--out", required=True)
+    d.add_argument("--params", help="current parameter estimate JSON (default: the defaults)")
+    d.add_argument("--segment", type=float, default=3.0, help="length of each piecewise-constant input level, s")
+    d.add_argument("--criterion", choices=("A", "D"), default="A",
+                   help="A: minimise the sum of relative variances; D: maximise log det of the relative FIM")
+    d.add_argument("--iterations", type=int, default=40)
+    d.add_argument("--fixed", help="comma-separated parameters treated as known (default: m11,kappa,... see docs)")
+    d.add_argument("--seed", type=int, default=0)
+    d.set_defaults(func=_cmd_design)

@@ -1,0 +1,426 @@
+"""Identification experiments: input sequences from YAML, as pure input generators.
+
+An `Experiment` is a list of pieces (constant, steps, ramp, zigzag, turning circle, PRBS,
+multisine, piecewise-constant) run one after another. `InputGenerator(experiment).command(t,
+measured_state)` returns the set-points u = [alpha1, alpha2, n1, n2, nt] (rad, rev/s) at time t
+since the start; only the zigzag reads the measured heading. The same object drives the simulator
+(`lotsen experiment run --sim`) and, later, the real boat through the runtime.
+
+Before any run, `check_experiment` verifies actuator limits and predicts the trajectory with the
+current model (`predict_trajectory`) to confirm it stays inside the experiment's area.
+The YAML schema is documented in docs/sysid.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from lotsen.errors import ConfigError
+from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, rk4_step
+
+CHANNELS = ("alpha1", "alpha2", "n1", "n2", "nt")
+# YAML keys -> (channels, factor to SI): angles in degrees in files, radians inside
+_KEYS = {
+    "alpha_deg": ((0, 1), math.pi / 180), "alpha1_deg": ((0,), math.pi / 180),
+    "alpha2_deg": ((1,), math.pi / 180), "n_rps": ((2, 3), 1.0), "n1_rps": ((2,), 1.0),
+    "n2_rps": ((3,), 1.0), "nt_rps": ((4,), 1.0),
+}
+PIECE_TYPES = ("constant", "steps", "ramp", "zigzag", "turning_circle", "prbs", "multisine", "piecewise")
+
+
+@dataclass(frozen=True)
+class Area:
+    """Allowed rectangle in the local NED frame (the run starts at the start position)."""
+
+    north_m: tuple[float, float] = (-15.0, 15.0)
+    east_m: tuple[float, float] = (-15.0, 15.0)
+
+    def contains(self, north: float, east: float, margin_m: float = 0.0) -> bool:
+        return (self.north_m[0] + margin_m <= north <= self.north_m[1] - margin_m
+                and self.east_m[0] + margin_m <= east <= self.east_m[1] - margin_m)
+
+    @classmethod
+    def centred(cls, size_north_m: float, size_east_m: float) -> "Area":
+        return cls((-size_north_m / 2, size_north_m / 2), (-size_east_m / 2, size_east_m / 2))
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One piece of an experiment. `params` holds the validated, SI-converted settings."""
+
+    kind: str
+    duration_s: float
+    params: dict[str, Any] = field(default_factory=dict)
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Experiment:
+    name: str
+    pieces: tuple[Piece, ...]
+    area: Area = Area()
+    start_heading_rad: float = 0.0
+    start_speed_mps: float = 0.0
+    command_rate_hz: float = 20.0
+    description: str = ""
+
+    @property
+    def duration_s(self) -> float:
+        return float(sum(p.duration_s for p in self.pieces))
+
+
+# ----------------------------------------------------------------------------------------------
+# parsing (pure: from a mapping; `load_experiment` reads the file)
+
+def _num(d: Mapping[str, Any], key: str, where: str, default: float | None = None) -> float:
+    if key not in d:
+        if default is None:
+            raise ConfigError(f"{where}: missing '{key}'")
+        return default
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ConfigError(f"{where}: '{key}' = {v!r} is not a finite number")
+    return float(v)
+
+
+def _levels(d: Mapping[str, Any], where: str, base: Sequence[float] | None = None) -> np.ndarray:
+    """An input vector from keys alpha_deg / alpha1_deg / ... / nt_rps (missing: base or 0)."""
+    u = np.array(base if base is not None else [0.0] * 5, dtype=float)
+    for key, value in d.items():
+        if key not in _KEYS:
+            continue
+        chans, k = _KEYS[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(f"{where}: '{key}' = {value!r} is not a finite number")
+        for c in chans:
+            u[c] = float(value) * k
+    return u
+
+
+def _channel(name: Any, where: str) -> tuple[tuple[int, ...], float]:
+    key = str(name)
+    if key not in _KEYS:
+        raise ConfigError(f"{where}: unknown input channel {key!r} (one of {', '.join(_KEYS)})")
+    return _KEYS[key]
+
+
+def parse_piece(d: Mapping[str, Any], where: str) -> Piece:
+    if not isinstance(d, Mapping):
+        raise ConfigError(f"{where}: expected a mapping with 'type' and 'duration_s'")
+    kind = d.get("type")
+    if kind not in PIECE_TYPES:
+        raise ConfigError(f"{where}: unknown type {kind!r} (one of {', '.join(PIECE_TYPES)})")
+    where = f"{where} ({kind})"
+    label = str(d.get("label", kind))
+    p: dict[str, Any] = {}
+    if kind == "steps":
+        levels = d.get("levels")
+        if not isinstance(levels, list) or not levels:
+            raise ConfigError(f"{where}: 'levels' must be a non-empty list of input settings")
+        step_s = _num(d, "step_duration_s", where)
+        p["levels"] = [_levels(lv, f"{where} level {i + 1}") for i, lv in enumerate(levels)]
+        p["step_s"] = step_s
+        duration = step_s * len(levels)
+    else:
+        duration = _num(d, "duration_s", where)
+    if duration <= 0:
+        raise ConfigError(f"{where}: duration must be positive")
+    if kind == "constant":
+        p["u"] = _levels(d, where)
+    elif kind == "ramp":
+        for k in ("from", "to"):
+            if not isinstance(d.get(k), Mapping):
+                raise ConfigError(f"{where}: '{k}' must be a mapping of input settings")
+        p["u0"] = _levels(d["from"], f"{where} from")
+        p["u1"] = _levels(d["to"], f"{where} to")
+    elif kind == "zigzag":
+        p["alpha"] = math.radians(_num(d, "alpha_deg", where))
+        p["heading"] = math.radians(_num(d, "heading_deg", where))
+        p["n"] = _num(d, "n_rps", where)
+        if p["heading"] <= 0 or p["alpha"] <= 0:
+            raise ConfigError(f"{where}: alpha_deg and heading_deg must be positive")
+    elif kind == "turning_circle":
+        direction = d.get("direction", "starboard")
+        if direction not in ("starboard", "port"):
+            raise ConfigError(f"{where}: direction must be 'starboard' or 'port'")
+        a = math.radians(abs(_num(d, "alpha_deg", where)))
+        # alpha > 0 yaws the bow to port (thrust at the stern to starboard): starboard turn = -alpha
+        p["u"] = np.array([-a if direction == "starboard" else a] * 2 + [_num(d, "n_rps", where)] * 2 + [0.0])
+        p["u"][4] = _num(d, "nt_rps", where, 0.0)
+    elif kind in ("prbs", "multisine"):
+        base = d.get("base", {})
+        if not isinstance(base, Mapping):
+            raise ConfigError(f"{where}: 'base' must be a mapping of input settings")
+        p["base"] = _levels(base, f"{where} base")
+        amps = d.get("amplitude")
+        if not isinstance(amps, Mapping) or not amps:
+            raise ConfigError(f"{where}: 'amplitude' must map channels (e.g. nt_rps) to amplitudes")
+        p["amp"] = _levels(amps, f"{where} amplitude", [0.0] * 5)
+        seed = int(d.get("seed", 0))
+        rng = np.random.default_rng(seed)
+        if kind == "prbs":
+            bit = _num(d, "bit_s", where)
+            if bit <= 0:
+                raise ConfigError(f"{where}: bit_s must be positive")
+            nbits = int(math.ceil(duration / bit))
+            p["bit_s"] = bit
+            p["bits"] = rng.choice([-1.0, 1.0], size=(nbits, 5))
+        else:
+            f_lo, f_hi = _num(d, "f_min_hz", where), _num(d, "f_max_hz", where)
+            nf = int(_num(d, "n_freq", where, 6))
+            if not 0 < f_lo <= f_hi or nf < 1:
+                raise ConfigError(f"{where}: need 0 < f_min_hz <= f_max_hz and n_freq >= 1")
+            freqs = np.linspace(f_lo, f_hi, nf)
+            # Schroeder phases per channel (low crest factor), shifted per channel by the seed
+            k = np.arange(1, nf + 1)
+            ph = -np.pi * k * (k - 1) / nf
+            p["freqs"] = freqs
+            p["phases"] = ph[None, :] + rng.uniform(0, 2 * np.pi, size=(5, 1))
+            p["norm"] = 1.0 / math.sqrt(nf / 2.0)  # unit RMS per channel, peaks ~1.4-1.7
+    elif kind == "piecewise":
+        seg = _num(d, "segment_s", where)
+        values = d.get("values")
+        if not isinstance(values, Mapping) or not values:
+            raise ConfigError(f"{where}: 'values' must map channels to lists of levels")
+        nseg = int(math.ceil(duration / seg - 1e-9))
+        table = np.zeros((nseg, 5))
+        for key, lst in values.items():
+            chans, k = _channel(key, where)
+            if not isinstance(lst, list) or len(lst) != nseg:
+                raise ConfigError(f"{where}: '{key}' needs {nseg} levels (duration / segment_s), got "
+                                  f"{len(lst) if isinstance(lst, list) else lst!r}")
+            for c in chans:
+                table[:, c] = [_num({"v": v}, "v", f"{where} {key}[{i}]") * k for i, v in enumerate(lst)]
+        p["segment_s"] = seg
+        p["table"] = table
+    return Piece(kind, duration, p, label)
+
+
+def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Experiment:
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: expected a mapping with 'name' and 'pieces'")
+    pieces_raw = data.get("pieces")
+    if not isinstance(pieces_raw, list) or not pieces_raw:
+        raise ConfigError(f"{source}: 'pieces' must be a non-empty list")
+    pieces = tuple(parse_piece(pd, f"{source}: piece {i + 1}") for i, pd in enumerate(pieces_raw))
+    area = Area()
+    if "area" in data:
+        a = data["area"]
+        if isinstance(a, Mapping) and "size_m" in a:
+            s = a["size_m"]
+            if not (isinstance(s, list) and len(s) == 2):
+                raise ConfigError(f"{source}: area.size_m must be [north_size, east_size]")
+            area = Area.centred(float(s[0]), float(s[1]))
+        elif isinstance(a, Mapping) and "north_m" in a and "east_m" in a:
+            area = Area(tuple(map(float, a["north_m"])), tuple(map(float, a["east_m"])))  # type: ignore[arg-type]
+        else:
+            raise ConfigError(f"{source}: area must have size_m: [n, e] or north_m: [lo, hi], east_m: [lo, hi]")
+        if not (area.north_m[0] < 0 < area.north_m[1] and area.east_m[0] < 0 < area.east_m[1]):
+            raise ConfigError(f"{source}: the start position (0, 0) must lie inside the area")
+    start = data.get("start", {}) or {}
+    rate = float(data.get("command_rate_hz", 20.0))
+    if rate <= 0:
+        raise ConfigError(f"{source}: command_rate_hz must be positive")
+    return Experiment(str(data.get("name", Path(source).stem)), pieces, area,
+                      math.radians(_num(start, "heading_deg", f"{source}: start", 0.0)),
+                      _num(start, "speed_mps", f"{source}: start", 0.0), rate,
+                      str(data.get("description", "")))
+
+
+def load_experiment(path: str | Path) -> Experiment:
+    import yaml
+
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: invalid YAML: {exc}") from exc
+    return parse_experiment(data, str(path))
+
+
+# ----------------------------------------------------------------------------------------------
+# the input generator
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class InputGenerator:
+    """u = command(t, measured_state): the experiment's set-points at time t (s since start).
+
+    `measured_state` is anything with a heading: a sequence [N, E, psi, ...] or an object with
+    `heading_rad`. Only zigzag pieces use it (heading trigger); the generator keeps that
+    switching state, so calls must come in increasing t (as a control loop makes them).
+    """
+
+    def __init__(self, experiment: Experiment) -> None:
+        self.experiment = experiment
+        self._starts = np.cumsum([0.0] + [p.duration_s for p in experiment.pieces])
+        self._zz_piece = -1
+        self._zz_ref = 0.0
+        self._zz_sign = -1.0
+
+    def piece_at(self, t: float) -> int:
+        i = int(np.searchsorted(self._starts, t, side="right") - 1)
+        return min(max(i, 0), len(self.experiment.pieces) - 1)
+
+    @property
+    def duration_s(self) -> float:
+        return self.experiment.duration_s
+
+    def command(self, t: float, measured_state: Any = None) -> tuple[float, float, float, float, float]:
+        if t >= self._starts[-1]:
+            return (0.0, 0.0, 0.0, 0.0, 0.0)
+        i = self.piece_at(t)
+        piece = self.experiment.pieces[i]
+        tau = t - self._starts[i]
+        p = piece.params
+        k = piece.kind
+        if k in ("constant", "turning_circle"):
+            u = p["u"]
+        elif k == "steps":
+            u = p["levels"][min(int(tau / p["step_s"]), len(p["levels"]) - 1)]
+        elif k == "ramp":
+            s = tau / piece.duration_s
+            u = (1 - s) * p["u0"] + s * p["u1"]
+        elif k == "piecewise":
+            u = p["table"][min(int(tau / p["segment_s"]), len(p["table"]) - 1)]
+        elif k == "prbs":
+            u = p["base"] + p["amp"] * p["bits"][min(int(tau / p["bit_s"]), len(p["bits"]) - 1)]
+        elif k == "multisine":
+            s = np.sin(2 * np.pi * p["freqs"][None, :] * tau + p["phases"]).sum(axis=1) * p["norm"]
+            u = p["base"] + p["amp"] * s
+        elif k == "zigzag":
+            psi = _heading(measured_state)
+            if self._zz_piece != i:  # first call in this piece: start turning to starboard
+                self._zz_piece, self._zz_ref, self._zz_sign = i, psi, -1.0
+            dev = _wrap(psi - self._zz_ref)
+            if self._zz_sign < 0 and dev >= p["heading"]:
+                self._zz_sign = 1.0
+            elif self._zz_sign > 0 and dev <= -p["heading"]:
+                self._zz_sign = -1.0
+            a = self._zz_sign * p["alpha"]
+            u = np.array([a, a, p["n"], p["n"], 0.0])
+        else:  # pragma: no cover - parse_piece rejects unknown kinds
+            raise ConfigError(f"unknown piece type {k}")
+        return tuple(float(v) for v in u)  # type: ignore[return-value]
+
+
+def _heading(state: Any) -> float:
+    if state is None:
+        raise ConfigError("a zigzag piece needs the measured heading (measured_state)")
+    if hasattr(state, "heading_rad"):
+        return float(state.heading_rad)
+    return float(state[2])
+
+
+# ----------------------------------------------------------------------------------------------
+# checks before a run
+
+def check_limits(experiment: Experiment, limits: ActuatorLimits = DEFAULT_LIMITS, dt_s: float = 0.05) -> list[str]:
+    """Set-points outside the actuator limits, as messages naming piece, channel and time."""
+    gen = InputGenerator(experiment)
+    lim = np.array([limits.alpha_max_rad] * 2 + [limits.n_az_max_rps] * 2 + [limits.n_bow_max_rps])
+    problems: list[str] = []
+    seen: set[tuple[int, int]] = set()
+    for t in np.arange(0.0, experiment.duration_s, dt_s):
+        i = gen.piece_at(t)
+        u = np.array(gen.command(t, (0.0, 0.0, experiment.start_heading_rad)))
+        for c in np.where(np.abs(u) > lim * (1 + 1e-9))[0]:
+            if (i, c) in seen:
+                continue
+            seen.add((i, c))
+            shown = math.degrees(u[c]) if c < 2 else u[c]
+            shown_lim = math.degrees(lim[c]) if c < 2 else lim[c]
+            unit = "deg" if c < 2 else "rev/s"
+            problems.append(f"piece {i + 1} ({experiment.pieces[i].label}): {CHANNELS[c]} = {shown:.1f} {unit} "
+                            f"at t = {t:.2f} s exceeds the limit {shown_lim:.0f} {unit}")
+    return problems
+
+
+@dataclass
+class Prediction:
+    t: np.ndarray
+    x: np.ndarray  # K x 6
+    u: np.ndarray  # K x 5 set-points
+
+
+def predict_trajectory(experiment: Experiment, model: VesselModel | None = None, dt_s: float = 0.05) -> Prediction:
+    """The model's prediction of the run (set-points applied directly; no noise, calm water)."""
+    model = model or VesselModel()
+    gen = InputGenerator(experiment)
+    n = int(math.ceil(experiment.duration_s / dt_s))
+    x = (0.0, 0.0, experiment.start_heading_rad, experiment.start_speed_mps, 0.0, 0.0)
+    ts = np.arange(n + 1) * dt_s
+    X = np.empty((n + 1, 6))
+    U = np.empty((n + 1, 5))
+    X[0] = x
+    for k in range(n):
+        u = gen.command(ts[k], x)
+        U[k] = u
+        x, _ = rk4_step(x, u, model.theta, model.geom, 0.0, 0.0, 0.0, 0.0, 0.0, dt_s)
+        X[k + 1] = x
+        if not math.isfinite(sum(x)):
+            break
+    U[n] = U[n - 1] if n else 0.0
+    return Prediction(ts, X, U)
+
+
+def check_experiment(experiment: Experiment, model: VesselModel | None = None,
+                     limits: ActuatorLimits = DEFAULT_LIMITS, margin_m: float = 1.0) -> Prediction:
+    """Refuse (ConfigError) an experiment that exceeds actuator limits or is predicted to leave its area."""
+    problems = check_limits(experiment, limits)
+    if problems:
+        raise ConfigError(f"experiment '{experiment.name}' exceeds actuator limits:\n  " + "\n  ".join(problems))
+    pred = predict_trajectory(experiment, model)
+    a = experiment.area
+    inside = ((pred.x[:, 0] >= a.north_m[0] + margin_m) & (pred.x[:, 0] <= a.north_m[1] - margin_m)
+              & (pred.x[:, 1] >= a.east_m[0] + margin_m) & (pred.x[:, 1] <= a.east_m[1] - margin_m)
+              & np.isfinite(pred.x).all(axis=1))
+    if not inside.all():
+        k = int(np.argmin(inside))
+        i = InputGenerator(experiment).piece_at(pred.t[k])
+        raise ConfigError(
+            f"experiment '{experiment.name}' is predicted to leave its area (north {a.north_m[0]:g}..{a.north_m[1]:g} m, "
+            f"east {a.east_m[0]:g}..{a.east_m[1]:g} m, {margin_m:g} m margin): at t = {pred.t[k]:.1f} s in piece "
+            f"{i + 1} ({experiment.pieces[i].label}) the predicted position is north {pred.x[k, 0]:.1f} m, "
+            f"east {pred.x[k, 1]:.1f} m. Shorten the pieces, lower the speed or enlarge the area.")
+    return pred
+
+
+def experiment_to_dict(experiment: Experiment) -> dict[str, Any]:
+    """YAML-ready mapping of an experiment made of constant/piecewise/steps pieces (design output)."""
+    pieces = []
+    for p in experiment.pieces:
+        if p.kind == "piecewise":
+            tab = p.params["table"]
+            vals = {"alpha1_deg": [round(math.degrees(v), 2) for v in tab[:, 0]],
+                    "alpha2_deg": [round(math.degrees(v), 2) for v in tab[:, 1]],
+                    "n1_rps": [round(float(v), 2) for v in tab[:, 2]],
+                    "n2_rps": [round(float(v), 2) for v in tab[:, 3]],
+                    "nt_rps": [round(float(v), 2) for v in tab[:, 4]]}
+            pieces.append({"type": "piecewise", "label": p.label, "duration_s": round(p.duration_s, 3),
+                           "segment_s": p.params["segment_s"], "values": vals})
+        elif p.kind == "constant":
+            u = p.params["u"]
+            pieces.append({"type": "constant", "label": p.label, "duration_s": round(p.duration_s, 3),
+                           "alpha1_deg": round(math.degrees(u[0]), 2), "alpha2_deg": round(math.degrees(u[1]), 2),
+                           "n1_rps": round(float(u[2]), 2), "n2_rps": round(float(u[3]), 2),
+                           "nt_rps": round(float(u[4]), 2)})
+        else:
+            raise ConfigError(f"cannot write piece type {p.kind} back to YAML")
+    a = experiment.area
+    return {"name": experiment.name, "description": experiment.description,
+            "area": {"north_m": list(a.north_m), "east_m": list(a.east_m)},
+            "start": {"heading_deg": round(math.degrees(experiment.start_heading_rad), 3),
+                      "speed_mps": experiment.start_speed_mps},
+            "command_rate_hz": experiment.command_rate_hz, "pieces": pieces}

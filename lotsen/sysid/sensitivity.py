@@ -1,0 +1,165 @@
+"""Simulation of the grey-box model over identification windows, with forward sensitivities.
+
+The model equations come from `lotsen.model.symbolic_rhs` (the very code the simulator runs,
+re-bound to CasADi), integrated by classical RK4 with inputs held between samples. One CasADi
+step function propagates the state and its sensitivity
+
+    S = d x / d [x0 (6), theta (18)],   S_{j+1} = dPhi/dx S_j + [0, dPhi/dtheta]
+
+and `mapaccum` runs it over all steps of all windows in one call (a reset flag at each window
+start loads the window's initial state and S = [I, 0]). When a C compiler is available the step
+function is JIT-compiled (about 3 s once per process, then ~5 us per step including the 6 x 24
+sensitivity; the CasADi virtual machine needs ~50 us).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, geometry_tuple, symbolic_rhs
+from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment
+
+NTHETA = 18
+NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
+
+_FUNCTION_CACHE: dict[tuple, tuple[Any, Any]] = {}
+
+
+def _build_step_functions(geom: tuple[float, ...], jit: bool) -> tuple[Any, Any]:
+    import casadi as ca
+
+    key = (geom, jit)
+    if key in _FUNCTION_CACHE:
+        return _FUNCTION_CACHE[key]
+    f = symbolic_rhs(ca)
+    x = ca.SX.sym("x", 6)
+    u = ca.SX.sym("u", 5)
+    th = ca.SX.sym("theta", NTHETA)
+    h = ca.SX.sym("h")
+    rho = ca.SX.sym("reset")
+    xr = ca.SX.sym("xr", 6)
+    S = ca.SX.sym("S", 6, NS)
+    ul, thl = ca.vertsplit(u), ca.vertsplit(th)
+
+    def rhs(xx: Any) -> Any:
+        return ca.vertcat(*f(ca.vertsplit(xx), ul, thl, geom))
+
+    k1 = rhs(x)
+    k2 = rhs(x + h / 2 * k1)
+    k3 = rhs(x + h / 2 * k2)
+    k4 = rhs(x + h * k3)
+    xn = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)  # classical RK4, input held
+    phi = ca.Function("phi", [x, u, th, h], [xn, ca.jacobian(xn, x), ca.jacobian(xn, th)])
+    xs = (1 - rho) * x + rho * xr  # window start: load the initial state
+    xn_s, Jx_s, Jt_s = phi(xs, u, th, h)
+    S0 = ca.horzcat(ca.SX.eye(6), ca.SX.zeros(6, NTHETA))
+    Ss = (1 - rho) * S + rho * S0
+    Sn = ca.mtimes(Jx_s, Ss) + ca.horzcat(ca.SX.zeros(6, 6), Jt_s)
+    xn = xn_s
+    opts: dict[str, Any] = {}
+    if jit:
+        # compile in the temp directory, not the caller's working directory
+        opts = dict(jit=True, compiler="shell", jit_options=dict(flags=["-O1"], verbose=False,
+                                                                 directory=tempfile.gettempdir() + os.sep))
+    step_sens = ca.Function("step_sens", [x, S, u, th, h, rho, xr], [xn, Sn], opts)
+    step = ca.Function("step", [x, u, th, h, rho, xr], [xn], opts)
+    _FUNCTION_CACHE[key] = (step, step_sens)
+    return step, step_sens
+
+
+def jit_available() -> bool:
+    return shutil.which("gcc") is not None or shutil.which("cc") is not None
+
+
+@dataclass
+class StepGrid:
+    """All integration steps of a list of windows, flattened.
+
+    Step j integrates over h[j] with input U[:, j]; `reset[j]` = 1 marks a window's first
+    (zero-length) step, which loads that window's initial state. `sample_step[i]` is the step after
+    which sample i (global numbering over windows) is reached; `window_of_sample[i]` its window.
+    """
+
+    h: np.ndarray
+    U: np.ndarray
+    reset: np.ndarray
+    window_start_step: np.ndarray
+    sample_step: np.ndarray
+    window_of_sample: np.ndarray
+    n_windows: int
+
+
+def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
+    hs: list[float] = []
+    us: list[np.ndarray] = []
+    reset: list[float] = []
+    wstart: list[int] = []
+    sstep: list[int] = []
+    wos: list[int] = []
+    for w, seg in enumerate(windows):
+        wstart.append(len(hs))
+        hs.append(0.0)
+        us.append(seg.inputs[0])
+        reset.append(1.0)
+        sstep.append(len(hs) - 1)
+        wos.append(w)
+        for k in range(len(seg.t) - 1):
+            dt = float(seg.t[k + 1] - seg.t[k])
+            m = max(1, int(math.ceil(dt / h_max - 1e-9)))
+            for _ in range(m):
+                hs.append(dt / m)
+                us.append(seg.inputs[k])
+                reset.append(0.0)
+            sstep.append(len(hs) - 1)
+            wos.append(w)
+    return StepGrid(np.array(hs), np.array(us).T.copy(), np.array(reset), np.array(wstart),
+                    np.array(sstep), np.array(wos), len(windows))
+
+
+class WindowSimulator:
+    """Simulate windows for a theta and initial states; optionally with sensitivities."""
+
+    def __init__(self, windows: Sequence[Segment], geometry: VesselGeometry = DEFAULT_GEOMETRY,
+                 h_max: float = 0.0625, jit: bool | None = None) -> None:
+        self.windows = list(windows)
+        self.geom = geometry_tuple(geometry)
+        self.grid = make_grid(self.windows, h_max)
+        use_jit = jit_available() if jit is None else jit
+        self._step, self._step_sens = _build_step_functions(self.geom, use_jit)
+        n = len(self.grid.h)
+        self._sim = self._step.mapaccum("sim", n, [0], [0])
+        self._sim_sens = self._step_sens.mapaccum("sim_sens", n, [0, 1], [0, 1])
+        self.n_steps = n
+
+    def _xr(self, x0s: np.ndarray) -> np.ndarray:
+        XR = np.zeros((6, self.n_steps))
+        XR[:, self.grid.window_start_step] = np.asarray(x0s, dtype=float).T
+        return XR
+
+    def simulate(self, theta: Sequence[float], x0s: np.ndarray) -> np.ndarray:
+        """States at every sample (n_samples x 6), windows concatenated."""
+        g = self.grid
+        X = self._sim(np.zeros(6), g.U, np.asarray(theta, float), g.h[None, :], g.reset[None, :],
+                      self._xr(x0s))
+        X = np.asarray(X)
+        return X[:, g.sample_step].T
+
+    def simulate_sens(self, theta: Sequence[float], x0s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (n_samples x 6) and sensitivities (n_samples x 6 x 24: d x / d[x0_window, theta])."""
+        g = self.grid
+        X, S = self._sim_sens(np.zeros(6), np.zeros((6, NS)), g.U, np.asarray(theta, float),
+                              g.h[None, :], g.reset[None, :], self._xr(x0s))
+        X = np.asarray(X)[:, g.sample_step].T
+        S = np.asarray(S).reshape(6, self.n_steps, NS)[:, g.sample_step, :].transpose(1, 0, 2)
+        return X, S
+
+    def output_index(self) -> list[int]:
+        names = self.windows[0].output_names
+        return [OUTPUT_STATE_INDEX[n] for n in names]

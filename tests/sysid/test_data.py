@@ -1,0 +1,71 @@
+import math
+
+import numpy as np
+import pytest
+
+from lotsen.errors import DataError
+from lotsen.sysid.data import IdRecord, load_csv, load_record, save_csv, split_segments, split_windows
+
+HEADER = "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r\n"
+
+
+def _write(tmp_path, text, name="d.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_round_trip_with_nan(tmp_path):
+    t = np.arange(10) * 0.125
+    y = np.random.default_rng(0).normal(size=(10, 4))
+    y[3] = np.nan
+    rec = IdRecord(t, np.ones((10, 5)), y)
+    save_csv(rec, tmp_path / "r.csv")
+    back = load_record(tmp_path / "r.csv")
+    assert np.allclose(back.t, t)
+    assert np.isnan(back.outputs[3]).all()
+    assert np.allclose(back.outputs[4:], y[4:])
+
+
+def test_optional_uv_columns(tmp_path):
+    p = _write(tmp_path, "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r,u,v\n0,0,0,1,1,0,0,0,0,0,0.5,0\n"
+                         "0.1,0,0,1,1,0,0.05,0,0,0,0.5,0\n")
+    rec = load_csv(p)
+    assert rec.output_names == ("north", "east", "psi", "r", "u", "v")
+
+
+@pytest.mark.parametrize("body, row, what", [
+    ("0,0,0,0,0,0,0,0,0,0\n0.1,0,0,abc,0,0,0,0,0,0\n", 3, "n1"),
+    ("0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0,0\n", 3, "not after"),
+    ("0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0\n", 3, "fields"),
+    ("0,0,0,0,0,0,0,0,0,0\n,0,0,0,0,0,0,0,0,0\n", 3, "time"),
+])
+def test_malformed_rows_name_file_and_row(tmp_path, body, row, what):
+    p = _write(tmp_path, HEADER + body)
+    with pytest.raises(DataError) as e:
+        load_csv(p)
+    msg = str(e.value)
+    assert str(p) in msg and f"row {row}" in msg and what in msg
+
+
+def test_missing_column_and_unknown_suffix(tmp_path):
+    with pytest.raises(DataError, match="missing column.*psi"):
+        load_csv(_write(tmp_path, "t,alpha1,alpha2,n1,n2,nt,north,east,r\n0,0,0,0,0,0,0,0,0\n"))
+    with pytest.raises(DataError, match="unsupported"):
+        load_record(tmp_path / "x.bag")
+
+
+def test_gaps_split_segments_and_inputs_are_held():
+    t = np.concatenate([np.arange(20) * 0.1, 5.0 + np.arange(20) * 0.1])
+    u = np.ones((40, 5))
+    u[5, 2] = np.nan  # held from the previous row
+    u[20, :] = np.nan  # first row of the second segment: no previous value -> 0
+    y = np.zeros((40, 4))
+    segs = split_segments(IdRecord(t, u, y), gap_s=1.0)
+    assert len(segs) == 2
+    assert segs[0].inputs[5, 2] == 1.0
+    assert np.all(segs[1].inputs[0] == 0.0) and segs[1].first_row == 20
+    wins = split_windows(segs, 0.5)
+    assert all(w.duration_s <= 0.5 + 1e-9 for w in wins)
+    assert sum(len(w.t) for w in wins) == 40
+    assert not math.isnan(wins[0].inputs.sum())

@@ -1,0 +1,34 @@
+import numpy as np
+
+from lotsen.model import DEFAULT_PARAMETERS
+from lotsen.sysid.design import DesignConfig, design_experiment, time_to_accuracy
+from lotsen.sysid.estimate import NAMES
+from lotsen.sysid.experiment import InputGenerator, check_experiment
+from lotsen.sysid.multiple import estimate_multiple_shooting
+
+
+def test_time_to_accuracy_scales_with_variance():
+    assert time_to_accuracy(np.array([0.05 / 1.96]), 60.0) == 60.0
+    assert abs(time_to_accuracy(np.array([0.1 / 1.96, 0.01]), 60.0) - 240.0) < 1e-9
+
+
+def test_design_improves_information_and_respects_limits_and_area():
+    cfg = DesignConfig(duration_s=6.0, segment_s=2.0, iterations=3, area_size_m=(20.0, 20.0), seed=0)
+    res = design_experiment(DEFAULT_PARAMETERS, cfg)
+    assert res.history and res.history[-1] <= res.history[0] + 1e-12
+    check_experiment(res.experiment, margin_m=0.0)  # limits and area: raises otherwise
+    u = np.array([InputGenerator(res.experiment).command(t, None) for t in np.arange(0, 6, 0.1)])
+    assert np.all(np.abs(u[:, :2]) <= np.radians(45) + 1e-9) and np.all(np.abs(u[:, 2:4]) <= 100 + 1e-9)
+    assert np.all(np.isfinite(res.rel_std)) and len(res.free_names) == 12
+
+
+def test_multiple_shooting_recovers_a_few_parameters(short_run):
+    rec = short_run.record.slice(0.0, 12.0)
+    free = ("m22", "m33", "N_r", "mu_t")
+    fixed = {n: v for n, v in zip(NAMES, DEFAULT_PARAMETERS.to_vector()) if n not in free}
+    start = DEFAULT_PARAMETERS.with_updates(m22=30.0, m33=1.4, N_r=3.6, mu_t=0.0005)
+    res = estimate_multiple_shooting([rec], start, fixed, max_iterations=100)
+    assert res.method == "multiple" and res.converged
+    for n in free:
+        true = getattr(DEFAULT_PARAMETERS, n)
+        assert abs(getattr(res.params, n) - true) <= max(4 * res.std[n], 0.05 * abs(true)), n
