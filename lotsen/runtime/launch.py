@@ -89,7 +89,10 @@ def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | N
         stack.simulator = simulator_from_config(config, model)
         stack.add(SimulatedBoatNode(stack.simulator, command_deadline_s=config.nodes.command_deadline_s))
     else:
-        raise ConfigError("mode: hardware needs the drivers (lotsen.drivers); not available in this build")
+        from lotsen.drivers import add_hardware_boat, hardware_config_from_launch
+
+        add_hardware_boat(stack, emulated=bool(config.extra.get("emulated", False)),
+                          config=hardware_config_from_launch(config.extra))
     _load_builtin_parts()
     for name, adder in _ADDERS:
         if parts is None or name in parts:

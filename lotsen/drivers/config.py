@@ -1,0 +1,177 @@
+"""Hardware configuration: pin map, ports, buses, calibrations and gains of the real boat.
+
+Defaults follow the seed's pin map (SPEC-EN.md section 1, Table 2). Load it from the launch
+config's ``extra["hardware"]`` mapping with the project's strict loader::
+
+    from lotsen.runtime.config import from_mapping
+    hw = from_mapping(HardwareConfig, config.extra.get("hardware", {}), "extra.hardware")
+
+Every field is a plain number, text or list, so `deploy/hardware.yaml` documents all of them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+
+def _r(lo: float, hi: float) -> dict:
+    return {"range": (lo, hi)}
+
+
+@dataclass(frozen=True)
+class NtripSection:
+    """RTCM3 corrections from an NTRIP caster (rev 2 over plain TCP); off unless `enabled`."""
+
+    enabled: bool = False
+    host: str = ""
+    port: int = field(default=2101, metadata=_r(1, 65535))
+    mountpoint: str = ""
+    user: str = ""
+    password: str = ""
+    send_gga: bool = True  # VRS casters need the rover's position (GGA) every `gga_period_s`
+    gga_period_s: float = field(default=10.0, metadata=_r(1.0, 600.0))
+    reconnect_s: float = field(default=5.0, metadata=_r(0.5, 600.0))
+
+
+@dataclass(frozen=True)
+class GnssSection:
+    """u-blox ZED-F9P. The Pi reads UBX on the receiver's UART1 (seed: GPIO 0/1, Pi 4 uart2)
+    and writes RTCM3 to the receiver's UART2 (seed: GPIO 14/15, the Pi's primary UART)."""
+
+    enabled: bool = True
+    port: str = "/dev/ttyAMA1"  # Pi 4 uart2 on GPIO 0/1 (check `ls -l /dev/ttyAMA*`, see docs/drivers.md)
+    baudrate: int = field(default=115200, metadata=_r(9600, 921600))
+    rtcm_port: str = "/dev/serial0"  # primary UART on GPIO 14/15 -> receiver UART2 (RTCM3 in)
+    rtcm_baudrate: int = field(default=38400, metadata=_r(9600, 921600))
+    # corrections source: "ntrip" (caster over the network), "serial" (a radio modem on
+    # `base_port`), "bus" (RtcmData on the gps_rtk/rtcm_data topic) or "none"
+    rtcm_source: str = "bus"
+    base_port: str = ""
+    base_baudrate: int = field(default=57600, metadata=_r(1200, 921600))
+    receiver_output: Literal["UART1", "USB"] = "UART1"  # where the receiver sends NAV-PVT (port is the Pi's side)
+    rate_hz: float = field(default=8.0, metadata=_r(1.0, 20.0))  # CFG_RATE_MEAS = 1000 / rate_hz ms
+    configure: bool = True  # send UBX-CFG-VALSET at start (RAM + BBR layers)
+    poll_hz: float = field(default=25.0, metadata=_r(1.0, 200.0))  # synchronous mode: how often to read
+    correction_timeout_s: float = field(default=10.0, metadata=_r(1.0, 120.0))
+    ntrip: NtripSection = field(default_factory=NtripSection)
+
+
+@dataclass(frozen=True)
+class ImuSection:
+    """MPU9250 (accel/gyro) + AK8963 (magnetometer, through the I2C bypass) on I2C bus 1 (GPIO 2/3)."""
+
+    enabled: bool = True
+    bus: int = field(default=1, metadata=_r(0, 20))
+    address: int = field(default=0x68, metadata=_r(0x68, 0x69))  # AD0 low / high
+    mag_address: int = field(default=0x0C, metadata=_r(0x0C, 0x0F))
+    rate_hz: float = field(default=100.0, metadata=_r(1.0, 100.0))
+    mag_rate_hz: float = field(default=50.0, metadata=_r(1.0, 100.0))
+    gyro_range_dps: int = 500  # 250, 500, 1000 or 2000
+    accel_range_g: int = 4  # 2, 4, 8 or 16
+    dlpf_cfg: int = field(default=3, metadata=_r(0, 6))  # CONFIG DLPF: 3 = 41 Hz gyro bandwidth
+    # body axis i = sign * chip axis: "+x", "-y", ... for the MPU9250's accel/gyro frame.
+    # Default: chip face up, chip x forward -> body (x fwd, y stbd, z down) = (+x, -y, -z).
+    axes: tuple[str, str, str] = ("+x", "-y", "-z")
+
+
+@dataclass(frozen=True)
+class ServoCalibration:
+    """Steering servo: pulse = center_us + sign * angle_rad * us_per_rad, clipped to [min_us, max_us]."""
+
+    center_us: float = field(default=1500.0, metadata=_r(1000.0, 2000.0))
+    us_per_rad: float = field(default=500.0 / math.radians(45.0), metadata=_r(50.0, 3000.0))
+    sign: float = field(default=1.0, metadata=_r(-1.0, 1.0))
+    min_us: float = field(default=1000.0, metadata=_r(500.0, 2500.0))
+    max_us: float = field(default=2000.0, metadata=_r(500.0, 2500.0))
+
+
+@dataclass(frozen=True)
+class EscCalibration:
+    """Bidirectional ESC: 1500 us neutral, +-deadband_us dead, then linear up to max/min_us at
+    +-n_max_rps (n_max_reverse_rps backwards). `sign` flips a motor wired backwards."""
+
+    neutral_us: float = field(default=1500.0, metadata=_r(1000.0, 2000.0))
+    deadband_us: float = field(default=25.0, metadata=_r(0.0, 200.0))
+    max_us: float = field(default=2000.0, metadata=_r(1500.0, 2500.0))
+    min_us: float = field(default=1000.0, metadata=_r(500.0, 1500.0))
+    n_max_rps: float = field(default=100.0, metadata=_r(1.0, 1000.0))
+    n_max_reverse_rps: float = field(default=100.0, metadata=_r(1.0, 1000.0))
+    sign: float = field(default=1.0, metadata=_r(-1.0, 1.0))
+
+
+@dataclass(frozen=True)
+class SpeedLoopGains:
+    """Inner propeller-speed loop: n_out = n_ref + kp e + ki int(e), e = n_ref - n_measured."""
+
+    enabled: bool = True
+    kp: float = field(default=0.4, metadata=_r(0.0, 10.0))
+    ki_per_s: float = field(default=4.0, metadata=_r(0.0, 100.0))
+    integral_limit_rps: float = field(default=30.0, metadata=_r(0.0, 500.0))
+    min_speed_rps: float = field(default=2.0, metadata=_r(0.0, 50.0))  # below: neutral, integrator reset
+
+
+@dataclass(frozen=True)
+class ActuatorSection:
+    """ESCs, steering servos and tachometers on the Pi's GPIO through pigpio (seed Table 2)."""
+
+    enabled: bool = True
+    pigpio_host: str = "localhost"
+    pigpio_port: int = field(default=8888, metadata=_r(1, 65535))
+    esc_pins: tuple[int, int, int] = (16, 20, 21)  # thruster 1 (stbd), thruster 2 (port), bow
+    servo_pins: tuple[int, int] = (19, 26)  # thruster 1, thruster 2
+    tacho_pins: tuple[int, int, int] = (17, 27, 22)
+    pulses_per_rev: int = field(default=6, metadata=_r(1, 100))
+    tacho_timeout_s: float = field(default=0.5, metadata=_r(0.05, 5.0))  # no edge for this long: 0 rev/s
+    tacho_pull_up: bool = True
+    rate_hz: float = field(default=50.0, metadata=_r(5.0, 200.0))  # output and speed-loop rate
+    rpm_publish_hz: float = field(default=20.0, metadata=_r(1.0, 100.0))
+    arm_time_s: float = field(default=3.0, metadata=_r(0.0, 30.0))  # neutral this long before any thrust
+    esc: tuple[EscCalibration, EscCalibration, EscCalibration] = (
+        EscCalibration(), EscCalibration(), EscCalibration(n_max_rps=80.0, n_max_reverse_rps=80.0))
+    servo: tuple[ServoCalibration, ServoCalibration] = (ServoCalibration(), ServoCalibration())
+    speed_loop: SpeedLoopGains = field(default_factory=SpeedLoopGains)
+
+
+@dataclass(frozen=True)
+class BatterySection:
+    """INA219 on I2C: bus voltage and shunt current."""
+
+    enabled: bool = True
+    bus: int = field(default=1, metadata=_r(0, 20))
+    address: int = field(default=0x40, metadata=_r(0x40, 0x4F))
+    shunt_ohm: float = field(default=0.01, metadata=_r(0.0001, 10.0))
+    max_current_a: float = field(default=30.0, metadata=_r(0.1, 400.0))
+    rate_hz: float = field(default=2.0, metadata=_r(0.1, 50.0))
+    cells: int = field(default=3, metadata=_r(1, 12))
+    full_cell_v: float = field(default=4.2, metadata=_r(3.0, 4.5))
+    empty_cell_v: float = field(default=3.5, metadata=_r(2.5, 4.0))
+    warn_cell_v: float = field(default=3.6, metadata=_r(2.5, 4.2))  # LogEvent warning below
+    critical_cell_v: float = field(default=3.4, metadata=_r(2.5, 4.2))  # LogEvent error below
+    hysteresis_v: float = field(default=0.1, metadata=_r(0.0, 2.0))  # per pack, to clear a warning
+    persistence_s: float = field(default=2.0, metadata=_r(0.0, 60.0))  # below threshold this long
+
+
+@dataclass(frozen=True)
+class EmulationSection:
+    """How the emulated twins differ from the driver's assumptions (to exercise the loops)."""
+
+    esc_gain: tuple[float, float, float] = (0.85, 0.9, 0.8)  # true rev/s per calibrated rev/s
+    rtk_requires_corrections: bool = False  # fix degrades to 3D without RTCM input
+
+
+@dataclass(frozen=True)
+class HardwareConfig:
+    gnss: GnssSection = field(default_factory=GnssSection)
+    imu: ImuSection = field(default_factory=ImuSection)
+    actuators: ActuatorSection = field(default_factory=ActuatorSection)
+    battery: BatterySection = field(default_factory=BatterySection)
+    emulation: EmulationSection = field(default_factory=EmulationSection)
+
+
+def hardware_config_from_launch(extra: dict) -> HardwareConfig:
+    """The `hardware:` section of a launch config's `extra` (absent -> defaults)."""
+    from lotsen.runtime.config import from_mapping
+
+    return from_mapping(HardwareConfig, extra.get("hardware") or {}, "extra.hardware")
