@@ -1,0 +1,274 @@
+"""MCAP recorder: every topic of a run, one JSON-schema channel per (topic, message type), plus
+Foxglove well-known views (`foxglove_views`).
+
+The control loop only pays for a deque append: the bus callback puts (receipt time, message) in
+a bounded queue (drop-oldest, counted), and a writer thread encodes, writes and flushes. Every
+`flush_period_s` (0.5 s) the writer closes the MCAP chunk in progress and flushes (and by default
+fsyncs) the file, so a killed process or a power cut loses at most about the last second; such a
+file has no summary/footer and `LogReader` still reads it. Files: `<dir>/<date>_<time>_runNNN.mcap`.
+
+Times: MCAP `log_time` is the receipt time on the runtime's clock mapped to Unix epoch
+nanoseconds (epoch at start + clock seconds), `publish_time` the message's `stamp_s` mapped the
+same way (log_time when the stamp is not finite), so Foxglove shows wall time and sim runs stay
+in simulated-time order.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import re
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from lotsen.errors import ConfigError
+from lotsen.logs import foxglove_views
+from lotsen.runtime.bus import BoundedQueue, Bus
+from lotsen.transport import codec
+
+LOG_FORMAT_VERSION = "1"
+PROFILE = ""  # no MCAP profile: JSON and protobuf channels
+_RUN_RE = re.compile(r"_run(\d+)\.mcap$")
+
+
+@dataclass(frozen=True)
+class RecorderConfig:
+    directory: str = "logs"
+    queue_maxlen: int = 20000  # ~10 s of the sim stack's ~1.5 k msg/s before drop-oldest
+    flush_period_s: float = 0.5  # chunk closed and file flushed this often (crash loses <= ~1 s)
+    fsync: bool = True  # survive a power cut too, not only a killed process
+    compression: str = "zstd"  # "zstd", "lz4" or "none"
+    chunk_size: int = 4 * 1024 * 1024  # upper bound; chunks are normally closed by the flush period
+    foxglove_views: bool = True
+    topics: tuple[str, ...] | None = None  # None: every topic
+    geo_origin: tuple[float, float, float] | None = None  # lat, lon, h of the NED origin (map view of the estimate)
+
+
+@dataclass
+class RecorderStats:
+    path: str = ""
+    received: int = 0
+    written: int = 0
+    views_written: int = 0
+    dropped: int = 0
+    encode_errors: int = 0
+    flushes: int = 0
+    bytes: int = 0
+    last_error: str = ""
+    per_topic: dict[str, int] = field(default_factory=dict)
+
+
+def next_log_path(directory: str | os.PathLike, when: float | None = None) -> Path:
+    """`<directory>/YYYY-MM-DD_HH-MM-SS_runNNN.mcap`, NNN one above the highest run in the directory."""
+    d = Path(directory)
+    runs = [int(m.group(1)) for p in d.glob("*_run*.mcap") if (m := _RUN_RE.search(p.name))] if d.is_dir() else []
+    stamp = _dt.datetime.fromtimestamp(time.time() if when is None else when).strftime("%Y-%m-%d_%H-%M-%S")
+    return d / f"{stamp}_run{max(runs, default=0) + 1:03d}.mcap"
+
+
+class _Session:
+    """One open file and its writer thread."""
+
+    def __init__(self, path: Path, config: RecorderConfig, epoch0_ns: int, metadata: dict[str, str]) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        self.path = path
+        self.config = config
+        self.epoch0_ns = epoch0_ns
+        self.queue = BoundedQueue(config.queue_maxlen)
+        self.stats = RecorderStats(path=str(path))
+        self._stop = threading.Event()
+        comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+        if config.compression not in comp:
+            raise ConfigError(f"logging: compression {config.compression!r} is not one of {', '.join(comp)}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(path, "wb")
+        self._writer = Writer(self._file, chunk_size=config.chunk_size, compression=comp[config.compression])
+        from lotsen import __version__
+
+        self._writer.start(profile=PROFILE, library=f"lotsen {__version__}")
+        self._writer.add_metadata("lotsen", {"log_format_version": LOG_FORMAT_VERSION, "lotsen_version": __version__,
+                                             "start_epoch_ns": str(epoch0_ns), **metadata})
+        self._channels: dict[tuple[str, str], int] = {}
+        self._schemas: dict[str, int] = {}
+        self._views = foxglove_views.ViewMaker(config.geo_origin) if (
+            config.foxglove_views and foxglove_views.available()) else None
+        self._writer.flush()
+        self._thread = threading.Thread(target=self._run, name=f"mcap-writer-{path.name}", daemon=True)
+        self._thread.start()
+
+    # -- writer thread
+    def _schema_id(self, name: str, encoding: str, data: Callable[[], bytes]) -> int:
+        sid = self._schemas.get(name)
+        if sid is None:
+            sid = self._schemas[name] = self._writer.register_schema(name, encoding, data())
+        return sid
+
+    def _channel_id(self, topic: str, schema: str, schema_encoding: str, schema_data: Callable[[], bytes],
+                    message_encoding: str) -> int:
+        key = (topic, schema)
+        cid = self._channels.get(key)
+        if cid is None:
+            sid = self._schema_id(schema, schema_encoding, schema_data)
+            cid = self._channels[key] = self._writer.register_channel(topic, message_encoding, sid)
+        return cid
+
+    def _write(self, topic: str, t_s: float, msg: Any) -> None:
+        log_ns = self.epoch0_ns + int(round(t_s * 1e9))
+        stamp = getattr(msg, "stamp_s", math.nan)
+        pub_ns = self.epoch0_ns + int(round(stamp * 1e9)) if isinstance(stamp, float) and math.isfinite(stamp) else log_ns
+        cls = type(msg)
+        if cls.__name__ not in codec.MESSAGE_TYPES:
+            self.stats.encode_errors += 1
+            self.stats.last_error = f"{topic}: {cls.__name__} is not a lotsen message; not recorded"
+            return
+        data = codec.encode_json(msg)
+        cid = self._channel_id(topic, codec.schema_name(cls), "jsonschema",
+                               lambda: json.dumps(codec.json_schema(cls)).encode(), "json")
+        self._writer.add_message(cid, log_time=log_ns, data=data, publish_time=pub_ns)
+        self.stats.written += 1
+        self.stats.per_topic[topic] = self.stats.per_topic.get(topic, 0) + 1
+        if self._views is not None:
+            for v in self._views.views(topic, msg, log_ns):
+                cid = self._channel_id(v.topic, v.schema_name, *_schema_args(v.schema_name), v.encoding)
+                self._writer.add_message(cid, log_time=log_ns, data=v.data, publish_time=log_ns)
+                self.stats.views_written += 1
+
+    def _flush(self) -> None:
+        self._writer.flush()
+        if self.config.fsync:
+            os.fsync(self._file.fileno())
+        self.stats.flushes += 1
+        self.stats.bytes = self._file.tell()
+
+    def _run(self) -> None:
+        last_flush = time.monotonic()
+        dirty = False
+        while True:
+            stopping = self._stop.is_set()
+            item = self.queue.get(timeout=0.05)
+            batch = [item] if item is not None else []
+            batch += self.queue.get_all()
+            for topic, (t_s, msg) in batch:
+                try:
+                    self._write(topic, t_s, msg)
+                    dirty = True
+                except Exception as exc:  # noqa: BLE001 - one bad message must not end the recording
+                    self.stats.encode_errors += 1
+                    self.stats.last_error = f"{topic}: {exc!r}"
+            self.stats.dropped = self.queue.dropped
+            now = time.monotonic()
+            if dirty and now - last_flush >= self.config.flush_period_s:
+                try:
+                    self._flush()
+                except OSError as exc:
+                    self.stats.last_error = f"flush: {exc}"
+                last_flush, dirty = now, False
+            if stopping and not batch:
+                break
+
+    # -- control (any thread)
+    def put(self, topic: str, t_s: float, msg: Any) -> None:
+        self.stats.received += 1
+        self.queue.put(topic, (t_s, msg))
+
+    def close(self, timeout_s: float = 10.0) -> RecorderStats:
+        self._stop.set()
+        self._thread.join(timeout_s)
+        self.stats.dropped = self.queue.dropped
+        try:
+            s = self.stats
+            self._writer.add_metadata("lotsen_stats", {
+                "received": str(s.received), "written": str(s.written), "dropped": str(s.dropped),
+                "encode_errors": str(s.encode_errors), "last_error": s.last_error})
+            self._writer.finish()  # summary + footer: an indexed file (field note 11)
+            self._file.flush()
+            if self.config.fsync:
+                os.fsync(self._file.fileno())
+            self.stats.bytes = self._file.tell()
+        finally:
+            self._file.close()
+        return self.stats
+
+
+def _schema_args(name: str) -> tuple[str, Callable[[], bytes]]:
+    enc, data = foxglove_views.schema_of(name)
+    return enc, lambda: data
+
+
+class McapRecorder:
+    """Records a bus to MCAP files. `attach(bus)` once; `start()` / `stop()` open and close files
+    (logging on / off at run time); `close()` at shutdown. Thread-safe control."""
+
+    def __init__(self, config: RecorderConfig = RecorderConfig(), clock: Callable[[], float] | None = None,
+                 epoch_at_clock_zero: float | None = None, metadata: dict[str, str] | None = None) -> None:
+        self.config = config
+        self._clock = clock or time.monotonic
+        if epoch_at_clock_zero is None:
+            epoch_at_clock_zero = time.time() - self._clock()
+        self._epoch0_ns = int(epoch_at_clock_zero * 1e9)
+        self._metadata = dict(metadata or {})
+        self._session: _Session | None = None
+        self._lock = threading.Lock()
+        self._unsubscribe: Callable[[], None] | None = None
+        self._topics = frozenset(config.topics) if config.topics is not None else None
+        self.closed_files: list[RecorderStats] = []
+
+    # bus side: called on the control thread for every message -> must stay cheap
+    def on_message(self, topic: str, msg: Any) -> None:
+        session = self._session
+        if session is None or (self._topics is not None and topic not in self._topics):
+            return
+        session.put(topic, self._clock(), msg)
+
+    def attach(self, bus: Bus) -> "McapRecorder":
+        if self._unsubscribe is None:
+            self._unsubscribe = bus.subscribe_all(self.on_message)
+        return self
+
+    def detach(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+
+    @property
+    def recording(self) -> bool:
+        return self._session is not None
+
+    @property
+    def path(self) -> Path | None:
+        s = self._session
+        return s.path if s else None
+
+    @property
+    def stats(self) -> RecorderStats | None:
+        s = self._session
+        return s.stats if s else None
+
+    def start(self, path: str | os.PathLike | None = None) -> Path:
+        """Open a new file (named by date and run unless `path`) and record into it."""
+        with self._lock:
+            if self._session is not None:
+                return self._session.path
+            p = Path(path) if path is not None else next_log_path(self.config.directory)
+            self._session = _Session(p, self.config, self._epoch0_ns, self._metadata)
+            return p
+
+    def stop(self) -> RecorderStats | None:
+        """Finish the current file (indexed, with summary); None if not recording."""
+        with self._lock:
+            s, self._session = self._session, None
+        if s is None:
+            return None
+        stats = s.close()
+        self.closed_files.append(stats)
+        return stats
+
+    def close(self) -> None:
+        self.stop()
+        self.detach()

@@ -1,0 +1,44 @@
+"""Attach the Zenoh bridge to a `lotsen.runtime.launch.Stack`.
+
+    from lotsen.transport.part import add_bridge
+    register_part("zenoh", add_bridge)   # active when config.extra["zenoh"] is present and enabled
+
+Configuration until the launch config gets a section: `extra: {zenoh: {enabled: true, vessel: boat,
+listen: [tcp/192.168.4.1:7447], publish: [state/estimate, gps_chatter, ...], subscribe: ["shore/**"]}}`
+(keys of `BridgeConfig`, plus `enabled`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from lotsen.runtime.config import from_mapping
+from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
+
+
+def bridge_config(stack: Any) -> BridgeConfig | None:
+    section = dict(stack.config.extra.get("zenoh", {}) or {})
+    if not section or not section.pop("enabled", True):
+        return None
+    return from_mapping(BridgeConfig, section, "extra.zenoh")
+
+
+def add_bridge(stack: Any, config: BridgeConfig | None = None) -> ZenohBridge | None:
+    """Bridge `stack`'s bus to Zenoh; with no `config`, read `extra.zenoh` (absent: nothing added)."""
+    cfg = config or bridge_config(stack)
+    if cfg is None:
+        return None
+    bridge = ZenohBridge(cfg)
+    stack.add(bridge)
+    stack.services["zenoh"] = bridge
+    stack.services.setdefault("on_shutdown", []).append(bridge.close)
+    eps = ", ".join([*(f"listen {e}" for e in cfg.listen), *(f"connect {e}" for e in cfg.connect)]) or "no endpoints"
+    stack.services.setdefault("banner", []).append(
+        f"zenoh: {cfg.mode} '{cfg.vessel}' ({eps}; multicast scouting {'ON' if cfg.multicast_scouting else 'off'}); "
+        f"publishing {', '.join(cfg.publish) or 'nothing'}; subscribed to {', '.join(cfg.subscribe) or 'nothing'}")
+    return bridge
+
+
+def config_as_dict(cfg: BridgeConfig) -> dict:
+    return dataclasses.asdict(cfg)

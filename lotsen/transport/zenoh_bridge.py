@@ -1,0 +1,197 @@
+"""Zenoh bridge: local bus topics <-> Zenoh key expressions `lotsen/<vessel>/<topic>`.
+
+* Outbound: topics in `publish` are taken off the bus by a callback that only appends to a bounded
+  queue (drop-oldest); a sender thread encodes them (`lotsen.transport.codec` envelope: ROS 2 CDR
+  where a standard type fits, JSON otherwise) and puts them with congestion control DROP, so a
+  slow or absent peer never blocks the control loop.
+* Inbound: key expressions `lotsen/<pattern>` for each pattern in `subscribe` (e.g. `boat/**`,
+  `*/operator/command`). Samples are decoded in Zenoh's thread into a bounded queue; the bridge
+  node drains it on the executor thread and publishes on the local bus (topic = `local_prefix` +
+  the topic part of the key), so node code is never entered from another thread.
+* No echo loops: the subscriber ignores samples from this session (`allowed_origin=REMOTE`), from
+  our own vessel name, or carrying our origin id; and a message the bridge injected is never
+  forwarded again (bus delivery is synchronous, so while the bridge publishes (topic, message) it
+  recognises that very object coming back; what nodes publish in reaction still goes out).
+* Discovery: multicast and gossip scouting are OFF unless enabled explicitly; the session listens
+  and connects only on the endpoints given (the library default would listen on every interface
+  and scout by multicast).
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import uuid
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from lotsen.errors import ConfigError
+from lotsen.runtime.bus import BoundedQueue
+from lotsen.runtime.executor import Node, NodeContext
+from lotsen.transport import codec
+
+
+@dataclass(frozen=True)
+class BridgeConfig:
+    vessel: str = "boat"  # our name in the key expressions lotsen/<vessel>/<topic>
+    mode: Literal["peer", "client", "router"] = "peer"
+    listen: tuple[str, ...] = ()  # e.g. ("tcp/127.0.0.1:7447",) or ("tcp/192.168.4.1:7447",) on the boat's Wi-Fi
+    connect: tuple[str, ...] = ()  # e.g. ("tcp/192.168.4.1:7447",) on the shore laptop
+    publish: tuple[str, ...] = ()  # local topics sent out; ("*",) = every topic
+    subscribe: tuple[str, ...] = ()  # key patterns under lotsen/, e.g. ("boat/**",) or ("*/operator/command",)
+    local_prefix: str = ""  # remote topics appear locally as local_prefix + topic (e.g. "boat/")
+    encoding: Literal["auto", "json"] = "auto"  # auto: ROS 2 CDR where a standard type fits
+    key_prefix: str = "lotsen"
+    multicast_scouting: bool = False  # never scout by multicast unless explicitly enabled
+    gossip_scouting: bool = False
+    queue_maxlen: int = 2000
+    drain_period_s: float = 0.005  # how often the node moves received messages onto the bus
+
+
+def zenoh_config(cfg: BridgeConfig) -> Any:
+    """A zenoh.Config overriding every default that would reach beyond the given endpoints."""
+    import zenoh
+
+    if cfg.mode == "client" and not cfg.connect:
+        raise ConfigError("zenoh bridge: mode client needs at least one connect endpoint")
+    for ep in (*cfg.listen, *cfg.connect):
+        if "/" not in ep:
+            raise ConfigError(f"zenoh bridge: endpoint {ep!r} must look like tcp/127.0.0.1:7447")
+    c = zenoh.Config()
+    c.insert_json5("mode", json.dumps(cfg.mode))
+    c.insert_json5("scouting/multicast/enabled", json.dumps(bool(cfg.multicast_scouting)))
+    c.insert_json5("scouting/gossip/enabled", json.dumps(bool(cfg.gossip_scouting)))
+    c.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
+    c.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    return c
+
+
+@dataclass
+class BridgeStats:
+    sent: int = 0
+    received: int = 0
+    published_locally: int = 0
+    decode_errors: int = 0
+    encode_errors: int = 0
+    echoes_ignored: int = 0
+    dropped_out: int = 0
+    dropped_in: int = 0
+    last_error: str = ""
+    per_topic_in: dict[str, int] = field(default_factory=dict)
+
+
+class ZenohBridge(Node):
+    """Add to an executor (`executor.add_node(bridge)`) or use `part.add_bridge(stack, cfg)`."""
+
+    name = "zenoh_bridge"
+
+    def __init__(self, config: BridgeConfig) -> None:
+        import zenoh
+
+        self._z = zenoh
+        self.config = config
+        self.origin = f"{config.vessel}:{uuid.uuid4().hex[:8]}"
+        self.stats = BridgeStats()
+        self._out = BoundedQueue(config.queue_maxlen)
+        self._in = BoundedQueue(config.queue_maxlen)
+        self._publish_all = "*" in config.publish
+        self._publish = frozenset(config.publish)
+        self._injecting: tuple[str, Any] | None = None
+        self._publishers: dict[str, Any] = {}
+        self._stop = threading.Event()
+        self._unsubscribe: Any = None
+        self.session = zenoh.open(zenoh_config(config))
+        self._subs = []
+        for pattern in config.subscribe:
+            key = f"{config.key_prefix}/{pattern.strip('/')}"
+            self._subs.append(self.session.declare_subscriber(key, self._on_sample,
+                                                              allowed_origin=zenoh.Locality.REMOTE))
+        self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
+        self._sender.start()
+
+    # ---------------------------------------------------------------- node side (executor thread)
+    def start(self, ctx: NodeContext) -> None:
+        self.ctx = ctx
+        self._unsubscribe = ctx.bus.subscribe_all(self._on_local)
+        ctx.add_timer(self.config.drain_period_s, self.drain)
+
+    def _on_local(self, topic: str, msg: Any) -> None:
+        inj = self._injecting
+        if inj is not None and inj[1] is msg and inj[0] == topic:
+            return  # the message this bridge is bringing in: never send it back out
+        if self._publish_all or topic in self._publish:
+            self._out.put(topic, msg)
+
+    def drain(self) -> int:
+        """Publish received messages on the local bus (executor thread)."""
+        items = self._in.get_all()
+        self.stats.dropped_in = self._in.dropped
+        if not items:
+            return 0
+        try:
+            for topic, msg in items:
+                self._injecting = (topic, msg)
+                self.ctx.publish(topic, msg)
+                self.stats.published_locally += 1
+        finally:
+            self._injecting = None
+        return len(items)
+
+    def stop(self) -> None:
+        self.close()
+
+    # ---------------------------------------------------------------- zenoh side (other threads)
+    def _key(self, topic: str) -> str:
+        return f"{self.config.key_prefix}/{self.config.vessel}/{topic.strip('/')}"
+
+    def _send_loop(self) -> None:
+        cc = self._z.CongestionControl.DROP
+        while not self._stop.is_set():
+            item = self._out.get(timeout=0.1)
+            if item is None:
+                continue
+            for topic, msg in [item, *self._out.get_all()]:
+                try:
+                    data = codec.encode(msg, self.config.encoding, origin=self.origin)
+                except Exception as exc:  # noqa: BLE001 - e.g. a non-lotsen object on a forwarded topic
+                    self.stats.encode_errors += 1
+                    self.stats.last_error = f"{topic}: {exc!r}"
+                    continue
+                pub = self._publishers.get(topic)
+                if pub is None:
+                    pub = self._publishers[topic] = self.session.declare_publisher(self._key(topic), congestion_control=cc)
+                pub.put(data)
+                self.stats.sent += 1
+            self.stats.dropped_out = self._out.dropped
+
+    def _on_sample(self, sample: Any) -> None:
+        self.stats.received += 1
+        key = str(sample.key_expr)
+        parts = key.split("/", 2)  # lotsen / vessel / topic
+        if len(parts) < 3 or parts[1] == self.config.vessel:
+            self.stats.echoes_ignored += 1
+            return
+        try:
+            msg, env = codec.decode(sample.payload.to_bytes())
+        except Exception as exc:  # noqa: BLE001 - bad data from the network is counted, not raised
+            self.stats.decode_errors += 1
+            self.stats.last_error = f"{key}: {exc}"
+            return
+        if env.origin == self.origin:
+            self.stats.echoes_ignored += 1
+            return
+        topic = self.config.local_prefix + parts[2]
+        self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
+        self._in.put(topic, msg)
+
+    def close(self) -> None:
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+        self._sender.join(2.0)
+        try:
+            self.session.close()
+        except Exception:  # noqa: BLE001 - closing twice or after the peer left
+            pass

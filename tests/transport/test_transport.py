@@ -1,0 +1,228 @@
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from lotsen import messages as M
+from lotsen.errors import ConfigError, DataError
+from lotsen.runtime import SimExecutor
+from lotsen.transport import codec
+from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge, zenoh_config
+
+REPO = Path(__file__).resolve().parents[2]
+
+SAMPLES = [
+    M.ImuSample(stamp_s=1.25, gyro_radps=(0.1, -0.2, 0.3), accel_mps2=(0.05, 0.5, -9.81)),
+    M.MagSample(stamp_s=2.0, field_uT=(20.5, -3.25, 40.0)),
+    M.GnssFix(stamp_s=3.5, lat_deg=57.6905, lon_deg=11.976, height_m=10.0, fix_type=M.GnssFixType.RTK_FLOAT,
+              h_acc_m=0.05, v_acc_m=0.1, vel_n_mps=0.5, vel_e_mps=-0.2, num_sv=17, correction_age_s=1.5),
+    M.GnssFix(stamp_s=3.625, lat_deg=57.6905, lon_deg=11.976, height_m=10.0, fix_type=M.GnssFixType.NO_FIX,
+              h_acc_m=float("nan")),
+    M.VesselState(stamp_s=4.0, north_m=1.0, east_m=-2.0, heading_rad=7.0, u_mps=1.2, v_mps=0.1, r_radps=-0.2,
+                  source="ekf", std=(0.1, 0.2, 0.03, 0.04, 0.05, 0.006), gyro_bias_radps=0.01),
+    M.ThrustCommand(stamp_s=5.0, alpha1_rad=0.1, n1_rps=30.0, nt_rps=float("inf"), source="mpc"),
+    M.RcOverride(stamp_s=1.0, active=True, command=M.ThrustCommand(stamp_s=1.0, n2_rps=-3.0)),
+    M.RcOverride(stamp_s=1.0, active=False),
+    M.RtcmData(stamp_s=1.0, data=b"\xd3\x00\x13abc"),
+    M.LogEvent(stamp_s=1.0, level="info", source="x", text="t", data={"a": [1, 2], "b": None}),
+    M.SupervisorStatus(stamp_s=1.0, mode="auto", warnings=("gnss", "battery")),
+    M.PathMessage(stamp_s=0.0, north_m=(0.0, 1.0), east_m=(0.0, 0.5), speed_mps=(0.5, 0.5)),
+]
+
+
+def _close(a, b) -> bool:
+    """Equal up to float rounding (CDR stores tesla and nanosecond stamps), NaN == NaN."""
+    import dataclasses
+
+    if dataclasses.is_dataclass(a):
+        return type(a) is type(b) and all(_close(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a))
+    if isinstance(a, float) or isinstance(b, float):
+        return (math.isnan(a) and math.isnan(b)) or a == pytest.approx(b, rel=1e-12, abs=1e-9)
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+# ---------------------------------------------------------------- codec
+@pytest.mark.parametrize("msg", SAMPLES, ids=lambda m: type(m).__name__)
+def test_json_envelope_round_trip_is_exact(msg, same):
+    out, env = codec.decode(codec.encode(msg, "json", origin="boat:1"))
+    assert same(out, msg) and (env.version, env.encoding, env.origin) == (1, codec.ENC_JSON, "boat:1")
+    json.loads(env.payload)  # strict JSON (no bare NaN / Infinity)
+
+
+@pytest.mark.parametrize("msg", [m for m in SAMPLES if type(m).__name__ in codec.ROS_TYPE_OF], ids=lambda m: type(m).__name__)
+def test_cdr_round_trip_restores_lotsen_types(msg):
+    data = codec.encode(msg, "auto")
+    out, env = codec.decode(data)
+    assert env.encoding == codec.ENC_CDR and env.ros_type == codec.ROS_TYPE_OF[type(msg).__name__]
+    assert _close(out, msg)
+    if isinstance(msg, M.GnssFix):
+        assert out.fix_type is msg.fix_type
+
+
+def test_cdr_payload_is_a_standard_ros2_message_in_ros_conventions():
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    env = codec.parse_envelope(codec.encode(SAMPLES[0], "cdr"))
+    imu = ts.deserialize_cdr(env.payload, "sensor_msgs/msg/Imu")
+    assert imu.linear_acceleration.z == pytest.approx(9.81)  # FLU: +g up at rest (lotsen FRD: -9.81)
+    assert imu.angular_velocity.y == pytest.approx(0.2) and imu.header.stamp.nanosec == 250_000_000
+    env = codec.parse_envelope(codec.encode(SAMPLES[4], "cdr"))
+    odom = ts.deserialize_cdr(env.payload, "nav_msgs/msg/Odometry")
+    assert (odom.pose.pose.position.x, odom.pose.pose.position.y) == (-2.0, 1.0)  # ENU: x east, y north
+    fix = ts.deserialize_cdr(codec.parse_envelope(codec.encode(SAMPLES[2], "cdr")).payload, "sensor_msgs/msg/NavSatFix")
+    assert fix.status.status == 2 and fix.position_covariance[0] == pytest.approx(0.05 ** 2)
+
+
+def test_json_schema_lists_every_field():
+    for name, cls in codec.MESSAGE_TYPES.items():
+        schema = codec.json_schema(cls)
+        import dataclasses
+
+        assert set(schema["properties"]) == {f.name for f in dataclasses.fields(cls)}, name
+    assert codec.json_schema(M.GnssFix)["properties"]["fix_type"]["enum"] == [0, 1, 2, 3, 4, 5]
+
+
+def test_bad_envelopes_are_data_errors():
+    good = codec.encode(SAMPLES[0], "json")
+    for bad, match in [(b"XYZ" + good[3:], "not a lotsen envelope"), (good[:3] + b"\x09" + good[4:], "version 9"),
+                       (good[:12], "truncated|claims"), (good[:-5], "claims")]:
+        with pytest.raises(DataError, match=match):
+            codec.decode(bad)
+    with pytest.raises(DataError, match="unknown message type"):
+        codec.decode_json("Nope", b"{}")
+    with pytest.raises(DataError, match="ImuSample.gyro_radps"):
+        codec.decode_json("ImuSample", b'{"stamp_s": 1, "gyro_radps": [1, 2], "accel_mps2": [0, 0, 0]}')
+
+
+# ---------------------------------------------------------------- Zenoh
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_config_never_scouts_and_binds_only_given_endpoints():
+    ep = f"tcp/127.0.0.1:{_free_port()}"
+    c = zenoh_config(BridgeConfig(listen=(ep,)))
+    assert json.loads(c.get_json("scouting/multicast/enabled")) is False
+    assert json.loads(c.get_json("scouting/gossip/enabled")) is False
+    assert json.loads(c.get_json("listen/endpoints")) == [ep]
+    assert json.loads(c.get_json("connect/endpoints")) == []
+    with pytest.raises(ConfigError, match="connect"):
+        zenoh_config(BridgeConfig(mode="client"))
+
+
+def _pump(ex: SimExecutor, until, timeout_s: float = 10.0) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        ex.run_for(0.01)
+        if until():
+            return True
+        time.sleep(0.005)
+    return False
+
+
+def test_no_echo_loop_between_two_bridges_forwarding_everything():
+    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ex_a, ex_b = SimExecutor(), SimExecutor()
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), subscribe=("*/**",)))
+    b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), publish=("*",), subscribe=("*/**",)))
+    try:
+        ex_a.add_node(a)
+        ex_b.add_node(b)
+        got_a, got_b = [], []
+        ex_a.bus.subscribe(M.Topic.STATE, got_a.append)
+        ex_b.bus.subscribe(M.Topic.STATE, got_b.append)
+        state = SAMPLES[4]
+
+        def both():
+            ex_a.run_for(0.01)
+            return bool(got_b)
+
+        # the first messages may go out before the peers have met: resend until one arrives
+        deadline = time.monotonic() + 10
+        while not got_b and time.monotonic() < deadline:
+            got_a.clear()
+            ex_a.bus.publish(M.Topic.STATE, state)
+            _pump(ex_b, both, 0.3)
+        assert got_b, "no message crossed the bridge"
+        n_b = len(got_b)
+        _pump(ex_b, lambda: (ex_a.run_for(0.01), False)[1], 0.5)  # give an echo time to come back
+        assert len(got_a) == 1  # only the original: nothing came back from b
+        assert len(got_b) == n_b
+        assert a.stats.received == 0 and b.stats.sent == 0  # b never forwarded what it brought in
+    finally:
+        a.close()
+        b.close()
+
+
+def test_stalled_sender_drops_oldest_and_never_blocks_the_bus(monkeypatch):
+    from lotsen.transport import zenoh_bridge as zb
+
+    gate = threading.Event()
+    real = zb.codec.encode
+    monkeypatch.setattr(zb.codec, "encode", lambda *a, **k: (gate.wait(30), real(*a, **k))[1])
+    ex = SimExecutor()
+    bridge = ZenohBridge(BridgeConfig(vessel="a", listen=(f"tcp/127.0.0.1:{_free_port()}",), publish=("*",), queue_maxlen=50))
+    try:
+        ex.add_node(bridge)
+        for i in range(3000):  # a disconnected / slow peer: this loop must not wait
+            ex.bus.publish(M.Topic.IMU_RAW, M.ImuSample(stamp_s=float(i), gyro_radps=(0.0,) * 3, accel_mps2=(0.0,) * 3))
+        assert bridge._out.dropped >= 3000 - 2 * 50
+    finally:
+        gate.set()
+        bridge.close()
+
+
+def test_two_processes_round_trip_and_shore_recording(tmp_path, same):
+    """The test process is the boat (listens on loopback); a second process, the shore, connects,
+    answers pings and records what it receives from the boat to MCAP."""
+    from lotsen.logs import LogReader
+
+    ep = f"tcp/127.0.0.1:{_free_port()}"
+    out = tmp_path / "shore.mcap"
+    ex = SimExecutor()
+    boat = ZenohBridge(BridgeConfig(vessel="boat", listen=(ep,), subscribe=("shore/**",),
+                                    publish=("ping", M.Topic.IMU_RAW, M.Topic.GNSS, M.Topic.STATE, M.Topic.LOG)))
+    ex.add_node(boat)
+    pongs = []
+    ex.bus.subscribe("pong", pongs.append)
+    shore = subprocess.Popen([sys.executable, str(Path(__file__).with_name("shore_peer.py")), ep, str(out)],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                             env={**os.environ, "PYTHONPATH": str(REPO)})
+    try:
+        assert shore.stdout.readline().strip() == "ready"
+        k = 0
+        while not pongs and k < 100:  # until the peers have met and subscriptions are known
+            ex.bus.publish("ping", M.ThrustCommand(stamp_s=-1.0 - k, n1_rps=1.0))
+            _pump(ex, lambda: bool(pongs), 0.2)
+            k += 1
+        assert pongs and pongs[0].source == "shore", "no round trip"
+        sent = []
+        for i in range(40):
+            for topic, msg in [(M.Topic.IMU_RAW, M.ImuSample(stamp_s=i * 0.01, gyro_radps=(0.01 * i, 0.0, 0.02),
+                                                             accel_mps2=(0.0, 0.1, -9.81))),
+                               (M.Topic.GNSS, SAMPLES[2]), (M.Topic.STATE, SAMPLES[4]), (M.Topic.LOG, SAMPLES[9])]:
+                ex.bus.publish(topic, msg)
+                sent.append((topic, msg))
+        ex.bus.publish("ping", M.ThrustCommand(stamp_s=1000.0, n1_rps=2.0))  # the last one: when it is back, all arrived
+        assert _pump(ex, lambda: any(p.stamp_s == 1000.0 for p in pongs), 15.0)
+        assert isinstance(pongs[-1], M.ThrustCommand) and pongs[-1].n1_rps == 2.0
+    finally:
+        shore.stdin.close()
+        assert shore.wait(20) == 0
+        boat.close()
+    got = [(t, m) for t, m in LogReader(out).messages() if t.startswith("boat/") and t != "boat/ping"]
+    assert [t for t, _ in got] == ["boat/" + t for t, _ in sent]  # every message, in order
+    assert all(_close(a, b) for (_, a), (_, b) in zip(got, sent))
+    assert isinstance(got[1][1].fix_type, M.GnssFixType)
