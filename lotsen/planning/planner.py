@@ -197,7 +197,16 @@ def _candidate_stats(coef: np.ndarray, m: int, cfg: PlannerConfig):
     bend = (abs_k * cross / speed**2) @ B.w                     # int kappa^2 ds
     # seed eq. (41): sum l_disk = length; sum |c_disk| at even spacing = int |kappa| ds / spacing
     cost = cfg.gamma1 * length + cfg.gamma2 * turn / cfg.spacing_m + cfg.gamma3 * bend
-    return r, length, abs_k.max(axis=-1), cost
+    max_k = abs_k.max(axis=-1)
+    # A cusp (r' passes through zero: the curve stops and reverses) has no finite curvature at any
+    # sample, so the curvature bound alone misses it. Between samples the tangent may turn at most
+    # k_max x the arc length between them (+ slack); a reversal breaks that and is infeasible.
+    ds = 0.5 * (speed[..., 1:] + speed[..., :-1]) * (1.0 / (m - 1))
+    cos_turn = (dr[..., 1:, 0] * dr[..., :-1, 0] + dr[..., 1:, 1] * dr[..., :-1, 1]) / (speed[..., 1:] * speed[..., :-1])
+    turn_between = np.arccos(np.clip(cos_turn, -1.0, 1.0))
+    cusp = (turn_between > 1.5 * ds / cfg.min_turn_radius_m + 0.05).any(axis=-1)
+    max_k = np.where(cusp, np.inf, max_k)
+    return r, length, max_k, cost
 
 
 def _coarse_points(straight_m: float) -> int:
@@ -348,6 +357,10 @@ def _verify(fine: dict[str, np.ndarray], straight: float, water: _Water, cfg: Pl
     if step.sum() > cfg.length_ratio_max * straight:
         return "length"
     if not np.all(np.abs(fine["kappa"]) <= 1.0 / cfg.min_turn_radius_m):
+        return "curvature"
+    # heading continuity between points (catches a cusp, where the sampled curvature stays finite)
+    dpsi = np.abs(np.diff(np.unwrap(fine["heading"])))
+    if np.any(dpsi > 1.5 * step / cfg.min_turn_radius_m + 1e-3):
         return "curvature"
     if not water.covers(pts):
         return "clearance"

@@ -17,7 +17,7 @@ from lotsen.errors import PlanningError
 from lotsen.planning import (HarbourNode, Path, PlannerConfig, Region, Route, RouteNode, plan_return_route,
                              plan_route)
 from lotsen.planning.dubins import dubins_waypoints, dubins_words
-from lotsen.planning.io import load_route
+from lotsen.planning.io import load_route, route_from_dict
 
 EXAMPLES = FilePath(__file__).resolve().parents[2] / "examples" / "routes"
 AREA = ((-5.0, -5.0), (45.0, -5.0), (45.0, 45.0), (-5.0, 45.0))
@@ -54,8 +54,11 @@ def assert_path_ok(path: Path, route: Route, cfg: PlannerConfig, nodes=None) -> 
         i1 = int(np.argmin(np.abs(path.s_m - m.s_end_m)))
         straight = math.hypot(*(P[i1] - P[i0]))
         assert path.s_m[i1] - path.s_m[i0] <= cfg.length_ratio_max * straight + 1e-9, m.label
-    # 40h: curvature bound
+    # 40h: curvature bound, and the heading turns no faster than it allows between points (a cusp,
+    # where the curve stops and reverses, has finite sampled curvature but a heading jump)
     assert np.abs(path.curvature_1pm).max() <= 1.0 / cfg.min_turn_radius_m + 1e-12
+    dpsi = np.abs(np.diff(np.unwrap(path.heading_rad)))
+    assert np.all(dpsi <= 1.5 * step / cfg.min_turn_radius_m + 1e-3), "heading jump (cusp)"
     # inside the area and clear of obstacles by the clearance
     line = LineString(P)
     if route.area is not None:
@@ -281,3 +284,15 @@ def test_detours_around_random_obstacles_on_the_line_satisfy_the_constraints(d, 
         return
     assert_path_ok(path, route, cfg)
     assert not LineString(np.column_stack([path.north_m, path.east_m])).intersects(Polygon(obstacle))
+
+
+def test_return_route_never_reverses_in_a_cusp():
+    """Regression: harbour behind the boat; the best-cost cubic used to stop and reverse in place."""
+    route = route_from_dict({
+        "harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0},
+        "nodes": [{"north": 20.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5}],
+        "area": [[0, 0], [40, 0], [40, 40], [0, 40]]})
+    path = plan_return_route(route, 10.12, 19.85, math.radians(-2.8))
+    dpsi = np.abs(np.diff(np.unwrap(path.heading_rad)))
+    assert dpsi.max() < 0.02  # at 1 cm spacing and R_min = 1 m: 0.01 rad
+    assert path.length_m > 10.0  # it must turn around, not jump
