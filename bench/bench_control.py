@@ -1,0 +1,277 @@
+"""Control benchmark (issue 5): MPC vs pure pursuit vs LOS (and LQ) on the example routes, calm and
+with 0.1 m/s current + 3 m/s wind; MPC step time; the same optimal-control problem solved by
+do-mpc (CasADi + IPOPT, nonlinear multiple shooting) for the speed ratio and closed-loop cost gap.
+
+    python bench/run.py control        (harness)    or    python bench/bench_control.py [--quick]
+
+Targets: MPC median step <= 1 ms at horizon >= 20; >= 20x faster than do-mpc; cross-track RMS
+<= 5 cm calm and <= 15 cm with current + wind at 0.5 m/s; >= 2x better than pure pursuit.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path as FilePath
+
+import numpy as np
+
+ROOT = FilePath(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from lotsen.control import ControlConfig, MPCConfig, MPCController, PathReference, make_path_follower  # noqa: E402
+from lotsen.model import Environment, VesselModel, symbolic_rhs  # noqa: E402
+from lotsen.planning import plan_route  # noqa: E402
+from lotsen.planning.io import load_route  # noqa: E402
+from lotsen.runtime.mission import MissionConfig, run_mission  # noqa: E402
+from lotsen.sim import SimConfig, Simulator  # noqa: E402
+
+ROUTES = ("figure_eight", "harbour_approach")
+DISTURBED = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
+TARGET_CTE_CALM_M = 0.05
+TARGET_CTE_DIST_M = 0.15
+TARGET_STEP_MS = 1.0
+TARGET_SPEEDUP = 20.0
+
+
+def _path(name: str):
+    return plan_route(load_route(ROOT / "examples" / "routes" / f"{name}.yaml"))
+
+
+def tracking_rows(quick: bool) -> list[dict]:
+    rows: list[dict] = []
+    routes = ROUTES[:1] if quick else ROUTES
+    controllers = ("mpc", "pursuit", "los") if quick else ("mpc", "pursuit", "los", "lq")
+    for route in routes:
+        path = _path(route)
+        for env_name, env in (("calm", Environment()), ("current 0.1 + wind 3", DISTURBED)):
+            res = {}
+            for c in controllers:
+                follower = make_path_follower(ControlConfig(controller=c))
+                r = run_mission(path, follower, MissionConfig(environment=env, hold_s=5.0))
+                res[c] = r.metrics
+            pp = res["pursuit"]["cross_track_rms_m"]
+            for c in controllers:
+                m = res[c]
+                target = TARGET_CTE_CALM_M if env_name == "calm" else TARGET_CTE_DIST_M
+                row = {
+                    "table": "tracking", "route": route, "environment": env_name, "controller": c,
+                    "completed": m["completed"],
+                    "cross_track_rms_cm": round(m["cross_track_rms_m"] * 100, 2),
+                    "cross_track_max_cm": round(m["cross_track_max_m"] * 100, 2),
+                    "heading_error_rms_deg": round(m["heading_error_rms_deg"], 2),
+                    "speed_error_rms_mps": round(m["speed_error_rms_mps"], 4),
+                    "pursuit_over_this": round(pp / max(m["cross_track_rms_m"], 1e-6), 1),
+                    "hold_error_final_cm": round(m.get("hold_position_error_final_m", float("nan")) * 100, 1),
+                    "duration_s": m["duration_s"],
+                }
+                if c == "mpc":
+                    row["target"] = f"RMS <= {target * 100:.0f} cm, >= 2x better than pursuit"
+                    row["pass"] = bool(m["completed"] and m["cross_track_rms_m"] <= target
+                                       and row["pursuit_over_this"] >= 2.0)
+                    row["solve_median_ms"] = m["solve_time_median_ms"]
+                    row["solve_max_ms"] = m["solve_time_max_ms"]
+                rows.append(row)
+    return rows
+
+
+def timing_rows(quick: bool) -> list[dict]:
+    """MPC step time (linearisation + QP update + OSQP solve) on the figure eight, per horizon."""
+    rows = []
+    path = _path("figure_eight")
+    horizons = (20,) if quick else (20, 30, 40)
+    for N in horizons:
+        c = MPCController(config=MPCConfig(horizon=N))
+        c.reset(path)
+        sim = Simulator(config=SimConfig(sensors=False, environment=DISTURBED),
+                        x0=[path.north_m[0], path.east_m[0], path.heading_rad[0], 0, 0, 0])
+        steps = 300 if quick else 900
+        for _ in range(steps):
+            cmd, _st = c.update(sim.t, sim.truth())
+            sim.command(cmd)
+            sim.advance(0.1)
+        t = np.array(c.solve_times_ms[5:])  # after warm-up (JIT load, first factorisation)
+        rows.append({"table": "mpc step time", "horizon": N, "steps": len(t),
+                     "median_ms": round(float(np.median(t)), 3), "p95_ms": round(float(np.percentile(t, 95)), 3),
+                     "max_ms": round(float(t.max()), 3), "failures": c.failures,
+                     "target": f"median <= {TARGET_STEP_MS} ms at N >= 20",
+                     "pass": bool(np.median(t) <= TARGET_STEP_MS)})
+    return rows
+
+
+# ----------------------------------------------------------------------------------------------
+# do-mpc peer: the same OCP (model, cost of eq. 43, bounds and rate bounds of eq. 44, horizon, dt)
+# ----------------------------------------------------------------------------------------------
+def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
+    warnings.filterwarnings("ignore")
+    import casadi as ca
+    import do_mpc
+
+    N, dt = cfg.horizon, cfg.dt_s
+    scale = [1.0, 1.0, limits.n_az_max_rps ** 2, limits.n_az_max_rps ** 2, limits.n_bow_max_rps ** 2]
+    m = do_mpc.model.Model("discrete")
+    x = m.set_variable("_x", "x", shape=(6, 1))
+    wp = m.set_variable("_x", "wp", shape=(5, 1))  # previous input (rate bounds)
+    w = m.set_variable("_u", "w", shape=(5, 1))
+    ref = m.set_variable("_tvp", "ref", shape=(7, 1))  # pn, pe, ph, pv, pk, U, q_trim
+    f = symbolic_rhs(ca)
+    theta = list(model.theta)
+
+    def n_of(q, s):  # n = sign(q) sqrt(|q| s), smoothed at 0 for IPOPT
+        return q * math.sqrt(s) / (q * q + 1e-8) ** 0.25
+
+    u_act = [w[0], w[1], n_of(w[2], scale[2]), n_of(w[3], scale[3]), n_of(w[4], scale[4])]
+
+    def rhs(xx):
+        return ca.vertcat(*f(ca.vertsplit(xx), u_act, theta, model.geom))
+
+    k1 = rhs(x)
+    k2 = rhs(x + dt / 2 * k1)
+    k3 = rhs(x + dt / 2 * k2)
+    k4 = rhs(x + dt * k3)
+    m.set_rhs("x", x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
+    m.set_rhs("wp", w)
+    m.setup()
+    pn, pe, ph, pv, pk, U, qt = [ref[i] for i in range(7)]
+    e = -ca.sin(ph) * (x[0] - pn) + ca.cos(ph) * (x[1] - pe)
+    y = [e, x[2] + x[4] / U - ph, x[2] - ph, x[3] - pv, x[5] - pv * pk]
+    Q = [cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate]
+    stage = sum(Q[i] * y[i] ** 2 for i in range(5))
+    R = [cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow]
+    wref = [0, 0, qt, qt, 0]
+    # the OSQP QP minimises 1/2 z'Pz + q'z with P = C'QC: the same objective up to the factor 1/2
+    inp = sum(R[i] * (w[i] - wref[i]) ** 2 for i in range(5))
+    mpc = do_mpc.controller.MPC(m)
+    mpc.set_param(n_horizon=N, t_step=dt, store_full_solution=False,
+                  nlpsol_opts={"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"})
+    mpc.set_objective(lterm=stage + inp, mterm=cfg.terminal_factor * stage)
+    mpc.set_rterm(w=np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust]))
+    lim = np.array([limits.alpha_max_rad, limits.alpha_max_rad, 1.0, 1.0, 1.0])
+    mpc.bounds["lower", "_u", "w"] = -lim
+    mpc.bounds["upper", "_u", "w"] = lim
+    dn = limits.n_rate_max_rps2 * dt
+    dw = np.array([limits.alpha_rate_max_radps * dt] * 2 + [min(1.0, 2 * dn / limits.n_az_max_rps)] * 2
+                  + [min(1.0, 2 * dn / limits.n_bow_max_rps)])
+    mpc.set_nl_cons("rate_up", w - wp, ub=dw)
+    mpc.set_nl_cons("rate_down", wp - w, ub=dw)
+    tvp = mpc.get_tvp_template()
+    holder: dict = {"ref": np.zeros((N + 1, 7))}
+
+    def tvp_fun(t_now):
+        for k in range(N + 1):
+            tvp["_tvp", k, "ref"] = holder["ref"][k]
+        return tvp
+
+    mpc.set_tvp_fun(tvp_fun)
+    mpc.setup()
+    return mpc, holder
+
+
+def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> float:
+    """Realised closed-loop cost with the OCP's weights (true projection on the path)."""
+    s, cte, hdg = ref.project(x[0], x[1], s)
+    _, _, _, k, v = ref.sample(np.array([s]))
+    he = (x[2] - hdg + math.pi) % (2 * math.pi) - math.pi
+    U = max(float(v[0]), cfg.min_speed_course_mps)
+    y = [cte, he + x[4] / U, he, x[3] - v[0], x[5] - v[0] * k[0]]
+    Q = [cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate]
+    R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow])
+    S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
+    wref = np.array([0, 0, q_trim, q_trim, 0])
+    return float(sum(Q[i] * float(y[i]) ** 2 for i in range(5)) + R @ (w - wref) ** 2 + S @ (w - w_prev) ** 2)
+
+
+def dompc_rows(quick: bool) -> list[dict]:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            import do_mpc  # noqa: F401
+    except Exception as exc:  # pragma: no cover
+        return [{"table": "do-mpc peer", "note": f"do-mpc not available: {exc}"}]
+    path = _path("figure_eight")
+    cfg = MPCConfig(disturbance_gain=0.0)  # calm water, no observer: exactly the OCP do-mpc solves
+    model = VesselModel()
+    from lotsen.model import DEFAULT_LIMITS
+
+    steps = 40 if quick else 100
+    x0 = [path.north_m[0], path.east_m[0] + 0.3, path.heading_rad[0], 0.3, 0, 0]  # 30 cm off, moving
+    results = {}
+    # --- lotsen MPC (OSQP, LTV real-time iteration)
+    ours = MPCController(model, DEFAULT_LIMITS, cfg)
+    ours.reset(path)
+    sim = Simulator(model, DEFAULT_LIMITS, SimConfig(sensors=False), x0)
+    ref = PathReference(path, cfg.min_speed_ref_mps)
+    J, s, w_prev = 0.0, 0.0, np.zeros(5)
+    for _ in range(steps):
+        cmd, st = ours.update(sim.t, sim.truth())
+        w = ours.command_to_w(cmd.as_tuple())
+        J += _stage_cost(cfg, ref, sim.x, st.progress_m, w, w_prev, float(ours.q_trim(np.array(st.speed_ref_mps))))
+        w_prev = w
+        sim.command(cmd)
+        sim.advance(cfg.dt_s)
+    results["lotsen"] = (J, np.median(ours.solve_times_ms[2:]), ours.failures)
+    # --- do-mpc (IPOPT on the nonlinear multiple-shooting NLP)
+    mpc, holder = _build_dompc(cfg, model, DEFAULT_LIMITS)
+    sim = Simulator(model, DEFAULT_LIMITS, SimConfig(sensors=False), x0)
+    J, s, w_prev = 0.0, 0.0, np.zeros(5)
+    times = []
+    N = cfg.horizon
+    fails = 0
+    for i in range(steps):
+        x = np.array(sim.x)
+        s, _cte, _h = ref.project(x[0], x[1], s)
+        _, _, _, _, v0 = ref.sample(np.array([s]))
+        sk = s + np.arange(N + 1) * max(float(v0[0]), cfg.min_speed_ref_mps) * cfg.dt_s
+        pn, pe, ph, pk, pv = ref.sample(sk)
+        ph = ph + 2 * math.pi * np.round((x[2] - ph[0]) / (2 * math.pi))
+        qtr = ours.q_trim(pv)
+        holder["ref"] = np.stack([pn, pe, ph, pv, pk, np.maximum(pv, cfg.min_speed_course_mps), qtr], axis=1)
+        xa = np.concatenate([x, w_prev])
+        if i == 0:
+            mpc.x0 = xa
+            mpc.u0 = w_prev
+            mpc.set_initial_guess()
+        t0 = time.perf_counter()
+        w = np.asarray(mpc.make_step(xa)).ravel()
+        times.append((time.perf_counter() - t0) * 1e3)
+        if not mpc.solver_stats.get("success", True):
+            fails += 1
+        J += _stage_cost(cfg, ref, sim.x, s, w, w_prev, float(ours.q_trim(np.array(pv[0]))))
+        w_prev = w
+        sim.command(ours.w_to_command(w))
+        sim.advance(cfg.dt_s)
+    results["do-mpc"] = (J, statistics.median(times[2:]), fails)
+    J_ours, t_ours, f_ours = results["lotsen"]
+    J_peer, t_peer, f_peer = results["do-mpc"]
+    speedup = t_peer / t_ours
+    return [{
+        "table": "do-mpc peer (same OCP, figure eight, 30 cm start offset, calm)",
+        "horizon": cfg.horizon, "closed_loop_steps": steps,
+        "lotsen_median_ms": round(float(t_ours), 3), "dompc_median_ms": round(float(t_peer), 2),
+        "speedup": round(float(speedup), 1),
+        "lotsen_closed_loop_cost": round(J_ours, 3), "dompc_closed_loop_cost": round(J_peer, 3),
+        "cost_gap_pct": round(100.0 * (J_ours - J_peer) / J_peer, 2),
+        "failures_lotsen": f_ours, "failures_dompc": f_peer,
+        "target": f">= {TARGET_SPEEDUP:.0f}x faster", "pass": bool(speedup >= TARGET_SPEEDUP),
+    }]
+
+
+def run(quick: bool = False) -> list[dict]:
+    rows = timing_rows(quick)
+    rows += dompc_rows(quick)
+    rows += tracking_rows(quick)
+    return rows
+
+
+if __name__ == "__main__":
+    import json
+
+    t0 = time.perf_counter()
+    out = run(quick="--quick" in sys.argv)
+    for r in out:
+        print(json.dumps(r))
+    print(f"# {time.perf_counter() - t0:.1f} s")

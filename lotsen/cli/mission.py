@@ -1,0 +1,156 @@
+"""`lotsen mission ROUTE.yaml --sim [--controller mpc|pursuit|los|lq] [--current SPEED,DIR_DEG]
+[--wind SPEED,DIR_DEG] [--seed N] --report report.json [--plot mission.png]`
+
+Plans the route (lotsen.planning), runs the closed loop on the simulated boat (controller at
+10 Hz on the simulator's 100 Hz steps), holds the last point with the station keeper, and writes
+a JSON report (tracking errors, solve times, completion) and optionally a plot.
+Exit code 0 when the mission completed, 1 when it did not (the report is written either way).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path as FilePath
+from typing import Any
+
+from lotsen.errors import ConfigError, LotsenError
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "mission", help="plan a route and fly it in closed loop on the simulated boat",
+        description="Plan ROUTE, follow it with the selected controller on the simulator, hold the "
+                    "last point, and report tracking errors and solver times.")
+    p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
+    p.add_argument("--sim", action="store_true", help="run on the simulated boat (the only target so far)")
+    p.add_argument("--controller", default="mpc", choices=("mpc", "pursuit", "los", "lq"))
+    p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
+    p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulator's noise")
+    p.add_argument("--estimator", default="truth", choices=("truth", "ekf"),
+                   help="state for the controller: simulator truth (default) or lotsen.fusion's EKF")
+    p.add_argument("--hold", type=float, default=10.0, help="seconds of station keeping at the end")
+    p.add_argument("--horizon", type=int, help="MPC horizon in steps (default 20)")
+    p.add_argument("--report", required=True, help="write the JSON report here")
+    p.add_argument("--plot", help="write a PNG: path and track, errors over time")
+    p.set_defaults(func=run)
+
+
+def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
+    """'0.1,90' -> (0.1, 90.0); ConfigError naming the option otherwise."""
+    if text is None:
+        return 0.0, 0.0
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        speed, direction = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise ConfigError(f"--{what} {text!r}: expected SPEED,DIR_DEG, e.g. 0.1,90") from None
+    if not (math.isfinite(speed) and math.isfinite(direction)) or speed < 0:
+        raise ConfigError(f"--{what} {text!r}: speed must be a finite number >= 0, direction finite")
+    return speed, direction
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.sim:
+        raise LotsenError("mission: only --sim is supported (the runtime runs missions on the boat)")
+    from dataclasses import replace
+
+    from lotsen.control import ControlConfig, MPCConfig, make_path_follower
+    from lotsen.model import Environment, VesselModel
+    from lotsen.planning import plan_route
+    from lotsen.planning.io import load_route
+    from lotsen.runtime.mission import MissionConfig, make_sim_ekf, run_mission
+
+    cur = parse_speed_dir(args.current, "current")
+    wind = parse_speed_dir(args.wind, "wind")
+    if args.hold < 0 or not math.isfinite(args.hold):
+        raise ConfigError(f"--hold {args.hold}: must be a finite number >= 0")
+    env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1])
+    path = plan_route(load_route(args.route))
+    control = ControlConfig(controller=args.controller)
+    if args.horizon is not None:
+        if args.horizon < 2:
+            raise ConfigError(f"--horizon {args.horizon}: must be at least 2")
+        control = replace(control, mpc=replace(MPCConfig(), horizon=args.horizon))
+    model = VesselModel()
+    cfg = MissionConfig(control_rate_hz=1.0 / control.dt_s, environment=env, seed=args.seed, hold_s=args.hold,
+                        sensors=args.estimator != "truth")
+    estimator = make_sim_ekf(cfg, path, model) if args.estimator == "ekf" else None
+    result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator)
+    report = dict(result.metrics)
+    report.update(route=str(args.route), environment={"current_mps": cur[0], "current_to_deg": cur[1],
+                                                       "wind_mps": wind[0], "wind_from_deg": wind[1]},
+                  seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz)
+    _write(args.report, lambda p: p.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8"))
+    m = result.metrics
+    print(f"{m['controller']}: {'completed' if m['completed'] else 'NOT completed (' + m['reason'] + ')'} in "
+          f"{m['duration_s']:.1f} s; cross-track RMS {m['cross_track_rms_m'] * 100:.1f} cm, max "
+          f"{m['cross_track_max_m'] * 100:.1f} cm; heading RMS {m['heading_error_rms_deg']:.1f} deg; speed RMS "
+          f"{m['speed_error_rms_mps']:.3f} m/s" + (f"; solve median {m['solve_time_median_ms']:.2f} ms, max "
+                                                  f"{m['solve_time_max_ms']:.1f} ms" if m['solve_time_median_ms'] else ""))
+    print(f"wrote {args.report}")
+    if args.plot:
+        _write(args.plot, lambda p: plot_mission(result, p))
+        print(f"wrote {args.plot}")
+    return 0 if result.completed else 1
+
+
+def _write(path: str, fn: Any) -> None:
+    p = FilePath(path)
+    if p.parent and not p.parent.exists():
+        raise ConfigError(f"cannot write {path}: directory {p.parent} does not exist")
+    try:
+        fn(p)
+    except OSError as exc:
+        raise ConfigError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def plot_mission(result: Any, out: FilePath) -> None:
+    """Path and track (left), cross-track, heading and speed over time (right)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    path = result.path
+    fig = plt.figure(figsize=(13, 7))
+    ax = fig.add_subplot(1, 2, 1)
+    ax.plot(path.east_m, path.north_m, "k--", lw=1, label="planned path")
+    f = result.mode == "follow"
+    ax.plot(result.x[f, 1], result.x[f, 0], "C0", lw=1.5, label="track (follow)")
+    h = result.mode == "hold"
+    if np.any(h):
+        ax.plot(result.x[h, 1], result.x[h, 0], "C3", lw=1.5, label="track (hold)")
+    ax.plot(path.east_m[0], path.north_m[0], "go", label="start")
+    ax.plot(path.east_m[-1], path.north_m[-1], "rs", label="end")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    m = result.metrics
+    ax.set_title(f"{m['controller']}: cross-track RMS {m['cross_track_rms_m'] * 100:.1f} cm, "
+                 f"max {m['cross_track_max_m'] * 100:.1f} cm")
+    t = result.t
+    a1 = fig.add_subplot(3, 2, 2)
+    a1.plot(t[f], result.cross_track_m[f] * 100, "C0")
+    a1.set_ylabel("cross-track (cm)")
+    a2 = fig.add_subplot(3, 2, 4, sharex=a1)
+    a2.plot(t[f], np.degrees(result.heading_error_rad[f]), "C1")
+    a2.set_ylabel("heading error (deg)")
+    a3 = fig.add_subplot(3, 2, 6, sharex=a1)
+    a3.plot(t, result.speed_mps, "C2", label="speed")
+    a3.plot(t[f], result.speed_ref_mps[f], "k--", lw=1, label="reference")
+    a3.set_ylabel("speed (m/s)")
+    a3.set_xlabel("time (s)")
+    a3.legend(fontsize=8)
+    for a in (a1, a2, a3):
+        a.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)

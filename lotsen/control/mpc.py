@@ -1,0 +1,639 @@
+"""Path-following MPC on the actuators (seed section 3.5, eq. 43-44), LTV / real-time iteration, OSQP.
+
+Model and linearisation
+-----------------------
+The prediction model is the full 6-state vessel model x = [N, E, psi, u, v, r] of `lotsen.model`,
+including the thruster housing force, linearised at every step along the *nominal* trajectory
+(the previous solution shifted by one step, its first state replaced by the measured state):
+
+    x_{k+1} = f_d(xb_k, wb_k) + Ad_k (x_k - xb_k) + Bd_k (w_k - wb_k)
+    Ad_k = I + dt A_k + dt^2/2 A_k^2,   Bd_k = dt B_k + dt^2/2 A_k B_k,   (A_k, B_k) = jacobians(xb_k, ub_k)
+
+f_d is one RK4 step of the nonlinear model (with the estimated disturbance force, below). One QP
+per step (real-time iteration): the nominal of the next step is this step's solution.
+
+Inputs (decision variables, scaled): w = [alpha_1, alpha_2, q_1, q_2, q_t], q = n|n| / n_max^2.
+The thrust is linear in q (T = mu n_max^2 q), so the bow thruster keeps its authority at n = 0
+where d(n|n|)/dn = 0 would hide it from a linearisation in n; the housing force's kappa*n term is
+the only remaining nonlinearity in q (its derivative uses |n| >= n_floor). Angles are the servo
+set-points themselves, so the angle limit and the servo slew rate are exact constraints.
+Commands: n = sign(q) n_max sqrt|q|, then clipped to the ESC ramp (`allocation.rate_limit`).
+
+Decision vector (OSQP variable z), horizon N, n_x = 6, n_w = 5:
+
+    z = [x_0, x_1, ..., x_N, w_0, ..., w_{N-1}]        length 6 (N + 1) + 5 N
+    positions are relative to the measured position (N0, E0) of the current step.
+
+QP (seed eq. 43-44):
+
+    min  sum_{k=1..N} rho_k ||C_k x_k + d_k||^2_Q  +  sum_k ||w_k - w_ref,k||^2_R  +  sum_k ||w_k - w_{k-1}||^2_S
+    s.t. x_0 = x_measured
+         x_{k+1} - Ad_k x_k - Bd_k w_k = c_k                               (linearised dynamics)
+         w_min <= w_k <= w_max                                             (44: input bounds)
+         -dw_max <= w_k - w_{k-1} <= dw_max,  w_{-1} = previous command    (44: rate bounds)
+
+    rows of C_k x_k + d_k (reference point P_k = path at the predicted progress s_k, heading psi_k):
+      cross-track error   -sin(psi_k)(N - P_N) + cos(psi_k)(E - P_E)
+      course error        psi + v / U_k - psi_k        (heading plus drift angle: crabbing in a current
+                                                         is not penalised, only where the vessel goes)
+      heading error       psi - psi_k                  (small weight)
+      speed error         u - v_ref,k
+      yaw-rate error      r - v_ref,k kappa_k          (curvature feedforward)
+    rho_N = terminal_factor, else 1. w_ref = [0, 0, q_trim(v_ref), q_trim(v_ref), 0].
+
+The predicted progress s_k is the projection of the nominal positions onto the path (two
+vectorised Newton steps from the previous prediction), so the reference moves with the boat.
+
+Sparse matrices are set up once. P (upper triangle) and A have a fixed sparsity pattern: the
+structural non-zeros of C^T Q C per stage, and of Ad (23 of 36 entries: the kinematics leave
+Ad[3:6, 0:3] zero) and Bd (dense 6x5) per stage, found once from random operating points. At every
+step one numba-compiled function (`_assemble`) overwrites their data arrays and q, l, u in place
+through precomputed index maps, followed by one `update(Px=, Ax=, q=, l=, u=)`. OSQP is
+warm-started from its previous primal-dual solution (measured: fewer iterations than a primal-only
+warm start with the shifted plan, `MPCConfig.warm_start_shifted`); Ruiz scaling is off
+(`scaling=0`) because re-scaling on every matrix update cost more than it saved here.
+
+Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
+from the one-step prediction error of the model and adds it to f_d.
+
+Safety (issue item 6): a solver status other than solved, a time-limit hit (OSQP `time_limit`)
+or a non-finite solution never reaches the actuators. The controller then plays the previous
+feasible plan, shifted, for at most `max_fallback_steps`, then commands neutral (safe stop);
+`ControllerStatus.failures` counts the failures and `status` says which mode is active.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import osqp
+import scipy.sparse as sp
+
+from lotsen.control.allocation import rate_limit
+from lotsen.control.base import PathReference, make_status, state_is_finite, wrap_angle
+from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
+from lotsen.model._jit import njit
+from lotsen.model.dynamics import VesselModel, _jacobians, rk4_step
+from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
+
+NX, NW, NY = 6, 5, 5
+_SOLVED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
+
+
+@dataclass(frozen=True)
+class MPCConfig:
+    """Horizon, weights and solver settings of the path-following MPC."""
+
+    horizon: int = 20  # N steps
+    dt_s: float = 0.1  # prediction step = control period
+    q_cross_track: float = 60.0  # per m^2
+    q_course: float = 6.0  # per rad^2
+    q_heading: float = 0.3  # per rad^2
+    q_speed: float = 20.0  # per (m/s)^2
+    q_yaw_rate: float = 1.0  # per (rad/s)^2
+    terminal_factor: float = 3.0
+    r_alpha: float = 0.05  # per rad^2
+    r_thrust_azimuth: float = 0.05  # per q^2 (q = n|n|/n_max^2)
+    r_thrust_bow: float = 0.5
+    # Rate penalties: on the EKF estimate, 0.3 / 0.5 let the noise through to the actuators (rms
+    # step changes of 5 deg and 19 rev/s on the figure eight); 10 / 20 cut that to 1.1 deg and
+    # 7 rev/s (servo and ESC wear) for 2 mm more cross-track RMS.
+    s_alpha: float = 10.0  # rate penalty per rad^2 (per step)
+    s_thrust: float = 20.0  # rate penalty per q^2 (per step)
+    min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
+    min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
+    n_floor_rps: float = 5.0  # |n| floor in d(kappa n)/dq
+    disturbance_gain: float = 0.15  # observer gain per step (0 switches it off)
+    disturbance_max_N: float = 5.0
+    max_fallback_steps: int = 5  # play the previous plan this many steps, then neutral
+    max_iter: int = 200
+    time_limit_s: float = 0.02  # OSQP time limit (0 = none)
+    eps: float = 1e-4
+    check_termination: int = 5
+    scaling: int = 0  # OSQP Ruiz equilibration iterations
+    warm_start_shifted: bool = False  # warm-start with the shifted plan (else OSQP's last solution)
+
+    def __post_init__(self) -> None:
+        if self.horizon < 2:
+            raise ValueError(f"MPCConfig.horizon: {self.horizon} must be >= 2")
+        if not self.dt_s > 0:
+            raise ValueError(f"MPCConfig.dt_s: {self.dt_s} must be positive")
+
+
+def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor, Ad, Bd, c):  # type: ignore[no-untyped-def]
+    """Discrete LTV matrices along the nominal trajectory (numba-compiled; see module docstring)."""
+    N = wb.shape[0]
+    for k in range(N):
+        x = (xb[k, 0], xb[k, 1], xb[k, 2], xb[k, 3], xb[k, 4], xb[k, 5])
+        q1 = wb[k, 2] * scale[2]
+        q2 = wb[k, 3] * scale[3]
+        qt = wb[k, 4] * scale[4]
+        n1 = math.copysign(math.sqrt(abs(q1)), q1)
+        n2 = math.copysign(math.sqrt(abs(q2)), q2)
+        nt = math.copysign(math.sqrt(abs(qt)), qt)
+        u = (wb[k, 0], wb[k, 1], n1, n2, nt)
+        A, B = _jacobians(x, u, theta, geom)
+        # d/dq = d/dn * dn/dq, dn/dq = 1 / (2|n|); the thrust part is then exactly mu e
+        B[:, 2] = B[:, 2] * scale[2] / (2.0 * max(abs(n1), n_floor))
+        B[:, 3] = B[:, 3] * scale[3] / (2.0 * max(abs(n2), n_floor))
+        B[:, 4] = B[:, 4] * scale[4] / (2.0 * max(abs(nt), n_floor))
+        x1, _k1 = rk4_step(x, u, theta, geom, 0.0, 0.0, dfx, dfy, dfn, dt)
+        AA = A @ A
+        AB = A @ B
+        for i in range(6):
+            for j in range(6):
+                Ad[k, i, j] = dt * A[i, j] + 0.5 * dt * dt * AA[i, j]
+            Ad[k, i, i] += 1.0
+            for j in range(5):
+                Bd[k, i, j] = dt * B[i, j] + 0.5 * dt * dt * AB[i, j]
+        for i in range(6):
+            acc = x1[i]
+            for j in range(6):
+                acc -= Ad[k, i, j] * xb[k, j]
+            for j in range(5):
+                acc -= Bd[k, i, j] * wb[k, j]
+            c[k, i] = acc
+
+
+_linearise_horizon = njit(_linearise_horizon_py)
+
+
+def _path_at_py(s, S, table, dtable, ds, length, cos_end, sin_end, out):  # type: ignore[no-untyped-def]
+    """Path (north, east, heading, curvature, speed) at arc length s, straight beyond the end."""
+    sc = min(max(s, S[0]), length)
+    i = np.searchsorted(S, sc, side="right") - 1
+    i = min(max(i, 0), S.shape[0] - 2)
+    f = (sc - S[i]) / ds[i]
+    for j in range(5):
+        out[j] = table[i, j] + f * dtable[i, j]
+    b = s - sc
+    if b > 0.0:
+        out[0] += b * cos_end
+        out[1] += b * sin_end
+        out[3] = 0.0
+
+
+_path_at = njit(_path_at_py)
+
+
+def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_end,  # type: ignore[no-untyped-def]
+                 scale, theta, geom, dt, dist, n_floor, Qy, stage_w, R, S_rate, w_prev, dw_max,
+                 q_trim_gain, min_speed_course, ad_i, ad_j, bd_i, bd_j, a_dyn_pos, p_state_pos, iu_i, iu_j,
+                 Ad, Bd, c, Px, Ax, q, l, u, row_bounds, row_rate, ref):
+    """One step of QP data: predicted progress, reference, LTV model, cost; written in place.
+
+    xb: nominal states (absolute), s_pred: progress guess per stage (refined here, s_pred[0] fixed).
+    ref (N, 5) receives the reference (north, east, heading, curvature, speed) of stages 1..N.
+    """
+    N = wb.shape[0]
+    nx = 6
+    nw = 5
+    buf = np.zeros(5)
+    # --- progress of the nominal positions: two Newton steps of the foot-point equation
+    for it in range(2):
+        for k in range(1, N + 1):
+            _path_at(s_pred[k], S, table, dtable, ds, length, cos_end, sin_end, buf)
+            dn = xb[k, 0] - buf[0]
+            de = xb[k, 1] - buf[1]
+            ch = np.cos(buf[2])
+            sh = np.sin(buf[2])
+            along = ch * dn + sh * de
+            cross = -sh * dn + ch * de
+            s_pred[k] += along / max(1.0 - buf[3] * cross, 0.3)
+        for k in range(1, N + 1):  # monotone progress
+            if s_pred[k] < s_pred[k - 1]:
+                s_pred[k] = s_pred[k - 1]
+    # --- reference; heading on the branch of the measured heading
+    for k in range(N):
+        _path_at(s_pred[k + 1], S, table, dtable, ds, length, cos_end, sin_end, buf)
+        for j in range(5):
+            ref[k, j] = buf[j]
+    two_pi = 2.0 * np.pi
+    ref[0, 2] += two_pi * np.round((x[2] - ref[0, 2]) / two_pi)
+    for k in range(1, N):
+        ref[k, 2] = ref[k - 1, 2] + ((ref[k, 2] - ref[k - 1, 2] + np.pi) % two_pi - np.pi)
+    # --- linearisation, positions relative to the measured one
+    xr = xb.copy()
+    for k in range(N + 1):
+        xr[k, 0] -= x[0]
+        xr[k, 1] -= x[1]
+    _linearise_horizon(xr, wb, scale, theta, geom, dt, dist[0], dist[1], dist[2], n_floor, Ad, Bd, c)
+    na = ad_i.shape[0]
+    nb = bd_i.shape[0]
+    for k in range(N):
+        for m in range(na):
+            Ax[a_dyn_pos[k, m]] = -Ad[k, ad_i[m], ad_j[m]]
+        for m in range(nb):
+            Ax[a_dyn_pos[k, na + m]] = -Bd[k, bd_i[m], bd_j[m]]
+    # --- bounds: x0 = measured (relative), dynamics offsets, rate bound of the first input
+    for i in range(nx):
+        l[i] = xr[0, i]
+        u[i] = xr[0, i]
+    for k in range(N):
+        for i in range(nx):
+            l[nx + nx * k + i] = c[k, i]
+            u[nx + nx * k + i] = c[k, i]
+    for j in range(nw):
+        l[row_rate + j] = w_prev[j] - dw_max[j]
+        u[row_rate + j] = w_prev[j] + dw_max[j]
+    # --- cost: y = C x + d (cross-track, course, heading, speed, yaw rate), P = C'QC, q = C'Qd
+    Cm = np.zeros((5, nx))
+    dv = np.zeros(5)
+    H = np.zeros((nx, nx))
+    nP = iu_i.shape[0]
+    for k in range(N):
+        pn = ref[k, 0] - x[0]
+        pe = ref[k, 1] - x[1]
+        ph = ref[k, 2]
+        sh = np.sin(ph)
+        ch = np.cos(ph)
+        U = max(ref[k, 4], min_speed_course)
+        Cm[0, 0] = -sh
+        Cm[0, 1] = ch
+        dv[0] = sh * pn - ch * pe
+        Cm[1, 2] = 1.0
+        Cm[1, 4] = 1.0 / U
+        dv[1] = -ph
+        Cm[2, 2] = 1.0
+        dv[2] = -ph
+        Cm[3, 3] = 1.0
+        dv[3] = -ref[k, 4]
+        Cm[4, 5] = 1.0
+        dv[4] = -ref[k, 4] * ref[k, 3]
+        w = stage_w[k]
+        for i in range(nx):
+            for j in range(nx):
+                acc = 0.0
+                for y in range(5):
+                    acc += Cm[y, i] * Qy[y] * Cm[y, j]
+                H[i, j] = w * acc
+            acc = 0.0
+            for y in range(5):
+                acc += Cm[y, i] * Qy[y] * dv[y]
+            q[nx * (k + 1) + i] = w * acc
+        for m in range(nP):
+            Px[p_state_pos[k, m]] = H[iu_i[m], iu_j[m]]
+    for i in range(nx):
+        q[i] = 0.0
+    base = nx * (N + 1)
+    for k in range(N):
+        v = ref[k, 4]
+        qt = q_trim_gain[0] * v + q_trim_gain[1] * abs(v) * v  # trim thrust of each azimuth (scaled)
+        q[base + nw * k + 0] = 0.0
+        q[base + nw * k + 1] = 0.0
+        q[base + nw * k + 2] = -R[2] * qt
+        q[base + nw * k + 3] = -R[3] * qt
+        q[base + nw * k + 4] = 0.0
+    for j in range(nw):
+        q[base + j] -= S_rate[j] * w_prev[j]
+
+
+_assemble = njit(_assemble_py)
+
+
+def _csc_template(n_rows: int, n_cols: int, entries: list[tuple[int, int]]) -> tuple[sp.csc_matrix, np.ndarray]:
+    """CSC matrix with a fixed pattern; returns it and `pos` with data[pos[i]] = value of entry i."""
+    rows = np.array([e[0] for e in entries])
+    cols = np.array([e[1] for e in entries])
+    ids = np.arange(1, len(entries) + 1, dtype=float)
+    M = sp.csc_matrix((ids, (rows, cols)), shape=(n_rows, n_cols))
+    M.sort_indices()
+    if M.nnz != len(entries):
+        raise RuntimeError("duplicate entries in a sparse template")
+    pos = np.empty(len(entries), dtype=np.int64)
+    pos[M.data.astype(np.int64) - 1] = np.arange(M.nnz)
+    return M, pos
+
+
+class MPCController:
+    """Path-following MPC (see module docstring). Implements the `PathFollower` protocol."""
+
+    name = "mpc"
+
+    def __init__(self, model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
+                 config: MPCConfig = MPCConfig()) -> None:
+        self.model = model or VesselModel()
+        self.limits = limits
+        self.config = config
+        self.N = config.horizon
+        N = self.N
+        self.scale = np.array([1.0, 1.0, limits.n_az_max_rps ** 2, limits.n_az_max_rps ** 2,
+                               limits.n_bow_max_rps ** 2])
+        self.nz = NX * (N + 1) + NW * N
+        self._build_qp()
+        self.path: PathReference | None = None
+        self.failures = 0
+        self.solve_times_ms: list[float] = []
+        self._reset_state()
+
+    # ------------------------------------------------------------------ set-up (once)
+    def _xi(self, k: int) -> int:
+        return NX * k
+
+    def _wi(self, k: int) -> int:
+        return NX * (self.N + 1) + NW * k
+
+    def _build_qp(self) -> None:
+        N, cfg, lim = self.N, self.config, self.limits
+        # --- P (upper triangle): dense 6x6 state blocks for k = 1..N, input blocks (R + rate S)
+        p_entries: list[tuple[int, int]] = []
+        # structural pattern of C^T Q C (see the output rows in the module docstring)
+        C_struct = np.zeros((NY, NX))
+        for i, j in ((0, 0), (0, 1), (1, 2), (1, 4), (2, 2), (3, 3), (4, 5)):
+            C_struct[i, j] = 1.0
+        iu = np.nonzero(np.triu(C_struct.T @ C_struct) > 0)
+        self._iu = iu
+        for k in range(1, N + 1):
+            b = self._xi(k)
+            p_entries += [(b + i, b + j) for i, j in zip(iu[0], iu[1])]
+        n_state_p = len(p_entries)
+        R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow])
+        S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
+        self._R, self._S = R, S
+        p_in_vals: list[float] = []
+        for k in range(N):
+            b = self._wi(k)
+            for j in range(NW):
+                diag = R[j] + S[j] + (S[j] if k < N - 1 else 0.0)
+                p_entries.append((b + j, b + j))
+                p_in_vals.append(diag)
+            if k >= 1:
+                for j in range(NW):
+                    p_entries.append((self._wi(k - 1) + j, b + j))
+                    p_in_vals.append(-S[j])
+        P, self._p_pos = _csc_template(self.nz, self.nz, p_entries)
+        self._p_state_pos = self._p_pos[:n_state_p].reshape(N, len(iu[0]))
+        self._Px = np.zeros(P.nnz)
+        self._Px[self._p_pos[n_state_p:]] = p_in_vals
+        self._Px[self._p_state_pos] = 1e-6  # replaced before the first solve
+        # --- A: x0 = x_meas; dynamics; input bounds; rate bounds
+        a_entries: list[tuple[int, int]] = []
+        a_vals: list[float] = []
+        row = 0
+        for i in range(NX):
+            a_entries.append((row + i, i))
+            a_vals.append(1.0)
+        row += NX
+        dyn_entries_start = len(a_entries)
+        ai, aj, bi, bj = self._dynamics_pattern()
+        self._ad_idx, self._bd_idx = (ai, aj), (bi, bj)
+        for k in range(N):
+            r = row + NX * k
+            a_entries += [(r + i, self._xi(k) + j) for i, j in zip(ai, aj)]
+            a_entries += [(r + i, self._wi(k) + j) for i, j in zip(bi, bj)]
+            a_vals += [0.0] * (len(ai) + len(bi))
+        dyn_count = len(a_entries) - dyn_entries_start
+        for k in range(N):
+            for i in range(NX):
+                a_entries.append((row + NX * k + i, self._xi(k + 1) + i))
+                a_vals.append(1.0)
+        row += NX * N
+        self._row_bounds = row
+        for k in range(N):
+            for j in range(NW):
+                a_entries.append((row + NW * k + j, self._wi(k) + j))
+                a_vals.append(1.0)
+        row += NW * N
+        self._row_rate = row
+        for k in range(N):
+            for j in range(NW):
+                a_entries.append((row + NW * k + j, self._wi(k) + j))
+                a_vals.append(1.0)
+                if k >= 1:
+                    a_entries.append((row + NW * k + j, self._wi(k - 1) + j))
+                    a_vals.append(-1.0)
+        row += NW * N
+        self.m = row
+        A, a_pos = _csc_template(self.m, self.nz, a_entries)
+        self._Ax = np.zeros(A.nnz)
+        self._Ax[a_pos] = a_vals
+        # per stage k: the Ad entries of the pattern, then the Bd entries
+        self._a_dyn_pos = a_pos[dyn_entries_start:dyn_entries_start + dyn_count].reshape(N, len(ai) + len(bi))
+        # bounds
+        self._l = np.zeros(self.m)
+        self._u = np.zeros(self.m)
+        w_max = np.array([lim.alpha_max_rad, lim.alpha_max_rad, 1.0, 1.0, 1.0])
+        self._w_max = w_max
+        self._l[self._row_bounds:self._row_rate] = np.tile(-w_max, N)
+        self._u[self._row_bounds:self._row_rate] = np.tile(w_max, N)
+        dn = lim.n_rate_max_rps2 * cfg.dt_s
+        dq_az = min(1.0, 2.0 * dn / lim.n_az_max_rps)
+        dq_bow = min(1.0, 2.0 * dn / lim.n_bow_max_rps)
+        da = lim.alpha_rate_max_radps * cfg.dt_s
+        self._dw_max = np.array([da, da, dq_az, dq_az, dq_bow])
+        self._l[self._row_rate:] = np.tile(-self._dw_max, N)
+        self._u[self._row_rate:] = np.tile(self._dw_max, N)
+        self._q = np.zeros(self.nz)
+        P.data[:] = self._Px
+        A.data[:] = self._Ax
+        self.solver = osqp.OSQP()
+        settings: dict[str, Any] = dict(verbose=False, warm_starting=True, polishing=False,
+                                        eps_abs=cfg.eps, eps_rel=cfg.eps, max_iter=cfg.max_iter,
+                                        check_termination=cfg.check_termination, adaptive_rho=True,
+                                        scaling=cfg.scaling)
+        if cfg.time_limit_s > 0:
+            settings["time_limit"] = cfg.time_limit_s
+        self.solver.setup(P, self._q, A, self._l, self._u, **settings)
+        # scratch arrays for the linearisation
+        self._Ad = np.zeros((N, NX, NX))
+        self._Bd = np.zeros((N, NX, NW))
+        self._c = np.zeros((N, NX))
+        self._ones_stage = np.ones(N)
+        self._ones_stage[-1] = cfg.terminal_factor
+        self._ref = np.zeros((N, 5))
+        p = self.model.params
+        self._q_trim_gain = np.array([p.X_u, -p.X_uu]) / (2.0 * p.mu_az * self.scale[2])
+        self._Qy = np.array([cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate])
+
+    def _dynamics_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Structural non-zeros of Ad and Bd: the union over random operating points (the
+        kinematics make e.g. Ad[3:6, 0:3] structurally zero); the diagonal of Ad always."""
+        rng = np.random.default_rng(1)
+        N = 8
+        xb = np.zeros((N + 1, NX))
+        xb[:, :2] = rng.uniform(-5, 5, (N + 1, 2))
+        xb[:, 2] = rng.uniform(-np.pi, np.pi, N + 1)
+        xb[:, 3] = rng.uniform(-0.5, 1.5, N + 1)
+        xb[:, 4:] = rng.uniform(-0.3, 0.3, (N + 1, 2))
+        wb = rng.uniform(-1, 1, (N, NW)) * np.array([0.7, 0.7, 1, 1, 1])
+        Ad, Bd, c = np.zeros((N, NX, NX)), np.zeros((N, NX, NW)), np.zeros((N, NX))
+        _linearise_horizon(xb, wb, self.scale, self.model.theta, self.model.geom, self.config.dt_s,
+                           0.1, 0.1, 0.1, self.config.n_floor_rps, Ad, Bd, c)
+        a_mask = np.any(np.abs(Ad) > 0, axis=0) | np.eye(NX, dtype=bool)
+        b_mask = np.any(np.abs(Bd) > 0, axis=0)
+        ai, aj = np.nonzero(a_mask)
+        bi, bj = np.nonzero(b_mask)
+        return ai, aj, bi, bj
+
+    # ------------------------------------------------------------------ run time
+    def _reset_state(self) -> None:
+        self._xb: np.ndarray | None = None  # nominal states (N+1, 6), absolute positions
+        self._wb = np.zeros((self.N, NW))  # nominal inputs (scaled)
+        self._s_pred: np.ndarray | None = None
+        self._s = 0.0
+        self._w_prev = np.zeros(NW)  # last applied (scaled) input
+        self._cmd_prev: tuple[float, ...] | None = None
+        self._plan: np.ndarray | None = None  # last feasible input sequence (scaled)
+        self._plan_age = 0
+        self._dist = np.zeros(3)  # estimated disturbance force (N, N, N m) in the body frame
+        self._obs: tuple[np.ndarray, tuple[float, ...]] | None = None
+        self._done = False
+
+    def reset(self, path: Any) -> None:
+        self.path = PathReference(path, self.config.min_speed_ref_mps)
+        self.failures = 0
+        self.solve_times_ms = []
+        self._reset_state()
+
+    @property
+    def done(self) -> bool:
+        return self._done
+
+    def q_trim(self, speed: np.ndarray) -> np.ndarray:
+        """Scaled thrust q of each azimuth for a steady surge speed (seed eq. 22 at v = r = 0)."""
+        p = self.model.params
+        T = (p.X_u * speed - p.X_uu * np.abs(speed) * speed) / 2.0
+        return T / (p.mu_az * self.scale[2])
+
+    def w_to_command(self, w: np.ndarray) -> tuple[float, float, float, float, float]:
+        q = w[2:] * self.scale[2:]
+        n = np.sign(q) * np.sqrt(np.abs(q))
+        return (float(w[0]), float(w[1]), float(n[0]), float(n[1]), float(n[2]))
+
+    def command_to_w(self, cmd: tuple[float, ...]) -> np.ndarray:
+        n = np.array(cmd[2:])
+        return np.array([cmd[0], cmd[1], *(n * np.abs(n) / self.scale[2:])])
+
+    def _update_disturbance(self, x: np.ndarray) -> None:
+        """Observer: d += g * M * (measured - predicted velocity) / dt (one-step prediction error)."""
+        cfg = self.config
+        if self._obs is not None and cfg.disturbance_gain > 0:
+            x_prev, cmd = self._obs
+            xp, _ = rk4_step(tuple(x_prev), tuple(cmd), self.model.theta, self.model.geom, 0.0, 0.0,
+                             float(self._dist[0]), float(self._dist[1]), float(self._dist[2]), cfg.dt_s)
+            p = self.model.params
+            err = (x[3:6] - np.array(xp[3:6])) / cfg.dt_s * np.array([p.m11, p.m22, p.m33])
+            if np.all(np.isfinite(err)):
+                self._dist = np.clip(self._dist + cfg.disturbance_gain * err, -cfg.disturbance_max_N,
+                                     cfg.disturbance_max_N)
+
+    def _nominal(self, x: np.ndarray) -> None:
+        """Shift the previous solution; the first state is the measurement."""
+        N = self.N
+        if self._xb is None:
+            # cold start: hold the previous input and integrate the model
+            xb = np.empty((N + 1, NX))
+            xb[0] = x
+            wb = np.tile(self._w_prev, (N, 1))
+            cmd = self.w_to_command(self._w_prev)
+            for k in range(N):
+                x1, _ = rk4_step(tuple(xb[k]), cmd, self.model.theta, self.model.geom, 0.0, 0.0,
+                                 float(self._dist[0]), float(self._dist[1]), float(self._dist[2]),
+                                 self.config.dt_s)
+                xb[k + 1] = x1
+            self._xb, self._wb = xb, wb
+        else:
+            self._xb = np.concatenate([self._xb[1:], self._xb[-1:]])
+            self._wb = np.concatenate([self._wb[1:], self._wb[-1:]])
+            # keep the nominal heading on the measured branch (psi is not wrapped by the model)
+            self._xb[:, 2] += 2.0 * math.pi * round((x[2] - self._xb[0, 2]) / (2.0 * math.pi))
+            self._xb[0] = x
+
+    def update(self, t: float, state: VesselState) -> tuple[ThrustCommand, ControllerStatus]:
+        if self.path is None:
+            raise RuntimeError("MPCController.update before reset(path)")
+        t0 = time.perf_counter()  # measurement for reporting only, not control logic
+        if not state_is_finite(state):
+            return self._failure(t, state, "state not finite", t0, 0.0, 0.0, 0.0, 0.0)
+        cfg, N = self.config, self.N
+        x = np.array(state.as_array_tuple(), dtype=float)
+        self._update_disturbance(x)
+        s0, cte, hdg = self.path.project(x[0], x[1], self._s)
+        self._s = s0
+        if s0 >= self.path.length - 0.02:
+            self._done = True
+        self._nominal(x)
+        xb, wb = self._xb, self._wb
+        assert xb is not None
+        # progress guess: the previous prediction shifted (or the reference speed), refined in _assemble
+        if self._s_pred is None:
+            v0 = float(self.path.sample(np.array([s0]))[4][0])
+            s_pred = s0 + np.arange(N + 1) * v0 * cfg.dt_s
+        else:
+            s_pred = np.concatenate([self._s_pred[1:], self._s_pred[-1:]])
+            s_pred[0] = s0
+            np.maximum(s_pred, s0, out=s_pred)
+        pr = self.path
+        _assemble(x, xb, wb, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
+                  pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,
+                  cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev, self._dw_max,
+                  self._q_trim_gain, cfg.min_speed_course_mps, self._ad_idx[0], self._ad_idx[1],
+                  self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos, self._iu[0],
+                  self._iu[1], self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q, self._l, self._u,
+                  self._row_bounds, self._row_rate, self._ref)
+        self._s_pred = s_pred
+        pv = self._ref[:, 4]
+        if not (np.isfinite(self._Ax).all() and np.isfinite(self._l).all() and np.isfinite(self._q).all()):
+            return self._failure(t, state, "QP data not finite", t0, cte, hdg, s0, float(pv[0]))
+        q, l, u = self._q, self._l, self._u
+        origin = x[:2].copy()
+        xr = xb.copy()
+        xr[:, 0] -= origin[0]
+        xr[:, 1] -= origin[1]
+        self.solver.update(q=q, l=l, u=u, Px=self._Px, Ax=self._Ax)
+        if cfg.warm_start_shifted:
+            self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel()]))
+        res = self.solver.solve(raise_error=False)
+        z = None if res.x is None else np.array(res.x, dtype=float)
+        ok = res.info.status_val in _SOLVED and z is not None and z.shape == (self.nz,) and bool(np.all(np.isfinite(z)))
+        if not ok:
+            return self._failure(t, state, f"solver: {res.info.status}", t0, cte, hdg, s0, float(pv[0]))
+        assert z is not None
+        xs = z[:NX * (N + 1)].reshape(N + 1, NX).copy()
+        ws = z[NX * (N + 1):].reshape(N, NW).copy()
+        ws = np.clip(ws, -self._w_max, self._w_max)
+        xs[:, 0] += origin[0]
+        xs[:, 1] += origin[1]
+        self._xb, self._wb = xs, ws
+        self._plan = ws.copy()
+        self._plan_age = 0
+        cmd = self._apply(ws[0])
+        self._obs = (x, cmd)
+        solve_ms = (time.perf_counter() - t0) * 1e3
+        self.solve_times_ms.append(solve_ms)
+        status = make_status(t, self.name, cte, wrap_angle(x[2] - hdg), state, float(pv[0]), s0, solve_ms,
+                             "ok", self.failures, (xs[:, 0], xs[:, 1]))
+        return ThrustCommand.from_tuple(t, cmd, source=self.name), status
+
+    def _apply(self, w: np.ndarray) -> tuple[float, ...]:
+        cmd = rate_limit(self._cmd_prev, self.w_to_command(w), self.config.dt_s, self.limits)
+        self._cmd_prev = cmd
+        self._w_prev = self.command_to_w(cmd)
+        return cmd
+
+    def _failure(self, t: float, state: VesselState, why: str, t0: float, cte: float, hdg: float,
+                 s0: float, v_ref: float) -> tuple[ThrustCommand, ControllerStatus]:
+        """Previous plan shifted for a bounded time, then neutral; never the failed output."""
+        self.failures += 1
+        self._plan_age += 1
+        self._xb = None  # the nominal is rebuilt (cold start) once the solver succeeds again
+        self._s_pred = None
+        if self._plan is not None and self._plan_age <= min(self.config.max_fallback_steps, self.N - 1):
+            cmd = self._apply(self._plan[self._plan_age])
+            status = f"fallback_plan ({why})"
+        else:
+            cmd = (0.0, 0.0, 0.0, 0.0, 0.0)  # safe stop: neutral
+            self._cmd_prev = cmd
+            self._w_prev = np.zeros(NW)
+            status = f"safe_stop ({why})"
+        x = np.array(state.as_array_tuple(), dtype=float)
+        self._obs = (x, cmd) if np.all(np.isfinite(x)) else None
+        solve_ms = (time.perf_counter() - t0) * 1e3
+        self.solve_times_ms.append(solve_ms)
+        heading_err = wrap_angle(state.heading_rad - hdg) if math.isfinite(state.heading_rad) else float("nan")
+        st = make_status(t, self.name, cte, heading_err, state, v_ref, s0, solve_ms, status, self.failures)
+        return ThrustCommand.from_tuple(t, cmd, source=self.name), st

@@ -1,0 +1,107 @@
+"""Station keeping: hold a position and heading with both azimuths and the bow thruster.
+
+Field notes #1 and #4: boats drift in "hold" and at the end of a route; this vessel can hold
+against current and wind because it can push sideways (bow thruster + azimuths) and turn at zero
+speed. A body-frame PID with integral action per axis (the integral learns the current and wind
+force), model-based gains, then the constrained thrust allocation:
+
+    e_b = R(psi)^T [N_t - N, E_t - E],  e_psi = wrap(psi_t - psi)
+    tau = K_p [e_b, e_psi] + K_i int [e_b, e_psi] - K_d [u, v, r]
+    K_p = m w^2, K_d = 2 zeta w m - d_lin (critical damping with the hull's own linear damping),
+    K_i = K_p w / ratio
+
+The integral is kept in the earth frame for position (a current's force does not rotate with
+the hull) and rotated into the body frame at every step. Anti-windup: integral clamped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from lotsen.control.allocation import AllocationConfig, ThrustAllocator, rate_limit
+from lotsen.control.base import HoldTarget, make_status, state_is_finite, wrap_angle
+from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
+from lotsen.model.dynamics import VesselModel
+from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
+
+
+@dataclass(frozen=True)
+class StationKeepingConfig:
+    dt_s: float = 0.1
+    position_natural_freq_radps: float = 0.6
+    heading_natural_freq_radps: float = 1.0
+    damping: float = 1.0
+    integral_ratio: float = 8.0  # K_i = K_p w / ratio
+    integral_limit_N: float = 4.0
+    integral_limit_Nm: float = 1.0
+    max_position_error_m: float = 2.0  # error clamp: far away it drives at bounded force
+
+
+class StationKeepingController:
+    """Implements the `StationKeeper` protocol."""
+
+    name = "station_keeping"
+
+    def __init__(self, model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
+                 config: StationKeepingConfig = StationKeepingConfig(),
+                 allocation: AllocationConfig = AllocationConfig()) -> None:
+        self.model = model or VesselModel()
+        self.limits = limits
+        self.config = config
+        self.allocator = ThrustAllocator(self.model, limits, allocation)
+        p, c = self.model.params, config
+        w, wp, z = c.position_natural_freq_radps, c.heading_natural_freq_radps, c.damping
+        m = np.array([p.m11, p.m22, p.m33])
+        lin = np.array([p.X_u, p.Y_v, p.N_r])
+        om = np.array([w, w, wp])
+        self.kp = m * om ** 2
+        self.kd = np.maximum(2.0 * z * om * m - lin, 0.1 * m * om)
+        self.ki = self.kp * om / c.integral_ratio
+        self.failures = 0
+        self.reset()
+
+    def reset(self) -> None:
+        self._int_ne = np.zeros(2)  # earth-frame force integral (N)
+        self._int_psi = 0.0
+        self._cmd_prev: tuple[float, ...] | None = None
+        self.allocator.reset()
+
+    def update(self, t: float, state: VesselState, target: HoldTarget) -> tuple[ThrustCommand, ControllerStatus]:
+        c = self.config
+        if not state_is_finite(state):
+            self.failures += 1
+            self._cmd_prev = (0.0,) * 5
+            return ThrustCommand.neutral(t, self.name), make_status(
+                t, self.name, float("nan"), float("nan"), state, 0.0, float("nan"),
+                status="safe_stop (state not finite)", failures=self.failures)
+        N, E, psi, u, v, r = state.as_array_tuple()
+        dn, de = target.north_m - N, target.east_m - E
+        dist = math.hypot(dn, de)
+        if dist > c.max_position_error_m:
+            dn, de = dn * c.max_position_error_m / dist, de * c.max_position_error_m / dist
+        e_psi = wrap_angle(target.heading_rad - psi)
+        cp, sp = math.cos(psi), math.sin(psi)
+        # integral in the earth frame (a current's force does not turn with the hull)
+        self._int_ne += c.dt_s * np.array([dn, de]) * self.ki[:2].mean()
+        lim = c.integral_limit_N
+        norm = float(np.hypot(*self._int_ne))
+        if norm > lim:
+            self._int_ne *= lim / norm
+        self._int_psi = min(max(self._int_psi + c.dt_s * self.ki[2] * e_psi, -c.integral_limit_Nm), c.integral_limit_Nm)
+        ex = cp * dn + sp * de
+        ey = -sp * dn + cp * de
+        ix = cp * self._int_ne[0] + sp * self._int_ne[1]
+        iy = -sp * self._int_ne[0] + cp * self._int_ne[1]
+        tau = np.array([self.kp[0] * ex + ix - self.kd[0] * u,
+                        self.kp[1] * ey + iy - self.kd[1] * v,
+                        self.kp[2] * e_psi + self._int_psi - self.kd[2] * r])
+        res = self.allocator.allocate(tau, nu=(u, v, r))
+        cmd = rate_limit(self._cmd_prev, res.command, c.dt_s, self.limits)
+        self._cmd_prev = cmd
+        # the status reuses the path fields: "cross-track" = distance to the target
+        status = make_status(t, self.name, math.hypot(target.north_m - N, target.east_m - E), -e_psi, state, 0.0,
+                             float("nan"), status="saturated" if res.saturated else "ok", failures=self.failures)
+        return ThrustCommand.from_tuple(t, cmd, source=self.name), status

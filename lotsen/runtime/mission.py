@@ -1,0 +1,231 @@
+"""Closed-loop mission harness: a path follower (and the station keeper at the end) on the simulated boat.
+
+    result = run_mission(path, make_path_follower(ControlConfig(controller="mpc")),
+                         MissionConfig(environment=Environment(current_speed_mps=0.1)))
+    result.metrics["cross_track_rms_m"]
+
+The simulator steps at its own rate (100 Hz); the controller runs every `1 / control_rate_hz`
+seconds on the true state, or on an estimator's output (`estimator=` an object with
+on_imu / on_mag / on_gnss / on_command and estimate(t) -> VesselState, e.g. lotsen.fusion's EKF).
+When the follower reports `done` (end of the path), the station keeper holds the last point and
+heading for `hold_s`. Everything is pure: simulated time only, seeded noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lotsen.control import (
+    ControlConfig, HoldTarget, PathFollower, PathReference, StationKeeper, make_path_follower, make_station_keeper,
+)
+from lotsen.messages import ControllerStatus, GnssFix, ImuSample, MagSample, ThrustCommand
+from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
+from lotsen.sim import SimConfig, Simulator
+
+
+@dataclass(frozen=True)
+class MissionConfig:
+    control_rate_hz: float = 10.0
+    sim_dt_s: float = 0.01
+    environment: Environment = field(default_factory=Environment)
+    seed: int = 0
+    sensors: bool = False  # True when an estimator consumes the sensor messages
+    hold_s: float = 10.0  # station keeping at the end of the path
+    max_duration_s: float | None = None  # default: 2 x planned time + 60 s
+    abort_cross_track_m: float = 5.0  # the mission fails if the vessel strays this far
+    start_offset_m: tuple[float, float] = (0.0, 0.0)  # initial (along-track, cross-track) offset
+    start_heading_offset_rad: float = 0.0
+    record_predictions: bool = False
+
+
+@dataclass
+class MissionResult:
+    completed: bool
+    reason: str
+    metrics: dict[str, Any]
+    t: np.ndarray  # control ticks (s)
+    x: np.ndarray  # true state at each tick (K x 6)
+    x_used: np.ndarray  # state the controller saw (truth or estimate)
+    u: np.ndarray  # commands (K x 5)
+    cross_track_m: np.ndarray
+    heading_error_rad: np.ndarray
+    speed_mps: np.ndarray
+    speed_ref_mps: np.ndarray
+    progress_m: np.ndarray
+    solve_time_ms: np.ndarray
+    mode: np.ndarray  # "follow" or "hold" per tick
+    statuses: list[ControllerStatus]
+    path: Any
+    cross_track_estimated_m: np.ndarray | None = None  # the controller's view when an estimator ran
+
+
+def planned_duration_s(path: Any, min_speed_mps: float = 0.15) -> float:
+    v = np.maximum(np.asarray(path.speed_mps, dtype=float), min_speed_mps)
+    ds = np.diff(np.asarray(path.s_m, dtype=float))
+    return float(np.sum(ds / (0.5 * (v[1:] + v[:-1]))))
+
+
+def _rms(a: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(a)))) if a.size else float("nan")
+
+
+def run_mission(path: Any, follower: PathFollower | None = None, config: MissionConfig = MissionConfig(),
+                *, station_keeper: StationKeeper | None = None, model: VesselModel | None = None,
+                sim_model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
+                estimator: Any = None, sim_config: SimConfig | None = None) -> MissionResult:
+    """Run one mission in simulation. `model` is the controllers' model, `sim_model` the simulated
+    boat (default: the same; pass another for model-mismatch runs)."""
+    model = model or VesselModel()
+    follower = follower or make_path_follower(ControlConfig(), model, limits)
+    keeper = station_keeper or make_station_keeper(ControlConfig(), model, limits)
+    sim_cfg = sim_config or SimConfig(dt_s=config.sim_dt_s, seed=config.seed, environment=config.environment,
+                                      sensors=config.sensors or estimator is not None)
+    along, cross = config.start_offset_m
+    h0 = float(path.heading_rad[0])
+    x0 = [float(path.north_m[0]) + along * math.cos(h0) - cross * math.sin(h0),
+          float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
+          h0 + config.start_heading_offset_rad, 0.0, 0.0, 0.0]
+    sim = Simulator(sim_model or model, limits, sim_cfg, x0)
+    follower.reset(path)
+    keeper.reset()
+    n_sub = max(1, int(round(1.0 / (config.control_rate_hz * sim_cfg.dt_s))))
+    t_max = config.max_duration_s or 2.0 * planned_duration_s(path) + 60.0
+    end = HoldTarget(float(path.north_m[-1]), float(path.east_m[-1]), float(path.heading_rad[-1]))
+    rows: list[tuple] = []
+    statuses: list[ControllerStatus] = []
+    mode = "follow"
+    t_done: float | None = None
+    reason = "timeout"
+    msgs: list[Any] = []
+    while sim.t < t_max + 1e-9:
+        t = sim.t
+        truth = sim.truth()
+        if estimator is not None:
+            for m in msgs:
+                if isinstance(m, ImuSample):
+                    estimator.on_imu(m)
+                elif isinstance(m, MagSample):
+                    estimator.on_mag(m)
+                elif isinstance(m, GnssFix):
+                    estimator.on_gnss(m)
+            state = estimator.estimate(t)
+        else:
+            state = truth
+        if mode == "follow":
+            cmd, status = follower.update(t, state)
+            if follower.done:
+                mode = "hold"
+                t_done = t
+        else:
+            cmd, status = keeper.update(t, state, end)
+            if t_done is not None and t - t_done >= config.hold_s:
+                reason = "completed"
+                break
+        if not isinstance(cmd, ThrustCommand) or not cmd.is_finite():  # belt and braces
+            cmd = ThrustCommand.neutral(t)
+        sim.command(cmd)
+        if estimator is not None:
+            estimator.on_command(cmd)
+        statuses.append(status)
+        rows.append((t, truth.as_array_tuple(), state.as_array_tuple(), cmd.as_tuple(), status.cross_track_error_m,
+                     status.heading_error_rad, status.speed_mps, status.speed_ref_mps, status.progress_m,
+                     status.solve_time_ms, mode))
+        if mode == "follow" and abs(status.cross_track_error_m) > config.abort_cross_track_m:
+            reason = f"aborted: cross-track error {status.cross_track_error_m:.2f} m at t = {t:.1f} s"
+            break
+        msgs = []
+        try:
+            for _ in range(n_sub):
+                msgs.extend(sim.step())
+        except FloatingPointError as exc:
+            reason = f"aborted: {exc}"
+            break
+    arr = lambda i: np.array([r[i] for r in rows], dtype=float)  # noqa: E731
+    modes = np.array([r[10] for r in rows])
+    res = MissionResult(
+        completed=reason == "completed", reason=reason, metrics={}, t=arr(0), x=arr(1).reshape(-1, 6),
+        x_used=arr(2).reshape(-1, 6), u=arr(3).reshape(-1, 5), cross_track_m=arr(4), heading_error_rad=arr(5),
+        speed_mps=arr(6), speed_ref_mps=arr(7), progress_m=arr(8), solve_time_ms=arr(9), mode=modes,
+        statuses=statuses, path=path)
+    if estimator is not None and res.t.size:
+        # the controller saw the estimate: measure the true errors against the path
+        ref = PathReference(path)
+        hint = 0.0
+        true_cte = np.empty(res.t.size)
+        for i, xi in enumerate(res.x):
+            hint, true_cte[i], _ = ref.project(xi[0], xi[1], hint)
+        res.cross_track_estimated_m = res.cross_track_m
+        res.cross_track_m = true_cte
+    res.metrics = mission_metrics(res, follower, t_done)
+    return res
+
+
+def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> dict[str, Any]:
+    """The report's numbers: errors over the path-following phase, the hold at the end."""
+    f = res.mode == "follow"
+    h = res.mode == "hold"
+    cte = res.cross_track_m[f]
+    hdg = res.heading_error_rad[f]
+    spd = res.speed_mps[f] - res.speed_ref_mps[f]
+    st = res.solve_time_ms[f]
+    st = st[np.isfinite(st)]
+    failures = int(getattr(follower, "failures", 0))
+    out: dict[str, Any] = {
+        "completed": bool(res.completed),
+        "reason": res.reason,
+        "controller": getattr(follower, "name", type(follower).__name__),
+        "path_length_m": round(float(res.path.length_m), 3),
+        "duration_s": round(float(t_done if t_done is not None else (res.t[-1] if res.t.size else 0.0)), 2),
+        "cross_track_rms_m": round(_rms(cte), 4),
+        "cross_track_max_m": round(float(np.max(np.abs(cte))) if cte.size else float("nan"), 4),
+        "heading_error_rms_deg": round(math.degrees(_rms(hdg[np.isfinite(hdg)])), 3),
+        "speed_error_rms_mps": round(_rms(spd[np.isfinite(spd)]), 4),
+        "solve_time_median_ms": round(float(np.median(st)), 4) if st.size else None,
+        "solve_time_max_ms": round(float(np.max(st)), 4) if st.size else None,
+        "failures": failures,
+    }
+    if np.any(h):
+        xh = res.x[h]
+        end_n, end_e = float(res.path.north_m[-1]), float(res.path.east_m[-1])
+        out["hold_position_error_final_m"] = round(float(math.hypot(xh[-1, 0] - end_n, xh[-1, 1] - end_e)), 4)
+        out["hold_heading_error_final_deg"] = round(math.degrees(abs(
+            (xh[-1, 2] - float(res.path.heading_rad[-1]) + math.pi) % (2 * math.pi) - math.pi)), 3)
+    if res.x_used.size and not np.allclose(res.x_used, res.x):
+        d = res.x_used[f, :2] - res.x[f, :2]
+        out["estimate_position_error_rms_m"] = round(_rms(np.hypot(d[:, 0], d[:, 1])), 4)
+    if res.cross_track_estimated_m is not None:
+        out["cross_track_rms_estimated_m"] = round(_rms(res.cross_track_estimated_m[f]), 4)
+    return out
+
+
+def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = None,
+                 sim_config: SimConfig | None = None) -> Any:
+    """lotsen.fusion's model-aided EKF set up for the simulated boat: GNSS origin of the simulator,
+    the magnetometer calibration its distortion implies (what `lotsen calibrate` would find), and
+    the start pose of the mission."""
+    from lotsen.errors import LotsenError
+    from lotsen.messages import VesselState
+
+    try:
+        from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
+        from lotsen.fusion.magcal import MagCalibration
+    except ImportError as exc:  # pragma: no cover - fusion is developed in parallel
+        raise LotsenError(f"--estimator ekf: lotsen.fusion is not available ({exc})") from None
+    sc = sim_config or SimConfig()
+    imu, gnss = sc.imu, sc.gnss
+    H = imu.earth_field_horizontal_uT
+    (s00, s01), (s10, s11) = imu.soft_iron
+    cal = MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)),
+                         heading_offset_rad=imu.declination_rad)
+    along, cross = config.start_offset_m
+    h0 = float(path.heading_rad[0])
+    x0 = VesselState(stamp_s=0.0, north_m=float(path.north_m[0]) + along * math.cos(h0) - cross * math.sin(h0),
+                     east_m=float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
+                     heading_rad=h0 + config.start_heading_offset_rad, u_mps=0.0, v_mps=0.0, r_radps=0.0)
+    cfg = EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m))
+    return ModelAidedEKF(model or VesselModel(), cal, cfg, initial=x0,
+                         initial_std=(0.5, 0.5, 0.2, 0.1, 0.1, 0.1, 0.02, 0.2, 0.2))
