@@ -27,7 +27,7 @@ browser:
 	@bash tools/ensure-chromium.sh
 
 run: venv
-	$(PY) -m lotsen run --sim $(RUN_ARGS)
+	$(PY) -m lotsen run config/sim.yaml --sim $(RUN_ARGS)
 
 test: venv-dev browser
 	$(PY) -m pytest -q -n 2 --dist loadfile

@@ -50,9 +50,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     from lotsen.cli.experiment import load_params
     from lotsen.sysid.blackbox import fit_narx, narx_fit
-    from lotsen.sysid.data import load_record
+    from lotsen.logs.export import sysid_loader
+    from lotsen.sysid.data import load_record, register_loader
     from lotsen.sysid.estimate import estimate
     from lotsen.sysid.validate import inputs_at_outputs, residual_analysis, simulate_fit
+
+    register_loader(".mcap", sysid_loader)  # the project's own run logs
 
     fixed = _parse_fix(args.fix or [])
     warnings: list[str] = []

@@ -21,6 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--port", type=int, help="web port (default from config: 8080)")
     p.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
     p.add_argument("--seed", type=int, help="random seed of the simulation")
+    p.add_argument("--foxglove", nargs="?", type=int, const=8765, metavar="PORT",
+                   help="also stream every topic to Foxglove (WebSocket, default port 8765)")
     p.set_defaults(func=run)
 
 
@@ -33,6 +35,10 @@ def run(args: argparse.Namespace) -> int:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
     stack = build_stack(config, realtime=True)
+    if args.foxglove is not None:
+        from lotsen.logs.part import add_foxglove_server
+
+        add_foxglove_server(stack, config.web.host, args.foxglove)
     print(f"lotsen: {config.mode} stack with nodes: {', '.join(stack.nodes)}", flush=True)
     for line in stack.services.get("banner", []):
         print(line, flush=True)
