@@ -1,0 +1,8 @@
+"""Operator web interface (seed section 3.6 / SPEC section 8): plan, operate, watch.
+
+A FastAPI + uvicorn server in a background thread, a WebSocket hub that streams telemetry from
+the bus and forwards validated control messages of the one authenticated pilot, and a
+dependency-free front end (canvas map in local metres, canvas plots) in ``static/``.
+
+Attach to a stack with ``lotsen.web.part.add_web(stack)``.
+"""

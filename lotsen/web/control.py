@@ -1,0 +1,199 @@
+"""Control-message handler: one text frame in, replies out, bus messages published only for
+a valid message from the pilot. It has no sockets and no threads of its own, so it is tested
+(and fuzzed) directly; the hub feeds it frames and sends the replies."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+from dataclasses import dataclass, field
+from typing import Any, Awaitable, Callable
+
+from lotsen.errors import LotsenError
+from lotsen.messages import LinkStatus, ManualCommand, OperatorCommand, RouteMessage, Topic
+from lotsen.planning import GeoOrigin, PlannerConfig
+from lotsen.web.auth import MAX_AUTH_FAILURES, AuthError, PilotSeat
+from lotsen.web.planning_api import export_route, import_route, plan_for_display
+from lotsen.web.ratelimit import RateLimiter
+from lotsen.web.validation import PILOT_ONLY, Message, ValidationError, parse_message
+
+Publish = Callable[[str, Any], None]
+RunBlocking = Callable[..., Awaitable[Any]]
+
+_ids = itertools.count(1)
+
+
+@dataclass(eq=False)
+class Session:
+    """One WebSocket connection's control state."""
+
+    limiter: RateLimiter
+    id: int = field(default_factory=lambda: next(_ids))
+    auth_failures: int = 0
+    manual_active: bool = False  # the last manual command was non-zero
+    close_requested: str = ""  # reason, when the hub should close the socket
+    last_rate_error_s: float = -1e9
+
+
+async def _to_thread(fn: Callable[..., Any], *args: Any) -> Any:
+    return await asyncio.to_thread(fn, *args)
+
+
+class ControlHandler:
+    """Validates, authorises, rate-limits and turns messages into bus publications.
+
+    `publish(topic, msg)` must be thread-safe towards the nodes (the server passes a function
+    that hands the publication to the executor thread). `notify(session, reply)` sends a message
+    to another session (a pilot that was taken over).
+    """
+
+    def __init__(self, seat: PilotSeat, publish: Publish, clock: Callable[[], float],
+                 planner_config: PlannerConfig | None = None, run_blocking: RunBlocking = _to_thread,
+                 notify: Callable[[Session, dict], None] | None = None, origin: GeoOrigin | None = None) -> None:
+        self.seat = seat
+        self.publish = publish
+        self.clock = clock
+        self.planner_config = planner_config or PlannerConfig()
+        self.run_blocking = run_blocking
+        self.notify = notify or (lambda s, m: None)
+        self.sessions: set[Session] = set()
+        self.origin = origin  # geographic origin of the local frame, for GeoJSON export
+
+    # -- connection life cycle ---------------------------------------------------------------
+    def open_session(self) -> Session:
+        s = Session(limiter=RateLimiter(self.clock))
+        self.sessions.add(s)
+        return s
+
+    def close_session(self, session: Session) -> None:
+        """The socket is gone: a pilot's seat is freed and the boat gets a zero manual command."""
+        self.sessions.discard(session)
+        if self.seat.release(session):
+            self._stop_manual(session)
+
+    def _stop_manual(self, session: Session | None) -> None:
+        if session is not None:
+            session.manual_active = False
+        self.publish(Topic.MANUAL, ManualCommand(stamp_s=self.clock(), surge=0.0, sway=0.0, yaw=0.0))
+
+    def link_tick(self) -> LinkStatus:
+        """Called at ~5 Hz: publish the pilot's liveness; a silent pilot's driving is zeroed once."""
+        holder = self.seat.holder
+        if isinstance(holder, Session) and holder.manual_active and self.seat.stale():
+            self._stop_manual(holder)
+        # a pilot that is connected but silent (frozen tab, half-open Wi-Fi) counts as gone
+        status = LinkStatus(stamp_s=self.clock(), pilot_connected=holder is not None and not self.seat.stale(),
+                            last_heard_s=self.seat.last_heard_s,
+                            viewers=len(self.sessions) - (1 if holder is not None else 0))
+        self.publish(Topic.LINK, status)
+        return status
+
+    # -- messages ----------------------------------------------------------------------------
+    SLOW = frozenset({"plan", "route", "export", "import"})  # planner / file conversions
+
+    def receive(self, session: Session, raw: Any) -> tuple[list[dict], Awaitable[list[dict]] | None]:
+        """Validate, authorise and rate-limit one frame. Fast messages are executed at once;
+        slow ones (planning, conversions) come back as a coroutine for the caller to await, so a
+        connection's manual driving is never queued behind a planner run. Never raises."""
+        try:
+            msg = parse_message(raw)
+        except ValidationError as exc:
+            if not session.limiter.allow("other"):
+                return self._rate_error(session, exc.mid), None
+            return [_error(exc.mid, exc.code, str(exc))], None
+        kind = msg.type if msg.type in ("manual", "ping") else "other"
+        if not session.limiter.allow(kind):
+            return self._rate_error(session, msg.id), None
+        if msg.type in PILOT_ONLY and not self.seat.is_pilot(session):
+            return [_error(msg.id, "not_pilot", f"{msg.type}: only the pilot may do this; "
+                                                "authenticate with the pilot token first")], None
+        self.seat.heard(session)
+        method = getattr(self, f"_on_{msg.type}")
+        if msg.type in self.SLOW:
+            return [], self._guarded(method(session, msg), msg)
+        try:
+            return method(session, msg), None
+        except Exception as exc:  # noqa: BLE001 - no input may take the server down
+            return [_error(msg.id, "internal", f"{msg.type}: failed: {exc!r}"[:300])], None
+
+    async def handle(self, session: Session, raw: Any) -> list[dict]:
+        """All replies to one frame, slow work included (tests, simple callers)."""
+        replies, job = self.receive(session, raw)
+        return replies + (await job if job is not None else [])
+
+    async def _guarded(self, coro: Awaitable[list[dict]], msg: Message) -> list[dict]:
+        try:
+            return await coro
+        except LotsenError as exc:
+            return [_error(msg.id, "invalid", str(exc))]
+        except Exception as exc:  # noqa: BLE001
+            return [_error(msg.id, "internal", f"{msg.type}: failed: {exc!r}"[:300])]
+
+    def _rate_error(self, session: Session, mid: int | None) -> list[dict]:
+        now = self.clock()
+        if now - session.last_rate_error_s < 1.0:
+            return []  # one error a second is enough; the rest are dropped silently
+        session.last_rate_error_s = now
+        return [_error(mid, "rate_limited", "rate limit exceeded: message dropped "
+                                            "(manual 30/s, ping 20/s, others 5/s)")]
+
+    def _on_auth(self, session: Session, msg: Message) -> list[dict]:
+        try:
+            change = self.seat.claim(session, msg.fields["token"], msg.fields.get("takeover", False))
+        except AuthError as exc:
+            if exc.code == "bad_token":
+                session.auth_failures += 1
+                if session.auth_failures >= MAX_AUTH_FAILURES:
+                    session.close_requested = "too many wrong tokens"
+            return [_error(msg.id, exc.code, str(exc))]
+        if change.previous is not None:
+            if isinstance(change.previous, Session):
+                change.previous.manual_active = False
+            self.notify(change.previous, {"type": "pilot", "pilot": False, "reason": "taken over by another pilot"})
+            self._stop_manual(None)
+        return [{"type": "auth_ok", "id": msg.id, "pilot": True}]
+
+    def _on_release(self, session: Session, msg: Message) -> list[dict]:
+        self.seat.release(session)
+        self._stop_manual(session)
+        return [{"type": "pilot", "id": msg.id, "pilot": False, "reason": "released"}]
+
+    def _on_ping(self, session: Session, msg: Message) -> list[dict]:
+        return [{"type": "pong", "id": msg.id, "t": msg.fields.get("t"), "server_t": round(self.clock(), 4)}]
+
+    def _on_command(self, session: Session, msg: Message) -> list[dict]:
+        action = msg.fields["action"]
+        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source="web"))
+        return [{"type": "ack", "id": msg.id, "action": action}]
+
+    def _on_manual(self, session: Session, msg: Message) -> list[dict]:
+        f = msg.fields
+        self.publish(Topic.MANUAL, ManualCommand(stamp_s=self.clock(), surge=f["surge"], sway=f["sway"], yaw=f["yaw"]))
+        session.manual_active = any(f[k] != 0.0 for k in ("surge", "sway", "yaw"))
+        return []
+
+    async def _on_plan(self, session: Session, msg: Message) -> list[dict]:
+        result = await self.run_blocking(plan_for_display, msg.fields["route"], self.planner_config)
+        return [{"type": "plan_result", "id": msg.id, **result}]
+
+    async def _on_route(self, session: Session, msg: Message) -> list[dict]:
+        # refuse a route the planner cannot plan: the operator sees why before the boat does
+        result = await self.run_blocking(plan_for_display, msg.fields["route"], self.planner_config)
+        if not result["ok"]:
+            return [{**_error(msg.id, "route_invalid", result["errors"][0]["message"]), "errors": result["errors"]}]
+        if not self.seat.is_pilot(session):  # the seat may have changed while planning
+            return [_error(msg.id, "not_pilot", "route: you are no longer the pilot")]
+        self.publish(Topic.ROUTE, RouteMessage(stamp_s=self.clock(), route=result["route"], source="web"))
+        return [{"type": "route_ok", "id": msg.id, "length_m": result["length_m"]}]
+
+    async def _on_export(self, session: Session, msg: Message) -> list[dict]:
+        text = await self.run_blocking(export_route, msg.fields["route"], msg.fields["format"], self.origin)
+        return [{"type": "export_result", "id": msg.id, "format": msg.fields["format"], "text": text}]
+
+    async def _on_import(self, session: Session, msg: Message) -> list[dict]:
+        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"])
+        return [{"type": "import_result", "id": msg.id, "route": route}]
+
+
+def _error(mid: int | None, code: str, text: str) -> dict:
+    return {"type": "error", "id": mid, "code": code, "error": text}

@@ -1,0 +1,229 @@
+"""The WebSocket hub: one connection per browser, telemetry fan-out, control messages in.
+
+Threads: the bus is read by a small reader thread through `bus.queue(...)` (drop-oldest, so a
+slow web side never blocks the control loop). It keeps the latest value per topic and, when a
+new pose arrives (and at least 0.8 telemetry periods have passed), builds one frame, encodes it
+once and hands it to the event loop, which offers it to every client. Each client has its own
+sender task with a one-frame telemetry slot (a slow browser gets fewer, never older, frames) and a
+bounded queue for replies and events. Everything that touches the bus from here goes through
+`publish`, which the server binds to `executor.call_soon_threadsafe`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+from collections import deque
+from typing import Any, Callable
+from urllib.parse import urlsplit
+
+from starlette.websockets import WebSocket, WebSocketDisconnect, WebSocketState
+
+from lotsen.messages import Topic
+from lotsen.planning import GeoOrigin
+from lotsen.runtime.bus import Bus
+from lotsen.web.auth import PilotSeat
+from lotsen.web.control import ControlHandler, Publish, Session
+from lotsen.web.options import WebOptions
+from lotsen.web.telemetry import TOPICS, TelemetryState, path_json, route_json
+
+LINK_PERIOD_S = 0.2  # LinkStatus at 5 Hz
+SLOW_QUEUE = 4  # planning requests waiting per connection
+
+
+def dumps(obj: Any) -> str:
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+
+
+class Client:
+    def __init__(self, ws: WebSocket, session: Session) -> None:
+        self.ws = ws
+        self.session = session
+        self.frame: str | None = None
+        self.pending: deque[str] = deque(maxlen=256)
+        self.wake = asyncio.Event()
+        self.slow: asyncio.Queue = asyncio.Queue(maxsize=SLOW_QUEUE)
+        self.frames_sent = 0
+
+    def offer_frame(self, text: str) -> None:
+        self.frame = text
+        self.wake.set()
+
+    def send(self, obj: dict) -> None:
+        self.pending.append(dumps(obj))
+        self.wake.set()
+
+    async def sender(self) -> None:
+        try:
+            while True:
+                await self.wake.wait()
+                self.wake.clear()
+                while self.pending:
+                    await self.ws.send_text(self.pending.popleft())
+                if self.frame is not None:
+                    text, self.frame = self.frame, None
+                    await self.ws.send_text(text)
+                    self.frames_sent += 1
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            pass  # the receive loop notices the closed socket and cleans up
+
+    async def slow_worker(self) -> None:
+        while True:
+            job = await self.slow.get()
+            for reply in await job:
+                self.send(reply)
+
+
+class Hub:
+    def __init__(self, bus: Bus, clock: Callable[[], float], publish: Publish, options: WebOptions,
+                 origin: GeoOrigin | None = None) -> None:
+        self.bus = bus
+        self.clock = clock
+        self.options = options
+        self.period_s = 1.0 / options.telemetry_rate_hz
+        self.seat = PilotSeat(options.pilot_token, options.link_timeout_s, clock)
+        self.handler = ControlHandler(self.seat, publish, clock, notify=self._notify, origin=origin)
+        self.clients: dict[Session, Client] = {}
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.state = TelemetryState()
+        self.frames_built = 0
+        self._stop = threading.Event()
+        self._reader: threading.Thread | None = None
+        self._queue = None
+        self._tasks: list[asyncio.Task] = []
+
+    # -- life cycle (called on the server's event loop) -----------------------------------------
+    def start(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self._queue = self.bus.queue(TOPICS, maxlen=4096)
+        self._reader = threading.Thread(target=self._read_loop, name="web-telemetry", daemon=True)
+        self._reader.start()
+        self._tasks.append(loop.create_task(self._link_loop()))
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._queue is not None:
+            self.bus.remove_queue(self._queue)
+        if self._reader is not None:
+            self._reader.join(timeout=2.0)
+        for t in self._tasks:
+            t.cancel()
+
+    async def _link_loop(self) -> None:
+        while True:
+            self.handler.link_tick()
+            await asyncio.sleep(LINK_PERIOD_S)
+
+    # -- telemetry (reader thread) ---------------------------------------------------------------
+    def link_json(self) -> dict:
+        holder = self.seat.holder
+        return {"pilot": holder is not None, "clients": len(self.clients),
+                "pilot_silent_s": round(self.seat.silent_s(), 2) if holder is not None else None}
+
+    def _read_loop(self) -> None:
+        q = self._queue
+        last_frame = -1e9
+        while not self._stop.is_set():
+            item = q.get(timeout=self.period_s / 2)
+            items = ([item] if item is not None else []) + q.get_all()
+            for topic, msg in items:
+                self.state.update(topic, msg)
+            events = self.state.take_events()
+            if events:
+                self._call(self._broadcast_events, [dumps(e) for e in events])
+            now = self.clock()
+            since = now - last_frame
+            # a frame per new pose (at most telemetry_rate_hz), or at half rate when no pose flows
+            if (self.state.pose_updated and since >= 0.8 * self.period_s) or since >= 2 * self.period_s:
+                if self.clients:
+                    self._call(self._broadcast_frame, dumps(self.state.frame(now, self.link_json())))
+                    self.frames_built += 1
+                last_frame = now
+
+    def _call(self, fn: Callable, arg: Any) -> None:
+        if self.loop is not None and not self.loop.is_closed():
+            try:
+                self.loop.call_soon_threadsafe(fn, arg)
+            except RuntimeError:  # loop closing during shutdown
+                pass
+
+    def _broadcast_frame(self, text: str) -> None:
+        for c in self.clients.values():
+            c.offer_frame(text)
+
+    def _broadcast_events(self, texts: list[str]) -> None:
+        for c in self.clients.values():
+            for t in texts:
+                c.pending.append(t)
+            c.wake.set()
+
+    def _notify(self, session: Session, msg: dict) -> None:
+        c = self.clients.get(session)
+        if c is not None:
+            c.send(msg)
+
+    # -- one connection ---------------------------------------------------------------------------
+    @staticmethod
+    def origin_allowed(ws: WebSocket) -> bool:
+        """Browsers send Origin: a page from another site may not open our socket (it could
+        only watch without the token, but it has no business here either)."""
+        origin = ws.headers.get("origin")
+        if origin is None:
+            return True  # not a browser (scripts, benchmarks)
+        host = ws.headers.get("host", "")
+        return urlsplit(origin).netloc.lower() == host.lower()
+
+    def hello(self, session: Session) -> dict:
+        return {"type": "hello", "session": session.id, "telemetry_rate_hz": self.options.telemetry_rate_hz,
+                "link_timeout_s": self.options.link_timeout_s, "pilot_present": self.seat.holder is not None,
+                "server_t": round(self.clock(), 4)}
+
+    async def serve(self, ws: WebSocket) -> None:
+        if not self.origin_allowed(ws):
+            await ws.close(code=1008, reason="origin not allowed")
+            return
+        if len(self.clients) >= self.options.max_viewers + 1:
+            await ws.close(code=1013, reason="too many clients")
+            return
+        await ws.accept()
+        session = self.handler.open_session()
+        client = Client(ws, session)
+        self.clients[session] = client
+        tasks = [asyncio.create_task(client.sender()), asyncio.create_task(client.slow_worker())]
+        client.send(self.hello(session))
+        for topic, conv in ((Topic.ROUTE, route_json), (Topic.PATH, path_json)):
+            latest = self.bus.latest.get(topic)
+            if latest is not None:
+                client.send(conv(latest))
+        try:
+            while True:
+                event = await ws.receive()
+                if event["type"] == "websocket.disconnect":
+                    break
+                raw = event.get("text")
+                replies, job = self.handler.receive(session, raw if raw is not None else event.get("bytes"))
+                for r in replies:
+                    client.send(r)
+                if job is not None:
+                    try:
+                        client.slow.put_nowait(job)
+                    except asyncio.QueueFull:
+                        job.close()
+                        client.send({"type": "error", "code": "busy", "error": "too many requests in progress"})
+                if session.close_requested:
+                    await asyncio.sleep(0.05)  # let the last error reach the client
+                    await ws.close(code=1008, reason=session.close_requested)
+                    break
+        except (WebSocketDisconnect, RuntimeError):
+            pass
+        finally:
+            self.handler.close_session(session)
+            self.clients.pop(session, None)
+            for t in tasks:
+                t.cancel()
+            if ws.client_state == WebSocketState.CONNECTED:
+                try:
+                    await ws.close()
+                except RuntimeError:
+                    pass

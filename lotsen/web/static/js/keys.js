@@ -1,0 +1,83 @@
+// Keyboard driving: held keys -> ManualCommand axes, sent at 10 Hz while any key is held and
+// once as zero when the last key is released, the window loses focus or the tab is hidden.
+const AXES = {
+  KeyW: ["surge", 1, "w"], ArrowUp: ["surge", 1, "w"],
+  KeyS: ["surge", -1, "s"], ArrowDown: ["surge", -1, "s"],
+  KeyA: ["yaw", -1, "a"], ArrowLeft: ["yaw", -1, "a"],
+  KeyD: ["yaw", 1, "d"], ArrowRight: ["yaw", 1, "d"],
+  KeyQ: ["sway", -1, "q"], KeyE: ["sway", 1, "e"],
+};
+export const PERIOD_MS = 100;
+
+export class KeyboardDriver {
+  // send(cmd) transmits {surge, sway, yaw}; enabled() says whether driving is allowed now;
+  // onChange(keys, cmd) updates the indicator; onEstop() is the Esc key.
+  constructor({ send, enabled, gain, onChange, onEstop }) {
+    this.send = send; this.enabled = enabled; this.gain = gain; this.onChange = onChange; this.onEstop = onEstop;
+    this.held = new Set();
+    this.spaceFlash = false;
+    this.timer = null;
+    window.addEventListener("keydown", ev => this.keydown(ev));
+    window.addEventListener("keyup", ev => this.keyup(ev));
+    window.addEventListener("blur", () => this.stop());
+    document.addEventListener("visibilitychange", () => { if (document.hidden) this.stop(); });
+  }
+
+  typing(ev) {
+    const t = ev.target;
+    return t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" || t.isContentEditable) && t.type !== "range";
+  }
+
+  command() {
+    const c = { surge: 0, sway: 0, yaw: 0 };
+    for (const code of this.held) { const [axis, sign] = AXES[code]; c[axis] += sign; }
+    const g = this.gain();
+    for (const k of Object.keys(c)) c[k] = Math.max(-1, Math.min(1, c[k])) * g;
+    return c;
+  }
+
+  keys() {
+    const s = new Set([...this.held].map(code => AXES[code][2]));
+    if (this.spaceFlash) s.add("space");
+    return s;
+  }
+
+  keydown(ev) {
+    if (ev.code === "Escape") { ev.preventDefault(); this.stop(); this.onEstop(); return; }
+    if (this.typing(ev)) return;
+    if (ev.code === "Space") {
+      ev.preventDefault();
+      this.spaceFlash = true; setTimeout(() => { this.spaceFlash = false; this.onChange(this.keys(), this.command()); }, 300);
+      this.stop();
+      return;
+    }
+    if (!(ev.code in AXES)) return;
+    ev.preventDefault();
+    if (ev.repeat || this.held.has(ev.code)) return;
+    if (!this.enabled()) { this.onChange(this.keys(), this.command(), "take the controls (pilot token) to drive"); return; }
+    this.held.add(ev.code);
+    this.tick();
+    if (!this.timer) this.timer = setInterval(() => this.tick(), PERIOD_MS);
+  }
+
+  keyup(ev) {
+    if (!this.held.delete(ev.code)) return;
+    if (this.held.size === 0) this.stop(); else this.tick();
+  }
+
+  tick() {
+    if (!this.enabled()) { this.stop(); return; }
+    const c = this.command();
+    this.send(c);
+    this.onChange(this.keys(), c);
+  }
+
+  stop() {
+    const wasDriving = this.held.size > 0 || this.timer !== null;
+    this.held.clear();
+    if (this.timer) { clearInterval(this.timer); this.timer = null; }
+    const zero = { surge: 0, sway: 0, yaw: 0 };
+    if (this.enabled() && (wasDriving || this.spaceFlash)) this.send(zero);
+    this.onChange(this.keys(), zero);
+  }
+}

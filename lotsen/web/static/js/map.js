@@ -1,0 +1,335 @@
+// Canvas map in local metres (north up, east right) with a grid: works without any tiles.
+// Draws the route being edited, the planner's draft path, the active path, the boat, its trail
+// and the MPC prediction, and handles editing: place, drag, set bearing, pan, zoom.
+import { bearingDeg } from "./route.js";
+
+const HIT_PX = 10, HANDLE_PX = 34;
+
+export class MapView {
+  constructor(canvas, route, opts = {}) {
+    this.canvas = canvas;
+    this.route = route;
+    this.opts = opts;                 // {defaultSpeed(), onSelect(), onInfo()}
+    this.tool = "select";
+    this.n0 = 10; this.e0 = 10; this.scale = 14;   // view centre (m) and px per metre
+    this.boat = null;                 // {n, e, psi}
+    this.truth = null;
+    this.trail = [];
+    this.draftPath = null;            // {n: [], e: []}
+    this.activePath = null;
+    this.predicted = null;
+    this.follow = false;
+    this.drag = null;
+    this.dirty = true;
+    this.cursor = null;
+    this.bindEvents();
+    const loop = () => { if (this.dirty) { this.dirty = false; this.draw(); } requestAnimationFrame(loop); };
+    requestAnimationFrame(loop);
+    new ResizeObserver(() => this.invalidate()).observe(canvas);
+  }
+
+  invalidate() { this.dirty = true; }
+
+  // -- coordinates ------------------------------------------------------------------------------
+  toScreen(n, e) {
+    const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+    return [w / 2 + (e - this.e0) * this.scale, h / 2 - (n - this.n0) * this.scale];
+  }
+  toWorld(x, y) {
+    const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+    return [this.n0 - (y - h / 2) / this.scale, this.e0 + (x - w / 2) / this.scale];
+  }
+  eventPos(ev) { const r = this.canvas.getBoundingClientRect(); return [ev.clientX - r.left, ev.clientY - r.top]; }
+
+  fit() {
+    const pts = [];
+    const r = this.route;
+    if (r.harbour) pts.push([r.harbour.north, r.harbour.east]);
+    r.nodes.forEach(n => pts.push([n.north, n.east]));
+    if (r.area) pts.push(...r.area);
+    r.obstacles.forEach(o => pts.push(...o.polygon));
+    if (this.boat) pts.push([this.boat.n, this.boat.e]);
+    if (!pts.length) pts.push([0, 0]);
+    let nlo = Infinity, nhi = -Infinity, elo = Infinity, ehi = -Infinity;
+    for (const [n, e] of pts) { nlo = Math.min(nlo, n); nhi = Math.max(nhi, n); elo = Math.min(elo, e); ehi = Math.max(ehi, e); }
+    this.n0 = (nlo + nhi) / 2; this.e0 = (elo + ehi) / 2;
+    const w = this.canvas.clientWidth || 800, h = this.canvas.clientHeight || 600;
+    this.scale = Math.min(60, Math.max(1, 0.85 * Math.min(w / Math.max(ehi - elo, 10), h / Math.max(nhi - nlo, 10))));
+    this.invalidate();
+  }
+
+  // -- telemetry --------------------------------------------------------------------------------
+  setBoat(pose, truth) {
+    if (!pose) return;
+    this.boat = { n: pose.n, e: pose.e, psi: pose.psi };
+    this.truth = truth ? { n: truth.n, e: truth.e, psi: truth.psi } : null;
+    const last = this.trail[this.trail.length - 1];
+    if (!last || Math.hypot(pose.n - last[0], pose.e - last[1]) > 0.05) {
+      this.trail.push([pose.n, pose.e]);
+      if (this.trail.length > 4000) this.trail.splice(0, 1000);
+    }
+    if (this.follow) {
+      const [x, y] = this.toScreen(pose.n, pose.e);
+      const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+      if (x < w * 0.2 || x > w * 0.8 || y < h * 0.2 || y > h * 0.8) { this.n0 = pose.n; this.e0 = pose.e; }
+    }
+    this.invalidate();
+  }
+
+  // -- editing ----------------------------------------------------------------------------------
+  setTool(tool) {
+    if (this.route.drawing && tool !== this.route.drawing.kind) this.route.finishPolygon();
+    this.tool = tool;
+    if (tool === "area" || tool === "obstacle") this.route.startPolygon(tool);
+    this.invalidate();
+  }
+
+  hit(x, y) {
+    const r = this.route;
+    const sel = r.point(r.selected);
+    if (sel) {  // the bearing handle of the selected node
+      const [hx, hy] = this.handlePos(sel);
+      if (Math.hypot(x - hx, y - hy) < HIT_PX) return { kind: "heading", target: r.selected };
+    }
+    for (let i = r.nodes.length - 1; i >= 0; i--) {
+      const [sx, sy] = this.toScreen(r.nodes[i].north, r.nodes[i].east);
+      if (Math.hypot(x - sx, y - sy) < HIT_PX) return { kind: "node", index: i };
+    }
+    if (r.harbour) {
+      const [sx, sy] = this.toScreen(r.harbour.north, r.harbour.east);
+      if (Math.hypot(x - sx, y - sy) < HIT_PX + 2) return { kind: "harbour" };
+    }
+    const polys = [];
+    if (r.area) polys.push(r.area);
+    r.obstacles.forEach(o => polys.push(o.polygon));
+    for (const poly of polys) {
+      for (let k = 0; k < poly.length; k++) {
+        const [sx, sy] = this.toScreen(poly[k][0], poly[k][1]);
+        if (Math.hypot(x - sx, y - sy) < HIT_PX) return { kind: "vertex", poly, k };
+      }
+    }
+    return null;
+  }
+
+  handlePos(p) {
+    const [sx, sy] = this.toScreen(p.north, p.east);
+    const a = p.heading_deg * Math.PI / 180;
+    return [sx + HANDLE_PX * Math.sin(a), sy - HANDLE_PX * Math.cos(a)];
+  }
+
+  bindEvents() {
+    const c = this.canvas;
+    c.addEventListener("contextmenu", ev => ev.preventDefault());
+    c.addEventListener("pointerdown", ev => {
+      c.focus();
+      const [x, y] = this.eventPos(ev);
+      const h = this.tool === "select" || this.tool === "node" || this.tool === "harbour" ? this.hit(x, y) : null;
+      this.drag = { x0: x, y0: y, x, y, moved: false, hit: h, button: ev.button, n0: this.n0, e0: this.e0 };
+      if (h && (h.kind === "node" || h.kind === "harbour")) { this.route.selected = h; this.opts.onSelect && this.opts.onSelect(); }
+      c.setPointerCapture(ev.pointerId);
+      this.invalidate();
+    });
+    c.addEventListener("pointermove", ev => {
+      const [x, y] = this.eventPos(ev);
+      this.cursor = this.toWorld(x, y);
+      this.opts.onInfo && this.opts.onInfo(this.cursor);
+      const d = this.drag;
+      if (!d) { if (this.route.drawing) this.invalidate(); return; }
+      if (Math.hypot(x - d.x0, y - d.y0) > 4) d.moved = true;
+      if (!d.moved) return;
+      const [n, e] = this.toWorld(x, y);
+      const h = d.hit;
+      if (h && h.kind === "heading") {
+        const p = this.route.point(h.target);
+        p.heading_deg = bearingDeg(p.north, p.east, n, e);
+        this.route.changed();
+      } else if (h && (h.kind === "node" || h.kind === "harbour")) {
+        const p = this.route.point(h);
+        p.north = round2(n); p.east = round2(e);
+        this.route.changed();
+      } else if (h && h.kind === "vertex") {
+        h.poly[h.k] = [round2(n), round2(e)];
+        this.route.changed();
+      } else {  // pan
+        this.n0 = d.n0 + (y - d.y0) / this.scale;
+        this.e0 = d.e0 - (x - d.x0) / this.scale;
+        this.follow = false;
+        this.opts.onPan && this.opts.onPan();
+      }
+      this.invalidate();
+    });
+    c.addEventListener("pointerup", ev => {
+      const d = this.drag;
+      this.drag = null;
+      if (!d || d.moved || d.button !== 0) return;
+      const [x, y] = this.eventPos(ev);
+      const [n, e] = this.toWorld(x, y).map(round2);
+      const r = this.route;
+      if (this.tool === "harbour") r.setHarbour(n, e);
+      else if (this.tool === "node" && !d.hit) r.addNode(n, e, this.opts.defaultSpeed ? this.opts.defaultSpeed() : 0.5);
+      else if (this.tool === "area" || this.tool === "obstacle") {
+        if (!r.drawing) r.startPolygon(this.tool);
+        r.drawing.pts.push([n, e]);
+        r.changed(false);
+      } else if (this.tool === "select" && !d.hit) { r.selected = null; this.opts.onSelect && this.opts.onSelect(); }
+      this.invalidate();
+    });
+    c.addEventListener("dblclick", () => {
+      if (this.route.drawing) { this.route.drawing.pts.pop(); this.route.finishPolygon(); this.opts.onPolygonDone && this.opts.onPolygonDone(); }
+    });
+    c.addEventListener("wheel", ev => {
+      ev.preventDefault();
+      const [x, y] = this.eventPos(ev);
+      const [n, e] = this.toWorld(x, y);
+      this.scale = Math.min(400, Math.max(0.5, this.scale * Math.exp(-ev.deltaY * 0.0015)));
+      const [n2, e2] = this.toWorld(x, y);   // keep the point under the cursor fixed
+      this.n0 += n - n2; this.e0 += e - e2;
+      this.invalidate();
+    }, { passive: false });
+  }
+
+  // -- drawing ----------------------------------------------------------------------------------
+  draw() {
+    const c = this.canvas, dpr = window.devicePixelRatio || 1;
+    const w = c.clientWidth, h = c.clientHeight;
+    if (!w || !h) return;
+    if (c.width !== Math.round(w * dpr) || c.height !== Math.round(h * dpr)) { c.width = Math.round(w * dpr); c.height = Math.round(h * dpr); }
+    const g = c.getContext("2d");
+    g.setTransform(dpr, 0, 0, dpr, 0, 0);
+    g.fillStyle = "#0b1a2a"; g.fillRect(0, 0, w, h);
+    this.drawGrid(g, w, h);
+    this.drawRegions(g);
+    this.drawLine(g, this.activePath, "#38c172", 3, []);
+    this.drawLine(g, this.draftPath, "#3fa7ff", 2, [8, 5]);
+    if (this.trail.length > 1) this.drawPolyline(g, this.trail, "rgba(255,216,74,0.85)", 2.5, []);
+    this.drawLine(g, this.predicted, "#ff8c2e", 2.5, []);
+    this.drawNodes(g);
+    if (this.truth) this.drawBoat(g, this.truth, "rgba(255,255,255,0.35)");
+    if (this.boat) this.drawBoat(g, this.boat, "#ffd84a");
+  }
+
+  drawGrid(g, w, h) {
+    const minPx = 50;
+    const steps = [0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000];
+    const step = steps.find(s => s * this.scale >= minPx) || 1000;
+    const [nTop, eLeft] = this.toWorld(0, 0), [nBot, eRight] = this.toWorld(w, h);
+    g.lineWidth = 1; g.font = "11px system-ui, sans-serif";
+    for (let e = Math.ceil(eLeft / step) * step; e <= eRight; e += step) {
+      const [x] = this.toScreen(0, e);
+      g.strokeStyle = Math.abs(e) < 1e-9 ? "#3d5a78" : "#15304a";
+      g.beginPath(); g.moveTo(Math.round(x) + 0.5, 0); g.lineTo(Math.round(x) + 0.5, h); g.stroke();
+      g.fillStyle = "#5d7a96"; g.fillText(`E ${fmtM(e)}`, x + 3, h - 24);
+    }
+    for (let n = Math.ceil(nBot / step) * step; n <= nTop; n += step) {
+      const [, y] = this.toScreen(n, 0);
+      g.strokeStyle = Math.abs(n) < 1e-9 ? "#3d5a78" : "#15304a";
+      g.beginPath(); g.moveTo(0, Math.round(y) + 0.5); g.lineTo(w, Math.round(y) + 0.5); g.stroke();
+      g.fillStyle = "#5d7a96"; g.fillText(`N ${fmtM(n)}`, 4, y - 3);
+    }
+    // north arrow and scale bar
+    g.fillStyle = "#93a1b0"; g.font = "bold 13px system-ui"; g.fillText("N ↑", w - 36, 60);
+    const bar = step * this.scale;
+    g.strokeStyle = "#93a1b0"; g.lineWidth = 2;
+    g.beginPath(); g.moveTo(w - 20 - bar, 78); g.lineTo(w - 20, 78); g.stroke();
+    g.font = "11px system-ui"; g.fillText(`${fmtM(step)} m`, w - 20 - bar, 92);
+  }
+
+  polyPath(g, pts, close) {
+    g.beginPath();
+    pts.forEach((p, i) => { const [x, y] = this.toScreen(p[0], p[1]); if (i) g.lineTo(x, y); else g.moveTo(x, y); });
+    if (close) g.closePath();
+  }
+
+  drawRegions(g) {
+    const r = this.route;
+    if (r.area) {
+      this.polyPath(g, r.area, true);
+      g.fillStyle = "rgba(63,167,255,0.08)"; g.fill();
+      g.strokeStyle = r.errorFor("area") ? "#ef4c4c" : "#3fa7ff"; g.lineWidth = 2; g.stroke();
+      this.drawVertices(g, r.area, "#3fa7ff");
+    }
+    r.obstacles.forEach((o, i) => {
+      this.polyPath(g, o.polygon, true);
+      g.fillStyle = o.forbidden === "inside" ? "rgba(239,76,76,0.28)" : "rgba(239,76,76,0.08)"; g.fill();
+      g.strokeStyle = r.errorFor("obstacle", i) ? "#ffffff" : "#ef4c4c"; g.lineWidth = 2; g.stroke();
+      this.drawVertices(g, o.polygon, "#ef4c4c");
+    });
+    if (r.drawing && r.drawing.pts.length) {
+      const pts = this.cursor ? [...r.drawing.pts, this.cursor] : r.drawing.pts;
+      this.polyPath(g, pts, false);
+      g.strokeStyle = r.drawing.kind === "area" ? "#3fa7ff" : "#ef4c4c"; g.setLineDash([5, 4]); g.lineWidth = 2; g.stroke(); g.setLineDash([]);
+      this.drawVertices(g, r.drawing.pts, "#ffffff");
+    }
+  }
+
+  drawVertices(g, pts, color) {
+    g.fillStyle = color;
+    for (const p of pts) { const [x, y] = this.toScreen(p[0], p[1]); g.fillRect(x - 3, y - 3, 6, 6); }
+  }
+
+  drawLine(g, path, color, width, dash) {
+    if (!path || !path.n || path.n.length < 2) return;
+    g.beginPath();
+    for (let i = 0; i < path.n.length; i++) {
+      const [x, y] = this.toScreen(path.n[i], path.e[i]);
+      if (i) g.lineTo(x, y); else g.moveTo(x, y);
+    }
+    g.strokeStyle = color; g.lineWidth = width; g.setLineDash(dash); g.stroke(); g.setLineDash([]);
+  }
+
+  drawPolyline(g, pts, color, width, dash) {
+    this.polyPath(g, pts, false);
+    g.strokeStyle = color; g.lineWidth = width; g.setLineDash(dash); g.stroke(); g.setLineDash([]);
+  }
+
+  drawNodes(g) {
+    const r = this.route;
+    const sel = r.selected;
+    g.font = "bold 12px system-ui, sans-serif";
+    const drawOne = (p, label, color, isSel, err) => {
+      const [x, y] = this.toScreen(p.north, p.east);
+      const a = p.heading_deg * Math.PI / 180;
+      // bearing arrow
+      g.strokeStyle = color; g.lineWidth = 2;
+      g.beginPath(); g.moveTo(x, y); const [hx, hy] = [x + 22 * Math.sin(a), y - 22 * Math.cos(a)]; g.lineTo(hx, hy); g.stroke();
+      g.beginPath(); g.moveTo(hx, hy);
+      g.lineTo(hx - 7 * Math.sin(a - 0.5), hy + 7 * Math.cos(a - 0.5));
+      g.lineTo(hx - 7 * Math.sin(a + 0.5), hy + 7 * Math.cos(a + 0.5)); g.closePath(); g.fillStyle = color; g.fill();
+      g.beginPath(); g.arc(x, y, isSel ? 9 : 7, 0, 2 * Math.PI);
+      g.fillStyle = err ? "#ef4c4c" : color; g.fill();
+      g.lineWidth = isSel ? 3 : 1.5; g.strokeStyle = isSel ? "#ffffff" : "#0b1a2a"; g.stroke();
+      g.fillStyle = "#ffffff"; g.fillText(label, x + 10, y - 8);
+      if (isSel) {
+        const [qx, qy] = this.handlePos(p);
+        g.beginPath(); g.arc(qx, qy, 6, 0, 2 * Math.PI); g.strokeStyle = "#ffffff"; g.lineWidth = 2; g.stroke();
+      }
+      if (err) {
+        const text = err.message.length > 90 ? err.message.slice(0, 87) + "…" : err.message;
+        g.font = "12px system-ui, sans-serif";
+        const tw = g.measureText(text).width;
+        g.fillStyle = "rgba(90,28,28,0.92)"; g.fillRect(x + 10, y + 4, tw + 8, 18);
+        g.fillStyle = "#ffd0d0"; g.fillText(text, x + 14, y + 17);
+        g.font = "bold 12px system-ui, sans-serif";
+      }
+    };
+    if (r.harbour) drawOne(r.harbour, "H", "#c58bff", sel && sel.kind === "harbour", r.errorFor("harbour"));
+    r.nodes.forEach((p, i) => drawOne(p, String(i), "#3fa7ff", sel && sel.kind === "node" && sel.index === i, r.errorFor("node", i)));
+  }
+
+  drawBoat(g, b, color) {
+    // hull outline in body coordinates (x forward, y starboard), metres: a 1 m boat
+    const hull = [[0.55, 0], [0.3, 0.16], [-0.45, 0.16], [-0.45, -0.16], [0.3, -0.16]];
+    const k = Math.max(1, 28 / (1.0 * this.scale));   // at least 28 px long on screen
+    const c = Math.cos(b.psi), s = Math.sin(b.psi);
+    g.beginPath();
+    hull.forEach(([x, y], i) => {
+      const n = b.n + k * (x * c - y * s), e = b.e + k * (x * s + y * c);
+      const [sx, sy] = this.toScreen(n, e);
+      if (i) g.lineTo(sx, sy); else g.moveTo(sx, sy);
+    });
+    g.closePath(); g.fillStyle = color; g.fill(); g.strokeStyle = "#000"; g.lineWidth = 1.5; g.stroke();
+  }
+}
+
+function round2(x) { return Math.round(x * 100) / 100; }
+function fmtM(x) { return Math.abs(x) < 1e-9 ? "0" : (Math.round(x * 10) / 10).toString(); }

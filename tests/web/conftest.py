@@ -1,0 +1,77 @@
+"""Fixtures: a realtime stack (simulated boat + web server on a free loopback port) in a thread."""
+
+from __future__ import annotations
+
+import json
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+import pytest
+
+from lotsen.runtime.config import LaunchConfig, LoggingSection, WebSection
+from lotsen.runtime.launch import Stack, build_stack
+from lotsen.web.part import add_web
+
+TOKEN = "test-pilot-token"
+
+
+@dataclass
+class RunningStack:
+    stack: Stack
+    port: int
+    thread: threading.Thread
+    seen: dict[str, list] = field(default_factory=dict)
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}/"
+
+    @property
+    def ws_url(self) -> str:
+        return f"ws://127.0.0.1:{self.port}/ws"
+
+    def messages(self, topic: str) -> list:
+        return list(self.seen.get(topic, []))
+
+
+def start_stack(parts: tuple[str, ...] | None = (), **web: Any) -> RunningStack:
+    cfg = LaunchConfig(web=WebSection(port=0, pilot_token=web.pop("pilot_token", TOKEN), **web),
+                       logging=LoggingSection(enabled=False))
+    stack = build_stack(cfg, realtime=True, parts=parts)
+    if "web" not in stack.services:  # not registered as a part (yet): attach it here
+        add_web(stack)
+    seen: dict[str, list] = {}
+    stack.bus.subscribe_all(lambda topic, msg: seen.setdefault(topic, []).append(msg)
+                            if topic.startswith("operator/") or topic in ("planning/route",) else None)
+    thread = threading.Thread(target=stack.executor.run, name="executor", daemon=True)
+    thread.start()
+    return RunningStack(stack, stack.services["web"].port, thread, seen)
+
+
+def stop_stack(rs: RunningStack) -> None:
+    rs.stack.executor.stop()
+    rs.thread.join(timeout=5)
+    for stop in rs.stack.services.get("on_shutdown", []):
+        stop()
+
+
+@pytest.fixture(scope="module")
+def running():
+    rs = start_stack()
+    yield rs
+    stop_stack(rs)
+
+
+def recv_until(ws, pred, timeout: float = 3.0) -> dict:
+    """Next message satisfying pred (telemetry and other traffic skipped)."""
+    import time
+
+    t_end = time.monotonic() + timeout
+    while True:
+        left = t_end - time.monotonic()
+        if left <= 0:
+            raise AssertionError("expected message not received")
+        m = json.loads(ws.recv(timeout=left))
+        if pred(m):
+            return m

@@ -1,0 +1,322 @@
+"""Control-message handling without sockets: validation, authorisation, rate limits, the pilot
+seat, and a hypothesis fuzz test (no input crashes the handler or publishes anything unexpected)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from lotsen.messages import OPERATOR_ACTIONS, LinkStatus, ManualCommand, OperatorCommand, RouteMessage, Topic
+from lotsen.web.auth import MAX_AUTH_FAILURES, PilotSeat, token_matches
+from lotsen.web.control import ControlHandler
+from lotsen.web.planning_api import locate_error, plan_for_display
+from lotsen.web.ratelimit import TokenBucket
+from lotsen.web.validation import ValidationError, parse_message
+
+TOKEN = "correct horse battery staple"
+ROUTE = {"harbour": {"north": 0.0, "east": 0.0, "heading_deg": 0.0},
+         "nodes": [{"north": 12.0, "east": 0.0, "heading_deg": 0.0, "speed_mps": 0.5},
+                   {"north": 20.0, "east": 8.0, "heading_deg": 90.0, "speed_mps": 0.5}]}
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+async def _inline(fn, *args):
+    return fn(*args)
+
+
+def make(link_timeout_s: float = 1.0):
+    clock = FakeClock()
+    published: list[tuple[str, object]] = []
+    notified: list[tuple[object, dict]] = []
+    seat = PilotSeat(TOKEN, link_timeout_s, clock)
+    h = ControlHandler(seat, lambda t, m: published.append((t, m)), clock, run_blocking=_inline,
+                       notify=lambda s, m: notified.append((s, m)))
+    return h, clock, published, notified
+
+
+def send(h, session, msg) -> list[dict]:
+    raw = msg if isinstance(msg, str) else json.dumps(msg)
+    return asyncio.run(h.handle(session, raw))
+
+
+def pilot(h):
+    s = h.open_session()
+    assert send(h, s, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
+    return s
+
+
+def code(replies: list[dict]) -> str:
+    assert len(replies) == 1 and replies[0]["type"] == "error", replies
+    return replies[0]["code"]
+
+
+# -- refusals -----------------------------------------------------------------------------------
+def test_control_without_token_is_refused_and_publishes_nothing():
+    h, _, published, _ = make()
+    viewer = h.open_session()
+    for msg in ({"type": "command", "action": "auto"}, {"type": "manual", "surge": 0.5, "sway": 0, "yaw": 0},
+                {"type": "route", "route": ROUTE}, {"type": "release"}):
+        r = send(h, viewer, msg)
+        assert code(r) == "not_pilot" and "pilot token" in r[0]["error"]
+    assert published == []
+
+
+def test_wrong_token_is_refused_and_repeated_guessing_closes_the_connection():
+    h, _, published, _ = make()
+    s = h.open_session()
+    for i in range(MAX_AUTH_FAILURES):
+        assert code(send(h, s, {"type": "auth", "token": f"guess{i}"})) == "bad_token"
+    assert s.close_requested
+    assert code(send(h, s, {"type": "command", "action": "auto"})) == "not_pilot"
+    assert published == []
+
+
+def test_second_pilot_is_refused_while_the_first_is_connected_and_heard():
+    h, clock, _, _ = make(link_timeout_s=1.0)
+    first = pilot(h)
+    second = h.open_session()
+    clock.t += 0.5
+    r = send(h, second, {"type": "auth", "token": TOKEN})
+    assert code(r) == "pilot_busy" and "another pilot" in r[0]["error"]
+    r = send(h, second, {"type": "auth", "token": TOKEN, "takeover": True})
+    assert code(r) == "pilot_busy"  # takeover only from a silent pilot
+    assert h.seat.is_pilot(first) and not h.seat.is_pilot(second)
+
+
+def test_release_and_takeover_of_a_silent_pilot():
+    h, clock, published, notified = make(link_timeout_s=1.0)
+    first = pilot(h)
+    second = h.open_session()
+    clock.t += 2.0  # first pilot silent for longer than the link timeout
+    r = send(h, second, {"type": "auth", "token": TOKEN})
+    assert code(r) == "pilot_busy" and "takeover" in r[0]["error"]
+    assert send(h, second, {"type": "auth", "token": TOKEN, "takeover": True})[0]["type"] == "auth_ok"
+    assert notified and notified[0][0] is first and notified[0][1]["pilot"] is False
+    assert isinstance(published[-1][1], ManualCommand) and published[-1][1].surge == 0.0
+    assert code(send(h, first, {"type": "command", "action": "auto"})) == "not_pilot"
+    # the new pilot releases; now anyone with the token may take the seat at once
+    assert send(h, second, {"type": "release"})[0]["pilot"] is False
+    assert send(h, first, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
+
+
+@pytest.mark.parametrize("msg, expected", [
+    ({"type": "manual", "surge": 0.1, "sway": 0, "yaw": 0, "boost": 1}, "unknown_field"),
+    ({"type": "command", "action": "auto", "force": True}, "unknown_field"),
+    ({"type": "manual", "surge": 1.5, "sway": 0, "yaw": 0}, "out_of_range"),
+    ({"type": "manual", "surge": 0, "sway": -1.01, "yaw": 0}, "out_of_range"),
+    ({"type": "command", "action": "self_destruct"}, "out_of_range"),
+    ({"type": "manual", "surge": "0.5", "sway": 0, "yaw": 0}, "wrong_type"),
+    ({"type": "manual", "surge": True, "sway": 0, "yaw": 0}, "wrong_type"),
+    ({"type": "command", "action": 3}, "wrong_type"),
+    ({"type": "manual", "surge": 0, "sway": 0}, "missing_field"),
+    ({"type": "fly"}, "unknown_type"),
+    ({"surge": 1}, "missing_field"),
+    ('{"type": "manual", "surge": NaN, "sway": 0, "yaw": 0}', "bad_json"),
+    ("not json", "bad_json"),
+    ("[1, 2]", "bad_json"),
+])
+def test_invalid_messages_from_the_pilot_are_refused_with_a_clear_error(msg, expected):
+    h, _, published, _ = make()
+    s = pilot(h)
+    published.clear()
+    r = send(h, s, msg)
+    assert code(r) == expected
+    assert r[0]["error"]  # a message a person can read
+    assert published == []
+
+
+def test_error_messages_name_the_field():
+    with pytest.raises(ValidationError, match=r"manual\.surge: 1\.5 outside \[-1, 1\]"):
+        parse_message(json.dumps({"type": "manual", "surge": 1.5, "sway": 0, "yaw": 0}))
+    with pytest.raises(ValidationError, match="unknown field 'boost'"):
+        parse_message(json.dumps({"type": "manual", "surge": 0, "sway": 0, "yaw": 0, "boost": 1}))
+
+
+def test_rate_limit_manual_30_per_s_and_others_5_per_s():
+    h, clock, published, _ = make()
+    s = pilot(h)
+    published.clear()
+    manual = {"type": "manual", "surge": 0.2, "sway": 0.0, "yaw": 0.0}
+    replies = [send(h, s, manual) for _ in range(40)]  # all within the same instant
+    assert sum(1 for _, m in published if isinstance(m, ManualCommand)) == 30
+    assert [r for r in replies if r] == [[{**replies[30][0]}]] and replies[30][0]["code"] == "rate_limited"
+    clock.t += 1.0  # the bucket refills
+    assert send(h, s, manual) == []
+    published.clear()
+    results = [send(h, s, {"type": "command", "action": "hold"}) for _ in range(15)]
+    assert sum(1 for r in results if r and r[0]["type"] == "ack") == 10  # burst of 10, then 5/s
+    assert any(r and r[0].get("code") == "rate_limited" for r in results)
+
+
+def test_valid_pilot_messages_publish_the_bus_messages():
+    h, clock, published, _ = make()
+    s = pilot(h)
+    published.clear()
+    for action in OPERATOR_ACTIONS:
+        clock.t += 0.5
+        assert send(h, s, {"type": "command", "action": action, "id": 7}) == [{"type": "ack", "id": 7, "action": action}]
+    assert [m.action for _, m in published] == list(OPERATOR_ACTIONS)
+    assert all(t == Topic.OPERATOR and isinstance(m, OperatorCommand) for t, m in published)
+    published.clear()
+    send(h, s, {"type": "manual", "surge": 1, "sway": -0.5, "yaw": 0.25})
+    (t, m), = published
+    assert t == Topic.MANUAL and (m.surge, m.sway, m.yaw) == (1.0, -0.5, 0.25) and m.stamp_s == clock.t
+    published.clear()
+    r = send(h, s, {"type": "route", "route": ROUTE})
+    assert r[0]["type"] == "route_ok" and r[0]["length_m"] > 20
+    (t, m), = published
+    assert t == Topic.ROUTE and isinstance(m, RouteMessage) and m.route["nodes"][1]["east"] == 8.0
+
+
+def test_a_route_the_planner_cannot_plan_is_not_published():
+    h, _, published, _ = make()
+    s = pilot(h)
+    published.clear()
+    bad = json.loads(json.dumps(ROUTE))
+    bad["nodes"][1]["speed_mps"] = -1
+    r = send(h, s, {"type": "route", "route": bad})
+    assert code(r) == "route_invalid" and "nodes[1].speed_mps" in r[0]["error"]
+    assert r[0]["errors"][0]["kind"] == "node" and r[0]["errors"][0]["index"] == 1
+    assert published == []
+
+
+def test_pilot_socket_closing_publishes_a_zero_manual_command_and_frees_the_seat():
+    h, _, published, _ = make()
+    s = pilot(h)
+    send(h, s, {"type": "manual", "surge": 0.8, "sway": 0, "yaw": 0})
+    published.clear()
+    h.close_session(s)
+    (t, m), = published
+    assert t == Topic.MANUAL and (m.surge, m.sway, m.yaw) == (0.0, 0.0, 0.0)
+    assert h.seat.holder is None
+    h.close_session(h.open_session())  # a viewer leaving publishes nothing
+    assert len(published) == 1
+
+
+def test_link_status_and_a_silent_driving_pilot_is_zeroed_once():
+    h, clock, published, _ = make(link_timeout_s=1.0)
+    viewer = h.open_session()
+    s = pilot(h)
+    send(h, s, {"type": "manual", "surge": 0.8, "sway": 0, "yaw": 0})
+    published.clear()
+    status = h.link_tick()
+    assert isinstance(status, LinkStatus) and status.pilot_connected and status.viewers == 1
+    assert status.last_heard_s == clock.t
+    clock.t += 1.5
+    h.link_tick()
+    h.link_tick()
+    zeros = [m for t, m in published if t == Topic.MANUAL]
+    assert len(zeros) == 1 and zeros[0].surge == 0.0
+    # a silent pilot (frozen tab, half-open link) is reported as not connected to the supervisor
+    links = [m for t, m in published if t == Topic.LINK]
+    assert links[0].pilot_connected and not links[-1].pilot_connected
+    send(h, s, {"type": "ping"})  # heard again
+    assert h.link_tick().pilot_connected and viewer is not None
+
+
+def test_token_comparison_is_exact():
+    assert token_matches("abc", "abc")
+    assert not token_matches("abd", "abc") and not token_matches("", "abc") and not token_matches("abcd", "abc")
+    assert not token_matches("äbc", "abc")
+
+
+def test_token_bucket_refills_at_its_rate():
+    clock = FakeClock()
+    b = TokenBucket(5.0, 10.0, clock)
+    assert sum(b.take() for _ in range(20)) == 10
+    clock.t += 0.4
+    assert sum(b.take() for _ in range(20)) == 2
+
+
+# -- planning for display ------------------------------------------------------------------------
+def test_plan_for_display_returns_a_thinned_path_or_errors_tied_to_nodes():
+    res = plan_for_display(ROUTE)
+    assert res["ok"] and res["length_m"] > 20 and len(res["path"]["n"]) < 300
+    assert res["path"]["n"][0] == 0.0 and abs(res["path"]["e"][-1] - 8.0) < 1e-6
+    tight = json.loads(json.dumps(ROUTE))
+    tight["nodes"][1].update(north=13.0, east=1.0, heading_deg=180.0)
+    res = plan_for_display(tight)
+    assert not res["ok"] and res["errors"][0]["kind"] == "node" and res["errors"][0]["index"] == 1
+    assert "segment 1" in res["errors"][0]["message"]
+
+
+@pytest.mark.parametrize("message, located", [
+    ("segment 0 (harbour -> nodes[0]): every candidate ...", {"kind": "node", "index": 0}),
+    ("segment 3 (nodes[2] -> nodes[3]): a heading change", {"kind": "node", "index": 3}),
+    ("nodes[3] (north 50, east 35) is outside the navigable area", {"kind": "node", "index": 3}),
+    ("harbour.north: expected a number, got 'x'", {"kind": "harbour"}),
+    ("obstacles[0]: polygon is self-intersecting", {"kind": "obstacle", "index": 0}),
+    ("area: a polygon needs at least 3 vertices, got 2", {"kind": "area"}),
+    ("route: missing key(s) ['harbour']", {"kind": "harbour"}),
+])
+def test_errors_are_located_on_the_element_they_name(message, located):
+    assert locate_error(message) == located
+
+
+# -- fuzz ------------------------------------------------------------------------------------------
+_json_scalars = st.one_of(st.none(), st.booleans(), st.integers(-10**12, 10**12),
+                          st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=20))
+_json = st.recursive(_json_scalars, lambda inner: st.one_of(
+    st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)), max_leaves=12)
+_field_names = st.sampled_from(["type", "id", "token", "takeover", "action", "surge", "sway", "yaw",
+                                "route", "format", "text", "t", "extra"])
+_types = st.sampled_from(["auth", "release", "ping", "command", "manual", "plan", "route", "export",
+                          "import", "nope"])
+
+
+@st.composite
+def _messages(draw):
+    kind = draw(st.integers(0, 3))
+    if kind == 0:
+        return draw(st.text(max_size=80))  # arbitrary text
+    if kind == 1:
+        return json.dumps(draw(_json))  # arbitrary JSON
+    msg = {"type": draw(_types)}
+    for name in draw(st.lists(_field_names, max_size=5)):
+        msg[name] = draw(st.one_of(_json, st.sampled_from(list(OPERATOR_ACTIONS)), st.just(TOKEN),
+                                   st.floats(-2, 2), st.just(ROUTE)))
+    if kind == 3:  # mostly-valid messages: exercise the accepting paths too
+        msg.update(draw(st.sampled_from([
+            {"type": "manual", "surge": 0.3, "sway": 0.0, "yaw": -0.2},
+            {"type": "command", "action": "hold"}, {"type": "ping", "t": 1.0},
+            {"type": "auth", "token": TOKEN}, {"type": "plan", "route": {"harbour": 1, "nodes": []}}])))
+    return json.dumps(msg, allow_nan=True)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(frames=st.lists(st.tuples(st.booleans(), _messages()), min_size=1, max_size=8))
+def test_fuzz_no_input_crashes_the_handler_or_publishes_anything_unexpected(frames):
+    h, clock, published, _ = make()
+    viewer = h.open_session()
+    pilot_s = pilot(h)
+    published.clear()
+    for as_pilot, raw in frames:
+        clock.t += 0.01
+        session = pilot_s if as_pilot else viewer
+        n_before = len(published)
+        was_pilot = h.seat.is_pilot(session)
+        replies = asyncio.run(h.handle(session, raw))
+        assert isinstance(replies, list) and all(isinstance(r, dict) and "type" in r for r in replies)
+        json.dumps(replies, allow_nan=False)  # every reply is sendable
+        new = published[n_before:]
+        if not was_pilot:  # a viewer can never cause a bus message (it may become pilot though)
+            assert new == [] or all(isinstance(m, ManualCommand) and m.surge == 0 for _, m in new)
+        for topic, m in new:
+            assert (topic, type(m)) in {(Topic.MANUAL, ManualCommand), (Topic.OPERATOR, OperatorCommand),
+                                        (Topic.ROUTE, RouteMessage)}
+            if isinstance(m, ManualCommand):
+                assert all(-1 <= v <= 1 and math.isfinite(v) for v in (m.surge, m.sway, m.yaw))
+            if isinstance(m, OperatorCommand):
+                assert m.action in OPERATOR_ACTIONS
