@@ -18,7 +18,7 @@ from lotsen.messages import (
     GnssFixType, ImuSample, LinkStatus, LogEvent, ManualCommand, OperatorCommand, SupervisorStatus,
     ThrustCommand, Topic, VesselState,
 )
-from lotsen.runtime.config import EnvironmentConfig, LaunchConfig, NodesSection, SimSection
+from lotsen.runtime.config import EnvironmentConfig, LaunchConfig, LoggingSection, NodesSection, SimSection
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.runtime.launch import Stack, build_stack
 
@@ -139,13 +139,18 @@ class _Pilot(Node):
 class FaultRun:
     """One scenario: build, run to the fault, inject, run on, evaluate."""
 
-    def __init__(self, scenario: Scenario, seed: int = 0) -> None:
+    def __init__(self, scenario: Scenario, seed: int = 0, log_dir: str | None = None) -> None:
+        """`log_dir`: record the run to MCAP there and look for the event in that file (the run's
+        log); without it, the events seen on the bus are checked."""
         self.scenario = scenario
         sc = scenario
         cfg = LaunchConfig(seed=seed, route=ROUTE, nodes=NodesSection(fusion="ekf", controller=sc.controller),
-                           sim=SimSection(initial_state=START, environment=sc.environment))
+                           sim=SimSection(initial_state=START, environment=sc.environment),
+                           logging=LoggingSection(enabled=log_dir is not None, directory=log_dir or "logs"))
         cfg = replace(cfg, extra={"failsafes": {}})
-        self.stack = build_stack(cfg, realtime=False, parts=("state", "supervisor"))
+        parts = ("state", "supervisor") + (("logs",) if log_dir is not None else ())
+        self.stack = build_stack(cfg, realtime=False, parts=parts)
+        self.log_path: Any = None
         self.trace = Trace()
         self.recorder = self.stack.add(_Recorder(self.trace, self.stack))
         if sc.area is not None:
@@ -180,7 +185,7 @@ class FaultRun:
         ex.run_until(end)
         self.wall_s = time.perf_counter() - t0
         ok, t_safe, detail = sc.check(self)
-        logged = (not sc.log_contains) or any(sc.log_contains in e.text for e in self.trace.events)
+        logged = (not sc.log_contains) or any(sc.log_contains in e.text for e in self._logged_events())
         inside = self.trace.max_outside_m <= sc.margin_m
         return {
             "scenario": sc.name, "fault": sc.fault, "expected": sc.expected,
@@ -190,6 +195,19 @@ class FaultRun:
                                                                     and self.trace.truth_finite),
             "detail": detail, "wall_s": round(self.wall_s, 1),
         }
+
+
+    def _logged_events(self) -> list[LogEvent]:
+        """The LogEvents in the run's MCAP file when recording, else those seen on the bus."""
+        rec = self.stack.services.get("recorder")
+        if rec is None:
+            return self.trace.events
+        self.log_path = rec.path
+        for close in self.stack.services.get("on_shutdown", []):
+            close()
+        from lotsen.logs.reader import LogReader
+
+        return [msg for _, msg in LogReader(self.log_path).messages(topics=[Topic.LOG])]
 
 
 # ---------------------------------------------------------------------------- checks
@@ -400,9 +418,9 @@ SCENARIOS: tuple[Scenario, ...] = (
 )
 
 
-def run_scenarios(names: tuple[str, ...] | None = None, seed: int = 0) -> list[dict]:
+def run_scenarios(names: tuple[str, ...] | None = None, seed: int = 0, log_dir: str | None = None) -> list[dict]:
     rows = []
     for sc in SCENARIOS:
         if names is None or sc.name in names:
-            rows.append(FaultRun(sc, seed=seed).run())
+            rows.append(FaultRun(sc, seed=seed, log_dir=log_dir).run())
     return rows
