@@ -87,24 +87,24 @@ class ImuModel:
         self.gyro_bias_radps = config.gyro_bias_radps
         self.spike_probability = 0.0  # fault injection: occasional large spikes
         self.spike_size = 5.0
+        self._k = (config.gyro_noise_radps, config.accel_noise_mps2, config.gyro_bias_walk_radps_sqrt_s,
+                   config.accel_bias_mps2[0], config.accel_bias_mps2[1])
 
     def sample(self, t: float, nu: tuple[float, float, float], nu_dot: tuple[float, float, float],
                dt_since_last: float) -> ImuSample:
-        c = self.config
-        gn, an = c.gyro_noise_radps, c.accel_noise_mps2
+        gn, an, walk, bx, by = self._k
         u, v, r = nu
         w = self._noise.next()
-        bias = self.gyro_bias_radps + c.gyro_bias_walk_radps_sqrt_s * math.sqrt(dt_since_last) * w[6]
+        bias = self.gyro_bias_radps + walk * math.sqrt(dt_since_last) * w[6]
         self.gyro_bias_radps = bias
         gz = r + bias + gn * w[2]
         # acceleration of the body origin in the body frame: nu_dot + omega x velocity
-        accel_x = nu_dot[0] - v * r + c.accel_bias_mps2[0] + an * w[3]
+        accel_x = nu_dot[0] - v * r + bx + an * w[3]
         if self.spike_probability and self.rng.random() < self.spike_probability:
             gz += self.spike_size * (1.0 if w[0] > 0 else -1.0)
             accel_x += 10.0 * self.spike_size
         return ImuSample(stamp_s=t, gyro_radps=(gn * w[0], gn * w[1], gz),
-                         accel_mps2=(accel_x, nu_dot[1] + u * r + c.accel_bias_mps2[1] + an * w[4],
-                                     -GRAVITY_MPS2 + an * w[5]))
+                         accel_mps2=(accel_x, nu_dot[1] + u * r + by + an * w[4], an * w[5] - GRAVITY_MPS2))
 
 
 class MagnetometerModel:

@@ -81,22 +81,15 @@ class SimConfig:
 
 
 class _Schedule:
-    """Due times of a periodic sensor on a fixed-step clock."""
+    """Due steps of a periodic sensor on the fixed-step clock (a rate may not divide the step
+    rate: GNSS at 8 Hz is due every 12.5 steps and sampled at the first step at or after that)."""
 
-    __slots__ = ("period", "next_t", "last_t")
+    __slots__ = ("period_steps", "next_k", "last_t")
 
-    def __init__(self, rate_hz: float) -> None:
-        self.period = 1.0 / rate_hz if rate_hz > 0 else math.inf  # rate 0 switches a sensor off
-        self.next_t = 0.0 if rate_hz > 0 else math.inf
-        self.last_t = -self.period
-
-    def due(self, t: float) -> bool:
-        if t + 1e-9 >= self.next_t:
-            self.next_t += self.period
-            if self.next_t <= t:  # never fall behind by more than one period
-                self.next_t = t + self.period
-            return True
-        return False
+    def __init__(self, rate_hz: float, dt_s: float) -> None:
+        self.period_steps = 1.0 / (rate_hz * dt_s) if rate_hz > 0 else math.inf  # rate 0: off
+        self.next_k = 0.0 if rate_hz > 0 else math.inf
+        self.last_t = -1.0 / rate_hz if rate_hz > 0 else -math.inf
 
 
 class Simulator:
@@ -121,11 +114,12 @@ class Simulator:
         self.tachometer = TachometerModel(config.tachometer, rngs[3])
         self._wave_rng = rngs[4]
         self._wave = [0.0, 0.0, 0.0]
-        self._sched_imu = _Schedule(config.imu.rate_hz)
-        self._sched_mag = _Schedule(config.imu.mag_rate_hz)
-        self._sched_gnss = _Schedule(config.gnss.rate_hz)
-        self._sched_tacho = _Schedule(config.tachometer.rate_hz)
-        self._sched_batt = _Schedule(config.battery.rate_hz)
+        dt = config.dt_s
+        self._sched_imu = _Schedule(config.imu.rate_hz, dt)
+        self._sched_mag = _Schedule(config.imu.mag_rate_hz, dt)
+        self._sched_gnss = _Schedule(config.gnss.rate_hz, dt)
+        self._sched_tacho = _Schedule(config.tachometer.rate_hz, dt)
+        self._sched_batt = _Schedule(config.battery.rate_hz, dt)
         self.battery_used_ah = (1.0 - config.battery.initial_charge_frac) * config.battery.capacity_ah
         self.environment = config.environment
         self._current_ne = self.environment.current_ne
@@ -191,23 +185,32 @@ class Simulator:
 
     def _sample_sensors(self, t: float, x: tuple[float, ...], xd: tuple[float, ...],
                         act: tuple[float, ...]) -> list[Any]:
+        # runs every step: schedules are compared inline, each sensor only when due
+        k = self._k + 1e-9
         out: list[Any] = []
         s = self._sched_imu
-        if t + 1e-9 >= s.next_t and s.due(t):  # inline pre-check: this runs every step
+        if k >= s.next_k:
+            s.next_k += s.period_steps
             out.append(self.imu.sample(t, (x[3], x[4], x[5]), (xd[3], xd[4], xd[5]), t - s.last_t))
             s.last_t = t
-        if t + 1e-9 >= self._sched_mag.next_t and self._sched_mag.due(t):
+        s = self._sched_mag
+        if k >= s.next_k:
+            s.next_k += s.period_steps
             out.append(self.mag.sample(t, x[2]))
         s = self._sched_gnss
-        if t + 1e-9 >= s.next_t and s.due(t):
+        if k >= s.next_k:
+            s.next_k += s.period_steps
             fix = self.gnss.sample(t, x[0], x[1], xd[0], xd[1], t - s.last_t)
             s.last_t = t
             if fix is not None:
                 out.append(fix)
-        if t + 1e-9 >= self._sched_tacho.next_t and self._sched_tacho.due(t):
+        s = self._sched_tacho
+        if k >= s.next_k:
+            s.next_k += s.period_steps
             out.append(self.tachometer.sample(t, (act[2], act[3], act[4])))
         s = self._sched_batt
-        if t + 1e-9 >= s.next_t and s.due(t):
+        if k >= s.next_k:
+            s.next_k += s.period_steps
             out.append(self._battery_sample(t, act, t - s.last_t))
             s.last_t = t
         return out
