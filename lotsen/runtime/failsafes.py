@@ -54,8 +54,9 @@ class FailsafeConfig:
     # thruster: tachometer disagrees with the command by more than this fraction of the command
     # and by more than thruster_mismatch_min_rps (tachometer quantisation, motor lag)
     thruster_mismatch_frac: float = field(default=0.5, metadata=_r(0.05, 1.0))
-    thruster_mismatch_min_rps: float = field(default=10.0, metadata=_r(0.0, 100.0))
-    thruster_persist_s: float = field(default=1.0, metadata=_r(0.1, 30.0))
+    thruster_mismatch_min_rps: float = field(default=8.0, metadata=_r(0.0, 100.0))
+    # 0.5 s: a commanded step is ramp- and lag-limited to ~0.35 s of mismatch at most
+    thruster_persist_s: float = field(default=0.5, metadata=_r(0.1, 30.0))
     thruster_fault_action: Literal["hold", "stop", "continue"] = "hold"
     # state estimate: uncertainty above this (position std, m) counts as no position
     max_position_std_m: float = field(default=2.0, metadata=_r(0.01, 100.0))

@@ -54,6 +54,31 @@ def _plant_step_py(buf, command, active, theta, geom, c):  # type: ignore[no-unt
 _plant_step = njit(_plant_step_py)
 
 
+def _plant_steps_py(x0, act0, command, active, theta, geom, c, xs, ks, acts):  # type: ignore[no-untyped-def]
+    """K = len(ks) steps of `_plant_step` with the set-point held: fills xs (K+1 x 6, xs[0] = x0),
+    ks (K x 6, x_dot at the start of each step) and acts (K x 5, actuators during each step)."""
+    th = (theta[0], theta[1], theta[2], theta[3], theta[4], theta[5], theta[6], theta[7], theta[8],
+          theta[9], theta[10], theta[11], theta[12], theta[13], theta[14], theta[15], theta[16], theta[17])
+    gm = (geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6])
+    cmd = (command[0], command[1], command[2], command[3], command[4])
+    act_on = (active[0], active[1], active[2], active[3], active[4])
+    x = (x0[0], x0[1], x0[2], x0[3], x0[4], x0[5])
+    act = (act0[0], act0[1], act0[2], act0[3], act0[4])
+    for i in range(6):
+        xs[0, i] = x[i]
+    for k in range(ks.shape[0]):
+        act = actuator_step(act, cmd, act_on, c[0], c[1], c[2])
+        x, k1 = rk4_step(x, act, th, gm, c[4], c[5], c[6], c[7], c[8], c[3])
+        for i in range(6):
+            xs[k + 1, i] = x[i]
+            ks[k, i] = k1[i]
+        for i in range(5):
+            acts[k, i] = act[i]
+
+
+_plant_steps = njit(_plant_steps_py)
+
+
 @dataclass(frozen=True)
 class BatteryConfig:
     capacity_ah: float = 5.0
@@ -163,6 +188,8 @@ class Simulator:
         c[4], c[5] = self._current_ne
         if self.environment.wind_speed_mps or self.environment.wave_force_std_N:
             c[6], c[7], c[8] = self._external_force()
+        else:
+            c[6] = c[7] = c[8] = 0.0
         x0 = self.x
         buf = self._buf
         act_cmd = self.actuators
@@ -183,15 +210,15 @@ class Simulator:
             raise FloatingPointError(f"simulation diverged at t = {self.t:.2f} s: state {x1}")
         return out
 
-    def _sample_sensors(self, t: float, x: tuple[float, ...], xd: tuple[float, ...],
-                        act: tuple[float, ...]) -> list[Any]:
+    def _sample_sensors(self, t: float, x: Sequence[float], xd: Sequence[float],
+                        act: Sequence[float]) -> list[Any]:
         # runs every step: schedules are compared inline, each sensor only when due
         k = self._k + 1e-9
         out: list[Any] = []
         s = self._sched_imu
         if k >= s.next_k:
             s.next_k += s.period_steps
-            out.append(self.imu.sample(t, (x[3], x[4], x[5]), (xd[3], xd[4], xd[5]), t - s.last_t))
+            out.append(self.imu.sample(t, x, xd, t - s.last_t))
             s.last_t = t
         s = self._sched_mag
         if k >= s.next_k:
@@ -225,11 +252,41 @@ class Simulator:
                              current_a=current, remaining_frac=remaining)
 
     def advance(self, duration_s: float) -> list[Any]:
-        """Step until `duration_s` more seconds have passed; returns all sensor messages."""
+        """Step until `duration_s` more seconds have passed with the set-point held; returns all
+        sensor messages. Identical to calling `step()` repeatedly (test), but in calm or current-only
+        conditions the vessel and actuators are integrated in one compiled call for all steps and
+        only the sensors run per step."""
         n = int(round(duration_s / self.config.dt_s))
-        out: list[Any] = []
-        for _ in range(n):
-            out.extend(self.step())
+        env = self.environment
+        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N:  # forces that depend on each step's state
+            out: list[Any] = []
+            for _ in range(n):
+                out.extend(self.step())
+            return out
+        c = self._consts
+        c[4], c[5] = self._current_ne
+        c[6] = c[7] = c[8] = 0.0
+        xs, ks, acts = np.empty((n + 1, 6)), np.empty((n, 6)), np.empty((n, 5))
+        a = self.actuators
+        _plant_steps(np.array(self.x), np.array(a.state), a.command_array, a.active_array, self._theta,
+                     self._geom, c, xs, ks, acts)
+        if not np.isfinite(xs[-1]).all():
+            bad = int(np.argmax(~np.isfinite(xs).all(axis=1)))
+            raise FloatingPointError(f"simulation diverged at t = {(self._k + bad) * self.config.dt_s:.2f} s")
+        xl, kl, al = xs.tolist(), ks.tolist(), acts.tolist()
+        out = []
+        dt, sensors = self.config.dt_s, self.config.sensors
+        for k in range(n):
+            if sensors:
+                out.extend(self._sample_sensors(self._k * dt, xl[k], kl[k], al[k]))
+            self._k += 1
+        self.t = self._k * dt
+        self.x = tuple(xl[n])
+        self.x_dot = tuple(kl[n - 1])
+        a.state = tuple(al[n - 1])
+        self._buf[:6] = xs[n]
+        self._buf[6:11] = acts[n - 1]
+        self._buf[11:] = ks[n - 1]
         return out
 
     # -- outputs ------------------------------------------------------------------------------

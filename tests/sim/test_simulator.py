@@ -140,3 +140,21 @@ def test_truth_and_model_agree():
     u = np.tile([0.1, 0.1, 50, 50, 0], (300, 1))
     _, xs, acts = simulate_inputs(u, 0.01, model)
     assert np.all(np.isfinite(xs)) and xs[-1, 3] > 0.3
+
+
+def test_advance_equals_stepping():
+    """advance() integrates held set-points in one compiled call; it must match step() exactly."""
+    a = Simulator(config=SimConfig(seed=5))
+    b = Simulator(config=SimConfig(seed=5))
+    for sim in (a, b):
+        sim.command([0.2, -0.1, 60, 55, 20])
+    ma = a.advance(7.0)
+    mb = []
+    for _ in range(700):
+        mb.extend(b.step())
+    assert a.x == b.x and a.t == b.t and a.actuators.state == b.actuators.state
+    assert _flatten(ma) == _flatten(mb)
+    a.command([0.0, 0.0, 30, 30, 0])
+    b.command([0.0, 0.0, 30, 30, 0])
+    assert _flatten(a.step()) == _flatten(b.advance(0.01))
+    assert a.x == b.x
