@@ -15,6 +15,7 @@ import json
 import math
 from pathlib import Path
 
+from lotsen.files import read_json
 from lotsen.errors import DataError
 from lotsen.fusion.magcal import CalibrationLimits, MagCalibration, fit_mag_calibration
 
@@ -69,16 +70,7 @@ def load_mag_csv(path: str | Path) -> tuple[list[float], list[float], list[float
 
 def load_mag_calibration(path: str | Path) -> MagCalibration:
     """Read a calibration JSON written by `lotsen calibrate-mag`."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{path}: not JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(data, dict):
-        raise DataError(f"{path}: expected a JSON object with center and matrix")
-    return MagCalibration.from_dict(data, where=str(path))
+    return MagCalibration.from_dict(read_json(path, DataError), where=str(path))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -8,13 +8,12 @@ so the wiring stays readable in one place.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Callable
 
 from lotsen.errors import ConfigError
+from lotsen.files import read_json
 from lotsen.messages import Topic
 from lotsen.model import Environment, VesselGeometry, VesselModel, VesselParameters
 from lotsen.runtime.bus import Bus
@@ -27,14 +26,7 @@ from lotsen.sim import ImuConfig, GnssConfig, SimConfig, Simulator
 def load_parameters(path: str | None) -> VesselParameters:
     if not path:
         return VesselParameters()
-    p = Path(path)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read: {exc.strerror}") from None
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{p}: not valid JSON at line {exc.lineno}: {exc.msg}") from None
-    return VesselParameters.from_dict(data, source=str(p))
+    return VesselParameters.from_dict(read_json(path, ConfigError), source=str(path))
 
 
 def vessel_model(config: LaunchConfig) -> VesselModel:

@@ -110,17 +110,10 @@ def twin_factory_calibration(stack: Stack) -> Any:
 
 
 def _load_calibration(path: str) -> Any:
-    import json
-    from pathlib import Path
-
+    from lotsen.files import read_json
     from lotsen.fusion import MagCalibration
 
-    try:
-        return MagCalibration.from_dict(json.loads(Path(path).read_text()), where=path)
-    except OSError as exc:
-        raise ConfigError(f"nodes.mag_calibration_file: {path}: {exc.strerror}") from None
-    except ValueError as exc:
-        raise ConfigError(f"nodes.mag_calibration_file: {path}: not valid JSON: {exc}") from None
+    return MagCalibration.from_dict(read_json(path, ConfigError), where=f"nodes.mag_calibration_file: {path}")
 
 
 def add_state(stack: Stack) -> None:
