@@ -28,6 +28,7 @@ import pymap3d
 import yaml
 
 from lotsen.errors import ConfigError
+from lotsen.files import parse_json, parse_yaml, read_text
 from lotsen.planning.route import GeoOrigin, HarbourNode, Region, Route, RouteNode, validate_route
 
 _TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin"}
@@ -150,23 +151,10 @@ def route_to_dict(route: Route) -> dict:
 def load_route(path: str | FilePath) -> Route:
     """Read a route from YAML (.yaml/.yml) or GeoJSON (.geojson/.json)."""
     path = FilePath(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read route file ({exc.strerror or exc})") from None
+    text = read_text(path, ConfigError, "route file")
     if path.suffix.lower() in (".geojson", ".json"):
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg})") from None
-        return _prefixed(path, route_from_geojson, data)
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        raise ConfigError(f"{path}: not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
-    return _prefixed(path, route_from_dict, data)
+        return _prefixed(path, route_from_geojson, parse_json(text, path, ConfigError))
+    return _prefixed(path, route_from_dict, parse_yaml(text, path, ConfigError))
 
 
 #: name used in docs/api-for-helpers.md; the same loader (YAML or GeoJSON by suffix)

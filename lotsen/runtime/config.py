@@ -17,9 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal, Mapping
 
-import yaml
-
 from lotsen.errors import ConfigError
+from lotsen.files import read_yaml
 
 
 def _type_name(tp: Any) -> str:
@@ -180,17 +179,7 @@ class LaunchConfig:
 
 
 def load_yaml_file(path: str | Path) -> Any:
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read: {exc.strerror}") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        loc = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ConfigError(f"{p}: not valid YAML{loc}: {getattr(exc, 'problem', exc)}") from None
+    return read_yaml(path, ConfigError)
 
 
 def load_config(path: str | Path | None) -> LaunchConfig:

@@ -116,7 +116,7 @@ def test_file_errors_are_config_errors(tmp_path):
         load_route(tmp_path / "missing.yaml")
     bad = tmp_path / "bad.yaml"
     bad.write_text("harbour: {north: 0, east: [\n")
-    with pytest.raises(ConfigError, match=r"bad.yaml: not valid YAML \(line"):
+    with pytest.raises(ConfigError, match=r"bad.yaml: not valid YAML at line"):
         load_route(bad)
     nan = tmp_path / "nan.yaml"
     nan.write_text(yaml.safe_dump(BASE).replace("speed_mps: 0.6", "speed_mps: .nan"))
