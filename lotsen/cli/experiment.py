@@ -10,7 +10,8 @@ writes the measured data as the identification CSV (docs/sysid.md, "Simulated ru
     default 0.01 rad, a calibrated compass / fused heading), r: the gyro's z rate minus its bias
     estimated over a 2 s rest before the run (the residual bias walk stays in the data);
     psi and r are written on the GNSS rows only (8 Hz outputs).
-Without `--sim` the command refuses: hardware runs go through `lotsen run --hardware`.
+`run --hardware [--emulated]` runs the same input generator through the runtime on the boat's
+drivers (or their emulated twins): lotsen.runtime.nodes.experiment documents what it records.
 """
 
 from __future__ import annotations
@@ -124,14 +125,51 @@ def parse_area(text: str) -> tuple[float, float]:
     return a, b
 
 
+def run_on_stack(experiment: Experiment, config: Any, realtime: bool) -> Any:
+    """Run `experiment` through the runtime on the boat the config names (hardware, or its emulated
+    twin): drivers, the state estimate and the recorder run; the experiment node commands the
+    thrusters. Returns the ExperimentNode (its `record()` and `aborted`)."""
+    from lotsen.runtime.launch import build_stack
+    from lotsen.runtime.nodes.experiment import ExperimentNode
+
+    stack = build_stack(config, realtime=realtime, parts=("state", "logs"))
+    node = stack.add(ExperimentNode(experiment))
+    deadline = experiment.duration_s + node.preroll_s + 10.0
+    try:
+        if realtime:
+            stack.executor.add_timer(0.2, lambda: stack.executor.stop() if node.done else None, "experiment-end")
+            stack.executor.run(deadline)
+        else:
+            stack.executor.run_until(deadline, stop=lambda: node.done)
+            stack.executor.shutdown()
+    finally:
+        for close in stack.services.get("on_shutdown", []):
+            close()
+    return node
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
-    if not args.sim:
-        raise LotsenError("experiments on the real boat run through `lotsen run --hardware` (drivers work, not "
-                          "available yet); use --sim to run this experiment on the simulated boat")
+    if not args.sim and not args.hardware:
+        raise LotsenError("say where to run: --sim (simulated boat) or --hardware [--emulated] (the boat's drivers)")
     model = VesselModel(load_params(args.params))
     check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
                      margin_m=args.margin)
+    if args.hardware:
+        from dataclasses import replace
+
+        from lotsen.runtime.config import load_config
+
+        config = load_config(args.config)
+        config = replace(config, mode="hardware", seed=args.seed,
+                         extra={**config.extra, "emulated": bool(args.emulated)})
+        node = run_on_stack(exp, config, realtime=not args.emulated)
+        record = node.record()
+        save_csv(record, args.out)
+        where = "the emulated boat" if args.emulated else "the boat"
+        print(f"{args.out}: {len(record.t)} rows, {record.t[-1] if len(record.t) else 0:.1f} s of '{exp.name}' "
+              f"on {where}" + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        return 1 if node.aborted else 0
     run = run_on_simulator(exp, model, seed=args.seed, psi_noise_rad=args.psi_noise)
     save_csv(run.record, args.out)
     print(f"{args.out}: {len(run.record.t)} rows, {exp.duration_s:.1f} s of '{exp.name}' on the simulator "
@@ -173,9 +211,14 @@ def _cmd_design(args: argparse.Namespace) -> int:
 def register(subparsers: Any) -> None:
     p = subparsers.add_parser("experiment", help="identification experiments: run, check, design")
     sub = p.add_subparsers(dest="experiment_command", required=True)
-    r = sub.add_parser("run", help="run an experiment YAML on the simulator (--sim) and write the data CSV")
+    r = sub.add_parser("run", help="run an experiment YAML on the simulator (--sim) or the boat (--hardware) "
+                                   "and write the data CSV")
     r.add_argument("experiment")
-    r.add_argument("--sim", action="store_true", help="run on the simulated boat (hardware: lotsen run --hardware)")
+    r.add_argument("--sim", action="store_true", help="run on the simulated boat")
+    r.add_argument("--hardware", action="store_true",
+                   help="run on the boat through its drivers (with the state estimate and the recorder)")
+    r.add_argument("--emulated", action="store_true", help="with --hardware: the drivers' emulated twins")
+    r.add_argument("--config", help="launch config YAML for --hardware (extra.hardware: devices and pins)")
     r.add_argument("--out", required=True, help="output CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r)")
     r.add_argument("--params", help="vessel parameters JSON of the simulated boat (default: the defaults)")
     r.add_argument("--model-params", help="parameters of the model used for the area check (default: --params)")

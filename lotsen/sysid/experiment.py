@@ -91,6 +91,8 @@ def _num(d: Mapping[str, Any], key: str, where: str, default: float | None = Non
 def _levels(d: Mapping[str, Any], where: str, base: Sequence[float] | None = None) -> np.ndarray:
     """An input vector from keys alpha_deg / alpha1_deg / ... / nt_rps (missing: base or 0)."""
     u = np.array(base if base is not None else [0.0] * 5, dtype=float)
+    if isinstance(d, _Seen):
+        d.seen.update(k for k in d.keys() if k in _KEYS)
     for key, value in d.items():
         if key not in _KEYS:
             continue
@@ -109,9 +111,38 @@ def _channel(name: Any, where: str) -> tuple[tuple[int, ...], float]:
     return _KEYS[key]
 
 
+class _Seen(dict):
+    """A mapping that remembers which keys the parser looked at (the rest are unknown keys)."""
+
+    def __init__(self, d: Mapping[str, Any]) -> None:
+        super().__init__(d)
+        self.seen: set[Any] = {"type", "label"}
+
+    def __getitem__(self, k: Any) -> Any:
+        self.seen.add(k)
+        return super().__getitem__(k)
+
+    def get(self, k: Any, default: Any = None) -> Any:
+        self.seen.add(k)
+        return super().get(k, default)
+
+    def __contains__(self, k: object) -> bool:
+        self.seen.add(k)
+        return super().__contains__(k)
+
+
 def parse_piece(d: Mapping[str, Any], where: str) -> Piece:
     if not isinstance(d, Mapping):
         raise ConfigError(f"{where}: expected a mapping with 'type' and 'duration_s'")
+    d = _Seen(d)
+    piece = _parse_piece(d, where)
+    unknown = [str(k) for k in d if k not in d.seen]
+    if unknown:
+        raise ConfigError(f"{where} ({piece.kind}): unknown key(s) {', '.join(map(repr, unknown))}")
+    return piece
+
+
+def _parse_piece(d: Mapping[str, Any], where: str) -> Piece:
     kind = d.get("type")
     if kind not in PIECE_TYPES:
         raise ConfigError(f"{where}: unknown type {kind!r} (one of {', '.join(PIECE_TYPES)})")
@@ -201,9 +232,30 @@ def parse_piece(d: Mapping[str, Any], where: str) -> Piece:
     return Piece(kind, duration, p, label)
 
 
+EXPERIMENT_KEYS = ("name", "description", "area", "start", "pieces", "command_rate_hz")
+
+
+def _unknown_keys(d: Mapping[str, Any], allowed: Sequence[str], where: str) -> None:
+    unknown = [str(k) for k in d if k not in allowed]
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))} (known: {', '.join(allowed)})")
+
+
+def _pair(value: Any, where: str) -> tuple[float, float]:
+    if not (isinstance(value, (list, tuple)) and len(value) == 2):
+        raise ConfigError(f"{where}: expected two numbers, got {value!r}")
+    out = []
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{where}[{i}] = {v!r} is not a finite number")
+        out.append(float(v))
+    return (out[0], out[1])
+
+
 def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Experiment:
     if not isinstance(data, Mapping):
         raise ConfigError(f"{source}: expected a mapping with 'name' and 'pieces'")
+    _unknown_keys(data, EXPERIMENT_KEYS, source)
     pieces_raw = data.get("pieces")
     if not isinstance(pieces_raw, list) or not pieces_raw:
         raise ConfigError(f"{source}: 'pieces' must be a non-empty list")
@@ -211,21 +263,22 @@ def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Exp
     area = Area()
     if "area" in data:
         a = data["area"]
-        if isinstance(a, Mapping) and "size_m" in a:
-            s = a["size_m"]
-            if not (isinstance(s, list) and len(s) == 2):
-                raise ConfigError(f"{source}: area.size_m must be [north_size, east_size]")
-            area = Area.centred(float(s[0]), float(s[1]))
-        elif isinstance(a, Mapping) and "north_m" in a and "east_m" in a:
-            area = Area(tuple(map(float, a["north_m"])), tuple(map(float, a["east_m"])))  # type: ignore[arg-type]
+        if isinstance(a, Mapping) and set(a) == {"size_m"}:
+            n, e = _pair(a["size_m"], f"{source}: area.size_m")
+            area = Area.centred(n, e)
+        elif isinstance(a, Mapping) and set(a) == {"north_m", "east_m"}:
+            area = Area(_pair(a["north_m"], f"{source}: area.north_m"), _pair(a["east_m"], f"{source}: area.east_m"))
         else:
             raise ConfigError(f"{source}: area must have size_m: [n, e] or north_m: [lo, hi], east_m: [lo, hi]")
         if not (area.north_m[0] < 0 < area.north_m[1] and area.east_m[0] < 0 < area.east_m[1]):
             raise ConfigError(f"{source}: the start position (0, 0) must lie inside the area")
     start = data.get("start", {}) or {}
-    rate = float(data.get("command_rate_hz", 20.0))
-    if rate <= 0:
-        raise ConfigError(f"{source}: command_rate_hz must be positive")
+    if not isinstance(start, Mapping):
+        raise ConfigError(f"{source}: start must be a mapping with heading_deg and speed_mps")
+    _unknown_keys(start, ("heading_deg", "speed_mps"), f"{source}: start")
+    rate = _num(data, "command_rate_hz", source, 20.0)
+    if not 0 < rate <= 100:
+        raise ConfigError(f"{source}: command_rate_hz = {rate:g} must be in (0, 100]")
     return Experiment(str(data.get("name", Path(source).stem)), pieces, area,
                       math.radians(_num(start, "heading_deg", f"{source}: start", 0.0)),
                       _num(start, "speed_mps", f"{source}: start", 0.0), rate,

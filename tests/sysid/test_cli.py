@@ -45,7 +45,7 @@ def test_experiment_run_requires_sim_and_writes_csv(tmp_path, capsys):
 
     exp = Path(__file__).parents[2] / "examples" / "experiments" / "bow_thruster_steps.yaml"
     assert main_standalone(["experiment", "run", str(exp), "--out", str(tmp_path / "x.csv")]) == 2
-    assert "lotsen run --hardware" in capsys.readouterr().err
+    assert "--sim (simulated boat) or --hardware" in capsys.readouterr().err
     assert main_standalone(["experiment", "run", str(exp), "--sim", "--out", str(tmp_path / "x.csv")]) == 0
     head = (tmp_path / "x.csv").read_text().splitlines()[0]
     assert head == "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r"
