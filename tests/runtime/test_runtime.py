@@ -131,3 +131,21 @@ def test_config_defaults_and_missing_file(tmp_path):
     assert cfg.seed == 4 and cfg.sim.environment.current_speed_mps == 0.1 and cfg.web.host == "127.0.0.1"
     with pytest.raises(ConfigError, match="cannot read"):
         load_config(tmp_path / "missing.yaml")
+
+
+def test_rtk_on_and_off_in_simulation():
+    from lotsen.messages import GnssFixType, OperatorCommand
+
+    stack = build_stack(LaunchConfig(), realtime=False, parts=())
+    fixes = []
+    stack.bus.subscribe(Topic.GNSS, fixes.append)
+    stack.executor.run_until(1.0)
+    assert fixes[-1].fix_type == GnssFixType.RTK_FIXED
+    stack.bus.publish(Topic.OPERATOR, OperatorCommand(stamp_s=1.0, action="rtk_stop"))
+    stack.executor.run_until(2.0)
+    assert fixes[-1].fix_type == GnssFixType.FIX_3D
+    stack.bus.publish(Topic.OPERATOR, OperatorCommand(stamp_s=2.0, action="rtk_start"))
+    stack.executor.run_until(5.0)
+    assert fixes[-1].fix_type == GnssFixType.RTK_FLOAT
+    stack.executor.run_until(11.0)
+    assert fixes[-1].fix_type == GnssFixType.RTK_FIXED
