@@ -29,8 +29,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
     p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulator's noise")
-    p.add_argument("--estimator", default="truth", choices=("truth", "ekf"),
-                   help="state for the controller: simulator truth (default) or lotsen.fusion's EKF")
+    p.add_argument("--estimator", default="ekf", choices=("truth", "ekf"),
+                   help="state for the controller: lotsen.fusion's EKF on the simulated sensors (default) "
+                        "or the simulator's truth (errors are always measured on the truth)")
     p.add_argument("--hold", type=float, default=10.0, help="seconds of station keeping at the end")
     p.add_argument("--horizon", type=int, help="MPC horizon in steps (default 20)")
     p.add_argument("--report", required=True, help="write the JSON report here")

@@ -99,11 +99,13 @@ class MPCConfig:
     r_alpha: float = 0.05  # per rad^2
     r_thrust_azimuth: float = 0.05  # per q^2 (q = n|n|/n_max^2)
     r_thrust_bow: float = 0.5
-    # Rate penalties: on the EKF estimate, 0.3 / 0.5 let the noise through to the actuators (rms
-    # step changes of 5 deg and 19 rev/s on the figure eight); 10 / 20 cut that to 1.1 deg and
-    # 7 rev/s (servo and ESC wear) for 2 mm more cross-track RMS.
+    # Rate penalties. On the EKF estimate 0.3 / 0.5 let the noise through to the servos (rms step
+    # change 5 deg per 0.1 s on the figure eight); s_alpha = 10 cuts that to 1.2 deg at no cost in
+    # tracking. A thrust rate penalty above ~1 makes the MPC too slow against current and wind
+    # (harbour approach, 0.1 m/s + 3 m/s on the EKF: cross-track RMS 2.6 cm at 1, 6.6 cm at 5,
+    # 8.7 cm at 20), so s_thrust stays small and the ESC's own time constant filters the rest.
     s_alpha: float = 10.0  # rate penalty per rad^2 (per step)
-    s_thrust: float = 20.0  # rate penalty per q^2 (per step)
+    s_thrust: float = 1.0  # rate penalty per q^2 (per step)
     min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
     min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
     n_floor_rps: float = 5.0  # |n| floor in d(kappa n)/dq
