@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 from dataclasses import dataclass, field
 
 from lotsen.messages import GnssFix, GnssFixType
@@ -69,3 +70,19 @@ class Counters:
 
     def as_dict(self) -> dict:
         return {"used": dict(self.used), "rejected": dict(self.rejected), "skipped": dict(self.skipped)}
+
+
+def feed(estimator: Any, msg: Any) -> bool:
+    """Hand one sensor message to an estimator with the on_imu / on_mag / on_gnss interface.
+    Returns False for a message it does not take (other types, or GNSS to a heading-only AHRS)."""
+    from lotsen.messages import GnssFix, ImuSample, MagSample
+
+    if isinstance(msg, ImuSample):
+        estimator.on_imu(msg)
+    elif isinstance(msg, MagSample):
+        estimator.on_mag(msg)
+    elif isinstance(msg, GnssFix) and hasattr(estimator, "on_gnss"):
+        estimator.on_gnss(msg)
+    else:
+        return False
+    return True

@@ -21,11 +21,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from lotsen.fusion.common import wrap_angle
+from lotsen.fusion.common import feed, wrap_angle
 from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
 from lotsen.fusion.magcal import MagCalibration, fit_mag_calibration
 from lotsen.fusion.seed_filters import SeedFilters, SeedFiltersConfig, YawFilterConfig
-from lotsen.messages import GnssFix, ImuSample, MagSample, VesselState
+from lotsen.messages import ImuSample, MagSample, VesselState
 from lotsen.model import DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
 
 DEG = math.pi / 180.0
@@ -209,15 +209,8 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
             if k % 5 == 0 and hasattr(f, "on_command"):
                 f.on_command(act)
             for m in msgs:
-                if isinstance(m, ImuSample):
-                    f.on_imu(m)
-                elif isinstance(m, MagSample):
-                    f.on_mag(m)
-                elif isinstance(m, GnssFix) and hasattr(f, "on_gnss"):
-                    f.on_gnss(m)
-                else:
-                    continue
-                tracks[name].n_msgs += 1
+                if feed(f, m):
+                    tracks[name].n_msgs += 1
             if clock:
                 tracks[name].cpu_s += clock() - c0
         if k % every == 0:

@@ -22,7 +22,8 @@ import numpy as np
 from lotsen.control import (
     ControlConfig, HoldTarget, PathFollower, PathReference, StationKeeper, make_path_follower, make_station_keeper,
 )
-from lotsen.messages import ControllerStatus, GnssFix, ImuSample, MagSample, ThrustCommand
+from lotsen.fusion.common import feed
+from lotsen.messages import ControllerStatus, ThrustCommand
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
 from lotsen.sim import SimConfig, Simulator
 
@@ -106,12 +107,7 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
         truth = sim.truth()
         if estimator is not None:
             for m in msgs:
-                if isinstance(m, ImuSample):
-                    estimator.on_imu(m)
-                elif isinstance(m, MagSample):
-                    estimator.on_mag(m)
-                elif isinstance(m, GnssFix):
-                    estimator.on_gnss(m)
+                feed(estimator, m)
             state = estimator.estimate(t)
         else:
             state = truth

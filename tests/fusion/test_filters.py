@@ -12,6 +12,7 @@ import pytest
 from lotsen.fusion import (
     EkfConfig, MagCalibration, ModelAidedEKF, SeedFilters, SeedFiltersConfig, YawKalmanFilter, wrap_angle,
 )
+from lotsen.fusion.common import feed
 from lotsen.fusion.evaluation import calibrate_from_turn, simulate_calibration_turn
 from lotsen.messages import ActuatorState, GnssFix, ImuSample, MagSample, ThrustCommand, VesselState
 from lotsen.sim import SimConfig, Simulator
@@ -44,12 +45,7 @@ def _run(sim: Simulator, filters: list[Any], duration_s: float, command: Callabl
             if k % 5 == 0:
                 f.on_command(act)
             for m2 in msgs:
-                if isinstance(m2, ImuSample):
-                    f.on_imu(m2)
-                elif isinstance(m2, MagSample):
-                    f.on_mag(m2)
-                elif isinstance(m2, GnssFix):
-                    f.on_gnss(m2)
+                feed(f, m2)
         if probe:
             probe(t)
 
