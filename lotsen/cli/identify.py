@@ -115,15 +115,18 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.iterations} iterations, "
           f"s^2 = {res.noise_factor:.3g})", file=sys.stderr)
     if args.report:
-        from lotsen.sysid.report import render_report
+        from lotsen.sysid.report import render_pdf, render_report
 
         fit_est = simulate_fit(res.params, est_records, args.window, args.gap)
         fit_val = simulate_fit(res.params, val_records, args.window, args.gap)
         narx = fit_narx(est_records, args.gap)
         bb = narx_fit(narx, val_records, args.window, args.gap)
         ra = residual_analysis(fit_val, inputs_at_outputs(val_records, args.window, args.gap))
-        text = render_report(res, [str(p) for p in args.data], fit_est, fit_val, bb, ra, warnings, theta0)
-        Path(args.report).write_text(text)
+        report_args = (res, [str(p) for p in args.data], fit_est, fit_val, bb, ra, warnings, theta0)
+        if Path(args.report).suffix.lower() == ".pdf":
+            Path(args.report).write_bytes(render_pdf(*report_args))
+        else:
+            Path(args.report).write_text(render_report(*report_args))
         print(f"{args.report}: validation fit " + ", ".join(f"{k} {v:.1f} %" for k, v in fit_val.fit_percent.items())
               + " (black-box: " + ", ".join(f"{k} {v:.1f} %" for k, v in bb.fit_percent.items()) + ")",
               file=sys.stderr)
@@ -136,7 +139,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--out", required=True, help="parameter JSON to write (the 18 parameters + std)")
     p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter at a known value")
     p.add_argument("--method", choices=("single", "multiple"), default="single")
-    p.add_argument("--report", help="self-contained HTML report to write")
+    p.add_argument("--report", help="report to write: self-contained HTML (.html) or PDF (.pdf)")
     p.add_argument("--init", help="initial guess JSON (default: the documented defaults)")
     p.add_argument("--validate", nargs="+", help="held-out validation data files")
     p.add_argument("--holdout", type=float, default=0.2, help="fraction of each file held out (default 0.2)")

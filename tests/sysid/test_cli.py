@@ -29,6 +29,15 @@ def test_identify_writes_params_and_report(run_csv, tmp_path, capsys):
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html and "black-box" in html
 
 
+def test_identify_writes_a_pdf_report(run_csv, tmp_path):
+    rep = tmp_path / "r.pdf"
+    assert main_standalone(["identify", str(run_csv), "--out", str(tmp_path / "p.json"), "--report", str(rep),
+                            "--fix", "kappa=0.02", "--fix", "Y_rv=-2", "--fix", "N_vv=-1"]) == 0
+    pdf = rep.read_bytes()
+    pages = pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages")
+    assert pdf.startswith(b"%PDF") and pages == 5  # summary + residuals, validation, track, estimation
+
+
 def test_cli_errors_are_clean(run_csv, tmp_path, capsys):
     assert main_standalone(["identify", str(run_csv), "--out", str(tmp_path / "p.json"), "--fix", "m99=1"]) == 2
     assert "unknown parameter 'm99'" in capsys.readouterr().err
