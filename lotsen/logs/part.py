@@ -74,13 +74,21 @@ def recorder_config(stack: Any) -> RecorderConfig:
     return rc
 
 
+def _redacted(config: dict) -> dict:
+    """The launch config for the log's metadata, without the pilot token (never in logs)."""
+    web = dict(config.get("web", {}))
+    if web.get("pilot_token"):
+        web["pilot_token"] = "<redacted>"
+    return {**config, "web": web}
+
+
 def add_recorder(stack: Any, config: RecorderConfig | None = None, start: bool | None = None) -> McapRecorder:
     """Record every topic of `stack` to MCAP. Starts a file now if `start` (default:
     `config.logging.enabled`); logging_on / logging_off operator actions switch it at run time."""
     rc = config or recorder_config(stack)
     clock = stack.executor.clock
     meta = {"mode": stack.config.mode, "seed": str(stack.config.seed),
-            "launch_config": json.dumps(dataclasses.asdict(stack.config), default=str)}
+            "launch_config": json.dumps(_redacted(dataclasses.asdict(stack.config)), default=str)}
     rec = McapRecorder(rc, clock=clock.now, epoch_at_clock_zero=getattr(clock, "epoch_at_start", None), metadata=meta)
     rec.attach(stack.bus)
     stack.add(LoggingControlNode(rec))

@@ -275,3 +275,19 @@ def test_killed_recorder_loses_at_most_the_last_second(tmp_path):
     assert not r.complete and any(isinstance(e, TruncatedLogError) for e in r.problems)
     assert stamps == [float(i) for i in range(len(stamps))]  # no gaps, in order
     assert len(stamps) >= last - rate_hz * 1.0, (len(stamps), last)  # lost at most ~1 s
+
+
+def test_the_pilot_token_never_reaches_the_log(tmp_path):
+    from lotsen.runtime.config import LaunchConfig, LoggingSection, WebSection
+    from lotsen.runtime.launch import build_stack
+
+    secret = "s3cret-pilot-token-xyz"
+    cfg = LaunchConfig(web=WebSection(enabled=False, pilot_token=secret),
+                       logging=LoggingSection(enabled=True, directory=str(tmp_path)))
+    stack = build_stack(cfg, realtime=False, parts=("logs",))
+    stack.executor.run_until(1.0)
+    for close in stack.services["on_shutdown"]:
+        close()
+    files = list(tmp_path.glob("*.mcap"))
+    assert files and secret.encode() not in files[0].read_bytes()
+    assert b"<redacted>" in files[0].read_bytes()
