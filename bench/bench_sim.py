@@ -37,8 +37,8 @@ def _rtf_simulator(seconds: float, imu_rate_hz: float, sensors: bool = True) -> 
 
 def _rtf_runtime(seconds: float) -> float:
     from lotsen.runtime.config import LaunchConfig
-    from lotsen.runtime.launch import build_stack
-    from lotsen.runtime.schedule import DEMO_SCHEDULE, ScheduleNode
+    from lotsen.stack.launch import build_stack
+    from lotsen.stack.schedule import DEMO_SCHEDULE, ScheduleNode
 
     stack = build_stack(LaunchConfig(), realtime=False, parts=())
     stack.add(ScheduleNode(DEMO_SCHEDULE))

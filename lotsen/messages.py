@@ -1,7 +1,7 @@
 """Typed messages exchanged between nodes, and the topic names (seed Table 3 where one exists).
 
 This module imports nothing from lotsen: sensors in `lotsen.sim`, drivers, fusion, control,
-logs and the web all speak these types. `lotsen.runtime.messages` re-exports them.
+logs and the web all speak these types. `lotsen.messages` re-exports them.
 Every message carries `stamp_s`, the time the measurement or command refers to (simulated or
 wall seconds of the runtime's clock).
 """
@@ -17,7 +17,7 @@ __all__ = [
     "Topic", "ThrustCommand", "ActuatorState", "ImuSample", "MagSample", "MagCalibrated", "GnssFixType",
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
-    "OPERATOR_ACTIONS", "MagCalibrationResult",
+    "OPERATOR_ACTIONS", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
 ]
 
 
@@ -35,17 +35,21 @@ class Topic:
     RTCM = "gps_rtk/rtcm_data"  # RtcmData, corrections to the receiver
     STATE = "state/estimate"  # VesselState, the full estimate used by control
     TRUTH = "sim/truth"  # VesselState, ground truth (simulation only)
-    ACTUATORS = "sim/actuators"  # ActuatorState, achieved actuator values (simulation / tachometers)
-    ROUTE = "planning/route"  # RouteMessage: the operator's route (YAML schema as a dict)
+    ACTUATORS = "actuators/state"  # ActuatorState: achieved values (servo angles, measured rpm), ESCs armed
+    ROUTE = "planning/route"  # PlannedRoute: the operator's route, planned once by the planner worker
+    ACTIVE_ROUTE = "planning/active_route"  # RouteMessage: read-back of the route the boat holds
     PATH = "planning/path"  # PathMessage
     CONTROL_STATUS = "control/status"  # ControllerStatus
     SUPERVISOR = "supervisor/status"  # SupervisorStatus
+    ALERT = "supervisor/alert"  # Alert: refusals, failsafes, warnings for the operator
+    PROGRESS = "mission/progress"  # MissionProgress along the active path (AUTO / RETURN)
     OPERATOR = "operator/command"  # OperatorCommand (mode changes, start/stop)
     MANUAL = "operator/manual"  # ManualCommand from the keyboard
     LINK = "operator/link"  # LinkStatus: the pilot's connection, published by the web server
     RC = "rc/override"  # RcOverride from the FrSky receiver
     BATTERY = "battery"  # BatteryStatus
     LOG = "log"  # LogEvent
+    ESTIMATOR_HEALTH = "fusion/health"  # EstimatorHealth: integrity of the state estimate (docs/fusion.md)
 
 
 @dataclass(slots=True, kw_only=True)
@@ -86,6 +90,7 @@ class ActuatorState:
     n1_rps: float
     n2_rps: float
     nt_rps: float
+    escs_armed: bool = True  # the ESCs finished their arming sequence (neutral long enough)
 
     def as_tuple(self) -> tuple[float, float, float, float, float]:
         return (self.alpha1_rad, self.alpha2_rad, self.n1_rps, self.n2_rps, self.nt_rps)
@@ -185,6 +190,9 @@ class VesselState:
     source: str = ""
     std: tuple[float, ...] = ()  # standard deviations of the six states, when estimated
     gyro_bias_radps: float = 0.0
+    # slowly varying disturbance, when the estimator has states for it (zero otherwise):
+    current_ne_mps: tuple[float, float] = (0.0, 0.0)  # water current over ground, north / east
+    disturbance_tau: tuple[float, float, float] = (0.0, 0.0, 0.0)  # body force X, Y (N), moment N (N m)
 
     def as_array_tuple(self) -> tuple[float, float, float, float, float, float]:
         return (self.north_m, self.east_m, self.heading_rad, self.u_mps, self.v_mps, self.r_radps)
@@ -225,9 +233,43 @@ class SupervisorStatus:
     stamp_s: float
     mode: str
     reason: str = ""
-    armed: bool = False
+    armed: bool = False  # the operator armed the boat (thrust allowed); disarmed = neutral always
     warnings: tuple[str, ...] = ()
     active_failsafes: tuple[str, ...] = ()
+    escs_armed: bool = False  # the actuators report their ESCs ready
+    available_actions: tuple[str, ...] = ()  # operator actions that would be accepted now
+    blocked_actions: tuple[str, ...] = ()  # "action: why not", for the others
+    route_id: str = ""  # id of the route the boat holds ("" = none)
+
+
+@dataclass(slots=True, kw_only=True)
+class Alert:
+    """Something the operator must see: a refused request, a failsafe, a warning.
+
+    `code` is machine-readable ("refused:auto", "failsafe:gnss_lost", ...); `active=False` says that
+    the condition behind an earlier alert with the same code has cleared."""
+
+    stamp_s: float
+    severity: str  # "info" | "warning" | "error" | "critical"
+    code: str
+    text: str
+    source: str = "supervisor"
+    active: bool = True
+
+
+@dataclass(slots=True, kw_only=True)
+class MissionProgress:
+    """Where the boat is along the path it follows, and when it will arrive at the planned speeds."""
+
+    stamp_s: float
+    mode: str
+    path_length_m: float
+    progress_m: float
+    remaining_m: float
+    eta_s: float
+    next_node: int = -1  # index into the route's nodes; -1 = the harbour or none
+    distance_to_next_node_m: float = float("nan")
+    route_id: str = ""
 
 
 OPERATOR_ACTIONS = (
@@ -235,7 +277,9 @@ OPERATOR_ACTIONS = (
     "hold",  # pause: station keeping where the boat is
     "return",  # plan and follow a route back to the harbour node
     "manual",  # keyboard driving (ManualCommand)
-    "estop",  # emergency stop: neutral, latched
+    "arm",  # allow thrust (needs the ESCs armed); every thrusting mode needs it
+    "disarm",  # thrusters neutral whatever the mode (not while moving in AUTO/RETURN: use hold first)
+    "estop",  # emergency stop: neutral, latched, disarms
     "reset_estop",  # release the latch (to MANUAL, thrusters neutral)
     "calibrate_mag",  # run the one-turn manoeuvre and fit the magnetometer calibration
     "rtk_start", "rtk_stop",  # RTK corrections on/off
@@ -254,10 +298,30 @@ class OperatorCommand:
 
 @dataclass(slots=True, kw_only=True)
 class RouteMessage:
-    """The operator's route in the YAML schema of docs/planning.md, as a plain dict."""
+    """The operator's route in the YAML schema of docs/planning.md, as a plain dict (the boat's
+    read-back on planning/active_route carries the id of the route it holds)."""
 
     stamp_s: float
     route: dict
+    source: str = "operator"
+    route_id: str = ""
+
+
+@dataclass(slots=True, kw_only=True)
+class PlannedRoute:
+    """A route and the path planned from it, planned once (by the planner worker) and sent as is:
+    the supervisor checks and follows it without planning again. Arrays at the planner's spacing."""
+
+    stamp_s: float
+    route_id: str  # lotsen.planning.io.route_id(route): the page compares it with the read-back
+    route: dict
+    s_m: tuple[float, ...]
+    north_m: tuple[float, ...]
+    east_m: tuple[float, ...]
+    heading_rad: tuple[float, ...]
+    curvature_1pm: tuple[float, ...]
+    speed_mps: tuple[float, ...]
+    node_s_m: tuple[float, ...] = ()  # arc length at each route node (harbour first)
     source: str = "operator"
 
 
@@ -305,3 +369,79 @@ class LogEvent:
     source: str
     text: str
     data: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- seed Table 3: the Ship node's
+# three command topics. `ship_command` (ThrustCommand) stays the combined form the actuators use;
+# `velocity_command` and `angle_command` carry its two halves, as the original ROS system had them.
+Topic.VELOCITY_COMMAND = "velocity_command"  # VelocityCommand: propeller speeds (seed Table 3)
+Topic.ANGLE_COMMAND = "angle_command"  # AngleCommand: azimuth angles (seed Table 3)
+
+
+@dataclass(slots=True, kw_only=True)
+class VelocityCommand:
+    """Propeller speed set-points, signed rev/s (n1, n2: azimuth thrusters; nt: bow thruster)."""
+
+    stamp_s: float
+    n1_rps: float = 0.0
+    n2_rps: float = 0.0
+    nt_rps: float = 0.0
+    source: str = ""
+
+
+@dataclass(slots=True, kw_only=True)
+class AngleCommand:
+    """Azimuth angle set-points (rad, + turns thrust to starboard), as in ThrustCommand."""
+
+    stamp_s: float
+    alpha1_rad: float = 0.0
+    alpha2_rad: float = 0.0
+    source: str = ""
+
+
+def split_ship_command(cmd: ThrustCommand) -> tuple[VelocityCommand, AngleCommand]:
+    """The two halves of a ship_command (same stamp and source)."""
+    return (VelocityCommand(stamp_s=cmd.stamp_s, n1_rps=cmd.n1_rps, n2_rps=cmd.n2_rps, nt_rps=cmd.nt_rps,
+                            source=cmd.source),
+            AngleCommand(stamp_s=cmd.stamp_s, alpha1_rad=cmd.alpha1_rad, alpha2_rad=cmd.alpha2_rad, source=cmd.source))
+
+
+def combine(velocity: VelocityCommand, angle: AngleCommand, source: str | None = None) -> ThrustCommand:
+    """One ship_command from the two halves; stamp = the older of the two (the combined command is
+    only as fresh as its staler half), source = `source` or the velocity command's."""
+    return ThrustCommand(stamp_s=min(velocity.stamp_s, angle.stamp_s), alpha1_rad=angle.alpha1_rad,
+                         alpha2_rad=angle.alpha2_rad, n1_rps=velocity.n1_rps, n2_rps=velocity.n2_rps,
+                         nt_rps=velocity.nt_rps, source=velocity.source if source is None else source)
+
+
+__all__ += ["VelocityCommand", "AngleCommand", "split_ship_command", "combine"]
+
+
+@dataclass(slots=True, kw_only=True)
+class EstimatorHealth:
+    """Integrity of the state estimate (lotsen.fusion.integrity; contract in docs/fusion.md).
+
+    The three flags say whether the position / heading / velocity of the estimate may be used
+    for navigation and for the geofence. `faults` are human-readable ("sensor: what, since t"),
+    `fault_codes` the same faults machine-readable ("gnss.inconsistent", "gyro.stuck", ...), in
+    the same order. Per-sensor figures are parallel tuples indexed like `sensors`."""
+
+    stamp_s: float
+    position_ok: bool
+    heading_ok: bool
+    velocity_ok: bool
+    faults: tuple[str, ...] = ()
+    fault_codes: tuple[str, ...] = ()
+    source: str = ""
+    sensors: tuple[str, ...] = ()  # e.g. ("gyro", "accel", "mag", "gnss", "gnss_vel")
+    nis: tuple[float, ...] = ()  # windowed mean normalised innovation squared per dof (~1 when consistent)
+    used_frac: tuple[float, ...] = ()  # fraction of the window's samples that were used
+    last_used_age_s: tuple[float, ...] = ()  # stamp_s minus the stamp of the last used sample (inf: never)
+    filter_age_s: float = float("nan")  # stamp_s minus the filter's own time
+    position_std_m: float = float("nan")  # the larger of the north / east standard deviations
+    heading_std_rad: float = float("nan")
+    velocity_std_mps: float = float("nan")  # the larger of the u / v standard deviations
+    current_ne_mps: tuple[float, float] = (0.0, 0.0)  # estimated water current (north, east), when estimated
+    current_std_mps: tuple[float, float] = (float("nan"), float("nan"))
+    event_count: int = 0  # increases with every informational event (re-anchoring, time jump, ...)
+    events: tuple[str, ...] = ()  # the most recent events, newest last

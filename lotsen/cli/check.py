@@ -36,11 +36,12 @@ def format_table(rows: list, extra: dict[str, str]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lotsen.drivers import add_hardware_boat, hardware_config_from_launch
+    from lotsen.drivers import hardware_config_from_launch
+    from lotsen.stack.hardware import add_hardware_boat
     from lotsen.errors import ConfigError
     from lotsen.runtime.config import load_config
     from lotsen.runtime.executor import RealtimeExecutor
-    from lotsen.runtime.launch import Stack, vessel_model
+    from lotsen.stack.stack import Stack, vessel_model
 
     if not args.duration > 0:
         raise ConfigError(f"--duration: must be > 0, got {args.duration}")

@@ -12,7 +12,7 @@ from lotsen.errors import LotsenError
 # module name in lotsen.cli -> registers one or more sub-commands
 COMMAND_MODULES = (
     "model", "sim", "run", "plan", "mission", "identify", "experiment", "calibrate",
-    "logs", "gnss", "check",
+    "logs", "gnss", "check", "recover",
 )
 
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from lotsen.model import VesselModel, VesselParameters, linearise, stability_report, straight_trim
 from lotsen.model.linear import linearise_straight
-from lotsen.runtime.launch import load_parameters
+from lotsen.stack.stack import load_parameters
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -11,8 +11,8 @@ from pathlib import Path
 
 from lotsen.messages import Topic
 from lotsen.runtime.config import load_config
-from lotsen.runtime.launch import build_stack
-from lotsen.runtime.schedule import DEMO_SCHEDULE, ScheduleNode, load_schedule
+from lotsen.stack.launch import build_stack
+from lotsen.stack.schedule import DEMO_SCHEDULE, ScheduleNode, load_schedule
 from lotsen.runtime.executor import SimExecutor
 
 

@@ -1,5 +1,6 @@
 """The 3-DOF grey-box vessel model (seed section 3.2): parameters, forces, dynamics, linearisation."""
 
+from lotsen.model.angles import all_finite, wrap_angle
 from lotsen.model.dynamics import (
     INPUT_NAMES, NU, NX, STATE_NAMES, VesselModel, geometry_tuple, jacobians, rk4_step, symbolic_rhs,
     thruster_forces, vessel_rhs,
@@ -19,5 +20,5 @@ __all__ = [
     "thruster_forces", "vessel_rhs", "geometry_tuple", "rk4_step", "symbolic_rhs", "Environment", "WindCoefficients", "wind_force",
     "LinearSwayYaw", "StabilityReport", "condition_16d", "linearise", "linearise_straight",
     "stability_report", "straight_trim", "DEFAULT_GEOMETRY", "DEFAULT_LIMITS", "DEFAULT_PARAMETERS",
-    "ActuatorLimits", "VesselGeometry", "VesselParameters", "parameter_table_markdown",
+    "ActuatorLimits", "VesselGeometry", "VesselParameters", "parameter_table_markdown", "all_finite", "wrap_angle",
 ]

@@ -355,6 +355,15 @@ class VesselModel:
                          float(current_ne[0]), float(current_ne[1]), 0.0, 0.0, 0.0, float(dt))
         return np.array(x1)
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) every jitted function now: the first call costs
+        0.1-0.3 s, which a live control loop must not pay when the operator presses AUTO."""
+        x, u = (0.1,) * NX, (0.1,) * NU
+        self.f(0.0, x, u)
+        self.tau(x[3:], u)
+        self.jacobians(x, u)
+        self.step(x, u, 0.1)
+
     def kinetic_energy(self, nu: Sequence[float]) -> float:
         """1/2 nu^T M nu."""
         p = self.params

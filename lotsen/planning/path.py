@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from lotsen.errors import ConfigError
+from lotsen.model.angles import wrap_angle
 
 _FIELDS = ("north_m", "east_m", "heading_rad", "curvature_1pm", "speed_mps", "s_m")
 
@@ -57,10 +58,6 @@ class Projection:
     cross_track_error_m: float
     index: int
     heading_rad: float
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,7 +109,7 @@ class Path:
         s = np.clip(np.asarray(s_m, dtype=float), self.s_m[0], self.s_m[-1])
         out = [np.interp(s, self.s_m, arr) for arr in
                (self.north_m, self.east_m, self._heading_unwrapped, self.curvature_1pm, self.speed_mps)]
-        out[2] = _wrap(out[2])  # interpolate unwrapped, so +179 deg -> -179 deg passes through 180
+        out[2] = wrap_angle(out[2])  # interpolate unwrapped, so +179 deg -> -179 deg passes through 180
         if s.ndim == 0:
             return PathPoint(*(float(v) for v in out), s_m=float(s))
         return PathPoint(*out, s_m=s)
@@ -147,7 +144,7 @@ class Path:
         cte = dist if cross >= 0 else -dist
         tj = float(t[j])
         s = float(self.s_m[i] + tj * (self.s_m[i + 1] - self.s_m[i]))
-        hdg = float(_wrap(self._heading_unwrapped[i] + tj * (self._heading_unwrapped[i + 1]
+        hdg = float(wrap_angle(self._heading_unwrapped[i] + tj * (self._heading_unwrapped[i + 1]
                                                               - self._heading_unwrapped[i])))
         return Projection(s_m=s, cross_track_error_m=cte, index=i, heading_rad=hdg)
 

@@ -105,6 +105,7 @@ class _Water:
             shapely.prepare(g)
         # named parts, to say *what* blocks a segment
         self.parts: list[tuple[str, object]] = []
+        self.has_area = route.area is not None
         if route.area is not None:
             self.parts.append(("area", Polygon(route.area).exterior))
         for i, r in enumerate(route.obstacles):
@@ -435,10 +436,18 @@ def _check_nodes_against_config(nodes: list[RouteNode], labels: list[str], water
                               f"{cfg.speed_max_mps:g}")
         p = Point(n.north_m, n.east_m)
         if not water.safe.covers(p):
+            at = f"{labels[k]} (north {n.north_m:g}, east {n.east_m:g})"
+            if not water.free.covers(p):
+                # outside the water altogether: its distance to an edge is no "clearance" (issue 14)
+                where = "outside the navigable area" if water.has_area else "not in navigable water"
+                inside = [name for name, g in water.parts if name.startswith("obstacles[")
+                          and isinstance(g, Polygon) and g.covers(p)]
+                raise PlanningError(f"{at} is {where}" + (f" (inside {', '.join(inside)})" if inside else "")
+                                    + "; move it into open water")
             name, d = water.nearest_part(p)
             raise PlanningError(
-                f"{labels[k]} (north {n.north_m:g}, east {n.east_m:g}) is {d:.2f} m from {name}, "
-                f"closer than the clearance {cfg.clearance_m:g} m; move it into open water")
+                f"{at} is {d:.2f} m from {name}, closer than the clearance {cfg.clearance_m:g} m; "
+                "move it into open water")
 
 
 def _plan_pieces(nodes: list[RouteNode], labels: list[str], water: _Water, cfg: PlannerConfig,

@@ -100,9 +100,10 @@ def _free_region(route: Route):
         pts = [(n.north_m, n.east_m) for n in route.all_nodes()]
         for r in route.obstacles:
             pts.extend(r.polygon)
-        free = shapely.MultiPoint(pts).envelope.buffer(1000.0, join_style="mitre")
-        if free.is_empty or free.area == 0:
-            free = box(-1000, -1000, 1000, 1000)
+        # a box 1 km beyond every point (buffering the envelope broke for collinear points: the
+        # envelope of a straight route is a degenerate polygon whose mitred buffer was a triangle)
+        n0, e0, n1, e1 = shapely.MultiPoint(pts).bounds
+        free = box(n0 - 1000.0, e0 - 1000.0, n1 + 1000.0, e1 + 1000.0)
     blocked = []
     for r in route.obstacles:
         poly = Polygon(r.polygon)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import sys
 import types
 import typing
 from dataclasses import dataclass, field
@@ -65,6 +66,8 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{where}: expected a number, got {value!r}")
+        if isinstance(value, int) and abs(value) > sys.float_info.max:  # float() would overflow
+            raise ConfigError(f"{where}: integer with {len(str(abs(value)))} digits is too large")
         if not math.isfinite(value):
             raise ConfigError(f"{where}: {value!r} is not finite")
         return float(value)
@@ -133,6 +136,8 @@ class SimSection:
     gnss_rate_hz: float = field(default=8.0, metadata=_r(1.0, 20.0))
     initial_state: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
+    # the simulated ESCs arm after this long at neutral (the real ones after their arming beeps)
+    esc_arm_time_s: float = field(default=1.0, metadata=_r(0.0, 30.0))
 
 
 @dataclass(frozen=True)
@@ -166,10 +171,21 @@ class LoggingSection:
 
 
 @dataclass(frozen=True)
+class OriginSection:
+    """Geodetic origin of the local NED frame (WGS84). Without it: the simulated receiver's origin
+    in simulation, the first usable GNSS fix on the boat."""
+
+    lat_deg: float = field(metadata=_r(-90.0, 90.0))
+    lon_deg: float = field(metadata=_r(-180.0, 180.0))
+    height_m: float = field(default=0.0, metadata=_r(-500.0, 9000.0))
+
+
+@dataclass(frozen=True)
 class LaunchConfig:
     mode: Literal["sim", "hardware"] = "sim"
-    seed: int = 0
-    route: str | None = None  # route YAML loaded at start
+    seed: int = field(default=0, metadata=_r(0, 2**32 - 1))
+    route: str | None = None  # route YAML loaded at start (relative to the config file's folder)
+    origin: OriginSection | None = None
     sim: SimSection = field(default_factory=SimSection)
     vessel: VesselSection = field(default_factory=VesselSection)
     nodes: NodesSection = field(default_factory=NodesSection)
@@ -183,11 +199,29 @@ def load_yaml_file(path: str | Path) -> Any:
 
 
 def load_config(path: str | Path | None) -> LaunchConfig:
-    """Load and validate a launch config; None gives the defaults."""
+    """Load and validate a launch config; None gives the defaults. Relative file and folder
+    names in it are taken from the config file's folder, so the command works from anywhere."""
     if path is None:
         return LaunchConfig()
     data = load_yaml_file(path)
     try:
-        return from_mapping(LaunchConfig, data)
+        config = from_mapping(LaunchConfig, data)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
+    return resolve_paths(config, Path(path).resolve().parent)
+
+
+def resolve_paths(config: LaunchConfig, base: Path) -> LaunchConfig:
+    """`config` with every relative path made absolute against `base` (the config's folder)."""
+
+    def absolute(p: str | None) -> str | None:
+        if not p:
+            return p
+        q = Path(p).expanduser()
+        return str(q if q.is_absolute() else (base / q).resolve())
+
+    return dataclasses.replace(
+        config, route=absolute(config.route),
+        vessel=dataclasses.replace(config.vessel, parameters_file=absolute(config.vessel.parameters_file)),
+        nodes=dataclasses.replace(config.nodes, mag_calibration_file=absolute(config.nodes.mag_calibration_file)),
+        logging=dataclasses.replace(config.logging, directory=absolute(config.logging.directory) or "logs"))

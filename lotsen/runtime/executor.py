@@ -43,6 +43,10 @@ class NodeContext:
     def now(self) -> float:
         return self.clock.now()
 
+    def work(self) -> float:
+        """The work clock (seconds): CPU time on the boat, charged time in simulation."""
+        return self.clock.work()
+
     def add_timer(self, period_s: float, callback: Callable[[], None], phase_s: float = 0.0) -> Timer:
         return self.executor.add_timer(period_s, callback, f"{self.node_name}", phase_s)
 
@@ -146,8 +150,8 @@ class SimExecutor(Executor):
 class RealtimeExecutor(Executor):
     """Wall-clock pace, one thread."""
 
-    def __init__(self, bus: Bus | None = None) -> None:
-        super().__init__(bus, WallClock())
+    def __init__(self, bus: Bus | None = None, clock: WallClock | None = None) -> None:
+        super().__init__(bus, clock or WallClock())
         self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._stop = threading.Event()
 
@@ -158,17 +162,20 @@ class RealtimeExecutor(Executor):
         self._stop.set()
         self._calls.put(lambda: None)
 
+    def _call(self, fn: Callable[[], None]) -> None:
+        try:
+            fn()
+        except Exception as exc:
+            self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source="executor",
+                                             text=f"external call failed: {exc!r}"))
+
     def _drain_calls(self) -> None:
         while True:
             try:
                 fn = self._calls.get_nowait()
             except queue.Empty:
                 return
-            try:
-                fn()
-            except Exception as exc:
-                self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source="executor",
-                                                 text=f"external call failed: {exc!r}"))
+            self._call(fn)
 
     def run(self, duration_s: float | None = None) -> None:
         end = None if duration_s is None else self.clock.now() + duration_s
@@ -184,9 +191,11 @@ class RealtimeExecutor(Executor):
             if t_next > now:
                 try:  # sleep until the next timer, but wake for external calls
                     fn = self._calls.get(timeout=min(t_next - now, 0.05))
-                    self._calls.put(fn)
                 except queue.Empty:
-                    pass
+                    continue
+                # run it now: putting it back would queue it behind calls that arrived later
+                # (a route followed by "auto" would arrive as "auto", then the route)
+                self._call(fn)
                 continue
             _, _, timer = heapq.heappop(self._heap)
             if timer.cancelled:

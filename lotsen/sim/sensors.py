@@ -84,6 +84,8 @@ class ImuModel:
         self.gyro_bias_radps = config.gyro_bias_radps
         self.spike_probability = 0.0  # fault injection: occasional large spikes
         self.spike_size = 5.0
+        self.stuck = False  # fault injection: the chip repeats its last sample (a hung I2C read)
+        self._last: ImuSample | None = None
         self._k = (config.gyro_noise_radps, config.accel_noise_mps2, config.gyro_bias_walk_radps_sqrt_s,
                    config.accel_bias_mps2[0], config.accel_bias_mps2[1])
 
@@ -101,8 +103,11 @@ class ImuModel:
         if self.spike_probability and self.rng.random() < self.spike_probability:
             gz += self.spike_size * (1.0 if w[0] > 0 else -1.0)
             accel_x += 10.0 * self.spike_size
-        return ImuSample(stamp_s=t, gyro_radps=(gn * w[0], gn * w[1], gz),
-                         accel_mps2=(accel_x, nu_dot[1] + u * r + by + an * w[4], an * w[5] - GRAVITY_MPS2))
+        if self.stuck and self._last is not None:
+            return ImuSample(stamp_s=t, gyro_radps=self._last.gyro_radps, accel_mps2=self._last.accel_mps2)
+        self._last = ImuSample(stamp_s=t, gyro_radps=(gn * w[0], gn * w[1], gz),
+                               accel_mps2=(accel_x, nu_dot[1] + u * r + by + an * w[4], an * w[5] - GRAVITY_MPS2))
+        return self._last
 
 
 class MagnetometerModel:
@@ -112,6 +117,8 @@ class MagnetometerModel:
         self.config = config
         self._noise = NoiseBlock(rng, 3)
         self.disturbance_uT = (0.0, 0.0)  # fault injection: e.g. motor currents, a steel hull nearby
+        self.stuck = False  # fault injection: the magnetometer repeats its last sample
+        self._last: MagSample | None = None
 
     def true_horizontal(self, psi: float) -> tuple[float, float]:
         c = self.config
@@ -128,9 +135,12 @@ class MagnetometerModel:
         dx, dy = self.disturbance_uT
         w = self._noise.next()
         sd = c.mag_noise_uT
-        return MagSample(stamp_s=t, field_uT=(s00 * hx + s01 * hy + bx + dx + sd * w[0],
-                                              s10 * hx + s11 * hy + by + dy + sd * w[1],
-                                              c.earth_field_down_uT + sd * w[2]))
+        if self.stuck and self._last is not None:
+            return MagSample(stamp_s=t, field_uT=self._last.field_uT)
+        self._last = MagSample(stamp_s=t, field_uT=(s00 * hx + s01 * hy + bx + dx + sd * w[0],
+                                                    s10 * hx + s11 * hy + by + dy + sd * w[1],
+                                                    c.earth_field_down_uT + sd * w[2]))
+        return self._last
 
 
 class GnssModel:
@@ -149,6 +159,7 @@ class GnssModel:
         self._noise = NoiseBlock(rng, 6)
         self.fix_type = GnssFixType.RTK_FIXED
         self.outage = False  # fault injection: no fixes at all
+        self.offset_ne_m = (0.0, 0.0)  # fault injection: a wrong position (multipath, a wrong RTK fix)
         self._bias = [0.0, 0.0]
         lat0, lon0, h0 = config.origin_lat_deg, config.origin_lon_deg, config.origin_height_m
         lat1, _, _ = pymap3d.ned2geodetic(1.0, 0.0, 0.0, lat0, lon0, h0)
@@ -169,8 +180,8 @@ class GnssModel:
         walk = c.bias_walk_m_sqrt_s.get(ft, 0.2) * math.sqrt(dt_since_last)
         self._bias[0] += walk * w[2]
         self._bias[1] += walk * w[3]
-        n = north + self._bias[0] + sigma * w[0]
-        e = east + self._bias[1] + sigma * w[1]
+        n = north + self._bias[0] + sigma * w[0] + self.offset_ne_m[0]
+        e = east + self._bias[1] + sigma * w[1] + self.offset_ne_m[1]
         return GnssFix(
             stamp_s=t,
             lat_deg=c.origin_lat_deg + n * self._deg_per_m[0],

@@ -6,9 +6,9 @@ from lotsen.errors import ConfigError
 from lotsen.messages import LogEvent, ThrustCommand, Topic
 from lotsen.runtime import Bus, Node, SimExecutor
 from lotsen.runtime.config import LaunchConfig, load_config
-from lotsen.runtime.launch import build_stack
-from lotsen.runtime.nodes.actuator_guard import ActuatorGuard
-from lotsen.runtime.schedule import ScheduleNode, load_schedule
+from lotsen.stack.launch import build_stack
+from lotsen.runtime.guard import ActuatorGuard
+from lotsen.stack.schedule import ScheduleNode, load_schedule
 
 
 def test_bus_isolates_a_failing_subscriber():

@@ -2,8 +2,8 @@ import socket
 
 from lotsen.messages import Topic
 from lotsen.runtime.config import LaunchConfig
-from lotsen.runtime.launch import build_stack
-from lotsen.transport.part import add_bridge
+from lotsen.stack.launch import build_stack
+from lotsen.stack.zenoh import add_bridge
 
 
 def test_add_bridge_reads_extra_zenoh_and_is_absent_without_it():

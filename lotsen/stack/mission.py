@@ -1,5 +1,9 @@
 """Closed-loop mission harness: a path follower (and the station keeper at the end) on the simulated boat.
 
+It runs the stack's own closed loop on simulated time (lotsen.stack.launch.build_stack: the
+simulated boat node with its actuator guard, the estimator node, the supervisor with its modes
+and failsafes), so a harness figure is a figure of the product's loop, failsafes included.
+
     result = run_mission(path, make_path_follower(ControlConfig(controller="mpc")),
                          MissionConfig(environment=Environment(current_speed_mps=0.1)))
     result.metrics["cross_track_rms_m"]
@@ -7,8 +11,9 @@
 The simulator steps at its own rate (100 Hz); the controller runs every `1 / control_rate_hz`
 seconds on the true state, or on an estimator's output (`estimator=` an object with
 on_imu / on_mag / on_gnss / on_command and estimate(t) -> VesselState, e.g. lotsen.fusion's EKF).
-When the follower reports `done` (end of the path), the station keeper holds the last point and
-heading for `hold_s`. Everything is pure: simulated time only, seeded noise.
+When the follower reports `done` (end of the path), the supervisor holds the last point and
+heading for `hold_s`; a failsafe that takes the boat out of AUTO ends the mission as not
+completed, with the failsafe named. Simulated time only, seeded noise: deterministic.
 """
 
 from __future__ import annotations
@@ -20,12 +25,15 @@ from typing import Any
 import numpy as np
 
 from lotsen.control import (
-    ControlConfig, HoldTarget, PathFollower, PathReference, StationKeeper, make_path_follower, make_station_keeper,
+    ControlConfig, PathFollower, PathReference, StationKeeper, make_path_follower, make_station_keeper,
 )
-from lotsen.fusion.common import feed
-from lotsen.messages import ControllerStatus, ThrustCommand
+from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF
+from lotsen.messages import ControllerStatus, OperatorCommand, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
+from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
+from lotsen.runtime.executor import Node, NodeContext
 from lotsen.sim import SimConfig, Simulator
+from lotsen.stack.launch import Harness, build_stack
 
 
 @dataclass(frozen=True)
@@ -62,6 +70,7 @@ class MissionResult:
     statuses: list[ControllerStatus]
     path: Any
     cross_track_estimated_m: np.ndarray | None = None  # the controller's view when an estimator ran
+    failsafes: tuple[str, ...] = ()  # failsafes active at the end
 
 
 def planned_duration_s(path: Any, min_speed_mps: float = 0.15) -> float:
@@ -74,12 +83,55 @@ def _rms(a: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(a)))) if a.size else float("nan")
 
 
+class _TickRecorder(Node):
+    """Samples the loop at every control tick: truth, the state the controller saw, the command,
+    the controller's status and the supervisor's mode."""
+
+    name = "mission_trace"
+
+    def __init__(self, abort_cross_track_m: float) -> None:
+        self.rows: list[tuple] = []
+        self.statuses: list[ControllerStatus] = []
+        self.abort_cross_track_m = abort_cross_track_m
+        self.aborted = ""
+        self._cmd: ThrustCommand | None = None
+        self._sup: SupervisorStatus | None = None
+
+    def start(self, ctx: NodeContext) -> None:
+        self.ctx = ctx
+        ctx.subscribe(Topic.SHIP_COMMAND, self._on_command)
+        ctx.subscribe(Topic.CONTROL_STATUS, self._on_status)
+        ctx.subscribe(Topic.SUPERVISOR, self._on_supervisor)
+
+    def _on_command(self, cmd: ThrustCommand) -> None:
+        self._cmd = cmd
+
+    def _on_supervisor(self, s: SupervisorStatus) -> None:
+        self._sup = s
+
+    def _on_status(self, status: ControllerStatus) -> None:
+        latest = self.ctx.bus.latest
+        truth, state, cmd = latest.get(Topic.TRUTH), latest.get(Topic.STATE), self._cmd
+        if truth is None or state is None or cmd is None or self._sup is None:
+            return
+        mode = "follow" if self._sup.mode in ("AUTO", "RETURN") else "hold"
+        self.statuses.append(status)
+        self.rows.append((self.ctx.now(), truth.as_array_tuple(), state.as_array_tuple(), cmd.as_tuple(),
+                          status.cross_track_error_m, status.heading_error_rad, status.speed_mps,
+                          status.speed_ref_mps, status.progress_m, status.solve_time_ms, mode))
+        if mode == "follow" and abs(status.cross_track_error_m) > self.abort_cross_track_m and not self.aborted:
+            self.aborted = (f"aborted: cross-track error {status.cross_track_error_m:.2f} m "
+                            f"at t = {self.ctx.now():.1f} s")
+
+
 def run_mission(path: Any, follower: PathFollower | None = None, config: MissionConfig = MissionConfig(),
                 *, station_keeper: StationKeeper | None = None, model: VesselModel | None = None,
                 sim_model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
                 estimator: Any = None, sim_config: SimConfig | None = None) -> MissionResult:
-    """Run one mission in simulation. `model` is the controllers' model, `sim_model` the simulated
-    boat (default: the same; pass another for model-mismatch runs)."""
+    """Run one mission in simulation on the stack's closed loop: the simulated boat node (with
+    its actuator guard), the estimator node (or the truth), and the supervisor with its
+    failsafes, armed and sent to AUTO at the start. `model` is the controllers' model,
+    `sim_model` the simulated boat (default: the same; pass another for model-mismatch runs)."""
     model = model or VesselModel()
     follower = follower or make_path_follower(ControlConfig(), model, limits)
     keeper = station_keeper or make_station_keeper(ControlConfig(), model, limits)
@@ -91,62 +143,48 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
           float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
           h0 + config.start_heading_offset_rad, 0.0, 0.0, 0.0]
     sim = Simulator(sim_model or model, limits, sim_cfg, x0)
-    follower.reset(path)
-    keeper.reset()
-    n_sub = max(1, int(round(1.0 / (config.control_rate_hz * sim_cfg.dt_s))))
+    launch = LaunchConfig(seed=config.seed, nodes=NodesSection(fusion="truth" if estimator is None else "ekf",
+                                                               control_rate_hz=config.control_rate_hz),
+                          sim=SimSection(dt_s=sim_cfg.dt_s, esc_arm_time_s=0.0), web=WebSection(enabled=False))
+    stack = build_stack(launch, realtime=False, parts=("state", "supervisor"),
+                        harness=Harness(simulator=sim, model=model, estimator=estimator, follower=follower,
+                                        station_keeper=keeper, truth_rate_hz=1.0 / sim_cfg.dt_s))
+    sup = stack.nodes["supervisor"]
+    sup.set_route(None, path)
+    trace = stack.add(_TickRecorder(config.abort_cross_track_m))
+    ex = stack.executor
+    ex.run_until(0.0)  # first step: the ESCs report armed, the state is there
+    for action in ("arm", "auto"):
+        stack.bus.publish(Topic.OPERATOR, OperatorCommand(stamp_s=0.0, action=action, source="mission"))
     t_max = config.max_duration_s or 2.0 * planned_duration_s(path) + 60.0
-    end = HoldTarget(float(path.north_m[-1]), float(path.east_m[-1]), float(path.heading_rad[-1]))
-    rows: list[tuple] = []
-    statuses: list[ControllerStatus] = []
-    mode = "follow"
-    t_done: float | None = None
-    reason = "timeout"
-    msgs: list[Any] = []
-    while sim.t < t_max + 1e-9:
-        t = sim.t
-        truth = sim.truth()
-        if estimator is not None:
-            for m in msgs:
-                feed(estimator, m)
-            state = estimator.estimate(t)
-        else:
-            state = truth
-        if mode == "follow":
-            cmd, status = follower.update(t, state)
-            if follower.done:
-                mode = "hold"
-                t_done = t
-        else:
-            cmd, status = keeper.update(t, state, end)
-            if t_done is not None and t - t_done >= config.hold_s:
-                reason = "completed"
-                break
-        if not isinstance(cmd, ThrustCommand) or not cmd.is_finite():  # belt and braces
-            cmd = ThrustCommand.neutral(t)
-        sim.command(cmd)
-        if estimator is not None:
-            estimator.on_command(cmd)
-        statuses.append(status)
-        rows.append((t, truth.as_array_tuple(), state.as_array_tuple(), cmd.as_tuple(), status.cross_track_error_m,
-                     status.heading_error_rad, status.speed_mps, status.speed_ref_mps, status.progress_m,
-                     status.solve_time_ms, mode))
-        if mode == "follow" and abs(status.cross_track_error_m) > config.abort_cross_track_m:
-            reason = f"aborted: cross-track error {status.cross_track_error_m:.2f} m at t = {t:.1f} s"
-            break
-        msgs = []
-        try:
-            for _ in range(n_sub):
-                msgs.extend(sim.step())
-        except FloatingPointError as exc:
-            reason = f"aborted: {exc}"
-            break
+    t_done: list[float] = []
+
+    def finished() -> bool:
+        if trace.aborted or sup.mode.name not in ("AUTO", "HOLD"):
+            return True
+        if sup.mode.name == "HOLD" and sup.reason.startswith("auto finished"):
+            if not t_done:
+                t_done.append(ex.clock.now())
+            return ex.clock.now() - t_done[0] >= config.hold_s
+        return False
+
+    ex.run_until(t_max, stop=finished)
+    if trace.aborted:
+        reason = trace.aborted
+    elif t_done and ex.clock.now() - t_done[0] >= config.hold_s - 1e-9:
+        reason = "completed"
+    elif sup.mode.name not in ("AUTO", "HOLD") or (sup.mode.name == "HOLD" and not t_done):
+        reason = f"aborted: mode {sup.mode.name} ({sup.reason})"
+    else:
+        reason = "timeout"
+    rows = trace.rows
     arr = lambda i: np.array([r[i] for r in rows], dtype=float)  # noqa: E731
     modes = np.array([r[10] for r in rows])
     res = MissionResult(
         completed=reason == "completed", reason=reason, metrics={}, t=arr(0), x=arr(1).reshape(-1, 6),
         x_used=arr(2).reshape(-1, 6), u=arr(3).reshape(-1, 5), cross_track_m=arr(4), heading_error_rad=arr(5),
         speed_mps=arr(6), speed_ref_mps=arr(7), progress_m=arr(8), solve_time_ms=arr(9), mode=modes,
-        statuses=statuses, path=path)
+        statuses=trace.statuses, path=path, failsafes=tuple(sup.failsafes.active))
     if estimator is not None and res.t.size:
         # the controller saw the estimate: measure the true errors against the path
         ref = PathReference(path)
@@ -156,7 +194,8 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
             hint, true_cte[i], _ = ref.project(xi[0], xi[1], hint)
         res.cross_track_estimated_m = res.cross_track_m
         res.cross_track_m = true_cte
-    res.metrics = mission_metrics(res, follower, t_done)
+    res.metrics = mission_metrics(res, follower, t_done[0] if t_done else None)
+    res.metrics["failsafes_triggered"] = sorted({e.split(":")[0] for e in sup.failsafe_history})
     return res
 
 
@@ -199,18 +238,10 @@ def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> 
 
 
 def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = None,
-                 sim_config: SimConfig | None = None) -> Any:
+                 sim_config: SimConfig | None = None) -> ModelAidedEKF:
     """lotsen.fusion's model-aided EKF set up for the simulated boat: GNSS origin of the simulator,
     the magnetometer calibration its distortion implies (what `lotsen calibrate` would find), and
     the start pose of the mission."""
-    from lotsen.errors import LotsenError
-    from lotsen.messages import VesselState
-
-    try:
-        from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
-        from lotsen.fusion.magcal import MagCalibration
-    except ImportError as exc:  # pragma: no cover - fusion is developed in parallel
-        raise LotsenError(f"--estimator ekf: lotsen.fusion is not available ({exc})") from None
     sc = sim_config or SimConfig()
     imu, gnss = sc.imu, sc.gnss
     H = imu.earth_field_horizontal_uT

@@ -1,6 +1,6 @@
-"""Attach the Zenoh bridge to a `lotsen.runtime.launch.Stack`.
+"""Attach the Zenoh bridge to a `lotsen.stack.launch.Stack`.
 
-    from lotsen.transport.part import add_bridge
+    from lotsen.stack.zenoh import add_bridge
     register_part("zenoh", add_bridge)   # active when config.extra["zenoh"] is present and enabled
 
 Configuration until the launch config gets a section: `extra: {zenoh: {enabled: true, vessel: boat,
@@ -13,12 +13,13 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from lotsen.runtime.config import from_mapping
+from lotsen.runtime.config import LaunchConfig, from_mapping
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
 
 
-def bridge_config(stack: Any) -> BridgeConfig | None:
-    section = dict(stack.config.extra.get("zenoh", {}) or {})
+def bridge_config(config: LaunchConfig) -> BridgeConfig | None:
+    """`extra.zenoh` (a bridge to other machines, e.g. a shore station); None when absent/disabled."""
+    section = dict(config.extra.get("zenoh", {}) or {})
     if not section or not section.pop("enabled", True):
         return None
     return from_mapping(BridgeConfig, section, "extra.zenoh")
@@ -26,7 +27,7 @@ def bridge_config(stack: Any) -> BridgeConfig | None:
 
 def add_bridge(stack: Any, config: BridgeConfig | None = None) -> ZenohBridge | None:
     """Bridge `stack`'s bus to Zenoh; with no `config`, read `extra.zenoh` (absent: nothing added)."""
-    cfg = config or bridge_config(stack)
+    cfg = config or bridge_config(stack.config)
     if cfg is None:
         return None
     bridge = ZenohBridge(cfg)

@@ -1,1 +1,0 @@
-"""Runtime nodes: the glue between pure algorithms, the bus and the clock."""

@@ -1,0 +1,105 @@
+"""The optional parts of a stack and how each joins it (`lotsen.stack.launch.PARTS`).
+
+Order matters: the state estimate first, then the supervisor (which runs the controllers), then
+the recorder, the Zenoh bridge and the web server, which only observe and relay.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from lotsen.errors import ConfigError
+from lotsen.files import read_json
+from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF, SeedFilters, SeedFiltersConfig, fit_mag_calibration
+from lotsen.messages import MagCalibrationResult
+from lotsen.model import DEFAULT_LIMITS
+from lotsen.planning import plan_route
+from lotsen.planning.exchange import path_from_message, planned_route_message
+from lotsen.planning.io import load_route
+from lotsen.stack.fusion_node import FusionNode, TruthStateNode
+from lotsen.stack.logs import add_recorder as _add_recorder
+from lotsen.stack.stack import Stack, failsafe_config
+from lotsen.stack.web import add_web as _add_web
+from lotsen.stack.zenoh import add_bridge
+from lotsen.supervisor.node import SupervisorConfig, SupervisorNode
+
+
+def twin_factory_calibration(stack: Stack) -> MagCalibration:
+    """The simulated magnetometer's distortion as a calibration (the twin's 'factory' values).
+
+    Lets `make run` start with a sensible heading; the operator's calibrate_mag replaces it.
+    """
+    imu = stack.simulator.config.imu if stack.simulator else None
+    if imu is None:
+        return MagCalibration.identity()
+    H = imu.earth_field_horizontal_uT
+    S = imu.soft_iron
+    return MagCalibration(center=imu.hard_iron_uT, matrix=((S[0][0] * H, S[0][1] * H), (S[1][0] * H, S[1][1] * H)),
+                          heading_offset_rad=imu.declination_rad, units="uT")
+
+
+def _load_calibration(path: str) -> MagCalibration:
+    return MagCalibration.from_dict(read_json(path, ConfigError), where=f"nodes.mag_calibration_file: {path}")
+
+
+def add_state(stack: Stack, estimator: Any = None) -> None:
+    """The state estimate: the configured estimator (or the given one: harnesses), or the truth."""
+    cfg = stack.config.nodes
+    if estimator is not None:
+        stack.add(FusionNode(estimator, getattr(estimator, "calibration", None)))
+        return
+    if cfg.fusion == "truth":
+        if stack.simulator is None:
+            raise ConfigError("nodes.fusion: 'truth' exists only in simulation")
+        stack.add(TruthStateNode())
+        return
+    calibration = (_load_calibration(cfg.mag_calibration_file) if cfg.mag_calibration_file
+                   else twin_factory_calibration(stack))
+    o = stack.origin
+    origin = (o.lat_deg, o.lon_deg, o.height_m) if o is not None else None
+    if cfg.fusion == "ekf":
+        estimator: Any = ModelAidedEKF(stack.model, calibration, EkfConfig(origin=origin))
+    else:
+        estimator = SeedFilters(calibration, SeedFiltersConfig(origin=origin))
+    stack.add(FusionNode(estimator, calibration))
+
+
+def mag_calibrator(samples: list[tuple[float, float]]) -> MagCalibrationResult:
+    cal = fit_mag_calibration([s[0] for s in samples], [s[1] for s in samples], units="uT")
+    return MagCalibrationResult(stamp_s=0.0, ok=True, center=tuple(cal.center), matrix=cal.matrix,
+                                residual=cal.residual_rms, coverage_deg=cal.coverage_deg,
+                                text=f"{cal.n_points} points, coverage {cal.coverage_deg:.0f} deg, "
+                                     f"residual {cal.residual_rms:.3f}")
+
+
+def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = None) -> SupervisorNode:
+    """The supervisor with the configured controllers (or the given ones: harnesses), holding
+    the launch config's route planned here once, before the control loop starts."""
+    cfg = stack.config
+    sup = SupervisorNode(stack.model, stack.simulator.limits if stack.simulator else DEFAULT_LIMITS,
+                         SupervisorConfig(control_rate_hz=cfg.nodes.control_rate_hz,
+                                          controller=cfg.nodes.controller,
+                                          failsafes=failsafe_config(cfg)),
+                         mag_calibrator=mag_calibrator, follower=follower, station_keeper=station_keeper)
+    if cfg.route:
+        route = load_route(cfg.route)
+        msg = planned_route_message(route, plan_route(route), source="config")
+        sup.set_route(route, path_from_message(msg), msg.route_id, msg.node_s_m)
+    stack.add(sup)
+    return sup
+
+
+def add_recorder(stack: Stack) -> None:
+    # always attached: it records from the start when logging.enabled, and otherwise waits idle
+    # for the operator's logging_on
+    _add_recorder(stack)
+
+
+def add_zenoh(stack: Stack) -> None:
+    # bridges the bus to other processes/machines when the config has an `extra.zenoh` section
+    add_bridge(stack)
+
+
+def add_web(stack: Stack) -> None:
+    if stack.config.web.enabled:
+        _add_web(stack)

@@ -1,0 +1,107 @@
+"""The `Stack` (executor, model, simulator, nodes, services) and what every assembly needs once:
+the vessel model from the config, the simulator from the config, and the one origin resolution."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from lotsen.errors import ConfigError
+from lotsen.files import read_json
+from lotsen.model import Environment, VesselGeometry, VesselModel, VesselParameters
+from lotsen.planning import GeoOrigin
+from lotsen.runtime.bus import Bus
+from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.executor import Executor, Node
+from lotsen.sim import GnssConfig, ImuConfig, SimConfig, Simulator
+from lotsen.supervisor.failsafes import FailsafeConfig
+
+#: the repository's examples (demonstration routes for `make run` and the harnesses)
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def example_route(name: str = "figure_eight") -> str:
+    path = EXAMPLES / "routes" / f"{name}.yaml"
+    if not path.is_file():
+        raise ConfigError(f"example route {name!r} not found at {path} (the examples ship with the repository)")
+    return str(path)
+
+
+def load_parameters(path: str | None) -> VesselParameters:
+    if not path:
+        return VesselParameters()
+    return VesselParameters.from_dict(read_json(path, ConfigError), source=str(path))
+
+
+def vessel_model(config: LaunchConfig) -> VesselModel:
+    geom = VesselGeometry(reverse_thrust_ratio=config.vessel.reverse_thrust_ratio)
+    return VesselModel(load_parameters(config.vessel.parameters_file), geom)
+
+
+def sim_config(config: LaunchConfig) -> SimConfig:
+    s = config.sim
+    e = s.environment
+    env = Environment(current_speed_mps=e.current_speed_mps, current_to_deg=e.current_to_deg,
+                      wind_speed_mps=e.wind_speed_mps, wind_from_deg=e.wind_from_deg,
+                      wave_force_std_N=e.wave_force_std_N)
+    gnss = GnssConfig(rate_hz=s.gnss_rate_hz)
+    if config.origin is not None:  # the simulated receiver sits where the config says the lake is
+        o = config.origin
+        gnss = GnssConfig(rate_hz=s.gnss_rate_hz, origin_lat_deg=o.lat_deg, origin_lon_deg=o.lon_deg,
+                          origin_height_m=o.height_m)
+    return SimConfig(dt_s=s.dt_s, seed=config.seed, imu=ImuConfig(rate_hz=s.imu_rate_hz), gnss=gnss, environment=env)
+
+
+def simulator_from_config(config: LaunchConfig, model: VesselModel | None = None) -> Simulator:
+    return Simulator(model or vessel_model(config), config=sim_config(config), x0=config.sim.initial_state)
+
+
+def resolve_origin(config: LaunchConfig) -> GeoOrigin | None:
+    """The geodetic origin of the local frame, resolved once for every part of a stack: the
+    config's `origin`, else the simulated receiver's origin in simulation, else None (the
+    estimator takes the first usable fix on the boat)."""
+    if config.origin is not None:
+        o = config.origin
+        return GeoOrigin(o.lat_deg, o.lon_deg, o.height_m)
+    if config.mode == "sim" or config.extra.get("emulated"):
+        g = sim_config(config).gnss
+        return GeoOrigin(g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m)
+    return None
+
+
+def failsafe_config(config: LaunchConfig) -> FailsafeConfig:
+    return from_mapping(FailsafeConfig, config.extra.get("failsafes", {}), "extra.failsafes")
+
+
+@dataclass
+class Stack:
+    config: LaunchConfig
+    executor: Executor
+    model: VesselModel
+    origin: GeoOrigin | None = None
+    simulator: Simulator | None = None
+    nodes: dict[str, Node] = field(default_factory=dict)
+    services: dict[str, Any] = field(default_factory=dict)  # web server, recorder, ... (non-node parts)
+
+    @property
+    def bus(self) -> Bus:
+        return self.executor.bus
+
+    def add(self, node: Node) -> Node:
+        self.nodes[node.name] = node
+        return self.executor.add_node(node)
+
+    def banner(self, line: str) -> None:
+        self.services.setdefault("banner", []).append(line)
+
+    def on_shutdown(self, fn: Any) -> None:
+        self.services.setdefault("on_shutdown", []).append(fn)
+
+    def shutdown(self) -> None:
+        """Close the services (recorder, servers, bridges) in reverse order of attachment."""
+        for close in reversed(self.services.pop("on_shutdown", [])):
+            try:
+                close()
+            except Exception as exc:  # noqa: BLE001 - keep closing the rest; say what failed
+                print(f"lotsen: shutdown of {getattr(close, '__qualname__', close)} failed: {exc!r}", flush=True)

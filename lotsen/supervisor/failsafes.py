@@ -1,0 +1,324 @@
+"""Failsafes as monitor objects (docs/failsafes.md has the table).
+
+Each monitor watches one condition of the supervisor's inputs and says, every control tick,
+whether it holds and why. A `PersistentCondition` turns that into a failsafe: the condition must
+hold for `persist_s` before the failsafe triggers and be clear for `clear_s` before it releases
+(hysteresis), so one bad sample neither triggers nor releases one. When a failsafe triggers, the
+supervisor logs it, raises an `Alert` for the operator and runs its action for the current mode
+(`action_for(mode)`: continue, hold, stop, return, fallback).
+
+Monitors are pure: they get the inputs and the time, never read a clock.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+from lotsen.messages import ActuatorState, GnssFixType, RpmSample, ThrustCommand
+from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
+from lotsen.sim.actuators import actuator_step
+
+if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read them
+    from lotsen.supervisor.node import SupervisorInputs
+
+Action = Literal["continue", "hold", "stop", "return", "fallback", "neutral"]
+
+
+def _r(lo: float, hi: float) -> dict:
+    return {"range": (lo, hi)}
+
+
+@dataclass(frozen=True)
+class FailsafeConfig:
+    """Thresholds and actions of every failsafe (all times in seconds)."""
+
+    # operator link (the web pilot): MANUAL always stops; AUTO/RETURN continue or hold
+    link_timeout_s: float = field(default=1.5, metadata=_r(0.2, 60.0))
+    link_lost_auto_action: Literal["continue", "hold"] = "continue"
+    # manual driving: a ManualCommand older than this is treated as zero
+    manual_timeout_s: float = field(default=0.5, metadata=_r(0.1, 5.0))
+    # GNSS: no usable fix for gnss_lost_s -> hold on dead reckoning, then stop after gnss_stop_after_s
+    gnss_lost_s: float = field(default=1.5, metadata=_r(0.2, 60.0))
+    gnss_lost_action: Literal["hold", "stop"] = "hold"
+    gnss_stop_after_s: float = field(default=20.0, metadata=_r(1.0, 600.0))
+    # RTK degraded: fix type below gnss_min_fix for gnss_degraded_s
+    gnss_min_fix: Literal["RTK_FIXED", "RTK_FLOAT", "FIX_3D"] = "RTK_FLOAT"
+    gnss_degraded_s: float = field(default=2.0, metadata=_r(0.2, 60.0))
+    gnss_degraded_action: Literal["hold", "stop", "continue"] = "hold"
+    # state estimator integrity (lotsen.fusion health): position not trustworthy -> hold on dead
+    # reckoning (as GNSS lost), then stop after gnss_stop_after_s; heading not trustworthy -> stop
+    estimator_persist_s: float = field(default=0.3, metadata=_r(0.0, 10.0))
+    estimator_position_action: Literal["hold", "stop"] = "hold"
+    # geofence: estimated position outside the navigable area by more than geofence_margin_m
+    geofence_margin_m: float = field(default=0.0, metadata=_r(0.0, 20.0))
+    geofence_persist_s: float = field(default=0.3, metadata=_r(0.0, 10.0))
+    geofence_inset_m: float = field(default=1.5, metadata=_r(0.1, 20.0))  # hold this far inside
+    geofence_in_manual: bool = False
+    # battery (3S LiPo): low -> return to harbour, critical -> stop
+    battery_low_v: float = field(default=10.8, metadata=_r(0.0, 60.0))
+    battery_critical_v: float = field(default=10.2, metadata=_r(0.0, 60.0))
+    battery_persist_s: float = field(default=5.0, metadata=_r(0.0, 120.0))
+    # controller: failure or overrun -> fallback controller, then stop
+    controller_overrun_factor: float = field(default=0.8, metadata=_r(0.1, 10.0))  # x control period
+    controller_overrun_count: int = field(default=5, metadata=_r(1, 1000))
+    controller_failure_count: int = field(default=3, metadata=_r(1, 1000))
+    fallback_controller: Literal["los", "pursuit", "lq"] = "los"
+    # thruster: the tachometer disagrees with the modelled response to the commands (ESC lag, ramp
+    # and arming included) by more than this fraction of the modelled speed and more than
+    # thruster_mismatch_min_rps (tachometer quantisation, the speed loop's own error)
+    thruster_mismatch_frac: float = field(default=0.5, metadata=_r(0.05, 1.0))
+    thruster_mismatch_min_rps: float = field(default=8.0, metadata=_r(0.0, 100.0))
+    thruster_persist_s: float = field(default=0.5, metadata=_r(0.1, 30.0))
+    thruster_fault_action: Literal["hold", "stop", "continue"] = "hold"
+    # state estimate: uncertainty above this (position std, m) counts as no position
+    max_position_std_m: float = field(default=2.0, metadata=_r(0.01, 100.0))
+
+    @property
+    def min_fix_type(self) -> GnssFixType:
+        return GnssFixType[self.gnss_min_fix]
+
+
+class PersistentCondition:
+    """True once `condition` has held for persist_s; false again after it is clear for clear_s."""
+
+    def __init__(self, persist_s: float, clear_s: float | None = None) -> None:
+        self.persist_s = persist_s
+        self.clear_s = persist_s if clear_s is None else clear_s
+        self.active = False
+        self._since: float | None = None  # when the raw condition last changed towards the other state
+        self.activations = 0
+
+    def update(self, condition: bool, t: float) -> bool:
+        if condition != self.active:
+            if self._since is None:
+                self._since = t
+            if t - self._since >= (self.persist_s if condition else self.clear_s):
+                self.active = condition
+                self._since = None
+                if condition:
+                    self.activations += 1
+        else:
+            self._since = None
+        return self.active
+
+
+@dataclass
+class FailsafeState:
+    """The currently active failsafes with their reasons, for the status message and the log."""
+
+    active: dict[str, str] = field(default_factory=dict)
+
+    def set(self, name: str, on: bool, reason: str = "") -> tuple[bool, bool]:
+        """Returns (became_active, became_inactive)."""
+        was = name in self.active
+        if on:
+            self.active[name] = reason
+        else:
+            self.active.pop(name, None)
+        return (on and not was, was and not on)
+
+
+# ------------------------------------------------------------------------------------------------
+# monitors
+# ------------------------------------------------------------------------------------------------
+class Monitor:
+    """One failsafe: `check(inputs, t) -> (condition, reason)`, persistence, severity, actions.
+
+    `actions` maps a mode name (or "*") to the action taken when the failsafe triggers in that
+    mode; modes not listed: the failsafe is reported and nothing else happens."""
+
+    name = "monitor"
+    severity = "warning"
+
+    def __init__(self, persist_s: float, clear_s: float, actions: dict[str, Action]) -> None:
+        self.condition = PersistentCondition(persist_s, clear_s)
+        self.actions = actions
+        self.reason = ""
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        raise NotImplementedError
+
+    def update(self, inputs: "SupervisorInputs", t: float) -> bool:
+        raw, reason = self.check(inputs, t)
+        if raw and reason:
+            self.reason = reason  # the reason of the condition as it began, kept while it lasts
+        return self.condition.update(raw, t)
+
+    def action_for(self, mode: str) -> Action:
+        return self.actions.get(mode, self.actions.get("*", "continue"))
+
+
+class LinkMonitor(Monitor):
+    """The operator's link, once a pilot has been seen: silent for link_timeout_s, or gone."""
+
+    name = "link_lost"
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        auto: Action = "hold" if cfg.link_lost_auto_action == "hold" else "continue"
+        super().__init__(0.0, 0.0, {"AUTO": auto, "RETURN": auto})
+        self.timeout_s = cfg.link_timeout_s
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        if inputs.link is None:
+            return False, ""
+        age = t - inputs.link_arrival_s
+        if age > self.timeout_s:
+            return True, f"no word from the operator's page for {age:.1f} s"
+        if not inputs.link.pilot_connected:
+            return True, "the pilot left (page closed or silent)"
+        return False, ""
+
+
+class GnssLostMonitor(Monitor):
+    """No usable fix for gnss_lost_s (once one was seen): hold on dead reckoning, stop later."""
+
+    name = "gnss_lost"
+    severity = "error"
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        act: Action = cfg.gnss_lost_action
+        super().__init__(0.0, 1.0, {"AUTO": act, "RETURN": act, "CALIBRATE": act})
+        self.lost_s = cfg.gnss_lost_s
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        if inputs.last_usable_fix_s is None:
+            return False, ""
+        age = t - inputs.last_usable_fix_s
+        return age > self.lost_s, f"no usable GNSS fix for {age:.1f} s"
+
+
+class GnssDegradedMonitor(Monitor):
+    """The fix type below the configured minimum (RTK float or fixed) for gnss_degraded_s."""
+
+    name = "gnss_degraded"
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        act = cfg.gnss_degraded_action
+        super().__init__(cfg.gnss_degraded_s, 2.0, {} if act == "continue" else {"AUTO": act, "RETURN": act})
+        self.min_fix = cfg.min_fix_type
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        fix = inputs.fix
+        if fix is None or not fix.usable or fix.fix_type >= self.min_fix:
+            return False, ""
+        return True, f"GNSS fix {GnssFixType(fix.fix_type).name}, needs {self.min_fix.name} or better"
+
+
+class EstimatorMonitor(Monitor):
+    """The state estimator declared its position (or heading) untrustworthy (lotsen.fusion's
+    integrity monitors: GNSS inconsistent, sensors stuck, estimate frozen, inputs starved)."""
+
+    name = "estimator"
+    severity = "error"
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        pos: Action = cfg.estimator_position_action
+        super().__init__(cfg.estimator_persist_s, 2.0, {"AUTO": pos, "RETURN": pos, "CALIBRATE": "stop"})
+        self.heading_bad = False
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        h = inputs.health
+        if h is None:
+            return False, ""
+        self.heading_bad = not h.heading_ok
+        bad = not (h.position_ok and h.heading_ok)
+        what = ", ".join(x for x, ok in (("position", h.position_ok), ("heading", h.heading_ok)) if not ok)
+        return bad, f"estimate not trustworthy ({what}): " + "; ".join(h.faults[:3])
+
+    def action_for(self, mode: str) -> Action:
+        if self.heading_bad and mode in ("AUTO", "RETURN", "HOLD", "CALIBRATE"):
+            return "stop"  # without a heading neither following nor holding works
+        return super().action_for(mode)
+
+
+class ThrusterMonitor(Monitor):
+    """Tachometers against the modelled response of the ESCs to what was commanded.
+
+    The model is the simulator's actuator model (first-order motor with its time constant and
+    ramp limit; zero while the ESCs are not armed), driven by the commands as they were sent and
+    stepped to each tachometer sample. A failed ESC, a fouled or lost propeller or a broken
+    tachometer shows as a persistent disagreement; a propeller that is still spinning up after a
+    commanded reversal does not."""
+
+    name = "thruster"
+    severity = "error"
+
+    def __init__(self, cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> None:
+        act = cfg.thruster_fault_action
+        super().__init__(cfg.thruster_persist_s, 2.0, {} if act == "continue" else {"AUTO": act, "RETURN": act})
+        self.limits = limits
+        self.frac = cfg.thruster_mismatch_frac
+        self.min_rps = cfg.thruster_mismatch_min_rps
+        self.model_n = [0.0, 0.0, 0.0]
+        self._t: float | None = None
+        self._cmd = (0.0, 0.0, 0.0)
+        self.mismatch = ""
+
+    def on_command(self, cmd: ThrustCommand, t: float, escs_armed: bool) -> None:
+        """A command leaving the supervisor at t: advance the model to t with the previous one."""
+        self._advance(t)
+        self._cmd = (cmd.n1_rps, cmd.n2_rps, cmd.nt_rps) if escs_armed else (0.0, 0.0, 0.0)
+        self._cmd = tuple(self.limits.clip(0.0, 0.0, *self._cmd)[2:])
+
+    def _advance(self, t: float) -> None:
+        if self._t is None:
+            self._t = t
+            return
+        dt = t - self._t
+        if dt <= 0.0:
+            return
+        gain = 1.0 - math.exp(-dt / self.limits.motor_time_constant_s)
+        state = (0.0, 0.0, *self.model_n)
+        out = actuator_step(state, (0.0, 0.0, *self._cmd), (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, gain,
+                            self.limits.n_rate_max_rps2 * dt)
+        self.model_n = [out[2], out[3], out[4]]
+        self._t = t
+
+    def on_rpm(self, msg: RpmSample, actuators: ActuatorState | None) -> None:
+        self._advance(msg.stamp_s)
+        bad = []
+        for name, meas, want in (("azimuth 1", msg.n1_rps, self.model_n[0]), ("azimuth 2", msg.n2_rps, self.model_n[1]),
+                                 ("bow", msg.nt_rps, self.model_n[2])):
+            if math.isfinite(meas) and abs(meas - want) > max(self.frac * abs(want), self.min_rps):
+                bad.append(f"{name} {meas:.0f} rev/s, expected {want:.0f}")
+        self.mismatch = "; ".join(bad)
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        return bool(self.mismatch), self.mismatch
+
+
+class BatteryMonitor(Monitor):
+    """Pack voltage below a threshold for battery_persist_s."""
+
+    def __init__(self, name: str, threshold_v: float, persist_s: float, actions: dict[str, Action],
+                 severity: str) -> None:
+        super().__init__(persist_s, 10.0, actions)
+        self.name = name
+        self.severity = severity
+        self.threshold_v = threshold_v
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        v = inputs.battery.voltage_v if inputs.battery is not None else math.nan
+        return (math.isfinite(v) and v < self.threshold_v), f"battery {v:.2f} V below {self.threshold_v} V"
+
+
+def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> list[Monitor]:
+    """The failsafe table of docs/failsafes.md (geofence and controller are checked by the
+    supervisor itself: their actions need the route and the controllers)."""
+    thrusting: dict[str, Action] = {m: "stop" for m in ("AUTO", "RETURN", "HOLD", "MANUAL", "CALIBRATE")}
+    return [
+        LinkMonitor(cfg),
+        GnssLostMonitor(cfg),
+        GnssDegradedMonitor(cfg),
+        EstimatorMonitor(cfg),
+        ThrusterMonitor(cfg, limits),
+        BatteryMonitor("battery_critical", cfg.battery_critical_v, cfg.battery_persist_s, thrusting, "critical"),
+        BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s, {"AUTO": "return", "HOLD": "return"},
+                       "warning"),
+    ]
+
+
+def monitor(monitors: list[Monitor], name: str) -> Any:
+    return next(m for m in monitors if m.name == name)

@@ -1,0 +1,200 @@
+"""Modes as classes (ArduPilot's `Mode` pattern): each says what it needs (capability
+predicates), what happens when it is entered and left, and what the thrusters do every tick.
+
+| mode      | what the thrusters do                                  | needs                       |
+|-----------|--------------------------------------------------------|-----------------------------|
+| MANUAL    | keyboard ManualCommand -> thrust allocation            | armed for thrust            |
+| AUTO      | follow the planned route; HOLD at its end              | armed, route, position      |
+| HOLD      | station keeping at a target pose                       | armed, position             |
+| RETURN    | plan to the harbour inside the area and follow it      | armed, route, position      |
+| CALIBRATE | spin on the bow thruster one turn, fit the magnetometer | armed, heading              |
+| ESTOP     | neutral, latched until 'reset_estop'; disarms          | -                           |
+| RC        | the RC transmitter's command (or neutral)              | RcOverride.active           |
+
+"Stop" in the failsafe table means MANUAL with neutral thrusters and the reason shown: the
+operator can still drive by keyboard, the boat does not move by itself.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from lotsen.control import HoldTarget
+from lotsen.errors import LotsenError
+from lotsen.messages import ControllerStatus, MagCalibrationResult, ThrustCommand
+from lotsen.model import wrap_angle
+
+if TYPE_CHECKING:
+    from lotsen.supervisor.node import SupervisorNode
+
+Output = tuple[ThrustCommand, "ControllerStatus | None"]
+
+
+def neutral(t: float, source: str) -> ThrustCommand:
+    return ThrustCommand.neutral(t, source=source)
+
+
+class Mode:
+    """Base class. Capability predicates are class attributes; `update` returns the command."""
+
+    name = "MODE"
+    requires_armed = True  # thrust in this mode needs the operator's arm
+    requires_position = False  # a trustworthy position estimate
+    requires_heading = False
+    requires_route = False
+    moving = False  # follows a path (failsafes that 'hold' act in it)
+    fenced = False  # the geofence acts in it
+
+    def enter(self, sup: "SupervisorNode", t: float) -> None:
+        pass
+
+    def exit(self, sup: "SupervisorNode", t: float) -> None:
+        pass
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        return neutral(t, self.name.lower()), None
+
+
+class Manual(Mode):
+    name = "MANUAL"
+    requires_armed = False  # selectable disarmed; keys give thrust only when armed
+
+    def enter(self, sup: "SupervisorNode", t: float) -> None:
+        sup.inputs.manual = None  # keys held before the switch do not count
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        fs = sup.config.failsafes
+        m = sup.inputs.manual
+        if not sup.armed:
+            return neutral(t, "manual:disarmed"), None
+        if sup.stopped or m is None or t - sup.inputs.manual_arrival_s > fs.manual_timeout_s:
+            return neutral(t, "manual:idle" if not sup.stopped else "manual:stopped"), None
+        if "link_lost" in sup.failsafes.active:
+            return neutral(t, "manual:link-lost"), None
+        c = sup.config
+        tau = (m.surge * c.manual_surge_N, m.sway * c.manual_sway_N, m.yaw * c.manual_yaw_Nm)
+        if tau == (0.0, 0.0, 0.0):
+            return neutral(t, "manual"), None
+        res = sup.allocator.allocate(tau)
+        return ThrustCommand.from_tuple(t, res.command, source="manual"), None
+
+
+class Hold(Mode):
+    """Station keeping at `target` (set before entering)."""
+
+    name = "HOLD"
+    requires_position = True
+    requires_heading = True
+    fenced = True
+
+    def __init__(self) -> None:
+        self.target: HoldTarget | None = None
+
+    def enter(self, sup: "SupervisorNode", t: float) -> None:
+        sup.station_keeper.reset()
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        return sup.station_keeper.update(t, sup.inputs.state, self.target)
+
+
+class FollowPath(Mode):
+    """Follow `sup.active_path` with the path follower (or its fallback); HOLD at the end."""
+
+    requires_position = True
+    requires_heading = True
+    requires_route = True
+    moving = True
+    fenced = True
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        follower = sup.fallback or sup.follower
+        w0 = sup.ctx.work()
+        cmd, status = follower.update(t, sup.inputs.state)
+        sup.watch_controller(t, status, (sup.ctx.work() - w0) * 1000.0)
+        if sup.mode is not self:  # the controller watch switched mode
+            return sup.mode.update(sup, t)
+        if follower.done:
+            end = sup.active_path.sample(sup.active_path.length_m)
+            sup.enter_hold(t, f"{self.name.lower()} finished: holding at the end",
+                           HoldTarget(float(end.north_m), float(end.east_m), float(end.heading_rad)))
+        return cmd, status
+
+
+class Auto(FollowPath):
+    name = "AUTO"
+
+
+class Return(FollowPath):
+    name = "RETURN"
+
+
+class Calibrate(Mode):
+    """One slow turn on the bow thruster (the azimuths idle), then fit the magnetometer ellipse."""
+
+    name = "CALIBRATE"
+    requires_heading = True
+
+    def __init__(self) -> None:
+        self.samples: list[tuple[float, float]] = []
+        self.travel_rad = 0.0
+        self.last_heading: float | None = None
+        self.start_s = 0.0
+
+    def enter(self, sup: "SupervisorNode", t: float) -> None:
+        self.samples, self.travel_rad, self.last_heading, self.start_s = [], 0.0, None, t
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        c = sup.config
+        s = sup.inputs.state
+        if s is not None and math.isfinite(s.heading_rad):
+            if self.last_heading is not None:
+                self.travel_rad += abs(wrap_angle(s.heading_rad - self.last_heading))
+            self.last_heading = s.heading_rad
+        done = math.degrees(self.travel_rad) >= c.calibration_turn_deg
+        if done or t - self.start_s > c.calibration_timeout_s:
+            self.finish(sup, t, done)
+            return neutral(t, "calibration:done"), None
+        return ThrustCommand(stamp_s=t, nt_rps=c.calibration_bow_rps, source="calibration"), None
+
+    def finish(self, sup: "SupervisorNode", t: float, turned: bool) -> None:
+        result = MagCalibrationResult(stamp_s=t, ok=False, text="calibration manoeuvre timed out")
+        if turned and sup.mag_calibrator is not None:
+            try:
+                result = sup.mag_calibrator(self.samples)
+                result.stamp_s = t
+            except LotsenError as exc:
+                result = MagCalibrationResult(stamp_s=t, ok=False, text=str(exc))
+        elif turned:
+            result = MagCalibrationResult(stamp_s=t, ok=False, text="no magnetometer calibrator configured")
+        sup.publish_calibration(result)
+        if sup.position_ok():
+            sup.enter_hold(t, "calibration finished")
+        else:
+            sup.set_mode(sup.modes["MANUAL"], "calibration finished")
+
+
+class Estop(Mode):
+    name = "ESTOP"
+    requires_armed = False
+
+    def enter(self, sup: "SupervisorNode", t: float) -> None:
+        sup.armed = False
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        return neutral(t, "estop"), None
+
+
+class Rc(Mode):
+    """The RC transmitter has control (the seed: a human can always take over)."""
+
+    name = "RC"
+    requires_armed = False
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        rc = sup.inputs.rc
+        return (rc.command if rc is not None and rc.command is not None else neutral(t, "rc")), None
+
+
+def all_modes() -> dict[str, Any]:
+    return {m.name: m for m in (Manual(), Auto(), Hold(), Return(), Calibrate(), Estop(), Rc())}

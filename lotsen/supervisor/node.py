@@ -1,0 +1,605 @@
+"""The supervisor: operator requests, modes, failsafes, and the one ship_command of the stack.
+
+The supervisor owns the controllers and publishes the only ship_command, so exactly one thing
+decides what the thrusters do. Every command leaving it is checked for non-finite values
+(neutral instead), and the actuator guard downstream checks again.
+
+Each control tick: inputs -> failsafe monitors (and the geofence, the controller watch) -> the
+mode's command -> ship_command, supervisor/status (with the actions possible now and why the
+others are not), mission/progress. Operator requests are checked against the modes' capability
+predicates; a refusal is an `Alert` the operator sees, not only a log line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from shapely import contains_xy
+from shapely.geometry import Point
+from shapely.ops import nearest_points
+
+from lotsen.control import ControlConfig, HoldTarget, ThrustAllocator, make_path_follower, make_station_keeper
+from lotsen.errors import LotsenError
+from lotsen.messages import (
+    OPERATOR_ACTIONS, ActuatorState, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
+    MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
+    RcOverride, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
+)
+from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, all_finite
+from lotsen.planning import plan_return_route
+from lotsen.planning.exchange import path_from_message
+from lotsen.planning.io import route_from_dict, route_to_dict
+from lotsen.runtime.executor import Node, NodeContext
+from lotsen.supervisor.failsafes import (
+    FailsafeConfig, FailsafeState, Monitor, PersistentCondition, ThrusterMonitor, monitor,
+    standard_monitors,
+)
+from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
+
+#: failsafes whose action is "hold on dead reckoning, then stop after gnss_stop_after_s"
+DEAD_RECKONING = ("gnss_lost", "estimator")
+SEVERITY_ORDER = ("info", "warning", "error", "critical")
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    control_rate_hz: float = 10.0
+    controller: str = "mpc"
+    # manual driving: full key deflection means this generalized force
+    manual_surge_N: float = 5.0
+    manual_sway_N: float = 1.5
+    manual_yaw_Nm: float = 1.2
+    # magnetometer calibration manoeuvre
+    calibration_bow_rps: float = 60.0
+    calibration_turn_deg: float = 400.0
+    calibration_timeout_s: float = 90.0
+    path_message_points: int = 400
+    progress_rate_hz: float = 2.0
+    route_fence_tolerance_m: float = 0.05  # a received path may touch the area's edge by this much
+    failsafes: FailsafeConfig = field(default_factory=FailsafeConfig)
+
+
+@dataclass
+class SupervisorInputs:
+    """The latest of everything the supervisor listens to, with arrival times (runtime clock)."""
+
+    state: VesselState | None = None
+    manual: ManualCommand | None = None
+    manual_arrival_s: float = -math.inf
+    link: LinkStatus | None = None
+    link_arrival_s: float = -math.inf
+    rc: RcOverride | None = None
+    fix: GnssFix | None = None
+    last_usable_fix_s: float | None = None
+    battery: BatteryStatus | None = None
+    actuators: ActuatorState | None = None
+    health: Any = None  # EstimatorHealth (lotsen.fusion) when the estimator publishes one
+
+    @property
+    def escs_armed(self) -> bool:
+        return self.actuators is not None and bool(self.actuators.escs_armed)
+
+
+class SupervisorNode(Node):
+    name = "supervisor"
+
+    def __init__(self, model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
+                 config: SupervisorConfig = SupervisorConfig(), control_config: ControlConfig | None = None,
+                 mag_calibrator: Callable[[list[tuple[float, float]]], Any] | None = None,
+                 follower: Any = None, station_keeper: Any = None) -> None:
+        self.model = model or VesselModel()
+        self.limits = limits
+        self.config = config
+        self.control_config = control_config or ControlConfig(controller=config.controller)
+        self._make_follower = lambda name: make_path_follower(
+            _with_controller(self.control_config, name), self.model, limits)
+        self.follower = follower or self._make_follower(self.control_config.controller)
+        self.fallback: Any = None
+        self.station_keeper = station_keeper or make_station_keeper(self.control_config, self.model, limits)
+        self.allocator = ThrustAllocator(self.model, limits)
+        self.mag_calibrator = mag_calibrator
+        self.period_s = 1.0 / config.control_rate_hz
+        self.inputs = SupervisorInputs()
+        # route
+        self.route: Any = None
+        self.path: Any = None
+        self.route_id = ""
+        self.node_s: tuple[float, ...] = ()
+        self.active_path: Any = None  # the path AUTO/RETURN is following
+        self._time_to_end: np.ndarray | None = None  # planned seconds from each path point to the end
+        # modes
+        self.modes: dict[str, Mode] = all_modes()
+        self.mode: Mode = self.modes["MANUAL"]
+        self.reason = "start"
+        self.armed = False
+        self.stopped = ""  # non-empty: a failsafe stopped the boat (MANUAL, neutral until new keys)
+        self.mode_before_rc = "MANUAL"
+        # failsafes
+        fs = config.failsafes
+        self.failsafes = FailsafeState()
+        self.monitors: list[Monitor] = standard_monitors(fs, limits)
+        self.thruster: ThrusterMonitor = monitor(self.monitors, "thruster")
+        self._geofence = PersistentCondition(fs.geofence_persist_s, 2.0)
+        self._dead_reckoning_since: float | None = None
+        self.failsafe_history: list[str] = []  # "name: reason at t" of every failsafe that triggered
+        self._controller_failures = 0
+        self._controller_overruns = 0
+        self.counters = {"non_finite_commands": 0, "refused_requests": 0, "controller_fallbacks": 0,
+                         "routes_refused": 0}
+        self.last_status: ControllerStatus | None = None
+        self._last_progress_s = -math.inf
+
+    @property
+    def hold_target(self) -> HoldTarget | None:
+        return self.modes["HOLD"].target  # type: ignore[attr-defined]
+
+    # ------------------------------------------------------------------ wiring
+    def start(self, ctx: NodeContext) -> None:
+        self.ctx = ctx
+        ctx.subscribe(Topic.OPERATOR, self._on_operator)
+        ctx.subscribe(Topic.MANUAL, self._on_manual)
+        ctx.subscribe(Topic.LINK, self._on_link)
+        ctx.subscribe(Topic.RC, self._on_rc)
+        ctx.subscribe(Topic.STATE, self._on_state)
+        ctx.subscribe(Topic.GNSS, self._on_gnss)
+        ctx.subscribe(Topic.BATTERY, self._on_battery)
+        ctx.subscribe(Topic.ROUTE, self._on_route)
+        ctx.subscribe(Topic.IMU_MAG, self._on_mag)
+        ctx.subscribe(Topic.RPM, self._on_rpm)
+        ctx.subscribe(Topic.ACTUATORS, self._on_actuators)
+        health_topic = getattr(Topic, "ESTIMATOR_HEALTH", None)
+        if health_topic is not None:
+            ctx.subscribe(health_topic, self._on_health)
+        ctx.add_timer(self.period_s, self._tick)
+        if self.path is not None:  # a route loaded at start (launch config `route`)
+            self._publish_route()
+
+    def _on_manual(self, msg: ManualCommand) -> None:
+        vals = (msg.surge, msg.sway, msg.yaw)
+        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
+            self.counters["refused_requests"] += 1
+            return
+        self.inputs.manual = ManualCommand(stamp_s=msg.stamp_s, surge=_clip1(msg.surge), sway=_clip1(msg.sway),
+                                           yaw=_clip1(msg.yaw))
+        self.inputs.manual_arrival_s = self.ctx.now()
+        if any(vals) and self.stopped and self.mode.name == "MANUAL":
+            self.stopped = ""  # the operator takes over after a failsafe stop
+
+    def _on_link(self, msg: LinkStatus) -> None:
+        self.inputs.link = msg
+        self.inputs.link_arrival_s = self.ctx.now()
+
+    def _on_rc(self, msg: RcOverride) -> None:
+        t = self.ctx.now()
+        if msg.active and self.mode.name != "RC":
+            self.mode_before_rc = self.mode.name
+            self.set_mode(self.modes["RC"], "RC transmitter override")
+        elif not msg.active and self.mode.name == "RC":
+            if self.position_ok() and self.armed:
+                self.enter_hold(t, "RC override released")
+            else:
+                self.set_mode(self.modes["MANUAL"], "RC override released")
+        self.inputs.rc = msg
+
+    def _on_state(self, msg: VesselState) -> None:
+        self.inputs.state = msg
+
+    def _on_gnss(self, fix: GnssFix) -> None:
+        self.inputs.fix = fix
+        if fix.usable:
+            self.inputs.last_usable_fix_s = self.ctx.now()
+
+    def _on_battery(self, msg: BatteryStatus) -> None:
+        self.inputs.battery = msg
+
+    def _on_actuators(self, msg: ActuatorState) -> None:
+        self.inputs.actuators = msg
+
+    def _on_health(self, msg: Any) -> None:
+        self.inputs.health = msg
+
+    def _on_rpm(self, msg: RpmSample) -> None:
+        self.thruster.on_rpm(msg, self.inputs.actuators)
+
+    def _on_mag(self, msg: MagSample) -> None:
+        if self.mode.name == "CALIBRATE":
+            self.modes["CALIBRATE"].samples.append((msg.field_uT[0], msg.field_uT[1]))  # type: ignore[attr-defined]
+
+    # ------------------------------------------------------------------ routes
+    def _on_route(self, msg: Any) -> None:
+        if not isinstance(msg, PlannedRoute):
+            self._refuse("route", "the boat takes planned routes (PlannedRoute) only; plan it first")
+            return
+        try:
+            route = route_from_dict(msg.route)
+            path = path_from_message(msg)
+            self._check_path_inside(route, path)
+        except LotsenError as exc:
+            self.counters["routes_refused"] += 1
+            self._refuse("route", str(exc))
+            return
+        t = self.ctx.now()
+        if self.mode.moving:
+            self.enter_hold(t, "new route received while moving")
+        self.set_route(route, path, msg.route_id, msg.node_s_m)
+        self.ctx.log("info", f"route {msg.route_id} accepted: {len(route.nodes)} nodes, {path.length_m:.1f} m")
+        self._publish_route()
+        self._publish_status()
+
+    def _check_path_inside(self, route: Any, path: Any) -> None:
+        """A received path must lie in the route's navigable water (the planner's promise, checked)."""
+        if route.area is None and not route.obstacles:
+            return
+        free = route.free_region().buffer(self.config.route_fence_tolerance_m)
+        step = max(1, len(path) // 2000)
+        inside = contains_xy(free, path.north_m[::step], path.east_m[::step])
+        if not np.all(inside):
+            i = int(np.argmin(inside)) * step
+            raise LotsenError(f"route: the path leaves the navigable area at ({path.north_m[i]:.1f}, "
+                              f"{path.east_m[i]:.1f}) m")
+
+    def set_route(self, route: Any, path: Any, route_id: str = "", node_s: tuple[float, ...] = ()) -> None:
+        """Hold `route` and its planned `path` (the launch config's route, or one received)."""
+        self.route, self.path, self.route_id, self.node_s = route, path, route_id, tuple(node_s)
+
+    def _publish_route(self) -> None:
+        t = self.ctx.now()
+        self.ctx.publish(Topic.PATH, path_message(t, self.path, self.config.path_message_points))
+        if self.route is not None:
+            self.ctx.publish(Topic.ACTIVE_ROUTE, RouteMessage(stamp_s=t, route=route_to_dict(self.route),
+                                                              source="boat", route_id=self.route_id))
+
+    # ------------------------------------------------------------------ operator requests
+    def why_not(self, action: str) -> str:
+        """'' when `action` would be accepted now, else the reason (for refusals and the page)."""
+        m = self.mode.name
+        if action not in OPERATOR_ACTIONS:
+            return f"unknown action {action!r}"
+        if action in ("estop", "rtk_start", "rtk_stop", "logging_on", "logging_off"):
+            return ""
+        if m == "RC":
+            return "the RC transmitter has control"
+        if m == "ESTOP":
+            return "" if action == "reset_estop" else "emergency stop is latched; reset it first"
+        if action == "reset_estop":
+            return "no emergency stop to reset"
+        if action == "disarm":
+            return "" if self.armed else "already disarmed"
+        if action == "arm":
+            if self.armed:
+                return "already armed"
+            return "" if self.inputs.escs_armed else "the ESCs are not armed yet (they need neutral for a few seconds)"
+        if action == "manual":
+            return ""
+        target = {"auto": "AUTO", "hold": "HOLD", "return": "RETURN", "calibrate_mag": "CALIBRATE"}[action]
+        mode = self.modes[target]
+        if mode.requires_armed and not self.armed:
+            return "arm first"
+        if mode.requires_armed and not self.inputs.escs_armed:
+            return "the ESCs are not armed"
+        if mode.requires_heading and not self._heading_ok():
+            return "no trustworthy heading estimate"
+        if mode.requires_position and not self.position_ok():
+            return "no usable position estimate"
+        if action == "auto" and self.path is None:
+            return "no route loaded"
+        return ""
+
+    def _on_operator(self, cmd: OperatorCommand) -> None:
+        action = cmd.action
+        if action in ("rtk_start", "rtk_stop", "logging_on", "logging_off") and action in OPERATOR_ACTIONS:
+            return  # handled by the GNSS driver / simulated receiver and the recorder
+        why = self.why_not(action)
+        if why:
+            self._refuse(action, why)
+            return
+        t = self.ctx.now()
+        by = f"requested by {cmd.source}"
+        if action == "estop":
+            self.set_mode(self.modes["ESTOP"], f"emergency stop by {cmd.source}")
+            self.alert("critical", "estop", f"emergency stop by {cmd.source}")
+        elif action == "reset_estop":
+            self.set_mode(self.modes["MANUAL"], "emergency stop reset (disarmed)")
+            self.alert("info", "estop", "emergency stop reset", active=False)
+        elif action == "arm":
+            self.armed = True
+            self.ctx.log("info", f"armed ({by})")
+        elif action == "disarm":
+            self.armed = False
+            if self.mode.name != "MANUAL":
+                self.set_mode(self.modes["MANUAL"], f"disarmed ({by})")
+            self.ctx.log("info", f"disarmed ({by})")
+        elif action == "manual":
+            self.set_mode(self.modes["MANUAL"], by)
+        elif action == "hold":
+            self.enter_hold(t, by)
+        elif action == "auto":
+            self.start_following(self.path, "AUTO", by,
+                                 resume=self.active_path is self.path and self.mode.name == "HOLD")
+        elif action == "return":
+            self.start_return(t, by)
+        elif action == "calibrate_mag":
+            self.set_mode(self.modes["CALIBRATE"], by)
+        self._publish_status()
+
+    def _refuse(self, action: str, why: str) -> None:
+        self.counters["refused_requests"] += 1
+        self.ctx.log("warning", f"request refused: {action}: {why}", refused=action)
+        self.alert("warning", f"refused:{action}", f"{action} refused: {why}")
+
+    def alert(self, severity: str, code: str, text: str, active: bool = True) -> None:
+        self.ctx.publish(Topic.ALERT, Alert(stamp_s=self.ctx.now(), severity=severity, code=code, text=text,
+                                            active=active))
+
+    # ------------------------------------------------------------------ mode changes
+    def set_mode(self, mode: Mode, reason: str) -> None:
+        t = self.ctx.now()
+        if mode is not self.mode or reason != self.reason:
+            self.ctx.log("warning" if mode.name == "ESTOP" else "info",
+                         f"mode {self.mode.name} -> {mode.name}: {reason}", mode=mode.name)
+        if mode is not self.mode:
+            self.mode.exit(self, t)
+            self.mode = mode
+            mode.enter(self, t)
+        if mode.name != "MANUAL":
+            self.stopped = ""
+        self.reason = reason
+        self._publish_status()
+
+    def enter_hold(self, t: float, reason: str, target: HoldTarget | None = None) -> None:
+        s = self.inputs.state
+        if target is None:
+            if s is None or not _finite_state(s):
+                self.stop(f"{reason} (no position to hold)")
+                return
+            target = HoldTarget(s.north_m, s.east_m, s.heading_rad)
+        hold: Hold = self.modes["HOLD"]  # type: ignore[assignment]
+        hold.target = target
+        if self.mode is hold:
+            self.station_keeper.reset()
+        self.set_mode(hold, reason)
+
+    def stop(self, reason: str) -> None:
+        self.stopped = reason
+        self.set_mode(self.modes["MANUAL"], f"stopped: {reason}")
+
+    def start_following(self, path: Any, mode_name: str, reason: str, resume: bool = False) -> None:
+        if not resume:
+            self.follower.reset(path)
+            if self.fallback is not None:
+                self.fallback.reset(path)
+        self.active_path = path
+        self._time_to_end = _time_to_end(path)
+        self._controller_failures = self._controller_overruns = 0
+        self.set_mode(self.modes[mode_name], reason)
+
+    def start_return(self, t: float, reason: str) -> None:
+        s = self.inputs.state
+        if self.route is None or s is None:
+            self.enter_hold(t, f"{reason}: no route/harbour known, holding instead")
+            return
+        try:
+            path = plan_return_route(self.route, s.north_m, s.east_m, s.heading_rad)
+        except LotsenError as exc:
+            self.ctx.log("error", f"return to harbour cannot be planned: {exc}")
+            self.alert("error", "return", f"return to harbour cannot be planned: {exc}")
+            self.enter_hold(t, f"{reason}: return not plannable, holding instead")
+            return
+        self.ctx.publish(Topic.PATH, path_message(t, path, self.config.path_message_points))
+        self.start_following(path, "RETURN", reason)
+
+    def publish_calibration(self, result: MagCalibrationResult) -> None:
+        self.ctx.publish(Topic.MAG_CALIBRATION, result)
+        self.ctx.log("info" if result.ok else "warning", f"magnetometer calibration: {result.text}")
+        if not result.ok:
+            self.alert("warning", "calibration", f"magnetometer calibration failed: {result.text}")
+
+    # ------------------------------------------------------------------ the control tick
+    def _tick(self) -> None:
+        t = self.ctx.now()
+        self._check_failsafes(t)
+        cmd, status = self._command(t)
+        if not cmd.is_finite():
+            self.counters["non_finite_commands"] += 1
+            self.ctx.log("error", "non-finite thrust command replaced by neutral", mode=self.mode.name)
+            cmd = neutral(t, "supervisor:non-finite")
+        self.ctx.publish(Topic.SHIP_COMMAND, cmd)
+        self.thruster.on_command(cmd, t, self.inputs.escs_armed)
+        if status is not None:
+            self.last_status = status
+            self.ctx.publish(Topic.CONTROL_STATUS, status)
+        self._publish_status()
+        if self.mode.moving and t - self._last_progress_s >= 1.0 / self.config.progress_rate_hz:
+            self._publish_progress(t, status)
+
+    def _command(self, t: float) -> tuple[ThrustCommand, ControllerStatus | None]:
+        mode = self.mode
+        if mode.requires_armed and not self.armed:  # cannot happen by a request; a safety net
+            return neutral(t, "disarmed"), None
+        if mode.requires_position or mode.requires_heading:
+            s = self.inputs.state
+            if s is None or not _finite_state(s):
+                self.stop("no finite state estimate")
+                return neutral(t, "supervisor"), None
+        return mode.update(self, t)
+
+    # ------------------------------------------------------------------ failsafes
+    def _flag(self, mon_name: str, on: bool, reason: str, severity: str) -> bool:
+        became_on, became_off = self.failsafes.set(mon_name, on, reason)
+        if became_on:
+            self.failsafe_history.append(f"{mon_name}: {reason} at {self.ctx.now():.2f} s")
+            self.ctx.log("warning", f"failsafe {mon_name}: {reason}", failsafe=mon_name)
+            self.alert(severity, f"failsafe:{mon_name}", f"{mon_name}: {reason}")
+        elif became_off:
+            self.ctx.log("info", f"failsafe {mon_name} cleared", failsafe=mon_name)
+            self.alert("info", f"failsafe:{mon_name}", f"{mon_name} cleared", active=False)
+        return became_on
+
+    def position_ok(self) -> bool:
+        s = self.inputs.state
+        if s is None or not _finite_state(s):
+            return False
+        if len(s.std) >= 2 and max(s.std[0], s.std[1]) > self.config.failsafes.max_position_std_m:
+            return False
+        h = self.inputs.health
+        return h is None or bool(h.position_ok)
+
+    def _heading_ok(self) -> bool:
+        s = self.inputs.state
+        if s is None or not math.isfinite(s.heading_rad):
+            return False
+        h = self.inputs.health
+        return h is None or bool(h.heading_ok)
+
+    def _check_failsafes(self, t: float) -> None:
+        for mon in self.monitors:
+            active = mon.update(self.inputs, t)
+            if self._flag(mon.name, active, mon.reason, mon.severity):
+                self._act(t, mon, mon.action_for(self.mode.name))
+        fs = self.config.failsafes
+        # dead reckoning (GNSS lost or not trusted): stop when it lasts too long while holding
+        dr = any(n in self.failsafes.active for n in DEAD_RECKONING)
+        if not dr:
+            self._dead_reckoning_since = None
+        elif self._dead_reckoning_since is None:
+            self._dead_reckoning_since = t
+        elif t - self._dead_reckoning_since > fs.gnss_stop_after_s and self.mode.name in ("HOLD", "AUTO", "RETURN"):
+            self.stop(f"failsafe: no trustworthy position for more than {fs.gnss_stop_after_s:.0f} s")
+        self._check_geofence(t)
+
+    def _act(self, t: float, mon: Monitor, action: str) -> None:
+        why = f"failsafe {mon.name}: {mon.reason}"
+        if action == "hold":
+            if self.mode.name != "HOLD":
+                self.enter_hold(t, f"{why} (holding{' on dead reckoning' if mon.name in DEAD_RECKONING else ''})")
+        elif action == "stop":
+            if self.mode.name not in ("ESTOP", "RC"):
+                self.stop(why)
+        elif action == "return":
+            self.start_return(t, why)
+
+    def _check_geofence(self, t: float) -> None:
+        fs = self.config.failsafes
+        s = self.inputs.state
+        if self.route is None or s is None or not _finite_state(s) or not self.position_ok():
+            # an estimate the integrity monitor declared bad is not trusted to judge the fence:
+            # the estimator failsafe acts instead
+            self._geofence.update(False, t)
+            self._flag("geofence", False, "", "error")
+            return
+        free = self.route.free_region()
+        p = Point(s.north_m, s.east_m)
+        outside = not free.buffer(fs.geofence_margin_m).contains(p)
+        breach = self._geofence.update(outside, t)
+        self._flag("geofence", breach, f"position ({s.north_m:.1f}, {s.east_m:.1f}) outside the navigable area",
+                   "error")
+        # act whenever the boat is outside in a fenced mode (also when it was already outside on
+        # entering the mode), unless it is already holding at the point inside
+        if not breach or self.reason.startswith("failsafe: geofence"):
+            return
+        if not self.mode.fenced and not (self.mode.name == "MANUAL" and fs.geofence_in_manual and self.armed):
+            return
+        inner = free.buffer(-fs.geofence_inset_m)
+        if inner.is_empty:
+            inner = free
+        q = nearest_points(inner, p)[0]
+        # bow toward the water the boat was pushed out of: whatever pushed it out (current,
+        # wind) is then met by the azimuths' full forward thrust, not by the weak sideways one
+        heading = math.atan2(q.y - p.y, q.x - p.x) if p.distance(q) > 0.05 else s.heading_rad
+        self.enter_hold(t, "failsafe: geofence, holding inside the area", HoldTarget(q.x, q.y, heading))
+
+    def watch_controller(self, t: float, status: ControllerStatus, solve_ms: float) -> None:
+        fs = self.config.failsafes
+        # the controllers report "ok"/"saturated" normally, "fallback_plan (...)" while coasting on
+        # the previous solution and "safe_stop (...)" when they gave up
+        failed = status.status.startswith(("safe_stop", "fallback_plan", "failed"))
+        self._controller_failures = self._controller_failures + 1 if failed else 0
+        overrun = solve_ms > fs.controller_overrun_factor * self.period_s * 1000.0
+        self._controller_overruns = self._controller_overruns + 1 if overrun else 0
+        if self._controller_failures >= fs.controller_failure_count or \
+                self._controller_overruns >= fs.controller_overrun_count:
+            why = (f"{self._controller_failures} failed updates ({status.status})"
+                   if self._controller_failures >= fs.controller_failure_count
+                   else f"{self._controller_overruns} overruns ({solve_ms:.1f} ms)")
+            self._controller_failures = self._controller_overruns = 0
+            if self.fallback is None:
+                self.counters["controller_fallbacks"] += 1
+                self._flag("controller", True, f"{self.follower.name}: {why}; fallback {fs.fallback_controller}",
+                           "error")
+                self.fallback = self._make_follower(fs.fallback_controller)
+                self.fallback.reset(self.active_path)
+            else:
+                self._flag("controller", True, f"fallback {self.fallback.name} failed too: {why}", "error")
+                self.stop("failsafe: controller and fallback failed")
+
+    # ------------------------------------------------------------------ status
+    def _publish_status(self) -> None:
+        warnings = tuple(f"{k}: {v}" for k, v in self.failsafes.active.items())
+        if self.stopped:
+            warnings = (f"stopped: {self.stopped}",) + warnings
+        available, blocked = [], []
+        for action in OPERATOR_ACTIONS:
+            why = self.why_not(action)
+            if why:
+                blocked.append(f"{action}: {why}")
+            else:
+                available.append(action)
+        self.ctx.publish(Topic.SUPERVISOR, SupervisorStatus(
+            stamp_s=self.ctx.now(), mode=self.mode.name, reason=self.reason, armed=self.armed, warnings=warnings,
+            active_failsafes=tuple(self.failsafes.active), escs_armed=self.inputs.escs_armed,
+            available_actions=tuple(available), blocked_actions=tuple(blocked), route_id=self.route_id))
+
+    def _publish_progress(self, t: float, status: ControllerStatus | None) -> None:
+        path = self.active_path
+        if path is None or status is None or not math.isfinite(status.progress_m):
+            return
+        self._last_progress_s = t
+        s = min(max(status.progress_m, 0.0), path.length_m)
+        eta = float(np.interp(s, path.s_m, self._time_to_end)) if self._time_to_end is not None else math.nan
+        next_node, dist = -1, math.nan
+        if self.mode.name == "AUTO" and path is self.path:
+            for k, sk in enumerate(self.node_s):
+                if sk > s + 0.05:
+                    next_node, dist = k - 1, sk - s  # planner node k is route node k - 1 (harbour first)
+                    break
+        self.ctx.publish(Topic.PROGRESS, MissionProgress(
+            stamp_s=t, mode=self.mode.name, path_length_m=round(path.length_m, 3), progress_m=round(s, 3),
+            remaining_m=round(path.length_m - s, 3), eta_s=round(eta, 1), next_node=next_node,
+            distance_to_next_node_m=round(dist, 3) if math.isfinite(dist) else math.nan,
+            route_id=self.route_id if path is self.path else ""))
+
+
+def _with_controller(config: Any, name: str) -> Any:
+    from dataclasses import replace
+
+    return replace(config, controller=name)
+
+
+def _clip1(v: float) -> float:
+    return min(max(float(v), -1.0), 1.0)
+
+
+def _finite_state(s: VesselState) -> bool:
+    return all_finite(*s.as_array_tuple())
+
+
+def _time_to_end(path: Any, min_speed_mps: float = 0.05) -> np.ndarray:
+    """Planned seconds from each path point to the end (at the planned speeds)."""
+    v = np.maximum(np.asarray(path.speed_mps, dtype=float), min_speed_mps)
+    dt = np.diff(np.asarray(path.s_m, dtype=float)) / (0.5 * (v[1:] + v[:-1]))
+    return np.concatenate([np.cumsum(dt[::-1])[::-1], [0.0]])
+
+
+def path_message(t: float, path: Any, max_points: int) -> PathMessage:
+    n = len(path.s_m)
+    step = max(1, math.ceil(n / max_points))
+    idx = list(range(0, n, step))
+    if idx[-1] != n - 1:
+        idx.append(n - 1)
+    return PathMessage(stamp_s=t, north_m=tuple(float(path.north_m[i]) for i in idx),
+                       east_m=tuple(float(path.east_m[i]) for i in idx),
+                       speed_mps=tuple(float(path.speed_mps[i]) for i in idx))
+

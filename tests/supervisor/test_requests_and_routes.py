@@ -1,0 +1,108 @@
+"""Operator requests against the modes' capability predicates, alerts, routes received as
+PlannedRoute (planned once, checked, read back), progress and ETA."""
+
+import math
+from dataclasses import replace
+
+from lotsen.messages import OperatorCommand, PlannedRoute, RouteMessage, Topic
+from lotsen.planning import plan_route
+from lotsen.planning.exchange import planned_route_message, route_id
+from lotsen.planning.io import load_route, route_to_dict
+from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection
+from lotsen.stack.launch import build_stack
+from lotsen.stack.stack import example_route
+
+
+def make(route=None, esc_arm_time_s=1.0):
+    cfg = LaunchConfig(route=route, nodes=NodesSection(fusion="truth", controller="los"),
+                       sim=SimSection(initial_state=(4.0, 20.0, 0.0, 0.0, 0.0, 0.0), esc_arm_time_s=esc_arm_time_s))
+    stack = build_stack(cfg, realtime=False, parts=("state", "supervisor"))
+    seen = {Topic.ALERT: [], Topic.PROGRESS: [], Topic.ACTIVE_ROUTE: [], Topic.PATH: []}
+    for topic, box in seen.items():
+        stack.bus.subscribe(topic, box.append)
+    return stack, stack.nodes["supervisor"], seen
+
+
+def op(stack, action):
+    stack.bus.publish(Topic.OPERATOR, OperatorCommand(stamp_s=stack.executor.clock.now(), action=action))
+
+
+def status(stack):
+    return stack.bus.latest[Topic.SUPERVISOR]
+
+
+def test_arm_waits_for_the_escs_and_every_thrusting_mode_needs_it():
+    stack, sup, seen = make(example_route("figure_eight"), esc_arm_time_s=2.0)
+    stack.executor.run_until(0.5)
+    op(stack, "arm")
+    assert not sup.armed
+    assert seen[Topic.ALERT][-1].code == "refused:arm" and "ESCs" in seen[Topic.ALERT][-1].text
+    assert any(b.startswith("arm: the ESCs are not armed") for b in status(stack).blocked_actions)
+    op(stack, "auto")
+    assert sup.mode.name == "MANUAL" and seen[Topic.ALERT][-1].code == "refused:auto"
+    assert "arm first" in seen[Topic.ALERT][-1].text
+    stack.executor.run_until(2.5)
+    assert status(stack).escs_armed and "arm" in status(stack).available_actions
+    op(stack, "arm")
+    assert sup.armed and status(stack).armed
+    assert "auto" in status(stack).available_actions
+    op(stack, "auto")
+    stack.executor.run_for(3.0)
+    assert sup.mode.name == "AUTO"
+    op(stack, "disarm")  # always possible: thrusters neutral at once
+    stack.executor.run_for(0.3)
+    assert sup.mode.name == "MANUAL" and not sup.armed
+    assert stack.bus.latest[Topic.SHIP_COMMAND].as_tuple() == (0.0,) * 5
+
+
+def test_estop_disarms_and_buttons_follow_the_mode():
+    stack, sup, seen = make(example_route("figure_eight"))
+    stack.executor.run_until(1.5)
+    op(stack, "arm")
+    op(stack, "estop")
+    stack.executor.run_for(0.2)
+    s = status(stack)
+    assert s.mode == "ESTOP" and not s.armed
+    assert set(s.available_actions) == {"estop", "reset_estop", "rtk_start", "rtk_stop", "logging_on", "logging_off"}
+    assert any(b == "auto: emergency stop is latched; reset it first" for b in s.blocked_actions)
+    assert seen[Topic.ALERT][-1].severity == "critical"
+
+
+def test_a_planned_route_is_accepted_read_back_and_followed_with_progress():
+    stack, sup, seen = make()
+    stack.executor.run_until(1.5)
+    route = load_route(example_route("figure_eight"))
+    msg = planned_route_message(route, plan_route(route), stamp_s=1.5, source="web")
+    stack.bus.publish(Topic.ROUTE, msg)
+    back = seen[Topic.ACTIVE_ROUTE][-1]
+    assert back.route_id == msg.route_id == route_id(back.route) == status(stack).route_id
+    assert back.route == route_to_dict(route)
+    assert len(seen[Topic.PATH][-1].north_m) <= sup.config.path_message_points + 1
+    op(stack, "arm")
+    op(stack, "auto")
+    stack.executor.run_for(30.0)
+    p = seen[Topic.PROGRESS][-1]
+    assert p.mode == "AUTO" and p.route_id == msg.route_id
+    assert 0.0 < p.progress_m < p.path_length_m and math.isclose(p.remaining_m, p.path_length_m - p.progress_m,
+                                                                   abs_tol=1e-3)
+    assert 0 <= p.next_node < len(route.nodes) and 0.0 < p.distance_to_next_node_m < p.path_length_m
+    assert 0.0 < p.eta_s < 2.0 * p.remaining_m / 0.3  # at the planned 0.5 m/s, not absurd
+    etas = [q.eta_s for q in seen[Topic.PROGRESS][-10:]]
+    assert etas == sorted(etas, reverse=True)  # counts down
+
+
+def test_routes_that_are_not_planned_or_leave_the_area_are_refused():
+    stack, sup, seen = make()
+    stack.executor.run_until(0.5)
+    route = load_route(example_route("figure_eight"))
+    stack.bus.publish(Topic.ROUTE, RouteMessage(stamp_s=0.5, route=route_to_dict(route)))
+    assert sup.path is None and seen[Topic.ALERT][-1].code == "refused:route"
+    assert "PlannedRoute" in seen[Topic.ALERT][-1].text
+    msg = planned_route_message(route, plan_route(route))
+    shifted: PlannedRoute = replace(msg, east_m=tuple(e + 25.0 for e in msg.east_m))  # 25 m east: outside
+    stack.bus.publish(Topic.ROUTE, shifted)
+    assert sup.path is None and "leaves the navigable area" in seen[Topic.ALERT][-1].text
+    broken = replace(msg, s_m=tuple(reversed(msg.s_m)))
+    stack.bus.publish(Topic.ROUTE, broken)
+    assert sup.path is None and "strictly increasing" in seen[Topic.ALERT][-1].text
+    assert sup.counters["routes_refused"] == 2
