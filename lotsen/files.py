@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -19,21 +20,108 @@ def read_text(path: str | Path, error: type[LotsenError] = LotsenError, what: st
         raise error(f"{p}: cannot read {what}: {exc.strerror or exc}") from None
 
 
+# Limits of what a configuration, route or parameter file may hold. Real files nest < 10 levels
+# and hold < 100 k values (a long GeoJSON route); beyond these the file is hostile or broken.
+MAX_NESTING = 64
+MAX_VALUES = 1_000_000  # counted with YAML aliases expanded: refuses "billion laughs" alias bombs
+_FLOAT_MAX = sys.float_info.max
+
+
+def _at(where: str) -> str:
+    return where if len(where) <= 80 else where[:60] + "..." + where[-15:]
+
+
+def check_structure(data: Any, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
+    """Refuse parsed data no loader should have to walk: nesting deeper than MAX_NESTING, a
+    structure that contains itself (YAML `&a [*a]`), more than MAX_VALUES values once aliases
+    are expanded, and integers beyond the float range (every loader converts numbers to float).
+    The message names the file and the key path. Iterative: safe at any depth. Returns `data`."""
+    memo: dict[int, tuple[int, int]] = {}  # id of a container -> (values below, height)
+    active: set[int] = set()
+    total = 0
+    # frames: [container, its key path, iterator over (key, child), values, height]
+    frames: list[list[Any]] = []
+
+    def join(parent: str, key: Any) -> str:  # key paths are built only for containers and errors
+        return f"{parent}[{key}]" if isinstance(key, int) else (f"{parent}.{key}" if parent else str(key))
+
+    def visit(obj: Any, parent: str, key: Any) -> tuple[int, int] | None:
+        """(values, height) of a leaf or an already walked container; None after pushing a frame."""
+        nonlocal total
+        if isinstance(obj, (dict, list)):
+            where = join(parent, key) if key is not None else parent
+            size, height = memo.get(id(obj), (0, -1))
+            if height >= 0:  # shared (a YAML alias): counted again, walked once
+                if len(frames) + height > MAX_NESTING:
+                    raise error(f"{path}: {_at(where)}: nested deeper than {MAX_NESTING} levels")
+                total += size
+                if total > MAX_VALUES:
+                    raise error(f"{path}: {_at(where)}: more than {MAX_VALUES} values once YAML aliases are "
+                                "expanded (an alias bomb?)")
+                return size, height
+            if id(obj) in active:
+                raise error(f"{path}: {_at(where)}: the structure contains itself (a recursive YAML alias)")
+            if len(frames) >= MAX_NESTING:
+                raise error(f"{path}: {_at(where)}: nested deeper than {MAX_NESTING} levels")
+            active.add(id(obj))
+            frames.append([obj, where, iter(obj.items() if isinstance(obj, dict) else enumerate(obj)), 1, 0])
+            return None
+        if isinstance(obj, int) and not isinstance(obj, bool) and abs(obj) > _FLOAT_MAX:
+            where = join(parent, key) if key is not None else "value"
+            raise error(f"{path}: {_at(where)}: integer with {len(str(abs(obj)))} digits is too large")
+        total += 1
+        if total > MAX_VALUES:
+            raise error(f"{path}: {_at(join(parent, key) if key is not None else parent)}: more than "
+                        f"{MAX_VALUES} values")
+        return 1, 0
+
+    visit(data, "", None)
+    while frames:
+        frame = frames[-1]
+        for key, child in frame[2]:
+            got = visit(child, frame[1], key)
+            if got is None:
+                break  # descend first
+            frame[3] += got[0]
+            frame[4] = max(frame[4], got[1] + 1)
+        else:
+            frames.pop()
+            active.discard(id(frame[0]))
+            memo[id(frame[0])] = (frame[3], frame[4])
+            if frames:
+                frames[-1][3] += frame[3]
+                frames[-1][4] = max(frames[-1][4], frame[4] + 1)
+    return data
+
+
 def parse_yaml(text: str, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
-    """YAML with the line of a syntax error in the message."""
+    """YAML with the line of a syntax error in the message; hostile structures refused
+    (`check_structure`)."""
     try:
-        return yaml.safe_load(text)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         loc = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         raise error(f"{path}: not valid YAML{loc}: {getattr(exc, 'problem', exc)}") from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply to read (more than {MAX_NESTING} levels are refused)") from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise error(f"{path}: not valid YAML: {exc}") from None
+    return check_structure(data, path, error)
 
 
 def parse_json(text: str, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
+    """JSON with the line of a syntax error in the message; hostile structures refused
+    (`check_structure`)."""
     try:
-        return json.loads(text)
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise error(f"{path}: not valid JSON at line {exc.lineno}: {exc.msg}") from None
+    except RecursionError:
+        raise error(f"{path}: nested too deeply to read (more than {MAX_NESTING} levels are refused)") from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise error(f"{path}: not valid JSON: {exc}") from None
+    return check_structure(data, path, error)
 
 
 def read_yaml(path: str | Path, error: type[LotsenError] = LotsenError, what: str = "file") -> Any:

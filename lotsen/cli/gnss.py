@@ -5,7 +5,9 @@ Columns `t,lat,lon,height,fix_type,h_acc`: t is the receiver's GPS time of week 
 when the receiver had no valid date and time); lat/lon in degrees, height (ellipsoidal) and h_acc
 in metres, fix_type the name of lotsen.messages.GnssFixType (RTK_FIXED, RTK_FLOAT, FIX_3D, ...).
 The capture may mix UBX, NMEA, RTCM3 and garbage (e.g. `cat /dev/ttyAMA1 > capture.ubx`);
-counts of what was skipped go to stderr.
+counts of what was skipped go to stderr. A NAV-PVT claiming a physically impossible fix (latitude
+beyond 90 deg, zero accuracy, RTK fixed at metres, ...; `lotsen.drivers.ubx.implausible_fix`) is
+refused as the driver refuses it: not in the CSV, named on stderr with its iTOW and the reason.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from pathlib import Path
 from typing import Iterator
 
 from lotsen.errors import DataError
+
+_MAX_REFUSALS_SHOWN = 20
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -65,5 +69,10 @@ def run(args: argparse.Namespace) -> int:
     c = result.counters
     print(f"gnss-replay: {len(result.fixes)} NAV-PVT fixes from {c.bytes_in} bytes; {c.ubx_frames} UBX, "
           f"{c.nmea_sentences} NMEA, {c.rtcm_frames} RTCM3 frames; {c.garbage_bytes} garbage bytes, "
-          f"{c.bad_checksums} bad checksums, {result.undecodable} undecodable NAV-PVT", file=sys.stderr)
+          f"{c.bad_checksums} bad checksums, {result.undecodable} undecodable NAV-PVT, "
+          f"{len(result.refused)} refused as physically impossible", file=sys.stderr)
+    for pvt, why in result.refused[:_MAX_REFUSALS_SHOWN]:
+        print(f"gnss-replay: refused NAV-PVT at iTOW {pvt.itow_s:.3f} s: {why}", file=sys.stderr)
+    if len(result.refused) > _MAX_REFUSALS_SHOWN:
+        print(f"gnss-replay: ... and {len(result.refused) - _MAX_REFUSALS_SHOWN} more refused", file=sys.stderr)
     return 0

@@ -1,5 +1,9 @@
 """ESCs, steering servos and tachometers through pigpio (or its emulated twin).
 
+Published with every rpm sample: `ActuatorState` with the measured propeller speeds, the servo
+angles as commanded to the servos (after the guard's and the pulse limits; hobby servos have no
+feedback wire) and `escs_armed` (False during the arming time of neutral pulses after opening).
+
 Chain per thruster: ship_command -> ActuatorGuard (finite, limited, neutral when stale) ->
 arming gate -> propeller-speed loop (PI on the tachometer + calibration feedforward) ->
 pulse-width calibration -> set_servo_pulsewidth. Servos get angle -> pulse directly (hobby
@@ -28,7 +32,7 @@ from lotsen.drivers.config import ActuatorSection, EscCalibration, ServoCalibrat
 from lotsen.messages import ActuatorState, RpmSample, ThrustCommand, Topic
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.runtime.executor import NodeContext
-from lotsen.runtime.nodes.actuator_guard import ActuatorGuard
+from lotsen.runtime.guard import ActuatorGuard
 
 # pigpio constants (same values as the pigpio module, so the emulation needs no import)
 PI_OUTPUT = 1
@@ -282,15 +286,30 @@ class ActuatorNode(DriverNode):
         except OSError as exc:  # pigpiod gone: reconnect (outputs keep their last pulse in the daemon)
             self.error(out, now, "pigpio_errors", f"{self.device}: {exc}")
             self.health.opened = False
+            # not armed until reopened and neutral again for arm_time_s (`open`): we cannot know
+            # what the ESCs see (a restarted pigpiod sends no pulses), and AUTO needs armed ESCs;
+            # said at once, so the supervisor does not go on with the last "armed" it heard
+            was_armed, self.armed, self._armed_at_s = self.armed, False, math.inf
+            if was_armed:
+                self.log(out, now, "warning", f"{self.device} lost: ESCs reported not armed until re-armed")
+            out.append((Topic.ACTUATORS, self._state(now)))
             return out
         self._k += 1
         if self._k % self._rpm_every == 0:
             n = [m.n_meas for m in self.motors]
             self.produced(now)
             out.append((Topic.RPM, RpmSample(stamp_s=now, n1_rps=n[0], n2_rps=n[1], nt_rps=n[2])))
-            out.append((Topic.ACTUATORS, ActuatorState(stamp_s=now, alpha1_rad=a1, alpha2_rad=a2,
-                                                       n1_rps=n[0], n2_rps=n[1], nt_rps=n[2])))
+            out.append((Topic.ACTUATORS, self._state(now)))
         return out
+
+    def _state(self, now: float) -> ActuatorState:
+        """Measured propeller speeds, the servo angles as commanded to the servos (the guard's
+        limits, then the pulse limits and the 1 us resolution of the pulse actually written; no
+        servo feedback) and whether the ESCs finished arming."""
+        n = [m.n_meas for m in self.motors]
+        alpha = [servo_angle(cal, round(us)) for cal, us in zip(self.cfg.servo, self.servo_us)]
+        return ActuatorState(stamp_s=now, alpha1_rad=alpha[0], alpha2_rad=alpha[1], n1_rps=n[0], n2_rps=n[1],
+                             nt_rps=n[2], escs_armed=self.armed)
 
     def _check_tacho(self, m: MotorChannel, n_ref: float, dt: float, out: Out, now: float) -> None:
         """No pulses while clearly driving the motor: the tachometer (or motor) has failed; run

@@ -86,6 +86,14 @@ class ServoCalibration:
     min_us: float = field(default=1000.0, metadata=_r(500.0, 2500.0))
     max_us: float = field(default=2000.0, metadata=_r(500.0, 2500.0))
 
+    def __post_init__(self) -> None:
+        # ValueError: from_mapping turns it into a ConfigError naming the section
+        if self.sign not in (-1.0, 1.0):
+            raise ValueError(f"sign {self.sign!r} must be 1 or -1 (a servo mounted the other way round)")
+        if not self.min_us <= self.center_us <= self.max_us or self.min_us >= self.max_us:
+            raise ValueError(f"pulse limits must satisfy min_us < max_us with center_us between them, got "
+                             f"min_us {self.min_us:g}, center_us {self.center_us:g}, max_us {self.max_us:g}")
+
 
 @dataclass(frozen=True)
 class EscCalibration:
@@ -99,6 +107,14 @@ class EscCalibration:
     n_max_rps: float = field(default=100.0, metadata=_r(1.0, 1000.0))
     n_max_reverse_rps: float = field(default=100.0, metadata=_r(1.0, 1000.0))
     sign: float = field(default=1.0, metadata=_r(-1.0, 1.0))
+
+    def __post_init__(self) -> None:
+        if self.sign not in (-1.0, 1.0):
+            raise ValueError(f"sign {self.sign!r} must be 1 or -1 (a motor wired backwards)")
+        if not self.min_us < self.neutral_us - self.deadband_us or not self.neutral_us + self.deadband_us < self.max_us:
+            raise ValueError(f"pulses must satisfy min_us < neutral_us - deadband_us and neutral_us + deadband_us "
+                             f"< max_us, got min_us {self.min_us:g}, neutral_us {self.neutral_us:g}, deadband_us "
+                             f"{self.deadband_us:g}, max_us {self.max_us:g}")
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from typing import Any, Callable
 from lotsen.drivers.base import DriverNode, Out
 from lotsen.drivers.config import GnssSection
 from lotsen.drivers.ntrip import NtripClient
-from lotsen.drivers.ubx import NavPvt, StreamFramer, ack_of, decode_nav_pvt, valset_message
+from lotsen.drivers.ubx import NavPvt, StreamFramer, ack_of, decode_nav_pvt, implausible_fix, valset_message
 from lotsen.messages import GnssFix, GnssFixType, OperatorCommand, RtcmData, Topic
 from lotsen.runtime.executor import NodeContext
 
@@ -99,6 +99,8 @@ class GnssReceiver:
         self.acks = 0
         self.naks = 0
         self.undecodable = 0
+        self.refused = 0  # physically impossible NAV-PVT (`implausible_fix`): dropped, never published
+        self.last_refusal = ""
         self.last_pvt: NavPvt | None = None
 
     def configuration_bytes(self) -> bytes:
@@ -114,6 +116,11 @@ class GnssReceiver:
                 pvt = decode_nav_pvt(d, now)
                 if pvt is None:
                     self.undecodable += 1
+                    continue
+                why = implausible_fix(pvt.fix)
+                if why is not None:
+                    self.refused += 1
+                    self.last_refusal = f"iTOW {pvt.itow_s:.3f} s: {why}"
                     continue
                 self.last_pvt = pvt
                 fixes.append(pvt.fix)
@@ -155,6 +162,7 @@ class GnssNode(DriverNode):
         self._config_attempts = 0
         self._last_fix: GnssFix | None = None
         self._counted = {"garbage_bytes": 0, "bad_checksums": 0}
+        self._refused_counted = 0
         self._rtcm_write_errors = 0
         self._corrections_stale = False
 
@@ -221,6 +229,12 @@ class GnssNode(DriverNode):
                 self._counted[key] += new
                 self.health.dropped += new
                 self.error(out, now, key, f"{self.device}: {new} {key.replace('_', ' ')}")
+        if rx.refused > self._refused_counted:
+            new = rx.refused - self._refused_counted
+            self._refused_counted = rx.refused
+            self.health.dropped += new
+            self.error(out, now, "implausible_fixes",
+                       f"{self.device}: refused {new} physically impossible NAV-PVT ({rx.last_refusal})")
         age = self.rtcm.age_s(now)
         self._check_corrections(age, out, now)
         for fix in fixes:

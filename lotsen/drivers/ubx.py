@@ -10,10 +10,14 @@ done by pyubx2, the reference implementation of the u-blox interface description
 
 from __future__ import annotations
 
+import bisect
+import heapq
 import math
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
 from typing import Iterator
+
+import numpy as np
 
 from lotsen.messages import GnssFix, GnssFixType
 
@@ -23,8 +27,7 @@ MAX_UBX_PAYLOAD = 8192  # longer "lengths" are garbage (the largest F9P message 
 MAX_NMEA = 120  # NMEA 0183 4.x allows 82 characters; some u-blox PUBX lines are longer
 
 
-def ubx_checksum(data: bytes) -> bytes:
-    """8-bit Fletcher checksum over class, id, length and payload (u-blox interface description)."""
+def _fletcher_py(data: bytes) -> bytes:
     a = b = 0
     for byte in data:
         a = (a + byte) & 0xFF
@@ -32,11 +35,41 @@ def ubx_checksum(data: bytes) -> bytes:
     return bytes((a, b))
 
 
-def crc24q(data: bytes) -> int:
-    """CRC-24Q of RTCM3 (pyrtcm's implementation)."""
-    from pyrtcm.rtcmhelpers import calc_crc24q
+def ubx_checksum(data: bytes) -> bytes:
+    """8-bit Fletcher checksum over class, id, length and payload (u-blox interface description).
 
-    return calc_crc24q(data)
+    ck_a = sum d_k, ck_b = sum of the running sums = sum (n - k) d_k (mod 256): one numpy dot
+    product for long frames, so a false sync claiming 8 kB costs microseconds, not milliseconds."""
+    n = len(data)
+    if n < 64:
+        return _fletcher_py(data)
+    v = np.frombuffer(data, dtype=np.uint8).astype(np.int64)
+    return bytes((int(v.sum()) & 0xFF, int(v @ np.arange(n, 0, -1, dtype=np.int64)) & 0xFF))
+
+
+def _crc24q_table() -> tuple[int, ...]:
+    table = []
+    for i in range(256):
+        crc = i << 16
+        for _ in range(8):
+            crc <<= 1
+            if crc & 0x1000000:
+                crc ^= 0x1864CFB  # CRC-24Q polynomial (RTCM 10403.3, Qualcomm)
+        table.append(crc & 0xFFFFFF)
+    return tuple(table)
+
+
+_CRC24Q = _crc24q_table()
+
+
+def crc24q(data: bytes) -> int:
+    """CRC-24Q of RTCM3, table driven (same values as pyrtcm's bitwise calc_crc24q, ~10x faster);
+    over a whole frame including its CRC the result is 0."""
+    crc = 0
+    table = _CRC24Q
+    for byte in data:
+        crc = ((crc << 8) & 0xFFFFFF) ^ table[(crc >> 16) ^ byte]
+    return crc
 
 
 def nmea_checksum_ok(line: bytes) -> bool:
@@ -69,115 +102,200 @@ class Frame:
     data: bytes  # the whole frame, sync to checksum
 
 
+def _rtcm_number_ok(number: int) -> bool:
+    """RTCM 10403.x message numbers: 1001-1230 assigned (1299 allowed for new ones), 4001-4095
+    proprietary (u-blox 4072). Random bytes hit these ~10 % of the time."""
+    return 1001 <= number <= 1299 or 4001 <= number <= 4095
+
+
+_MARKERS = frozenset(b"\xb5\xd3$\n")
+
+
+def _has_marker(chunk: bytes) -> bool:
+    """Can `chunk` start a frame (UBX sync, RTCM3 preamble, '$') or end an NMEA sentence?"""
+    if len(chunk) == 1:
+        return chunk[0] in _MARKERS
+    return b"\xb5" in chunk or b"\xd3" in chunk or b"$" in chunk or b"\n" in chunk
+
+
+# classification of a candidate frame start
+_BAD, _INCOMPLETE, _COMPLETE = 0, 1, 2
+
+
 class StreamFramer:
-    """Split a byte stream into UBX, NMEA and RTCM3 frames. `feed(chunk)` returns complete frames."""
+    """Split a byte stream into UBX, NMEA and RTCM3 frames. `feed(chunk)` returns complete frames.
+
+    Cost: candidate starts (0xB5 0x62, 0xD3, '$') are found with bytes.find, so garbage between
+    them is skipped at C speed; every candidate is classified and checksummed at most once (the
+    verdicts are kept by stream offset), so a false sync that claims a long length and waits for
+    its bytes does not make each later read rescan the buffer. bench/bench_drivers.py measures it.
+    """
 
     def __init__(self) -> None:
         self._buf = bytearray()
+        self._base = 0  # stream offset of _buf[0]
         self.counters = FramerCounters()
+        # look-ahead past a candidate that waits for its bytes (all stream offsets):
+        self._verdicts: dict[int, bool] = {}  # complete candidates: checksum valid?
+        self._open: list[tuple[int, int]] = []  # heap of (offset where decidable, start) of undecided candidates
+        self._valid_ahead: list[int] = []  # sorted starts of valid complete frames found ahead
+        self._scanned_to = 0  # candidates starting before this have been classified by the look-ahead
+        self._front_wait: int | None = None  # the first candidate waits for bytes up to this offset
 
-    def feed(self, chunk: bytes) -> list[Frame]:
-        self.counters.bytes_in += len(chunk)
-        self._buf += chunk
-        out: list[Frame] = []
+    # -- candidates ---------------------------------------------------------------------------
+    @staticmethod
+    def _next_start(buf: bytearray, i: int, n: int) -> int:
+        """First candidate frame start in buf[i:n], or n."""
+        best = n
+        for marker in (UBX_SYNC, b"\xd3", b"$"):
+            p = buf.find(marker, i, best)
+            if p >= 0:
+                best = p
+        return best
+
+    def _classify(self, c: int, n: int) -> tuple[int, int]:
+        """(_BAD | _INCOMPLETE | _COMPLETE, end) of the candidate at buf[c]; for _INCOMPLETE `end`
+        is the buffer length at which it can be classified again."""
         buf = self._buf
-        i = 0
-        n = len(buf)
-        while i < n:
-            b0 = buf[i]
+        b0 = buf[c]
+        if b0 == 0xB5:
+            if c + 6 > n:
+                return _INCOMPLETE, c + 6
+            length = buf[c + 4] | (buf[c + 5] << 8)
+            if length > MAX_UBX_PAYLOAD:
+                return _BAD, 0
+            end = c + 8 + length
+        elif b0 == RTCM_PREAMBLE:
+            if c + 3 > n:
+                return _INCOMPLETE, c + 3
+            if buf[c + 1] & 0xFC:  # 6 reserved bits must be zero
+                return _BAD, 0
+            length = ((buf[c + 1] & 0x03) << 8) | buf[c + 2]
+            if length >= 2:  # the payload starts with the 12-bit message number
+                if c + 5 > n:
+                    return _INCOMPLETE, c + 5
+                if not _rtcm_number_ok((buf[c + 3] << 4) | (buf[c + 4] >> 4)):
+                    return _BAD, 0  # no CRC over up to 1 kB for a preamble in noise
+            end = c + 6 + length
+        else:  # '$'
+            lf = buf.find(b"\n", c, min(n, c + MAX_NMEA))
+            if lf < 0:
+                return (_BAD, 0) if n - c >= MAX_NMEA else (_INCOMPLETE, c + MAX_NMEA)
+            end = lf + 1
+        return (_COMPLETE, end) if end <= n else (_INCOMPLETE, end)
+
+    def _check(self, c: int, end: int) -> bool:
+        """Is the complete candidate buf[c:end] a valid frame? (memoised by stream offset)"""
+        key = self._base + c
+        ok = self._verdicts.get(key)
+        if ok is None:
+            buf = self._buf
+            b0 = buf[c]
             if b0 == 0xB5:
-                if i + 1 >= n:
-                    break
-                if buf[i + 1] != 0x62:
-                    i = self._skip(i)
-                    continue
-                if i + 6 > n:
-                    break
-                length = buf[i + 4] | (buf[i + 5] << 8)
-                if length > MAX_UBX_PAYLOAD:
-                    i = self._skip(i)
-                    continue
-                end = i + 6 + length + 2
-                if end > n:
-                    if self._complete_frame_after(i + 1, n):
-                        i = self._skip(i)  # a false sync with a long "length" must not hold up real frames
-                        continue
-                    break
-                frame = bytes(buf[i:end])
-                if ubx_checksum(frame[2:-2]) != frame[-2:]:
-                    self.counters.bad_checksums += 1
-                    i = self._skip(i)
-                    continue
-                self.counters.ubx_frames += 1
-                out.append(Frame("ubx", frame))
-                i = end
+                ok = ubx_checksum(bytes(buf[c + 2:end - 2])) == bytes(buf[end - 2:end])
             elif b0 == RTCM_PREAMBLE:
-                if i + 3 > n:
-                    break
-                if buf[i + 1] & 0xFC:  # 6 reserved bits must be zero
-                    i = self._skip(i)
-                    continue
-                length = ((buf[i + 1] & 0x03) << 8) | buf[i + 2]
-                end = i + 3 + length + 3
-                if end > n:
-                    if self._complete_frame_after(i + 1, n):
-                        i = self._skip(i)
-                        continue
-                    break
-                frame = bytes(buf[i:end])
-                if crc24q(frame) != 0:  # CRC over the frame including its CRC is zero
-                    self.counters.bad_checksums += 1
-                    i = self._skip(i)
-                    continue
-                self.counters.rtcm_frames += 1
-                out.append(Frame("rtcm", frame))
-                i = end
-            elif b0 == 0x24:  # '$'
-                lf = buf.find(b"\n", i, i + MAX_NMEA)
-                if lf < 0:
-                    if n - i >= MAX_NMEA:
-                        i = self._skip(i)
-                        continue
-                    break
-                line = bytes(buf[i:lf + 1]).rstrip(b"\r\n")
-                if nmea_checksum_ok(line):
-                    self.counters.nmea_sentences += 1
-                    out.append(Frame("nmea", line))
-                    i = lf + 1
-                else:
-                    self.counters.bad_checksums += 1
-                    i = self._skip(i)
+                ok = crc24q(bytes(buf[c:end])) == 0
             else:
-                i = self._skip(i)
-        del buf[:i]
+                ok = nmea_checksum_ok(bytes(buf[c:end]).rstrip(b"\r\n"))
+            self._verdicts[key] = ok
+        return ok
+
+    def _valid_frame_after(self, c: int, n: int) -> bool:
+        """Does a complete, valid frame start in buf[c+1:n]? Incremental: candidates classified
+        by an earlier call are only looked at again once enough bytes arrived to decide them."""
+        base = self._base
+        while self._open and self._open[0][0] <= base + n:
+            _, start = heapq.heappop(self._open)
+            self._look(start - base, n)
+        i = max(self._scanned_to - base, c + 1)
+        while i < n:
+            p = self._next_start(self._buf, i, n)
+            if p >= n:
+                break
+            self._look(p, n)
+            i = p + 1
+        # a trailing 0xB5 may become a sync with the next byte: scan it again then
+        self._scanned_to = max(self._scanned_to, base + n - (self._buf[n - 1] == 0xB5))
+        k = bisect.bisect_right(self._valid_ahead, base + c)
+        return k < len(self._valid_ahead)
+
+    def _look(self, p: int, n: int) -> None:
+        kind, end = self._classify(p, n)
+        if kind == _COMPLETE:
+            if self._check(p, end):
+                bisect.insort(self._valid_ahead, self._base + p)
+        elif kind == _INCOMPLETE:
+            heapq.heappush(self._open, (self._base + end, self._base + p))
+
+    # -- feeding ------------------------------------------------------------------------------
+    def feed(self, chunk: bytes) -> list[Frame]:
+        c_ = self.counters
+        c_.bytes_in += len(chunk)
+        buf = self._buf
+        # fast paths for small reads (a port read byte by byte): bytes that cannot start or end
+        # a frame (no sync, preamble, '$' or newline) change nothing while the buffer is empty
+        # or while its first candidate and every look-ahead candidate still wait for bytes
+        if not _has_marker(chunk) and not (buf and buf[-1] == 0xB5):
+            if not buf:
+                c_.garbage_bytes += len(chunk)
+                return []
+            wait = self._front_wait
+            if wait is not None:
+                reach = self._base + len(buf) + len(chunk)
+                if reach < wait and (not self._open or reach < self._open[0][0]):
+                    buf += chunk
+                    return []
+        self._front_wait = None
+        buf += chunk
+        n = len(buf)
+        out: list[Frame] = []
+        i = 0
+        while i < n:
+            c = self._next_start(buf, i, n)
+            if c >= n:
+                hold = 1 if buf[n - 1] == 0xB5 else 0  # may be the first half of a sync
+                c_.garbage_bytes += n - hold - i
+                i = n - hold
+                break
+            c_.garbage_bytes += c - i
+            i = c
+            kind, end = self._classify(c, n)
+            if kind == _COMPLETE:
+                if self._check(c, end):
+                    b0 = buf[c]
+                    if b0 == 0xB5:
+                        c_.ubx_frames += 1
+                        out.append(Frame("ubx", bytes(buf[c:end])))
+                    elif b0 == RTCM_PREAMBLE:
+                        c_.rtcm_frames += 1
+                        out.append(Frame("rtcm", bytes(buf[c:end])))
+                    else:
+                        c_.nmea_sentences += 1
+                        out.append(Frame("nmea", bytes(buf[c:end]).rstrip(b"\r\n")))
+                    i = end
+                    continue
+                c_.bad_checksums += 1
+            elif kind == _INCOMPLETE and not self._valid_frame_after(c, n):
+                self._front_wait = self._base + end  # stream offset at which it can be decided
+                break  # wait for the rest of this frame
+            # a bad header, checksum, or a false sync that must not hold up the frames after it:
+            # resynchronise one byte later (a real frame may begin inside the false one)
+            c_.garbage_bytes += 1
+            i = c + 1
+        if i:
+            del buf[:i]
+            self._base += i
+            self._forget_before(self._base)
         return out
 
-    def _complete_frame_after(self, start: int, n: int) -> bool:
-        """Is there a complete, checksum-valid UBX or RTCM3 frame in buf[start:n]? (bytes.find
-        does the scanning, so waiting on a long candidate costs little.)"""
-        buf = self._buf
-        j = start
-        while True:
-            j = buf.find(b"\xb5\x62", j, n)
-            if j < 0 or j + 8 > n:
-                break
-            end = j + 8 + (buf[j + 4] | (buf[j + 5] << 8))
-            if end <= n and ubx_checksum(bytes(buf[j + 2:end - 2])) == bytes(buf[end - 2:end]):
-                return True
-            j += 1
-        j = start
-        while True:
-            j = buf.find(b"\xd3", j, n)
-            if j < 0 or j + 6 > n:
-                return False
-            end = j + 6 + (((buf[j + 1] & 0x03) << 8) | buf[j + 2])
-            if not buf[j + 1] & 0xFC and end <= n and crc24q(bytes(buf[j:end])) == 0:
-                return True
-            j += 1
-
-    def _skip(self, i: int) -> int:
-        self.counters.garbage_bytes += 1
-        return i + 1
+    def _forget_before(self, offset: int) -> None:
+        if self._verdicts:
+            self._verdicts = {k: v for k, v in self._verdicts.items() if k >= offset}
+        if self._valid_ahead and self._valid_ahead[0] < offset:
+            self._valid_ahead = self._valid_ahead[bisect.bisect_left(self._valid_ahead, offset):]
+        if self._open and min(s for _, s in self._open) < offset:
+            self._open = [e for e in self._open if e[1] >= offset]
+            heapq.heapify(self._open)
 
     @property
     def pending(self) -> int:
@@ -257,6 +375,45 @@ def decode_nav_pvt(frame: bytes, stamp_s: float = math.nan) -> NavPvt | None:
         except (ValueError, OverflowError):
             utc = None
     return NavPvt(itow_ms=int(msg.iTOW), utc=utc, fix=fix)
+
+
+# Physical plausibility of a decoded fix. A checksum only proves the bytes arrived as sent: a
+# receiver bug, a spoofer, an edited capture or a frame built by hand can still claim a position
+# that cannot exist. Such a fix is refused (counted, never published as usable).
+MIN_HEIGHT_M = -1_000.0  # ellipsoidal height: the Dead Sea shore is ~-430 m, the geoid ~-106 m
+MAX_HEIGHT_M = 10_000.0  # higher than any water a boat floats on (and than a test flight)
+MAX_GROUND_SPEED_MPS = 100.0  # 360 km/h: far beyond the boat, a car or a bike carrying the receiver
+RTK_FIXED_MAX_H_ACC_M = 1.0  # ambiguity-fixed RTK is accurate to centimetres; 1 m contradicts it
+
+
+def implausible_fix(fix: GnssFix) -> str | None:
+    """Why a fix that claims a position (2D or better) is physically impossible; None when it is
+    plausible or claims no position at all (NO_FIX / dead reckoning carry NaN coordinates)."""
+    ft = fix.fix_type
+    if ft < GnssFixType.FIX_2D:
+        return None
+    name = ft.name
+    lat, lon = fix.lat_deg, fix.lon_deg
+    if not (math.isfinite(lat) and -90.0 <= lat <= 90.0):
+        return f"{name} at latitude {lat:.7f} deg (outside [-90, 90])"
+    if not (math.isfinite(lon) and -180.0 <= lon <= 180.0):
+        return f"{name} at longitude {lon:.7f} deg (outside [-180, 180])"
+    if not fix.h_acc_m > 0.0:  # NaN too
+        return f"{name} with horizontal accuracy {fix.h_acc_m * 1000:.0f} mm (must be > 0)"
+    if ft == GnssFixType.RTK_FIXED and fix.h_acc_m > RTK_FIXED_MAX_H_ACC_M:
+        return (f"RTK_FIXED with horizontal accuracy {fix.h_acc_m:.3f} m (an ambiguity-fixed solution is "
+                f"accurate to centimetres; > {RTK_FIXED_MAX_H_ACC_M:g} m contradicts it)")
+    if ft >= GnssFixType.FIX_3D:
+        if not fix.v_acc_m > 0.0:
+            return f"{name} with vertical accuracy {fix.v_acc_m * 1000:.0f} mm (must be > 0)"
+        if not MIN_HEIGHT_M <= fix.height_m <= MAX_HEIGHT_M:
+            return f"{name} at height {fix.height_m:.3f} m (outside [{MIN_HEIGHT_M:g}, {MAX_HEIGHT_M:g}] m)"
+    speed = math.hypot(fix.vel_n_mps, fix.vel_e_mps)
+    if speed > MAX_GROUND_SPEED_MPS:  # NaN velocities (not reported) pass
+        return f"{name} with ground speed {speed:.1f} m/s (more than {MAX_GROUND_SPEED_MPS:g} m/s)"
+    if fix.num_sv <= 0:
+        return f"{name} from {fix.num_sv} satellites"
+    return None
 
 
 def _deg7(deg: float) -> float:
@@ -340,10 +497,12 @@ class ReplayResult:
     fixes: list[NavPvt] = field(default_factory=list)
     counters: FramerCounters = field(default_factory=FramerCounters)
     undecodable: int = 0
+    refused: list[tuple[NavPvt, str]] = field(default_factory=list)  # physically impossible, with the reason
 
 
 def replay_stream(chunks: Iterator[bytes]) -> ReplayResult:
-    """All NAV-PVT solutions of a recorded byte stream (any mix of UBX, NMEA, RTCM, garbage)."""
+    """All NAV-PVT solutions of a recorded byte stream (any mix of UBX, NMEA, RTCM, garbage);
+    physically impossible ones (`implausible_fix`) go to `refused`, not `fixes`."""
     framer = StreamFramer()
     result = ReplayResult(counters=framer.counters)
     for chunk in chunks:
@@ -352,6 +511,8 @@ def replay_stream(chunks: Iterator[bytes]) -> ReplayResult:
                 pvt = decode_nav_pvt(frame.data)
                 if pvt is None:
                     result.undecodable += 1
+                elif (why := implausible_fix(pvt.fix)) is not None:
+                    result.refused.append((pvt, why))
                 else:
                     result.fixes.append(pvt)
     return result

@@ -22,9 +22,9 @@ import os
 import re
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 from lotsen.errors import ConfigError
 from lotsen.logs import foxglove_views
@@ -33,20 +33,49 @@ from lotsen.transport import codec
 
 LOG_FORMAT_VERSION = "1"
 PROFILE = ""  # no MCAP profile: JSON and protobuf channels
-_RUN_RE = re.compile(r"_run(\d+)\.mcap$")
+_RUN_RE = re.compile(r"_run(\d+)(?:\.recovered)?\.mcap$")  # recovered runs keep their number
+
+
+def _r(lo: float, hi: float) -> dict:
+    return {"range": (lo, hi)}
 
 
 @dataclass(frozen=True)
 class RecorderConfig:
+    """Recorder settings (`extra.logs` in the launch config). The ranges are checked by
+    `from_mapping` (the error names the key) and again here for direct construction."""
+
     directory: str = "logs"
-    queue_maxlen: int = 20000  # ~10 s of the sim stack's ~1.5 k msg/s before drop-oldest
-    flush_period_s: float = 0.5  # chunk closed and file flushed this often (crash loses <= ~1 s)
+    # ~10 s of the sim stack's ~1.5 k msg/s before drop-oldest; 0 would silently record nothing
+    queue_maxlen: int = field(default=20000, metadata=_r(1, 10_000_000))
+    # chunk closed and file flushed this often (a crash loses <= ~2 flush periods)
+    flush_period_s: float = field(default=0.5, metadata=_r(0.01, 60.0))
     fsync: bool = True  # survive a power cut too, not only a killed process
-    compression: str = "zstd"  # "zstd", "lz4" or "none"
-    chunk_size: int = 4 * 1024 * 1024  # upper bound; chunks are normally closed by the flush period
+    compression: Literal["zstd", "lz4", "none"] = "zstd"
+    # upper bound; chunks are normally closed by the flush period
+    chunk_size: int = field(default=4 * 1024 * 1024, metadata=_r(1024, 1 << 30))
     foxglove_views: bool = True
     topics: tuple[str, ...] | None = None  # None: every topic
     geo_origin: tuple[float, float, float] | None = None  # lat, lon, h of the NED origin (map view of the estimate)
+
+    def __post_init__(self) -> None:
+        where = "recorder"
+        if not isinstance(self.directory, (str, os.PathLike)) or not str(self.directory).strip():
+            raise ConfigError(f"{where}.directory: expected a directory name, got {self.directory!r}")
+        for f in fields(self):
+            rng = f.metadata.get("range")
+            v = getattr(self, f.name)
+            if rng is None:
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and rng[0] <= v <= rng[1]):
+                raise ConfigError(f"{where}.{f.name}: {v!r} outside the allowed range [{rng[0]}, {rng[1]}]")
+        if self.compression not in ("zstd", "lz4", "none"):
+            raise ConfigError(f"{where}.compression: {self.compression!r} is not one of zstd, lz4, none")
+        if self.geo_origin is not None:
+            lat, lon, h = self.geo_origin
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and math.isfinite(h)):
+                raise ConfigError(f"{where}.geo_origin: latitude {lat!r} / longitude {lon!r} / height {h!r} "
+                                  "out of range ([-90, 90], [-180, 180], finite)")
 
 
 @dataclass
@@ -86,8 +115,8 @@ class _Session:
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
         if config.compression not in comp:
             raise ConfigError(f"logging: compression {config.compression!r} is not one of {', '.join(comp)}")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(path, "wb")
+        self._file = _open_log_file(path)
+        _lock_for_writing(self._file)
         self._writer = Writer(self._file, chunk_size=config.chunk_size, compression=comp[config.compression])
         from lotsen import __version__
 
@@ -191,9 +220,51 @@ class _Session:
             if self.config.fsync:
                 os.fsync(self._file.fileno())
             self.stats.bytes = self._file.tell()
+        except OSError as exc:  # disk full or gone at shutdown: the file stays unclosed (`lotsen recover`)
+            self.stats.last_error = f"closing {self.path}: {exc.strerror or exc}"
         finally:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                pass
         return self.stats
+
+
+def ensure_log_directory(directory: str | os.PathLike) -> Path:
+    """Create the log directory if needed and check that files can be made in it; a ConfigError
+    naming it instead of an OSError (`lotsen run` calls this before any process starts)."""
+    d = Path(directory)
+    if d.exists() and not d.is_dir():
+        raise ConfigError(f"logging.directory {str(d)!r}: exists and is not a directory")
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"logging.directory {str(d)!r}: cannot create the log directory: "
+                          f"{exc.strerror or exc}") from None
+    if not os.access(d, os.W_OK | os.X_OK):
+        raise ConfigError(f"logging.directory {str(d)!r}: no permission to create files in it")
+    return d
+
+
+def _open_log_file(path: Path):  # noqa: ANN202 - a binary file object
+    """Create the directory and the file; a ConfigError naming them instead of an OSError."""
+    d = ensure_log_directory(path.parent)
+    try:
+        return open(path, "wb")
+    except OSError as exc:
+        raise ConfigError(f"logging.directory {str(d)!r}: cannot create log file {path.name}: "
+                          f"{exc.strerror or exc}") from None
+
+
+def _lock_for_writing(f: Any) -> None:
+    """An advisory lock held while the file is written, so `recover_directory` leaves a file that
+    another process is still recording alone (a killed writer's lock goes with it)."""
+    try:
+        import fcntl
+
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except (ImportError, OSError):  # no fcntl (Windows) or a file system without locks
+        pass
 
 
 def _schema_args(name: str) -> tuple[str, Callable[[], bytes]]:
@@ -251,11 +322,15 @@ class McapRecorder:
         return s.stats if s else None
 
     def start(self, path: str | os.PathLike | None = None) -> Path:
-        """Open a new file (named by date and run unless `path`) and record into it."""
+        """Open a new file (named by date and run unless `path`) and record into it. A directory
+        or file that cannot be created is a ConfigError naming it."""
         with self._lock:
             if self._session is not None:
                 return self._session.path
-            p = Path(path) if path is not None else next_log_path(self.config.directory)
+            try:
+                p = Path(path) if path is not None else next_log_path(self.config.directory)
+            except OSError as exc:  # an unreadable directory
+                raise ConfigError(f"logging.directory {self.config.directory!r}: {exc.strerror or exc}") from None
             self._session = _Session(p, self.config, self._epoch0_ns, self._metadata)
             return p
 

@@ -67,9 +67,11 @@ class VesselParameters:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "parameters") -> "VesselParameters":
-        """Build from a mapping; unknown keys are an error, missing keys take the defaults.
-
-        A `std` entry (written by identification) is ignored.
+        """Build from a mapping (a params.json, a config): the boundary where values are checked.
+        Unknown keys, non-numbers and values outside the physical range of the field metadata
+        are ConfigErrors naming parameter, value and range; missing keys take the defaults.
+        A `std` entry (written by identification) is ignored. (The constructor checks only
+        finiteness, so identification may evaluate vectors outside the ranges.)
         """
         if not isinstance(data, Mapping):
             raise ConfigError(f"{source}: expected a mapping of parameter names to numbers")
@@ -82,7 +84,18 @@ class VesselParameters:
                 raise ConfigError(f"{source}: unknown parameter {key!r} (known: {', '.join(cls.names())})")
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ConfigError(f"{source}: {key} = {value!r} is not a number")
-            values[key] = float(value)
+            try:
+                v = float(value)
+            except OverflowError:  # an integer literal too large for a float
+                raise ConfigError(f"{source}: {key} = {str(value)[:20]}... is too large") from None
+            if not math.isfinite(v):
+                raise ConfigError(f"{source}: {key} = {value!r} is not a finite number")
+            f = cls.__dataclass_fields__[key]
+            lo, hi = f.metadata["range"]
+            if not lo <= v <= hi:
+                raise ConfigError(f"{source}: {key} = {v:g} {f.metadata['unit']} outside its physical range "
+                                  f"[{lo:g}, {hi:g}] ({f.metadata['doc']})")
+            values[key] = v
         return cls(**values)
 
     def with_updates(self, **changes: float) -> "VesselParameters":

@@ -39,11 +39,23 @@ _TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin"}
 # --------------------------------------------------------------------------------------------
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
-    v = float(value)
+        raise ConfigError(f"{where}: expected a number, got {_short(value)}")
+    try:
+        v = float(value)
+    except OverflowError:  # an integer literal beyond the float range (e.g. 400 digits)
+        raise ConfigError(f"{where}: integer with {len(str(abs(value)))} digits is too large") from None
     if not math.isfinite(v):
         raise ConfigError(f"{where}: {value!r} is not a finite number")
     return v
+
+
+def _short(value: Any, limit: int = 60) -> str:
+    """repr for a message, cut short (a hostile file must not produce a megabyte error)."""
+    try:
+        text = repr(value)
+    except RecursionError:
+        return f"a deeply nested {type(value).__name__}"
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _mapping(value: Any, where: str, required: set[str], optional: set[str] = frozenset()) -> dict:
@@ -66,7 +78,7 @@ def _polygon(value: Any, where: str) -> tuple[tuple[float, float], ...]:
     out = []
     for j, p in enumerate(value):
         if not isinstance(p, (list, tuple)) or len(p) != 2:
-            raise ConfigError(f"{where}[{j}]: expected [north, east], got {p!r}")
+            raise ConfigError(f"{where}[{j}]: expected [north, east], got {_short(p)}")
         out.append((_number(p[0], f"{where}[{j}][0]"), _number(p[1], f"{where}[{j}][1]")))
     if len(out) > 3 and out[0] == out[-1]:
         out.pop()  # accept closed rings
@@ -103,7 +115,7 @@ def route_from_dict(data: Any, *, validate: bool = True) -> Route:
             o = _mapping(o, w, {"polygon"}, {"forbidden"})
             forbidden = o.get("forbidden", "inside")
             if forbidden not in ("inside", "outside"):
-                raise ConfigError(f"{w}.forbidden: must be 'inside' or 'outside', got {forbidden!r}")
+                raise ConfigError(f"{w}.forbidden: must be 'inside' or 'outside', got {_short(forbidden)}")
             obstacles.append(Region(_polygon(o["polygon"], f"{w}.polygon"), forbidden))
         else:
             obstacles.append(Region(_polygon(o, w), "inside"))
@@ -188,7 +200,7 @@ def _to_lonlat(north: float, east: float, o: GeoOrigin) -> list[float]:
 
 def _to_ne(lonlat: Any, o: GeoOrigin, where: str) -> tuple[float, float]:
     if not isinstance(lonlat, (list, tuple)) or len(lonlat) < 2:
-        raise ConfigError(f"{where}: expected [longitude, latitude], got {lonlat!r}")
+        raise ConfigError(f"{where}: expected [longitude, latitude], got {_short(lonlat)}")
     lon, lat = _number(lonlat[0], f"{where}[0]"), _number(lonlat[1], f"{where}[1]")
     n, e, _ = pymap3d.geodetic2ned(lat, lon, o.height_m, o.lat_deg, o.lon_deg, o.height_m)
     return float(n), float(e)
@@ -222,6 +234,12 @@ def route_to_geojson(route: Route, origin: GeoOrigin | None = None) -> dict:
             "lotsen_origin": {"lat_deg": o.lat_deg, "lon_deg": o.lon_deg, "height_m": o.height_m}}
 
 
+def _geo_origin(lat: float, lon: float, height: float, where: str) -> GeoOrigin:
+    if not -90.0 <= lat <= 90.0 or not -180.0 <= lon <= 180.0:
+        raise ConfigError(f"{where}: latitude {lat:g} / longitude {lon:g} out of range ([-90, 90], [-180, 180])")
+    return GeoOrigin(lat, lon, height)
+
+
 def route_from_geojson(data: Any, origin: GeoOrigin | None = None) -> Route:
     """Inverse of route_to_geojson. Origin: argument, else ``lotsen_origin``, else the harbour point."""
     if not isinstance(data, dict) or data.get("type") != "FeatureCollection":
@@ -229,32 +247,41 @@ def route_from_geojson(data: Any, origin: GeoOrigin | None = None) -> Route:
     feats = data.get("features")
     if not isinstance(feats, list):
         raise ConfigError("geojson.features: expected a list")
-    by_role: dict[str, list[tuple[int, dict]]] = {"harbour": [], "node": [], "area": [], "obstacle": []}
+    by_role: dict[str, list[tuple[int, dict, dict]]] = {"harbour": [], "node": [], "area": [], "obstacle": []}
     for j, f in enumerate(feats):
         where = f"geojson.features[{j}]"
         if not isinstance(f, dict) or not isinstance(f.get("geometry"), dict):
             raise ConfigError(f"{where}: expected a Feature with a geometry")
-        role = (f.get("properties") or {}).get("role")
-        if role not in by_role:
-            raise ConfigError(f"{where}.properties.role: expected one of {sorted(by_role)}, got {role!r}")
+        props = f.get("properties")
+        if props is None:
+            props = {}
+        if not isinstance(props, dict):
+            raise ConfigError(f"{where}.properties: expected a mapping, got {_short(props)}")
+        role = props.get("role")
+        if not isinstance(role, str) or role not in by_role:
+            raise ConfigError(f"{where}.properties.role: expected one of {sorted(by_role)}, got {_short(role)}")
         gtype = "Point" if role in ("harbour", "node") else "Polygon"
         if f["geometry"].get("type") != gtype:
-            raise ConfigError(f"{where}: a {role} must be a {gtype}, got {f['geometry'].get('type')!r}")
-        by_role[role].append((j, f))
+            raise ConfigError(f"{where}: a {role} must be a {gtype}, got {_short(f['geometry'].get('type'))}")
+        if "index" in props:
+            _number(props["index"], f"{where}.properties.index")
+        by_role[role].append((j, f, props))
     if len(by_role["harbour"]) != 1:
         raise ConfigError(f"geojson: expected exactly one harbour point, got {len(by_role['harbour'])}")
     if len(by_role["area"]) > 1:
         raise ConfigError(f"geojson: expected at most one area polygon, got {len(by_role['area'])}")
     if origin is None and data.get("lotsen_origin") is not None:
         lo = _mapping(data["lotsen_origin"], "geojson.lotsen_origin", {"lat_deg", "lon_deg"}, {"height_m"})
-        origin = GeoOrigin(_number(lo["lat_deg"], "lotsen_origin.lat_deg"),
-                           _number(lo["lon_deg"], "lotsen_origin.lon_deg"),
-                           _number(lo.get("height_m", 0.0), "lotsen_origin.height_m"))
-    j_h, f_h = by_role["harbour"][0]
+        origin = _geo_origin(_number(lo["lat_deg"], "lotsen_origin.lat_deg"),
+                             _number(lo["lon_deg"], "lotsen_origin.lon_deg"),
+                             _number(lo.get("height_m", 0.0), "lotsen_origin.height_m"), "geojson.lotsen_origin")
+    j_h, f_h, props_h = by_role["harbour"][0]
     if origin is None:
         c = f_h["geometry"].get("coordinates")
-        origin = GeoOrigin(_number(c[1], f"geojson.features[{j_h}] latitude"),
-                           _number(c[0], f"geojson.features[{j_h}] longitude"))
+        where = f"geojson.features[{j_h}].coordinates"
+        if not isinstance(c, (list, tuple)) or len(c) < 2:
+            raise ConfigError(f"{where}: expected [longitude, latitude], got {_short(c)}")
+        origin = _geo_origin(_number(c[1], f"{where}[1]"), _number(c[0], f"{where}[0]"), 0.0, where)
 
     def point(j: int, f: dict) -> tuple[float, float]:
         return _to_ne(f["geometry"].get("coordinates"), origin, f"geojson.features[{j}].coordinates")
@@ -266,22 +293,22 @@ def route_from_geojson(data: Any, origin: GeoOrigin | None = None) -> Route:
             raise ConfigError(f"{where}: expected a list of rings")
         return [list(_to_ne(p, origin, f"{where}[0][{k}]")) for k, p in enumerate(rings[0])]
 
-    props_h = f_h.get("properties") or {}
+    def order(items: list[tuple[int, dict, dict]]) -> list[tuple[int, dict, dict]]:
+        return sorted(items, key=lambda jfp: float(jfp[2].get("index", jfp[0])))
+
     hn, he = point(j_h, f_h)
-    nodes = sorted(by_role["node"], key=lambda jf: (jf[1].get("properties") or {}).get("index", jf[0]))
     d: dict[str, Any] = {
         "harbour": {"north": hn, "east": he, "heading_deg": props_h.get("heading_deg", 0.0)},
         "nodes": [], "obstacles": []}
-    for j, f in nodes:
-        p = f.get("properties") or {}
+    for j, f, p in order(by_role["node"]):
         n, e = point(j, f)
         if "speed_mps" not in p or "heading_deg" not in p:
             raise ConfigError(f"geojson.features[{j}].properties: a node needs heading_deg and speed_mps")
         d["nodes"].append({"north": n, "east": e, "heading_deg": p["heading_deg"], "speed_mps": p["speed_mps"]})
     if by_role["area"]:
-        d["area"] = polygon(*by_role["area"][0])
-    for j, f in sorted(by_role["obstacle"], key=lambda jf: (jf[1].get("properties") or {}).get("index", jf[0])):
-        d["obstacles"].append({"polygon": polygon(j, f),
-                               "forbidden": (f.get("properties") or {}).get("forbidden", "inside")})
+        j, f, _ = by_role["area"][0]
+        d["area"] = polygon(j, f)
+    for j, f, p in order(by_role["obstacle"]):
+        d["obstacles"].append({"polygon": polygon(j, f), "forbidden": p.get("forbidden", "inside")})
     d["origin"] = {"lat_deg": origin.lat_deg, "lon_deg": origin.lon_deg, "height_m": origin.height_m}
     return route_from_dict(d)

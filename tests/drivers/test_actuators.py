@@ -116,3 +116,36 @@ def test_silent_tachometer_is_reported_and_the_loop_falls_back_to_feedforward():
     assert node.motors[0].tacho_fault and not node.motors[1].tacho_fault
     assert pi.pulse_us[16] == round(esc_us(cfg.esc[0], 40.0))  # feedforward only, no windup
     assert node.motors[1].n_meas == pytest.approx(40.0, rel=0.05)
+
+
+def test_escs_armed_is_reported_truthfully_through_arming_and_a_lost_pigpio_link():
+    """AUTO needs armed ESCs (the supervisor refuses it otherwise): the driver's ActuatorState
+    says False during the arming time, True after it, False at once when the pigpio link is lost,
+    and True again only after reopening and a new arming time of neutral pulses."""
+    from lotsen.messages import ActuatorState, Topic
+
+    cfg = ActuatorSection(arm_time_s=1.0, speed_loop=SpeedLoopGains(enabled=False))
+    pi = EmulatedPigpio()
+    node = ActuatorNode(cfg, lambda: pi, command_deadline_s=0.5)
+    node.reopen_s = 0.1
+    link_down = (2.0, 2.5)
+    real_tick = pi.get_current_tick
+
+    def tick():
+        if link_down[0] <= t < link_down[1]:
+            raise OSError("pigpio: connection reset")
+        return real_tick()
+
+    pi.get_current_tick = tick
+    states: list[tuple[float, bool]] = []
+    for k in range(451):
+        t = k * node.period_s
+        pi.tick_us = int(t * 1e6)
+        node.guard.accept(ThrustCommand.from_tuple(t, (0.0, 0.0, 30.0, 30.0, 0.0)), t)
+        states += [(t, m.escs_armed) for topic, m in node.step(t) if topic == Topic.ACTUATORS
+                   and isinstance(m, ActuatorState)]
+    armed = lambda a, b: {v for s, v in states if a <= s < b}  # noqa: E731
+    assert armed(0.0, 0.99) == {False} and armed(1.05, 2.0) == {True}
+    assert (2.0, False) in states  # said at the moment the link broke
+    # reopened at ~2.5 s: neutral again for arm_time_s before "armed"
+    assert armed(2.0, 3.49) == {False} and armed(3.6, 4.5) == {True}

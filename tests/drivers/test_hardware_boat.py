@@ -9,13 +9,14 @@ import pytest
 import yaml
 
 from lotsen.cli.main import main
-from lotsen.drivers import HardwareConfig, add_hardware_boat, hardware_config_from_launch
+from lotsen.drivers import HardwareConfig, hardware_config_from_launch
+from lotsen.stack.hardware import add_hardware_boat
 from lotsen.errors import ConfigError
 from lotsen.messages import ThrustCommand, Topic
 from lotsen.model import VesselModel
 from lotsen.runtime.config import LaunchConfig, from_mapping
 from lotsen.runtime.executor import SimExecutor
-from lotsen.runtime.launch import Stack
+from lotsen.stack.stack import Stack
 
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy" / "hardware.yaml"
 COMMAND = (0.15, 0.15, 40.0, 40.0, -20.0)

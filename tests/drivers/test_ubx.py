@@ -130,3 +130,92 @@ def test_a_false_sync_with_a_long_length_does_not_hold_up_real_frames():
     found = framer.feed(false_sync + VALID[0] + VALID[1])
     assert [f.data for f in found] == [VALID[0], VALID[1]]
     assert framer.pending == 0
+
+
+# -- physically impossible fixes (issue 14 point 8) ---------------------------------------------
+
+GOOD = EXPECTED[2]  # RTK_FIXED, 14 mm
+IMPOSSIBLE = {  # (lat, lon, height mm, fixType, carrSoln, hAcc mm) -> what the refusal names
+    "issue": ((91.0, 200.0, 10_000, 3, 2, 0), "latitude 91.0000000 deg"),
+    "longitude": ((57.69, 200.0, 10_000, 3, 0, 1500), "longitude 200.0000000 deg"),
+    "zero accuracy": ((57.69, 11.97, 10_000, 3, 2, 0), "horizontal accuracy 0 mm"),
+    "rtk fixed at metres": ((57.69, 11.97, 10_000, 3, 2, 5_000), "RTK_FIXED with horizontal accuracy 5.000 m"),
+    "in orbit": ((57.69, 11.97, 400_000_000, 3, 0, 1500), "height 400000.000 m"),
+}
+
+
+def test_gnss_replay_refuses_physically_impossible_fixes_naming_the_value(tmp_path, capsys):
+    for name, (row, expected) in IMPOSSIBLE.items():
+        capture = tmp_path / f"{name}.ubx"
+        capture.write_bytes(nav_pvt(379_000_000, *row) + nav_pvt(*GOOD))
+        assert main(["gnss-replay", str(capture)]) == 0, name
+        out, err = capsys.readouterr()
+        lines = out.strip().splitlines()
+        assert lines[1:] == ["379200.250,57.690502000,11.976004000,10.020,RTK_FIXED,0.014"], name  # only the good one
+        assert "1 refused as physically impossible" in err, name
+        assert f"refused NAV-PVT at iTOW 379000.000 s: " in err and expected in err, (name, err)
+
+
+def test_the_driver_drops_an_impossible_fix_and_counts_it():
+    from lotsen.drivers.config import GnssSection
+    from lotsen.drivers.gnss import GnssReceiver
+
+    rx = GnssReceiver(GnssSection(configure=False))
+    fixes = rx.feed(nav_pvt(379_000_000, *IMPOSSIBLE["issue"][0]) + nav_pvt(*GOOD), now=1.0)
+    assert [f.fix_type for f in fixes] == [GnssFixType.RTK_FIXED] and abs(fixes[0].lat_deg - 57.690502) < 1e-9
+    assert rx.refused == 1 and "latitude 91" in rx.last_refusal and "iTOW 379000.000" in rx.last_refusal
+
+
+@settings(max_examples=150, deadline=None)  # |lon| < 214.7 deg: an I4 of 1e-7 deg
+@given(st.floats(-95, 95), st.floats(-214, 214), st.integers(-2_000_000, 20_000_000), st.integers(0, 5),
+       st.integers(0, 2), st.integers(0, 2_000_000), st.integers(-30_000, 30_000), st.integers(0, 40))
+def test_every_published_fix_is_physically_possible(lat, lon, height_mm, fix_type, carr, h_acc_mm, vel_mm, num_sv):
+    """Whatever a checksum-valid NAV-PVT claims, a fix that gets through is on the Earth, at a
+    sane height and speed, with a positive accuracy; the rest is refused with a reason."""
+    from pyubx2 import GET, UBXMessage
+
+    frame = UBXMessage("NAV", "NAV-PVT", GET, iTOW=1000, fixType=fix_type, gnssFixOk=int(fix_type >= 2),
+                       carrSoln=carr, numSV=num_sv, lat=lat, lon=lon, height=height_mm, hMSL=height_mm,
+                       hAcc=h_acc_mm, vAcc=h_acc_mm, velN=vel_mm * 5, velE=vel_mm, gSpeed=0).serialize()
+    result = replay_stream(iter([frame]))
+    assert len(result.fixes) + len(result.refused) + result.undecodable == 1
+    for pvt, why in result.refused:
+        assert why and pvt.fix.fix_type >= GnssFixType.FIX_2D
+    for pvt in result.fixes:
+        f = pvt.fix
+        if f.fix_type < GnssFixType.FIX_2D:
+            continue  # no position claimed
+        assert -90 <= f.lat_deg <= 90 and -180 <= f.lon_deg <= 180 and f.h_acc_m > 0 and f.num_sv > 0
+        assert math.hypot(f.vel_n_mps, f.vel_e_mps) <= 100.0
+        if f.fix_type >= GnssFixType.FIX_3D:
+            assert -1000 <= f.height_m <= 10_000 and f.v_acc_m > 0
+        if f.fix_type == GnssFixType.RTK_FIXED:
+            assert f.h_acc_m <= 1.0
+
+
+NMEA_TXT = b"$GNTXT,01*00\r\n"  # the checksum is computed below
+_x = 0
+for _ch in NMEA_TXT[1:-5]:
+    _x ^= _ch
+NMEA_TXT = NMEA_TXT[:-4] + f"{_x:02X}".encode() + b"\r\n"
+false_ubx = st.tuples(st.binary(min_size=2, max_size=2), st.integers(0, 400), st.binary(max_size=20)).map(
+    lambda t: b"\xb5\x62" + t[0] + t[1].to_bytes(2, "little") + t[2])
+false_rtcm = st.tuples(st.integers(0, 3), st.binary(max_size=20)).map(lambda t: bytes((0xD3, t[0])) + t[1])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.sampled_from(VALID + [NMEA_TXT]) | false_ubx | false_rtcm | st.binary(max_size=60)
+                | st.binary(max_size=20).map(lambda b: b"$" + b), max_size=12),
+       st.sampled_from([1, 2, 3, 7, 64]))
+def test_frames_and_counts_do_not_depend_on_how_the_stream_is_read(parts, size):
+    """Byte-by-byte reads take the framer's fast paths; they must find exactly what one read of
+    the whole stream finds (trailing zeros: nothing may stay held back)."""
+    data = b"".join(parts) + bytes(9000)
+    whole = StreamFramer()
+    expected = [f.data for f in whole.feed(data)]
+    framer = StreamFramer()
+    got = [f.data for i in range(0, len(data), size) for f in framer.feed(data[i:i + size])]
+    assert got == expected and framer.pending == whole.pending == 0
+    a, b = framer.counters, whole.counters  # bad_checksums may differ: a false sync given up before
+    assert (a.garbage_bytes, a.bytes_in, a.ubx_frames) == (b.garbage_bytes, b.bytes_in, b.ubx_frames)  # its bytes came
+    assert sum(p in VALID + [NMEA_TXT] for p in parts) <= len(expected)

@@ -4,10 +4,10 @@ import time
 
 import pytest
 
-from lotsen.logs.part import add_foxglove_server
+from lotsen.stack.logs import add_foxglove_server
 from lotsen.messages import Topic
 from lotsen.runtime.config import LaunchConfig
-from lotsen.runtime.launch import build_stack
+from lotsen.stack.launch import build_stack
 
 websockets = pytest.importorskip("websockets")
 

@@ -1,0 +1,131 @@
+"""Attach the recorder and the Foxglove live server to a `lotsen.stack.launch.Stack`.
+
+Wiring (by the lead, in lotsen/runtime/nodes/parts.py or launch):
+
+    from lotsen.stack.logs import add_recorder, add_foxglove_server
+    register_part("logs", add_recorder)                      # records when config.logging.enabled
+    # `lotsen run --foxglove [PORT]`:  add_foxglove_server(stack, "127.0.0.1", port)
+
+Settings beyond `logging: {enabled, directory}` are read from `extra["logs"]` (keys of
+`RecorderConfig`, e.g. `{flush_period_s: 0.5, fsync: true, compression: zstd}`) until the config
+gets a proper section.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from typing import Any
+
+from lotsen.errors import ConfigError
+from lotsen.logs.live import FoxgloveLive
+from lotsen.logs.recorder import McapRecorder, RecorderConfig, ensure_log_directory
+from lotsen.logs.recover import recover_directory
+from lotsen.messages import OperatorCommand, Topic
+from lotsen.planning import GeoOrigin
+from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.executor import Node, NodeContext
+
+
+class LoggingControlNode(Node):
+    """Logging on/off from the operator (OperatorCommand logging_on / logging_off), and a warning
+    on the `log` topic when the recorder has to drop messages (disk too slow)."""
+
+    name = "logging"
+
+    def __init__(self, recorder: McapRecorder, check_period_s: float = 2.0) -> None:
+        self.recorder = recorder
+        self.check_period_s = check_period_s
+        self._reported_drops = 0
+
+    def start(self, ctx: NodeContext) -> None:
+        self.ctx = ctx
+        ctx.subscribe(Topic.OPERATOR, self._on_operator)
+        ctx.add_timer(self.check_period_s, self._check)
+
+    def _on_operator(self, cmd: OperatorCommand) -> None:
+        if cmd.action == "logging_on" and not self.recorder.recording:
+            path = self.recorder.start()
+            self.ctx.log("info", f"logging on: {path}", path=str(path))
+        elif cmd.action == "logging_off" and self.recorder.recording:
+            stats = self.recorder.stop()
+            # the log event is published after the file is closed: it is not in that file
+            self.ctx.log("info", f"logging off: {stats.path} ({stats.written} messages, {stats.dropped} dropped)",
+                         path=stats.path, written=stats.written, dropped=stats.dropped)
+
+    def _check(self) -> None:
+        s = self.recorder.stats
+        if s is None:
+            return
+        if s.dropped > self._reported_drops:
+            self.ctx.log("warning", f"recorder dropped {s.dropped - self._reported_drops} messages (disk too slow?)",
+                         dropped_total=s.dropped)
+            self._reported_drops = s.dropped
+
+    def stop(self) -> None:
+        self.recorder.close()
+
+
+def recorder_config(config: LaunchConfig, origin: GeoOrigin | None = None) -> RecorderConfig:
+    """`extra.logs` over `logging.directory`, with the local frame's origin for the map views."""
+    section = config.extra.get("logs", {}) or {}
+    if not isinstance(section, dict):
+        raise ConfigError(f"extra.logs: expected a mapping of recorder settings, got {section!r:.60}")
+    extra = dict(section)
+    extra.setdefault("directory", config.logging.directory)
+    rc: RecorderConfig = from_mapping(RecorderConfig, extra, "extra.logs")
+    if rc.geo_origin is None and origin is not None:
+        rc = dataclasses.replace(rc, geo_origin=(origin.lat_deg, origin.lon_deg, origin.height_m))
+    return rc
+
+
+def _redacted(config: dict) -> dict:
+    """The launch config for the log's metadata, without the pilot token (never in logs)."""
+    web = dict(config.get("web", {}))
+    if web.get("pilot_token"):
+        web["pilot_token"] = "<redacted>"
+    return {**config, "web": web}
+
+
+def add_recorder(stack: Any, config: RecorderConfig | None = None, start: bool | None = None) -> McapRecorder:
+    """Record every topic of `stack` to MCAP. Starts a file now if `start` (default:
+    `config.logging.enabled`); logging_on / logging_off operator actions switch it at run time."""
+    rc = config or recorder_config(stack.config, stack.origin)
+    clock = stack.executor.clock
+    meta = {"mode": stack.config.mode, "seed": str(stack.config.seed),
+            "launch_config": json.dumps(_redacted(dataclasses.asdict(stack.config)), default=str)}
+    rec = McapRecorder(rc, clock=clock.now, epoch_at_clock_zero=getattr(clock, "epoch_at_start", None), metadata=meta)
+    rec.attach(stack.bus)
+    stack.add(LoggingControlNode(rec))
+    stack.services["recorder"] = rec
+    stack.services.setdefault("on_shutdown", []).append(rec.close)
+    if stack.config.logging.enabled if start is None else start:
+        path = rec.start()
+        stack.services.setdefault("banner", []).append(f"logging: recording to {path}")
+    else:
+        stack.services.setdefault("banner", []).append("logging: off (operator action logging_on starts a file)")
+    return rec
+
+
+def add_foxglove_server(stack: Any, host: str = "127.0.0.1", port: int = 8765) -> FoxgloveLive:
+    """A Foxglove WebSocket server streaming the stack's topics live (port 0: any free port)."""
+    o = stack.origin
+    geo = (o.lat_deg, o.lon_deg, o.height_m) if o is not None else None
+    live = FoxgloveLive(stack.bus, host=host, port=port, geo_origin=geo)
+    stack.services["foxglove"] = live
+    stack.services.setdefault("on_shutdown", []).append(live.stop)
+    stack.services.setdefault("banner", []).append(f"foxglove: live at {live.url} (Foxglove > Open connection)")
+    return live
+
+
+def recover_unclosed_logs(config: LaunchConfig) -> list[str]:
+    """At the start of a run: recover the log directory's files a killed run left unclosed
+    (lotsen.logs.recover), and say what was done, one line per file. With logging enabled, a
+    log directory that cannot be created or written is a ConfigError naming it, here in the
+    launching process, not a traceback in the recorder's process."""
+    if not config.logging.directory:
+        return []
+    directory = recorder_config(config).directory
+    if config.logging.enabled:
+        ensure_log_directory(directory)
+    return [f"logging: recovered an unclosed log: {s.summary_line()}" for s in recover_directory(directory)]
