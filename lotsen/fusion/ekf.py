@@ -1,16 +1,27 @@
-"""Model-aided extended Kalman filter (beyond the seed): one filter for pose, velocity and biases.
+"""Model-aided extended Kalman filter (beyond the seed): one filter for pose, velocity, biases and
+the slowly varying disturbance (water current, optionally a body force).
 
-State x = [N, E, psi, u, v, r, b_g, (b_ax, b_ay)]: position in local NED (m), heading (rad,
-clockwise from north), body velocities (m/s, rad/s) over ground, gyro z bias (rad/s) and, by
-default, the accelerometer's horizontal biases (m/s^2). The two accelerometer-bias states extend
-the issue's seven: without them a 0.05 m/s^2 bias, read through the model's drag derivative,
-pulls the surge estimate by centimetres per second (see docs/fusion.md for the numbers).
+State x = [N, E, psi, u, v, r, b_g, (b_ax, b_ay), (c_N, c_E), (tau_X, tau_Y, tau_N)]:
+position in local NED (m), heading (rad, clockwise from north), body velocities over ground
+(m/s, rad/s), gyro z bias (rad/s), by default the accelerometer's horizontal biases (m/s^2), by
+default the water current over ground (north, east, m/s; issue 19) and optionally an external
+body force and moment (N, N m: wind and other slowly varying forces). The optional blocks are
+switched by `EkfConfig`; the indices live on the instance (`i_ba`, `i_cur`, `i_tau`).
 
-Process model: the vessel model (lotsen.model, seed eq. 7-8, 22) driven by the achieved (or
-commanded) actuator values, integrated with RK4 (`rk4_step`); covariance propagated with
-F = I + A dt + (A dt)^2 / 2 from the analytic Jacobian A = df/dx (`VesselModel.jacobians`),
-white-acceleration process noise on u, v, r for the model's errors (current, wind, parameters),
-random walks for the biases.
+Process model: the vessel model (lotsen.model, seed eq. 7-8, 22) with the estimated current and
+body force, driven by the achieved (or emulated) actuator values of `ActuatorInputFilter`,
+integrated with RK4 (`rk4_step`). Covariance propagated with F = I + J dt + (J dt)^2 / 2 from the
+analytic Jacobian J = df/dx: `VesselModel.jacobians` (calm water) evaluated at the velocity
+relative to the water, extended by the chain rule to psi, the current and the force
+(`_dynamics_jacobian`). White-acceleration process noise on u, v, r for the model's errors;
+random walks for biases, current and force:
+
+    c_N_dot = w_cN,  c_E_dot = w_cE,      w ~ N(0, sigma_current_walk^2)   (m/s / sqrt(s))
+    tau_dot = w_tau,                      w ~ N(0, diag(sigma_tau_walk)^2) (N / sqrt(s), N m / sqrt(s))
+
+The current is observable from GNSS and the model: GNSS (position and velocity) gives the
+velocity over ground, the model with the achieved thrust predicts the velocity through the
+water; the difference, seen at several headings, is the current.
 
 Measurements (each gated by its squared Mahalanobis distance against a chi-square quantile;
 NaN / non-finite samples are skipped and counted, never used):
@@ -22,11 +33,19 @@ NaN / non-finite samples are skipped and counted, never used):
 - Calibrated magnetometer heading: psi (innovation wrapped to [-pi, pi)); samples whose
   calibrated field norm is far from 1 are rejected as disturbed before the gate.
 
-A gate that rejects a sensor `max_consecutive_rejects` times in a row re-opens by inflating the
-covariance of the states that sensor sees, so a real jump (RTK re-fix) or a wrong start cannot
-lock the filter out. Time comes only from message stamps: every message first predicts the
-filter to its stamp; a message older than `max_lag_s` is skipped as stale, a slightly late one
-is applied at the filter's time.
+Integrity (lotsen.fusion.integrity): every gated test, raw sample and heading goes to an
+`IntegrityMonitor`; a sensor declared stuck is not used; a gate that rejects a sensor
+`max_consecutive_rejects` times in a row re-opens (inflating the covariance of the states that
+sensor sees) only when the monitor allows it (start, re-acquisition after an outage, operator
+reset), so a persistent GNSS jump or magnetic disturbance is declared, not accepted; a sensor
+that jumped is accepted again only when it is nearer its old agreement than the jump.
+`health(t)` returns the `EstimatorHealth` message (contract: docs/fusion.md).
+
+Time comes only from message stamps: every message first predicts the filter to its stamp. A
+message older than `max_lag_s` is skipped as stale; a slightly late one is applied at the
+filter's time. A message more than `max_jump_s` ahead of the filter is not believed on its own
+(one bad stamp must not make every later message stale): it is skipped, and the filter jumps
+only when `jump_confirm` messages in a row are that far ahead (a real gap in the data).
 """
 
 from __future__ import annotations
@@ -38,31 +57,46 @@ import numpy as np
 from scipy.stats import chi2
 
 from lotsen.fusion.common import Counters, GnssNoise, LocalFrame, finite, wrap_angle
+from lotsen.fusion.inputs import ActuatorInputFilter, InputConfig
+from lotsen.fusion.integrity import IntegrityConfig, IntegrityMonitor
 from lotsen.fusion.magcal import MagCalibration
-from lotsen.messages import ActuatorState, GnssFix, ImuSample, MagSample, ThrustCommand, VesselState
-from lotsen.model.dynamics import VesselModel, rk4_step
+from lotsen.messages import (
+    ActuatorState, EstimatorHealth, GnssFix, ImuSample, MagSample, RpmSample, ThrustCommand, VesselState,
+)
+from lotsen.model.dynamics import VesselModel, _jacobians, rk4_step
 
-IN, IE, IPSI, IU, IV, IR, IBG, IBAX, IBAY = range(9)
+IN, IE, IPSI, IU, IV, IR, IBG = range(7)
+IBAX, IBAY = 7, 8  # when accel_bias_states (the default)
+
+FUSION_FAULTS = frozenset({"fusion.non_finite", "fusion.starved", "fusion.stalled"})
 
 
 @dataclass(frozen=True)
 class EkfConfig:
     # process noise (continuous-time spectral densities, per second)
-    sigma_pos_mps: float = 0.05  # slack on N, E (m/sqrt(s)): the unmodelled current; 0.005 left the
-    # covariance too small after a 10 s outage in 0.05 m/s current (the gate then refused 2 s of fixes)
+    sigma_pos_mps: float = 0.02  # slack on N, E (m/sqrt(s)): what the model's velocity misses
     sigma_psi_radps: float = 0.001
     sigma_nu_dot: tuple[float, float, float] = (0.08, 0.08, 0.1)  # model error on u_dot, v_dot, r_dot
     sigma_gyro_bias_walk: float = 0.0005  # rad/s/sqrt(s)
     sigma_accel_bias_walk: float = 0.002  # m/s^2/sqrt(s)
+    sigma_current_walk_mps: float = 0.003  # m/s/sqrt(s): 0.03 m/s in 100 s
+    sigma_tau_walk: tuple[float, float, float] = (0.02, 0.04, 0.01)  # N, N, N m per sqrt(s)
     # measurement noise
     sigma_gyro_radps: float = 0.005
     sigma_accel_mps2: float = 0.08  # of the decimated mean: noise, vibration, model's force error
     sigma_mag_heading_rad: float = math.radians(2.0)
     mag_norm_tolerance: float = 0.3
+    # a GNSS "jump" is a step in the receiver's own track: position minus (last position + mean of the
+    # two Doppler velocities x dt) beyond max(gnss_step_m, 5 sigma). A rejection streak without such a
+    # step in the second before it means the estimate diverged (e.g. a wrong model): the gate re-opens.
+    gnss_step_m: float = 0.5
     gnss_noise: GnssNoise = field(default_factory=GnssNoise)
     use_gnss_velocity: bool = True
     use_accel: bool = True
     accel_bias_states: bool = True
+    current_states: bool = True  # issue 19: water current north / east
+    disturbance_states: bool = False  # body force X, Y and moment N (wind): see docs/fusion.md
+    max_current_mps: float = 1.0  # the current estimate is clipped to this (a safety net, not a model)
     accel_decimation: int = 5
     # gating
     gate_probability: float = 0.9999  # chi-square quantile: 1 dof -> 15.1, 2 dof -> 18.4
@@ -71,14 +105,20 @@ class EkfConfig:
     # timing
     max_step_s: float = 0.02  # prediction sub-step
     max_lag_s: float = 0.25  # older messages are skipped
-    command_timeout_s: float = 0.5  # a ThrustCommand is used only without fresher ActuatorState
+    max_jump_s: float = 0.5  # a message further ahead of the filter is skipped until confirmed
+    jump_confirm: int = 5  # messages in a row that far ahead: a real gap, the filter jumps
+    max_coast_s: float = 10.0  # a longer gap is predicted this long; the rest only grows P
+    inputs: InputConfig = field(default_factory=InputConfig)
+    integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
     origin: tuple[float, float, float] | None = None  # lat, lon, h; None: the first usable fix
-    # initial uncertainty
+    # initial uncertainty: N, E, psi, u, v, r, b_g, b_ax, b_ay; then current and force blocks
     P0_std: tuple[float, ...] = (100.0, 100.0, math.pi, 1.0, 0.5, 0.5, 0.03, 0.2, 0.2)
+    P0_current_std_mps: float = 0.2
+    P0_tau_std: tuple[float, float, float] = (0.5, 0.5, 0.1)
 
 
 class ModelAidedEKF:
-    """Pure estimator: feed messages in stamp order, read `estimate(t)`."""
+    """Pure estimator: feed messages in stamp order, read `estimate(t)` and `health(t)`."""
 
     source = "ekf"
 
@@ -87,138 +127,397 @@ class ModelAidedEKF:
                  initial_std: tuple[float, ...] | None = None) -> None:
         self.model = model or VesselModel()
         self.calibration = calibration or MagCalibration.identity()
-        self.config = config
-        self.n = 9 if config.accel_bias_states else 7
-        self.x = np.zeros(self.n)
+        self.config = c = config
+        n = 7
+        self.i_ba = n if c.accel_bias_states else None
+        n += 2 if c.accel_bias_states else 0
+        self.i_cur = n if c.current_states else None
+        n += 2 if c.current_states else 0
+        self.i_tau = n if c.disturbance_states else None
+        n += 3 if c.disturbance_states else 0
+        self.n = n
+        self.x = np.zeros(n)
+        std = list(c.P0_std[:7]) + (list(c.P0_std[7:9]) if c.accel_bias_states else [])
+        std += [c.P0_current_std_mps] * 2 if c.current_states else []
+        std += list(c.P0_tau_std) if c.disturbance_states else []
+        if initial_std is not None:  # the given values first, the rest from the config
+            std[:len(initial_std)] = list(initial_std)[:n]
+        self.P = np.diag(np.array(std, dtype=float) ** 2)
+        self.t: float | None = None
         if initial is not None:
             self.x[:6] = initial.as_array_tuple()
             self.x[IBG] = initial.gyro_bias_radps
-        std = np.array(initial_std if initial_std is not None else config.P0_std, dtype=float)[: self.n]
-        self.P = np.diag(std ** 2)
-        self.t: float | None = initial.stamp_s if initial is not None else None
-        self.u_act: tuple[float, ...] = (0.0,) * 5
-        self._t_actuator = -math.inf
-        self.frame = LocalFrame(*config.origin) if config.origin else None
+            if self.i_cur is not None:
+                self.x[self.i_cur:self.i_cur + 2] = initial.current_ne_mps
+            if self.i_tau is not None:
+                self.x[self.i_tau:self.i_tau + 3] = initial.disturbance_tau
+            self.t = initial.stamp_s
+        self.inputs = ActuatorInputFilter(c.inputs)
+        self.frame = LocalFrame(*c.origin) if c.origin else None
         self.counters = Counters()
+        self.monitor = IntegrityMonitor(c.integrity)
         self._rejects: dict[str, int] = {}
+        self._jump: dict[str, np.ndarray] = {}  # last rejected innovation of a sensor that jumped
+        self._gnss_track: tuple[float, float, float, float, float] | None = None  # t, N, E, vN, vE
+        self._gnss_step_t = -math.inf  # stamp of the last step in the receiver's own track
         self._acc_sum = [0.0, 0.0]
         self._acc_n = 0
-        c = config
+        self._future: list = []  # messages stamped beyond max_jump_s, held until confirmed
         self._gate = {k: float(chi2.ppf(c.gate_probability, k)) for k in (1, 2)}
         q = [c.sigma_pos_mps ** 2, c.sigma_pos_mps ** 2, c.sigma_psi_radps ** 2,
              c.sigma_nu_dot[0] ** 2, c.sigma_nu_dot[1] ** 2, c.sigma_nu_dot[2] ** 2, c.sigma_gyro_bias_walk ** 2]
-        if self.n == 9:
-            q += [c.sigma_accel_bias_walk ** 2] * 2
+        q += [c.sigma_accel_bias_walk ** 2] * 2 if c.accel_bias_states else []
+        q += [c.sigma_current_walk_mps ** 2] * 2 if c.current_states else []
+        q += [s ** 2 for s in c.sigma_tau_walk] if c.disturbance_states else []
         self._q = np.array(q)
-        self._I = np.eye(self.n)
+        self._I = np.eye(n)
+        p = self.model.params
+        self._inv_m = (1.0 / p.m11, 1.0 / p.m22, 1.0 / p.m33)
+        self._theta, self._geom = tuple(self.model.theta), tuple(self.model.geom)
+        self._pending: list = []  # model inputs stamped ahead of the filter, applied when it gets there
+
+    # -- model ---------------------------------------------------------------------------------
+    @property
+    def u_act(self) -> tuple[float, ...]:
+        """The actuator values the prediction uses now (angles rad, speeds rev/s)."""
+        return self.inputs.value()
+
+    def _environment(self, x: np.ndarray) -> tuple[float, float, float, float, float]:
+        cn = ce = tx = ty = tn = 0.0
+        if self.i_cur is not None:
+            cn, ce = float(x[self.i_cur]), float(x[self.i_cur + 1])
+        if self.i_tau is not None:
+            tx, ty, tn = (float(v) for v in x[self.i_tau:self.i_tau + 3])
+        return cn, ce, tx, ty, tn
+
+    def _dynamics_jacobian(self, x: np.ndarray, u: tuple[float, ...]) -> np.ndarray:
+        """J = df/dx (6 x n) of the kinematics and kinetics with current and body force.
+
+        The calm-water Jacobian at the velocity relative to the water, nu_r = nu - nu_c, gives
+        G = d nu_dot / d nu_r; with u_dot = g_u(nu_r) + r v_c, v_dot = g_v(nu_r) - r u_c and
+        [u_c, v_c] = R(psi)^T [c_N, c_E], the chain rule adds the heading and current columns.
+        """
+        xl = x.tolist()
+        psi, uu, vv, r = xl[2], xl[3], xl[4], xl[5]
+        c, s = math.cos(psi), math.sin(psi)
+        cn, ce = (xl[self.i_cur], xl[self.i_cur + 1]) if self.i_cur is not None else (0.0, 0.0)
+        uc, vc = cn * c + ce * s, -cn * s + ce * c
+        A, _ = _jacobians((xl[0], xl[1], psi, uu - uc, vv - vc, r), u, self._theta, self._geom)
+        J = np.zeros((6, self.n))
+        J[0, 2], J[0, 3], J[0, 4] = -uu * s - vv * c, c, -s
+        J[1, 2], J[1, 3], J[1, 4] = uu * c - vv * s, s, c
+        J[2, 5] = 1.0
+        J[3:6, 3:6] = A[3:6, 3:6]
+        J[3, 5] += vc
+        J[4, 5] -= uc
+        if self.i_cur is not None:
+            (g00, g01, _), (g10, g11, _), (g20, g21, _) = A[3:6, 3:6].tolist()
+            ic = self.i_cur
+            J[3, 2], J[4, 2] = -g00 * vc + g01 * uc - r * uc, -g10 * vc + g11 * uc - r * vc
+            J[5, 2] = -g20 * vc + g21 * uc
+            J[3, ic], J[4, ic], J[5, ic] = -g00 * c + g01 * s - r * s, -g10 * c + g11 * s - r * c, -g20 * c + g21 * s
+            J[3, ic + 1], J[4, ic + 1], J[5, ic + 1] = (-g00 * s - g01 * c + r * c, -g10 * s - g11 * c - r * s,
+                                                        -g20 * s - g21 * c)
+        if self.i_tau is not None:
+            it = self.i_tau
+            J[3, it], J[4, it + 1], J[5, it + 2] = self._inv_m
+        return J
+
+    def _rhs(self, x: np.ndarray, u: tuple[float, ...]) -> tuple[float, ...]:
+        """f(x, u) of the six kinematic/kinetic states (RK4's first stage with dt = 0)."""
+        model = self.model
+        _, k1 = rk4_step((float(x[0]), float(x[1]), float(x[2]), float(x[3]), float(x[4]), float(x[5])),
+                         u, model.theta, model.geom, *self._environment(x), 0.0)
+        return k1
 
     # -- prediction ------------------------------------------------------------------------------
-    def _predict(self, x: np.ndarray, P: np.ndarray, dt_total: float) -> tuple[np.ndarray, np.ndarray]:
-        model, u = self.model, self.u_act
+    def _predict(self, x: np.ndarray, P: np.ndarray, t0: float, dt_total: float, inputs: ActuatorInputFilter,
+                 pending: list | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """x, P from t0 to t0 + dt_total. The input emulation `inputs` advances with them, and the
+        model inputs in `pending` ((stamp, message), in stamp order) are applied to it at their
+        stamps (the filter's own pending list is consumed; pass a copy to leave it alone)."""
+        t1 = t0 + dt_total
+        t = t0
+        while pending and pending[0][0] <= t1:
+            stamp, msg = pending.pop(0)
+            if stamp > t:
+                x, P = self._predict_span(x, P, t, stamp - t, inputs)
+                t = stamp
+            self._apply_input(inputs, msg)
+        if t1 > t:
+            x, P = self._predict_span(x, P, t, t1 - t, inputs)
+        return x, P
+
+    def _predict_span(self, x: np.ndarray, P: np.ndarray, t0: float, dt_total: float,
+                      inputs: ActuatorInputFilter) -> tuple[np.ndarray, np.ndarray]:
+        model = self.model
         steps = max(1, int(math.ceil(dt_total / self.config.max_step_s - 1e-9)))
         dt = dt_total / steps
         n = self.n
-        for _ in range(steps):
-            x6 = (x[0], x[1], x[2], x[3], x[4], x[5])
-            A, _ = model.jacobians(x6, u)
-            x1, _ = rk4_step(x6, u, model.theta, model.geom, 0.0, 0.0, 0.0, 0.0, 0.0, dt)
+        diag = slice(None, None, n + 1)
+        for k in range(steps):
+            u = inputs.advance(t0 + (k + 1) * dt, dt)
+            J = self._dynamics_jacobian(x, u)
+            xl = x.tolist()
+            cn, ce, tx, ty, tn = self._environment(x)
+            x1, _ = rk4_step((xl[0], xl[1], xl[2], xl[3], xl[4], xl[5]), u, model.theta, model.geom,
+                             cn, ce, tx, ty, tn, dt)
             x = x.copy()
             x[:6] = x1
             x[IPSI] = wrap_angle(x[IPSI])
-            Ad = A * dt
-            F = self._I.copy()
-            F[:6, :6] += Ad + 0.5 * (Ad @ Ad)  # P = F P F' + Q
-            P = F @ P @ F.T
-            P[range(n), range(n)] += self._q * dt
+            # P = F P F' + Q dt with F = I + G, G = J dt + (J dt)^2 / 2 nonzero in the first six rows
+            G = J * dt
+            G += 0.5 * (G[:, :6] @ G)
+            GP = G @ P
+            P = P.copy()
+            P[:6] += GP
+            P[:, :6] += GP.T
+            P[:6, :6] += GP @ G.T
+            P.flat[diag] += self._q * dt
         return x, P
 
-    def _advance(self, stamp: float, sensor: str) -> bool:
-        """Predict to `stamp`; False (and counted as skipped) if the message is stale or bad."""
+    def _advance(self, stamp: float, sensor: str, replay: tuple | None = None) -> bool:
+        """Predict to `stamp`. False (and counted as skipped) if the message is stale or bad;
+        False too for a message more than `max_jump_s` ahead of the filter: it is held, and
+        replayed (through `replay` = (handler, message)) only if `jump_confirm` messages in a
+        row are that far ahead (a real gap in the data); otherwise it was a bad stamp, dropped."""
         if not math.isfinite(stamp):
             self.counters.count("skipped", sensor)
             return False
         if self.t is None:
             self.t = stamp
             return True
+        c = self.config
         dt = stamp - self.t
+        if dt > c.max_jump_s:
+            # one message far ahead of all the others is a bad stamp, not a reason to move the
+            # filter (every later message would be stale); several in a row are a real gap
+            self._future.append((stamp, sensor, replay))
+            if len(self._future) < c.jump_confirm:
+                return False
+            held = sorted(self._future, key=lambda h: h[0])
+            self._future = []
+            first = held[0][0]
+            gap = first - self.t
+            self.monitor.event(first, f"fusion: time jumped {gap:.2f} s ahead ({len(held)} messages in a row)")
+            coast = min(gap, c.max_coast_s)
+            self.x, self.P = self._predict(self.x, self.P, self.t, coast, self.inputs, self._pending)
+            if gap > coast:  # beyond the coast limit the model is not trusted; only P grows
+                rest = gap - coast
+                self.P.flat[::self.n + 1] += self._q * rest
+                self.P[IU, IU] += 0.25 * rest
+                self.P[IV, IV] += 0.25 * rest
+                self.P[IR, IR] += 0.01 * rest
+                self._pending = [p for p in self._pending if p[0] > first]
+            self.t = first
+            for _, s, rep in held:  # the held messages, the current one included, in stamp order
+                if rep is not None:
+                    rep[0](rep[1])
+                else:
+                    self.counters.count("skipped", s)
+            return False
+        if self._future:  # the far-ahead messages were not followed by others: bad stamps
+            for _, s, _ in self._future:
+                self.counters.count("skipped", s)
+                self.counters.count("skipped", "future_stamp")
+            self.monitor.event(self.t, f"fusion: {len(self._future)} message(s) stamped "
+                                                    f"{self._future[0][0] - self.t:.2f} s ahead skipped")
+            self._future = []
         if dt > 0.0:
-            self.x, self.P = self._predict(self.x, self.P, dt)
+            self.x, self.P = self._predict(self.x, self.P, self.t, dt, self.inputs, self._pending)
             self.t = stamp
-        elif dt < -self.config.max_lag_s:
+        elif dt < -c.max_lag_s:
             self.counters.count("skipped", sensor)
+            self.counters.count("skipped", "stale")
             return False
         return True
 
     # -- update ----------------------------------------------------------------------------------
     def _update(self, sensor: str, y: np.ndarray, H: np.ndarray, R: np.ndarray,
                 reopen: tuple[int, ...] = ()) -> bool:
-        """Gated EKF update. y = z - h(x). Re-opens after many consecutive rejections by inflating
-        the covariance of the states in `reopen` by the innovation (so the next sample passes)."""
+        """Gated EKF update. y = z - h(x). After many consecutive rejections, re-opens (inflating
+        the covariance of the states in `reopen` by the innovation) if the monitor allows it."""
         P = self.P
         PHt = P @ H.T
         S = H @ PHt + R
-        try:
-            Sinv = np.linalg.inv(S)
-        except np.linalg.LinAlgError:
-            self.counters.count("skipped", sensor)
-            return False
-        d2 = float(y @ Sinv @ y)
+        m = len(y)
+        if m == 1:
+            s00 = float(S[0, 0])
+            if not s00 > 0.0:
+                self.counters.count("skipped", sensor)
+                return False
+            Sinv = np.array([[1.0 / s00]])
+            d2 = float(y[0]) ** 2 / s00
+        else:
+            try:
+                Sinv = np.linalg.inv(S)
+            except np.linalg.LinAlgError:
+                self.counters.count("skipped", sensor)
+                return False
+            d2 = float(y @ Sinv @ y)
         if not math.isfinite(d2):
             self.counters.count("skipped", sensor)
             return False
-        if d2 > self._gate[len(y)]:
+        t = self.t if self.t is not None else 0.0
+        gate = self._gate[m]
+        # A sensor that jumped away from an estimate it agreed with comes back only when it is
+        # nearer its old agreement than the jump: y . d < |d|^2 / 2, d = the last rejected
+        # innovation. Without this, dead reckoning widens the gate until a persistent offset
+        # fits inside it and is accepted (10 m after ~110 s in the 10 m / 120 s case).
+        jump = self._jump.get(sensor)
+        still_jumped = (d2 <= gate and jump is not None and self.monitor.rejecting(sensor)
+                        and float(y @ jump) >= 0.5 * float(jump @ jump))
+        if d2 > gate or still_jumped:
+            if not still_jumped and self.monitor.config.reopen_policy.get(sensor) == "reacquire":
+                self._jump[sensor] = np.array(y, dtype=float)
             k = self._rejects.get(sensor, 0) + 1
             self._rejects[sensor] = k
             self.counters.count("rejected", sensor)
-            if k >= self.config.max_consecutive_rejects.get(sensor, 50) and reopen:
-                # persistent disagreement: believe the sensor again, at the size of the disagreement
-                inflate = float(np.max(np.abs(y))) ** 2 + float(np.max(np.diag(R)))
+            self.monitor.test(sensor, t, gate if still_jumped else d2, m, gate, False)
+            k_max = self.config.max_consecutive_rejects.get(sensor, 50)
+            if self.monitor.reacquiring(sensor):
+                k_max = min(k_max, self.config.integrity.reacquire_rejects)
+            if k >= k_max and reopen and (self.monitor.reopen_allowed(sensor, t) or self._estimate_suspect(sensor, t)):
+                # the estimate is the suspect (start, after an outage, operator): believe the
+                # sensor again, at the size of the disagreement
+                big = float(np.max(np.abs(y)))
+                inflate = big ** 2 + float(np.max(np.diag(R)))
                 for i in reopen:
                     self.P[i, :] *= 0.0
                     self.P[:, i] *= 0.0
                     self.P[i, i] = inflate * 4.0
                 self._rejects[sensor] = 0
+                self._jump.pop(sensor, None)
+                self.monitor.reopened(sensor, t, f"{sensor}: gate re-opened after {k} rejections "
+                                                 f"(disagreement {big:.3g})")
             return False
         self._rejects[sensor] = 0
+        self._jump.pop(sensor, None)
         K = PHt @ Sinv  # K = P H' S^-1
-        self.x = self.x + K @ y  # x = x + K y
-        self.x[IPSI] = wrap_angle(self.x[IPSI])
-        IKH = self._I - K @ H
-        self.P = IKH @ P @ IKH.T + K @ R @ K.T  # Joseph form: stays symmetric positive definite
-        self.counters.count("used", sensor)
+        x = self.x + K @ y  # x = x + K y
+        Pn = P - K @ PHt.T  # P - K S K' (exactly symmetric for one dof)
+        if m > 1:
+            Pn = 0.5 * (Pn + Pn.T)
+        if min(Pn.diagonal().tolist()) <= 0.0:  # round-off: fall back to the Joseph form
+            IKH = self._I - K @ H
+            Pn = IKH @ P @ IKH.T + K @ R @ K.T
+        if not math.isfinite(float(x.sum()) + float(Pn.trace())):
+            self.counters.count("skipped", sensor)
+            return False
+        x[IPSI] = wrap_angle(x[IPSI])
+        if self.i_cur is not None:
+            ic = self.i_cur
+            sp = math.hypot(x[ic], x[ic + 1])
+            if sp > self.config.max_current_mps:
+                x[ic:ic + 2] *= self.config.max_current_mps / sp
+        self.x, self.P = x, Pn
+        self.counters.count("used", sensor, t)
+        self.monitor.test(sensor, t, d2, m, gate, True)
+        self.monitor.used(sensor, t)
         return True
+
+    def _estimate_suspect(self, sensor: str, t: float) -> bool:
+        """The sensor is self-consistent, so a rejection streak means the estimate diverged:
+        GNSS position without a step in its own track since just before the streak began; GNSS
+        velocity while the position of the same receiver agrees with the estimate."""
+        if sensor == "gnss":
+            start = self.monitor.streak_start("gnss")
+            return (start is not None and self._gnss_track is not None
+                    and not self._gnss_step_t >= start - self.config.integrity.reacquire_gap_s)
+        if sensor == "gnss_vel":
+            return not (self.monitor.rejecting("gnss") or self.monitor.inconsistent("gnss"))
+        return False
+
+    def _gnss_self_check(self, t: float, n: float, e: float, fix: GnssFix, sigma_m: float) -> None:
+        """Track the receiver's own consistency (position step against its Doppler velocity)."""
+        vn, ve = fix.vel_n_mps, fix.vel_e_mps
+        prev = self._gnss_track
+        if not finite(vn, ve):
+            self._gnss_track = None
+            self._gnss_step_t = t  # nothing to check against: a rejection streak counts as a jump
+            return
+        if prev is not None and 0.0 < t - prev[0] <= 1.0:
+            dt = t - prev[0]
+            step = math.hypot(n - prev[1] - 0.5 * (vn + prev[3]) * dt, e - prev[2] - 0.5 * (ve + prev[4]) * dt)
+            if step > max(self.config.gnss_step_m, 5.0 * sigma_m):
+                self._gnss_step_t = t
+        elif prev is None or t - prev[0] > 1.0:
+            self._gnss_step_t = t  # a gap: what happened in it is unknown
+        self._gnss_track = (t, n, e, vn, ve)
 
     # -- messages --------------------------------------------------------------------------------
     def on_command(self, m: ThrustCommand | ActuatorState) -> None:
-        """Model input: ActuatorState (achieved values) wins; a ThrustCommand (set-points) is used
-        when no ActuatorState arrived for `command_timeout_s`."""
-        u = m.as_tuple()
-        if not finite(m.stamp_s, *u):
+        """Model input. A ThrustCommand (set-point) drives the actuator emulation; an
+        ActuatorState (achieved servo angles, measured propeller speeds, ESCs armed) corrects it
+        (see lotsen.fusion.inputs). Applied at its stamp: an input stamped ahead of the filter
+        waits until a sensor sample brings the filter there (no prediction of its own)."""
+        if not finite(m.stamp_s, *m.as_tuple()):
             self.counters.count("skipped", "command")
             return
-        if isinstance(m, ActuatorState):
-            self._t_actuator = m.stamp_s
-        elif m.stamp_s - self._t_actuator < self.config.command_timeout_s:
+        self._queue_input(m, "actuators" if isinstance(m, ActuatorState) else "command")
+
+    def on_rpm(self, m: RpmSample) -> None:
+        """Measured propeller speeds (tachometers) alone, for a stack without ActuatorState."""
+        if not finite(m.stamp_s, m.n1_rps, m.n2_rps, m.nt_rps):
+            self.counters.count("skipped", "rpm")
             return
-        # predict with the old input up to the stamp, then switch (zero-order hold)
-        if self.t is not None and m.stamp_s > self.t:
-            self._advance(m.stamp_s, "command")
-        self.u_act = u
-        self.counters.count("used", "command")
+        self._queue_input(m, "rpm")
+
+    def _queue_input(self, m: ThrustCommand | ActuatorState | RpmSample, kind: str) -> None:
+        stamp = m.stamp_s
+        if self.t is None:
+            self.t = stamp
+        c = self.config
+        if stamp > self.t + c.max_jump_s or stamp < self.t - c.max_lag_s:
+            self.counters.count("skipped", kind)
+            self.counters.count("skipped", "future_stamp" if stamp > self.t else "stale")
+            return
+        if stamp <= self.t:
+            self._apply_input(self.inputs, m)
+        else:
+            pend = self._pending
+            i = len(pend)
+            while i > 0 and pend[i - 1][0] > stamp:
+                i -= 1
+            pend.insert(i, (stamp, m))
+            if len(pend) > 256:  # inputs but no sensor samples: move the filter along with them
+                self._advance(pend[0][0], kind)
+        self.counters.count("inputs", kind, stamp)
+
+    @staticmethod
+    def _apply_input(inputs: ActuatorInputFilter, m: ThrustCommand | ActuatorState | RpmSample) -> None:
+        if isinstance(m, ActuatorState):
+            inputs.set_armed(m.escs_armed)
+            inputs.set_angles(m.stamp_s, m.alpha1_rad, m.alpha2_rad)
+            inputs.measure_speeds(m.stamp_s, (m.n1_rps, m.n2_rps, m.nt_rps))
+        elif isinstance(m, RpmSample):
+            inputs.measure_speeds(m.stamp_s, (m.n1_rps, m.n2_rps, m.nt_rps))
+        else:
+            inputs.set_command(m.stamp_s, m.as_tuple())
 
     def on_imu(self, m: ImuSample) -> None:
         gz, ax, ay = m.gyro_radps[2], m.accel_mps2[0], m.accel_mps2[1]
-        if not finite(gz):
+        mon = self.monitor
+        if not self._advance(m.stamp_s, "gyro", (self.on_imu, m)):
+            if not math.isfinite(m.stamp_s):
+                self.counters.count("skipped", "accel")
+            return
+        mon.raw("gyro", m.stamp_s, m.gyro_radps)
+        mon.raw("accel", m.stamp_s, m.accel_mps2)
+        if not finite(gz) or mon.stuck("gyro"):
             self.counters.count("skipped", "gyro")
-        elif self._advance(m.stamp_s, "gyro"):
+        else:
             H = np.zeros((1, self.n))
             H[0, IR] = 1.0
             H[0, IBG] = 1.0
             y = np.array([gz - self.x[IR] - self.x[IBG]])
-            self._update("gyro", y, H, np.array([[self.config.sigma_gyro_radps ** 2]]), reopen=(IBG, IR))
+            ok = self._update("gyro", y, H, np.array([[self.config.sigma_gyro_radps ** 2]]), reopen=(IBG, IR))
+            # the frozen-heading test integrates the gyro the filter believed: a spike the gate
+            # rejected stands in with the filter's own rate (else one spike "turns" the boat)
+            mon.heading(self.t, float(self.x[IPSI]), gz - float(self.x[IBG]) if ok else float(self.x[IR]))
         if not self.config.use_accel:
             return
-        if not finite(ax, ay, m.stamp_s):
+        if not finite(ax, ay) or mon.stuck("accel"):
             self.counters.count("skipped", "accel")
             return
         self._acc_sum[0] += ax
@@ -228,41 +527,47 @@ class ModelAidedEKF:
             a = (self._acc_sum[0] / self._acc_n, self._acc_sum[1] / self._acc_n)
             self._acc_sum = [0.0, 0.0]
             self._acc_n = 0
-            if self.t is not None and m.stamp_s >= self.t - self.config.max_lag_s:
-                self._accel_update(a)
+            self._accel_update(a)
 
     def _accel_update(self, a: tuple[float, float]) -> None:
         x = self.x
-        x6 = (x[0], x[1], x[2], x[3], x[4], x[5])
-        model = self.model
-        f = model.f(0.0, x6, self.u_act)
-        A, _ = model.jacobians(x6, self.u_act)
+        u_in = self.inputs.value()
+        f = self._rhs(x, u_in)
+        J = self._dynamics_jacobian(x, u_in)
         u, v, r = x[IU], x[IV], x[IR]
         h = np.array([f[3] - v * r, f[4] + u * r])  # specific force of a level boat, body frame
         H = np.zeros((2, self.n))
-        H[0, :6] = A[3]
-        H[1, :6] = A[4]
+        H[0] = J[3]
+        H[1] = J[4]
         H[0, IV] -= r
         H[0, IR] -= v
         H[1, IU] += r
         H[1, IR] += u
-        if self.n == 9:
-            h += x[IBAX:IBAY + 1]
-            H[0, IBAX] = 1.0
-            H[1, IBAY] = 1.0
+        reopen: tuple[int, ...] = (IU, IV, IR)
+        if self.i_ba is not None:
+            h += x[self.i_ba:self.i_ba + 2]
+            H[0, self.i_ba] = 1.0
+            H[1, self.i_ba + 1] = 1.0
+            reopen += (self.i_ba, self.i_ba + 1)
         R = np.eye(2) * self.config.sigma_accel_mps2 ** 2
-        self._update("accel", np.array(a) - h, H, R, reopen=(IU, IV, IR) + ((IBAX, IBAY) if self.n == 9 else ()))
+        self._update("accel", np.array(a) - h, H, R, reopen=reopen)
 
     def on_mag(self, m: MagSample) -> None:
         mx, my = m.field_uT[0], m.field_uT[1]
         if not finite(mx, my):
             self.counters.count("skipped", "mag")
             return
-        if not self._advance(m.stamp_s, "mag"):
+        if not self._advance(m.stamp_s, "mag", (self.on_mag, m)):
+            return
+        self.monitor.raw("mag", m.stamp_s, m.field_uT)
+        if self.monitor.stuck("mag"):
+            self.counters.count("skipped", "mag")
             return
         wx, wy = self.calibration.apply(mx, my)
+        gate = self._gate[1]
         if abs(math.hypot(wx, wy) - 1.0) > self.config.mag_norm_tolerance:
             self.counters.count("rejected", "mag")  # disturbed field (motor currents, steel nearby)
+            self.monitor.test("mag", self.t, math.inf, 1, gate, False)
             return
         z = wrap_angle(math.atan2(-wy, wx) + self.calibration.heading_offset_rad)
         H = np.zeros((1, self.n))
@@ -274,18 +579,33 @@ class ModelAidedEKF:
         if not fix.usable or not finite(fix.stamp_s, fix.lat_deg, fix.lon_deg):
             self.counters.count("skipped", "gnss")
             return
-        if not self._advance(fix.stamp_s, "gnss"):
+        if not self._advance(fix.stamp_s, "gnss", (self.on_gnss, fix)):
+            return
+        mon = self.monitor
+        if finite(fix.vel_n_mps, fix.vel_e_mps):
+            moving = math.hypot(self.x[IU], self.x[IV]) > 0.1  # a receiver may hold its velocity at rest
+            mon.raw("gnss", fix.stamp_s, (fix.vel_n_mps, fix.vel_e_mps), active=moving)
+        if mon.stuck("gnss"):
+            self.counters.count("skipped", "gnss")
+            self.counters.count("skipped", "gnss_vel")
             return
         if self.frame is None:
             self.frame = LocalFrame(fix.lat_deg, fix.lon_deg, fix.height_m if math.isfinite(fix.height_m) else 0.0)
         n, e = self.frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m)
         noise = self.config.gnss_noise
         s = noise.position_sigma_m(fix)
+        self._gnss_self_check(fix.stamp_s, n, e, fix, s)
         H = np.zeros((2, self.n))
         H[0, IN] = H[1, IE] = 1.0
         y = np.array([n - self.x[IN], e - self.x[IE]])
         self._update("gnss", y, H, np.eye(2) * s * s, reopen=(IN, IE))
-        if self.config.use_gnss_velocity and finite(fix.vel_n_mps, fix.vel_e_mps):
+        if not (self.config.use_gnss_velocity and finite(fix.vel_n_mps, fix.vel_e_mps)):
+            return
+        if mon.rejecting("gnss") or mon.inconsistent("gnss"):
+            # the receiver's position jumped away from an estimate it agreed with: its velocity
+            # (same receiver, same message) is not trusted either until the position agrees again
+            self.counters.count("skipped", "gnss_vel")
+        else:
             psi, u, v = self.x[IPSI], self.x[IU], self.x[IV]
             c, sn = math.cos(psi), math.sin(psi)
             h = np.array([c * u - sn * v, sn * u + c * v])
@@ -296,19 +616,68 @@ class ModelAidedEKF:
             self._update("gnss_vel", np.array([fix.vel_n_mps, fix.vel_e_mps]) - h, Hv, np.eye(2) * sv * sv,
                          reopen=(IU, IV))
 
+    def reset_integrity(self, t: float, sensor: str | None = None) -> None:
+        """Operator: forget a declared inconsistency (of `sensor`, or all) and let the gate
+        re-open on the next rejection streak (e.g. accept a GNSS that moved for good)."""
+        self.monitor.reset(t, sensor)
+
     # -- output ----------------------------------------------------------------------------------
     @property
     def gyro_bias_radps(self) -> float:
         return float(self.x[IBG])
 
+    @property
+    def current_ne_mps(self) -> tuple[float, float]:
+        if self.i_cur is None:
+            return (0.0, 0.0)
+        return (float(self.x[self.i_cur]), float(self.x[self.i_cur + 1]))
+
     def estimate(self, t: float | None = None) -> VesselState:
         """The estimate predicted to `t` (the filter itself is not advanced)."""
         x, P, stamp = self.x, self.P, self.t if self.t is not None else (t or 0.0)
         if t is not None and self.t is not None and t > self.t:
-            x, P = self._predict(x, P, t - self.t)
+            x, P = self._predict(x, P, self.t, min(t - self.t, self.config.max_coast_s), self.inputs.copy(),
+                                 list(self._pending))
             stamp = t
         std = np.sqrt(np.clip(np.diag(P)[:6], 0.0, None))
+        cn, ce, tx, ty, tn = self._environment(x)
         return VesselState(stamp_s=float(stamp), north_m=float(x[0]), east_m=float(x[1]),
                            heading_rad=float(wrap_angle(x[2])), u_mps=float(x[3]), v_mps=float(x[4]),
                            r_radps=float(x[5]), source=self.source, std=tuple(float(s) for s in std),
-                           gyro_bias_radps=float(x[IBG]))
+                           gyro_bias_radps=float(x[IBG]), current_ne_mps=(cn, ce), disturbance_tau=(tx, ty, tn))
+
+    def health(self, t: float | None = None) -> EstimatorHealth:
+        """Integrity of the estimate at time `t` (the caller's clock; default: the filter's time).
+        The contract (flags, fault codes, when they go false and back) is in docs/fusion.md."""
+        t = float(t) if t is not None else (self.t if self.t is not None else 0.0)
+        mon, c = self.monitor, self.config.integrity
+        state_finite = bool(np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.P)))
+        faults = mon.faults(t, self.t, state_finite)
+        codes = {code for code, _ in faults}
+        d = np.diag(self.P)
+        std = np.sqrt(np.clip(d, 0.0, None)) if state_finite else np.full(self.n, math.inf)
+        pos_std, hdg_std, vel_std = float(max(std[IN], std[IE])), float(std[IPSI]), float(max(std[IU], std[IV]))
+        common = bool(codes & FUSION_FAULTS)
+        # the heading between magnetometer samples and the yaw rate the controllers use come from
+        # the gyro: without a healthy gyro the heading is not trustworthy (the magnetometer alone,
+        # at its rate and with its disturbances, does not carry a controller)
+        no_heading_sensor = mon.faulty("gyro")
+        position_ok = not common and "gnss.inconsistent" not in codes and pos_std <= c.max_position_std_m
+        heading_ok = (not common and "heading.frozen" not in codes and not no_heading_sensor
+                      and hdg_std <= c.max_heading_std_rad)
+        velocity_ok = not common and vel_std <= c.max_velocity_std_mps
+        sensors = mon.sensors
+        figures = [mon.window_figures(s, t) for s in sensors]
+        cur_std = (math.nan, math.nan)
+        if self.i_cur is not None and state_finite:
+            cur_std = (float(std[self.i_cur]), float(std[self.i_cur + 1]))
+        return EstimatorHealth(
+            stamp_s=t, position_ok=position_ok, heading_ok=heading_ok, velocity_ok=velocity_ok,
+            faults=tuple(text for _, text in faults), fault_codes=tuple(code for code, _ in faults),
+            source=self.source, sensors=sensors, nis=tuple(f[0] for f in figures),
+            used_frac=tuple(f[1] for f in figures),
+            last_used_age_s=tuple(t - mon.last_used.get(s, -math.inf) for s in sensors),
+            filter_age_s=t - self.t if self.t is not None else math.inf,
+            position_std_m=pos_std, heading_std_rad=hdg_std, velocity_std_mps=vel_std,
+            current_ne_mps=self.current_ne_mps, current_std_mps=cur_std,
+            event_count=mon.event_count, events=tuple(mon.events))

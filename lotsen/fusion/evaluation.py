@@ -188,6 +188,7 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
     t_out0, t_out1 = config.outage_start_s, config.outage_start_s + config.outage_duration_s
     standstill_gyro: list[float] = []
     ekf_std_psi: list[float] = []
+    ekf_codes: set[str] = set()
     bias_set = False
     for k in range(steps):
         t = sim.t
@@ -223,6 +224,8 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
                     e = f.estimate(t)
                     if name == "ekf" and t >= config.warmup_s:
                         ekf_std_psi.append(e.std[2])
+                        if not (t_out0 <= t < t_out1 + config.recovery_s):  # false alarms outside the outage
+                            ekf_codes.update(f.health(t).fault_codes)
                     tracks[name].est.append((e.north_m, e.east_m, e.heading_rad, e.u_mps, e.v_mps))
     T = np.array(truth_t)
     X = np.array(truth_x)
@@ -250,7 +253,175 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
         if name == "ekf":
             r["heading_std_mean_deg"] = float(np.degrees(np.mean(ekf_std_psi))) if ekf_std_psi else math.nan
             r["gyro_bias_err_radps"] = float(ekf.gyro_bias_radps - sim.imu.gyro_bias_radps)
+            r["fault_codes_seen"] = sorted(ekf_codes)  # integrity faults after the warm-up (no fault injected)
+            # issue 19: the water current (zero in the estimate without current states)
+            c_true = config.environment.current_ne
+            c_est = ekf.current_ne_mps
+            r["current_true_ne_mps"] = (float(c_true[0]), float(c_true[1]))
+            r["current_est_ne_mps"] = c_est
+            r["current_err_end_mps"] = float(math.hypot(c_est[0] - c_true[0], c_est[1] - c_true[1]))
         results[name] = r
     return {"calibration": calib_report, "filters": results,
             "speed_max_mps": float(np.max(np.hypot(X[:, 3], X[:, 4]))),
             "truth_final": sim.truth()}
+
+
+# -- integrity scenarios (issue 14): faults injected into the messages the EKF sees ---------------
+@dataclass(frozen=True)
+class FaultCase:
+    """A fault injected at `start_s` for `duration_s`; `expected` is the fault code the monitor
+    must declare within `deadline_s` (the documented detection time, docs/fusion.md)."""
+
+    name: str
+    expected: str
+    start_s: float
+    duration_s: float
+    deadline_s: float
+    text: str = ""
+
+
+FAULT_CASES: dict[str, FaultCase] = {c.name: c for c in (
+    FaultCase("gnss_offset_20m_10s", "gnss.inconsistent", 30.0, 10.0, 1.0, "GNSS position 20 m north for 10 s"),
+    FaultCase("gnss_offset_10m_120s", "gnss.inconsistent", 30.0, 120.0, 1.0, "GNSS position 10 m east for 120 s"),
+    FaultCase("gnss_frozen_10s", "gnss.stuck", 30.0, 10.0, 1.0, "GNSS repeats its last fix for 10 s"),
+    FaultCase("gyro_stuck_30s", "gyro.stuck", 30.0, 30.0, 1.0, "gyro frozen at its last value for 30 s"),
+    FaultCase("accel_stuck_30s", "accel.stuck", 30.0, 30.0, 1.0, "accelerometer frozen for 30 s"),
+    FaultCase("mag_stuck_30s", "mag.stuck", 30.0, 30.0, 1.0, "magnetometer frozen for 30 s"),
+    FaultCase("heading_frozen_10s", "heading.frozen", 60.0, 10.0, 3.0, "heading estimate frozen for 10 s"),
+    FaultCase("inputs_lost_1s", "fusion.starved", 30.0, 1.0, 0.25, "no sensor sample reaches the filter for 1 s"),
+    FaultCase("mag_disturbance_20s", "mag.inconsistent", 30.0, 20.0, 1.0, "magnetometer offset by 15 uT for 20 s"),
+    FaultCase("future_stamp_5s", "", 30.0, 0.0, 0.0, "one IMU sample stamped 5 s ahead (nothing to declare)"),
+    FaultCase("imu_spikes_20s", "", 30.0, 20.0, 0.0, "2 % of IMU samples with large spikes (nothing to declare)"),
+)}
+
+
+def _freeze(value: Any, t: float) -> Any:
+    """A copy of `value` (a sensor message) stamped t: a stuck sensor repeats itself."""
+    return replace(value, stamp_s=t)
+
+
+def run_fault_case(name: str, seed: int = 1, ekf_config: EkfConfig | None = None,
+                   environment: Environment | None = None, health_hz: float = 10.0,
+                   after_s: float = 20.0, estimator: str = "ekf",
+                   seed_config: SeedFiltersConfig | None = None, start_s: float | None = None,
+                   duration_s: float | None = None) -> dict[str, Any]:
+    """One integrity scenario on the open-loop manoeuvre (current 0.1 m/s and wind 3 m/s by
+    default): the EKF is fed the simulator's messages with the fault of FAULT_CASES[name]
+    injected, and its health is read at `health_hz`. Returns the detection delay (s, None if
+    never declared), the time the fault stayed declared after it ended, the largest position
+    and heading errors from the fault's start to `after_s` after its end, the fault codes seen
+    before the fault (false alarms) and the codes seen while it lasted."""
+    from lotsen.fusion.ekf import IPSI
+    from lotsen.messages import GnssFix
+    from lotsen.sim import SimConfig, Simulator
+
+    case = FAULT_CASES[name]
+    case = replace(case, start_s=case.start_s if start_s is None else start_s,
+                   duration_s=case.duration_s if duration_s is None else duration_s)
+    env = environment if environment is not None else Environment(
+        current_speed_mps=0.1, current_to_deg=60.0, wind_speed_mps=3.0, wind_from_deg=200.0)
+    sim = Simulator(config=SimConfig(seed=seed, environment=env))
+    g = sim.config.gnss
+    imu = sim.config.imu
+    H = imu.earth_field_horizontal_uT
+    (s00, s01), (s10, s11) = imu.soft_iron
+    cal = MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)))
+    init = VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=sim.x[2], u_mps=0.0, v_mps=0.0, r_radps=0.0)
+    cfg = replace(ekf_config or EkfConfig(), origin=(g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m))
+    if estimator == "ekf":
+        ekf: Any = ModelAidedEKF(VesselModel(), cal, cfg, initial=init,
+                                 initial_std=(0.5, 0.5, 0.2, 0.1, 0.1, 0.1, 0.02))
+    else:
+        ekf = SeedFilters(cal, replace(seed_config or SeedFiltersConfig(), origin=cfg.origin), initial=init,
+                          heading_std_rad=0.2)
+    t0, t1 = case.start_s, case.start_s + case.duration_s
+    t_end = t1 + after_s
+    deg_per_m = (1.0 / 111_320.0, 1.0 / (111_320.0 * math.cos(math.radians(g.origin_lat_deg))))
+    held: dict[str, Any] = {}
+    frozen_psi: list[float] = []
+    every = max(1, int(round(1.0 / (health_hz * sim.config.dt_s))))
+    first_seen: dict[str, float] = {}
+    before: set[str] = set()
+    during: set[str] = set()
+    declared_until: float | None = None
+    pos_err = hdg_err = 0.0
+    flags_bad_s = 0.0
+    series: list[tuple] = []  # (t, position error m, heading error deg, position_ok, heading_ok, codes)
+    future_sent = False
+
+    def tamper(m: Any, t: float) -> Any:
+        nonlocal future_sent
+        if not (t0 <= t < t1) and name != "future_stamp_5s":
+            return m
+        if name == "gnss_offset_20m_10s" and isinstance(m, GnssFix):
+            return replace(m, lat_deg=m.lat_deg + 20.0 * deg_per_m[0])
+        if name == "gnss_offset_10m_120s" and isinstance(m, GnssFix):
+            return replace(m, lon_deg=m.lon_deg + 10.0 * deg_per_m[1])
+        if name == "gnss_frozen_10s" and isinstance(m, GnssFix):
+            return _freeze(held.setdefault("gnss", m), m.stamp_s)
+        if name in ("gyro_stuck_30s", "accel_stuck_30s") and isinstance(m, ImuSample):
+            last = held.setdefault("imu", m)
+            if name == "gyro_stuck_30s":
+                return replace(m, gyro_radps=last.gyro_radps)
+            return replace(m, accel_mps2=last.accel_mps2)
+        if name == "mag_stuck_30s" and isinstance(m, MagSample):
+            return _freeze(held.setdefault("mag", m), m.stamp_s)
+        if name == "inputs_lost_1s":
+            return None
+        if name == "future_stamp_5s" and isinstance(m, ImuSample) and t >= t0 and not future_sent:
+            future_sent = True
+            return replace(m, stamp_s=m.stamp_s + 5.0)
+        return m
+
+    steps = int(round(t_end / sim.config.dt_s))
+    for k in range(steps):
+        t = sim.t
+        sim.mag.disturbance_uT = (15.0, 0.0) if name == "mag_disturbance_20s" and t0 <= t < t1 else (0.0, 0.0)
+        sim.imu.spike_probability = 0.02 if name == "imu_spikes_20s" and t0 <= t < t1 else 0.0
+        sim.command(_manoeuvre_command(t))
+        msgs = sim.step()
+        if k % 2 == 0:
+            act = sim.actuator_state()
+            act.stamp_s = t
+            ekf.on_command(act)
+        for m in msgs:
+            m2 = tamper(m, t)
+            if m2 is not None:
+                feed(ekf, m2)
+        if name == "heading_frozen_10s" and t0 <= t < t1:  # an estimator bug: the heading stops moving
+            if estimator == "ekf":
+                frozen_psi.append(frozen_psi[0] if frozen_psi else float(ekf.x[IPSI]))
+                ekf.x[IPSI] = frozen_psi[0]
+            else:
+                frozen_psi.append(frozen_psi[0] if frozen_psi else ekf.yaw.x)
+                ekf.yaw.x = frozen_psi[0]
+        if k % every == 0 and t > 1.0:
+            h = ekf.health(t)
+            codes = set(h.fault_codes)
+            for c in codes:
+                first_seen.setdefault(c, t)
+            if t < t0:
+                before |= codes
+            elif t < t1 + after_s:
+                if t < t1 + 0.5:
+                    during |= codes
+                if case.expected in codes:
+                    declared_until = t
+                e = ekf.estimate(t)
+                pe = math.hypot(e.north_m - sim.x[0], e.east_m - sim.x[1])
+                he = abs(math.degrees(wrap_angle(e.heading_rad - sim.x[2])))
+                pos_err, hdg_err = max(pos_err, pe), max(hdg_err, he)
+                series.append((round(t, 2), pe, he, h.position_ok, h.heading_ok, tuple(sorted(codes))))
+                if not (h.position_ok and h.heading_ok and h.velocity_ok):
+                    flags_bad_s += every * sim.config.dt_s
+    seen = first_seen.get(case.expected) if case.expected else None
+    detect = seen - t0 if seen is not None and seen >= t0 else None
+    used = {s: ekf.counters.used_fraction(s) for s in ("gyro", "accel", "mag", "gnss", "gnss_vel")}
+    return {
+        "case": name, "expected": case.expected, "deadline_s": case.deadline_s,
+        "detect_s": detect, "declared_after_end_s": (declared_until - t1) if declared_until is not None else None,
+        "max_position_error_m": pos_err, "max_heading_error_deg": hdg_err,
+        "flags_bad_s": flags_bad_s, "codes_before": sorted(before), "codes_during": sorted(during),
+        "used_fraction": used, "events": list(ekf.monitor.events),
+        "counters": ekf.counters.as_dict(), "series": series,
+    }

@@ -15,6 +15,7 @@ def test_short_evaluation_meets_targets() -> None:
     ekf, seed, peer = res["filters"]["ekf"], res["filters"]["seed_kf"], res["filters"]["imufusion"]
     assert ekf["heading_rms_deg"] < 1.0 and ekf["velocity_rms_mps"] < 0.03
     assert ekf["outage_position_err_max_m"] < 1.0
+    assert ekf["fault_codes_seen"] == []  # no integrity false alarm in a run without faults
     assert seed["heading_rms_deg"] < 1.0
     assert math.isfinite(peer["heading_rms_deg"]) and peer["heading_rms_deg"] < 10.0
     # the EKF, which also uses the model and GNSS, beats the seed's dead reckoning in the outage
