@@ -11,7 +11,7 @@ writes the measured data as the identification CSV (docs/sysid.md, "Simulated ru
     estimated over a 2 s rest before the run (the residual bias walk stays in the data);
     psi and r are written on the GNSS rows only (8 Hz outputs).
 `run --hardware [--emulated]` runs the same input generator through the runtime on the boat's
-drivers (or their emulated twins): lotsen.runtime.nodes.experiment documents what it records.
+drivers (or their emulated twins): lotsen.stack.experiment documents what it records.
 """
 
 from __future__ import annotations
@@ -129,8 +129,8 @@ def run_on_stack(experiment: Experiment, config: Any, realtime: bool) -> Any:
     """Run `experiment` through the runtime on the boat the config names (hardware, or its emulated
     twin): drivers, the state estimate and the recorder run; the experiment node commands the
     thrusters. Returns the ExperimentNode (its `record()` and `aborted`)."""
-    from lotsen.runtime.launch import build_stack
-    from lotsen.runtime.nodes.experiment import ExperimentNode
+    from lotsen.stack.launch import build_stack
+    from lotsen.stack.experiment import ExperimentNode
 
     stack = build_stack(config, realtime=realtime, parts=("state", "logs"))
     node = stack.add(ExperimentNode(experiment))
@@ -194,10 +194,11 @@ def _cmd_design(args: argparse.Namespace) -> int:
     params = load_params(args.params)
     cfg = DesignConfig(duration_s=args.duration, area_size_m=size, segment_s=args.segment,
                        criterion=args.criterion, seed=args.seed, iterations=args.iterations,
-                       fixed=tuple(args.fixed.split(",")) if args.fixed else DesignConfig().fixed)
+                       fixed=tuple(args.fixed.split(",")) if args.fixed else DesignConfig().fixed,
+                       robust_samples=args.robust_samples, robust_spread=args.robust_spread)
     from tqdm import tqdm
 
-    bar = tqdm(total=cfg.iterations, file=sys.stderr, desc="design", unit="it")
+    bar = tqdm(total=cfg.iterations, file=sys.stderr, desc="design", unit="it", disable=not sys.stderr.isatty())
     result = design_experiment(params, cfg, progress=lambda i, v: (bar.update(1), bar.set_postfix(J=f"{v:.3g}")))
     bar.close()
     check_experiment(result.experiment, VesselModel(params), margin_m=0.0)
@@ -240,6 +241,10 @@ def register(subparsers: Any) -> None:
     d.add_argument("--criterion", choices=("A", "D"), default="A",
                    help="A: minimise the sum of relative variances; D: maximise log det of the relative FIM")
     d.add_argument("--iterations", type=int, default=40)
-    d.add_argument("--fixed", help="comma-separated parameters treated as known (default: m11,kappa,... see docs)")
+    d.add_argument("--fixed", help="comma-separated parameters treated as known (default: m11 only, the scale)")
+    d.add_argument("--robust-samples", type=int, default=3,
+                   help="design for the prior and N-1 parameter sets around it (default 3; 1 = the prior only)")
+    d.add_argument("--robust-spread", type=float, default=0.15,
+                   help="relative spread of those parameter sets (default 0.15 = +-15 %%)")
     d.add_argument("--seed", type=int, default=0)
     d.set_defaults(func=_cmd_design)

@@ -1,19 +1,29 @@
-"""`lotsen identify DATA.csv [...] --out params.json`: grey-box identification with report.
+"""`lotsen identify DATA.csv|RUN.mcap [...] --out params.json`: grey-box identification with report.
+
+Method (docs/sysid.md, "Estimation"): by default multiple shooting over the whole record
+(lotsen.sysid.multiple), the estimate whose intervals reach the record's Cramer-Rao bound;
+`--method single` runs the older single shooting in 10 s windows (kept for comparison).
 
 Scale: the common scale of M, damping and thrust is unidentifiable from motion data. If none of
 those parameters is given with --fix, the command fixes m11 = 14.0 kg (weighed 13 kg plus about
 8 % surge added mass, the project's default) and prints a loud warning; pass --fix m11=... (or
 mu_az from a bollard-pull test) to set it from your own knowledge, or --no-default-scale to refuse.
+Every other parameter is estimated unless fixed.
+
+Refused with a clear error (exit 2, nothing written): unreadable or non-finite data, time going
+backwards, no excitation (all inputs zero, a boat that did not move), and data that leave a
+parameter direction unidentifiable (fix those parameters with --fix).
 
 Validation: files given with --validate; otherwise the last `--holdout` fraction (default 0.2) of
 every file is held out (not used for estimation). --holdout 0 uses all data for estimation and
-validates on it (the report says so).
+validates on it (the report says so). Progress bars are shown only when stderr is a terminal.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -25,6 +35,7 @@ SCALE_DEFAULT = ("m11", 14.0)
 # Parameters that anchor the scale well when known (a fixed damping term such as Y_rv formally
 # fixes it too, but is itself poorly known, so it does not stop the default m11).
 SCALE_ANCHORS = ("m11", "m22", "m33", "mu_az", "mu_t")
+NAMES_INDEX = {n: i for i, n in enumerate(DEFAULT_PARAMETERS.names())}
 
 
 def _parse_fix(items: list[str]) -> dict[str, float]:
@@ -45,19 +56,42 @@ def _parse_fix(items: list[str]) -> dict[str, float]:
     return out
 
 
+def _parse_noise(items: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        try:
+            v = float(value)
+        except ValueError:
+            v = math.nan
+        if not name or not (v > 0 and math.isfinite(v)):
+            raise ConfigError(f"--noise {item!r}: expected OUTPUT=STD with a positive number, e.g. --noise r=0.003")
+        out[name.strip()] = v
+    return out
+
+
+def _split_holdout(records: list, holdout: float) -> tuple[list, list]:
+    est, val = [], []
+    for r in records:
+        t_split = r.t[0] + (1 - holdout) * r.duration_s
+        est.append(r.slice(r.t[0], t_split))
+        val.append(r.slice(t_split, r.t[-1] + 1))
+    return est, val
+
+
 def _cmd_identify(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from lotsen.cli.experiment import load_params
-    from lotsen.sysid.blackbox import fit_narx, narx_fit
-    from lotsen.logs.export import sysid_loader
+    from lotsen.cli.logs import sysid_record
     from lotsen.sysid.data import load_record, register_loader
     from lotsen.sysid.estimate import estimate
-    from lotsen.sysid.validate import inputs_at_outputs, residual_analysis, simulate_fit
+    from lotsen.sysid.multiple import check_identifiable, estimate_multiple_shooting
 
-    register_loader(".mcap", sysid_loader)  # the project's own run logs
+    register_loader(".mcap", sysid_record)  # the project's own run logs (the same path as `lotsen export`)
 
     fixed = _parse_fix(args.fix or [])
+    noise = _parse_noise(args.noise or [])
     warnings: list[str] = []
     if not any(n in fixed for n in SCALE_ANCHORS):
         if args.no_default_scale:
@@ -78,72 +112,123 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     elif args.holdout > 0:
         if not 0 < args.holdout < 0.9:
             raise ConfigError("--holdout must be between 0 and 0.9")
-        est_records, val_records = [], []
-        for r in records:
-            t_split = r.t[0] + (1 - args.holdout) * r.duration_s
-            est_records.append(r.slice(r.t[0], t_split))
-            val_records.append(r.slice(t_split, r.t[-1] + 1))
+        est_records, val_records = _split_holdout(records, args.holdout)
     else:
         est_records = val_records = records
         warnings.append("validation on the estimation data (--holdout 0): fit figures are optimistic")
-    bar = tqdm(file=sys.stderr, desc=f"identify ({args.method} shooting)", unit="it", total=None)
+    bar = tqdm(file=sys.stderr, desc=f"identify ({args.method} shooting)", unit="it", total=None,
+               disable=not sys.stderr.isatty())
 
     def progress(i: int, cost: float) -> None:
         bar.update(1)
         bar.set_postfix(V=f"{cost:.5g}")
 
-    if args.method == "single":
-        res = estimate(est_records, theta0, fixed, window_s=args.window, gap_s=args.gap,
-                       max_iterations=args.max_iter, progress=progress)
-    else:
-        from lotsen.sysid.multiple import estimate_multiple_shooting
-
-        res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, window_s=args.window,
-                                         max_iterations=args.max_iter * 4, progress=progress)
-    bar.close()
+    try:
+        if args.method == "single":
+            res = estimate(est_records, theta0, fixed, window_s=args.window, gap_s=args.gap, noise_std=noise,
+                           max_iterations=args.max_iter, progress=progress)
+        else:
+            res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
+                                             node_s=args.node, max_iterations=args.max_iter,
+                                             estimate_noise=not args.fixed_noise, progress=progress)
+    finally:
+        bar.close()
     for d in res.identifiability.directions:
         print(f"identifiability: {d}", file=sys.stderr)
-    if res.identifiability.unidentifiable:
-        msg = ("WARNING: the data leave some parameter direction unidentifiable (see above): those parameters keep "
-               "values near their initial guess; fix them (--fix) or collect more exciting data")
+    check_identifiable(res)  # refuses (exit 2) rather than writing numbers the data do not determine
+    if not res.converged:
+        msg = (f"WARNING: the estimation did not converge in {res.iterations} iterations (--max-iter); the values "
+               "are the last iterate")
         print(msg, file=sys.stderr)
         warnings.append(msg)
     if res.identifiability.poorly_determined:
         warnings.append("poorly determined (95 % relative error above 5 %): "
                         + ", ".join(res.identifiability.poorly_determined))
+    lo_hi = _at_bounds(res)
+    if lo_hi:
+        msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(lo_hi))
+        print(msg, file=sys.stderr)
+        warnings.append(msg)
     Path(args.out).write_text(json.dumps(res.to_json_dict(), indent=2) + "\n")
-    print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.iterations} iterations, "
-          f"s^2 = {res.noise_factor:.3g})", file=sys.stderr)
-    if args.report:
-        from lotsen.sysid.report import render_pdf, render_report
-
-        fit_est = simulate_fit(res.params, est_records, args.window, args.gap)
-        fit_val = simulate_fit(res.params, val_records, args.window, args.gap)
-        narx = fit_narx(est_records, args.gap)
-        bb = narx_fit(narx, val_records, args.window, args.gap)
-        ra = residual_analysis(fit_val, inputs_at_outputs(val_records, args.window, args.gap))
-        report_args = (res, [str(p) for p in args.data], fit_est, fit_val, bb, ra, warnings, theta0)
-        if Path(args.report).suffix.lower() == ".pdf":
-            Path(args.report).write_bytes(render_pdf(*report_args))
-        else:
-            Path(args.report).write_text(render_report(*report_args))
-        print(f"{args.report}: validation fit " + ", ".join(f"{k} {v:.1f} %" for k, v in fit_val.fit_percent.items())
-              + " (black-box: " + ", ".join(f"{k} {v:.1f} %" for k, v in bb.fit_percent.items()) + ")",
+    print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
+          f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
+    for n in res.free_names:
+        v, sd = getattr(res.params, n), res.std[n]
+        print(f"  {n:6s} {v: .6g} +- {1.96 * sd:.3g} (95 %, {196 * sd / abs(v) if v else math.inf:.2g} %)",
               file=sys.stderr)
+    if args.report:
+        _write_report(args, res, est_records, val_records, warnings, theta0)
     return 0
+
+
+def _at_bounds(res) -> list[str]:  # type: ignore[no-untyped-def]
+    from lotsen.sysid.estimate import parameter_bounds
+
+    lo, hi = parameter_bounds()
+    out = []
+    for n in res.free_names:
+        i = NAMES_INDEX[n]
+        v = getattr(res.params, n)
+        if v <= lo[i] or v >= hi[i]:
+            out.append(f"{n} = {v:g}")
+    return out
+
+
+def _write_report(args: argparse.Namespace, res, est_records: list, val_records: list, warnings: list[str],
+                  theta0) -> None:  # type: ignore[no-untyped-def]
+    from lotsen.errors import LotsenError as _LE
+    from lotsen.sysid.blackbox import fit_narx, narx_fit
+    from lotsen.sysid.report import render_pdf, render_report
+    from lotsen.sysid.validate import inputs_at_outputs, residual_analysis, simulate_fit
+
+    fit_est = fit_val = bb = ra = None
+    try:
+        fit_est = simulate_fit(res.params, est_records, args.window, args.gap)
+    except _LE as exc:
+        warnings.append(f"no fit on the estimation data: {exc}")
+    try:
+        fit_val = simulate_fit(res.params, val_records, args.window, args.gap)
+        ra = residual_analysis(fit_val, inputs_at_outputs(val_records, args.window, args.gap))
+        if not ra.autocorr:  # no output with enough samples for a correlation
+            ra = None
+    except _LE as exc:
+        warnings.append(f"no validation: {exc} (the held-out part is too short; use --validate or a longer "
+                        "record)")
+    try:
+        bb = narx_fit(fit_narx(est_records, args.gap), val_records, args.window, args.gap)
+    except _LE as exc:
+        warnings.append(f"no black-box peer: {exc}")
+    report_args = (res, [str(p) for p in args.data], fit_est, fit_val, bb, ra, warnings, theta0)
+    if Path(args.report).suffix.lower() == ".pdf":
+        Path(args.report).write_bytes(render_pdf(*report_args))
+    else:
+        Path(args.report).write_text(render_report(*report_args))
+    shown = fit_val or fit_est
+    print(f"{args.report}: " + ("validation fit " + ", ".join(f"{k} {v:.1f} %" for k, v in fit_val.fit_percent.items())
+                                if fit_val else "written (no validation data)")
+          + (" (black-box: " + ", ".join(f"{k} {v:.1f} %" for k, v in bb.fit_percent.items()) + ")"
+             if bb is not None and shown is not None else ""), file=sys.stderr)
 
 
 def register(subparsers: Any) -> None:
     p = subparsers.add_parser("identify", help="estimate the vessel parameters from experiment data")
-    p.add_argument("data", nargs="+", help="data files (CSV: t,alpha1,alpha2,n1,n2,nt,north,east,psi,r[,u,v])")
+    p.add_argument("data", nargs="+", help="data files: CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r[,u,v]; a row "
+                                           "may carry only inputs or only outputs) or a run log RUN.mcap")
     p.add_argument("--out", required=True, help="parameter JSON to write (the 18 parameters + std)")
     p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter at a known value")
-    p.add_argument("--method", choices=("single", "multiple"), default="single")
+    p.add_argument("--method", choices=("multiple", "single"), default="multiple",
+                   help="multiple shooting over the whole record (default) or single shooting in --window windows")
+    p.add_argument("--node", type=float, default=2.0, help="multiple shooting: interval length, s (default 2)")
+    p.add_argument("--noise", action="append", metavar="OUTPUT=STD",
+                   help="assumed noise std of an output (default north/east 0.01 m, psi 0.01 rad, r 0.003 rad/s)")
+    p.add_argument("--fixed-noise", action="store_true",
+                   help="keep the assumed noise std (default: re-estimate each output's from its residuals)")
     p.add_argument("--report", help="report to write: self-contained HTML (.html) or PDF (.pdf)")
     p.add_argument("--init", help="initial guess JSON (default: the documented defaults)")
     p.add_argument("--validate", nargs="+", help="held-out validation data files")
     p.add_argument("--holdout", type=float, default=0.2, help="fraction of each file held out (default 0.2)")
-    p.add_argument("--window", type=float, default=10.0, help="simulation window length, s (default 10)")
+    p.add_argument("--window", type=float, default=10.0,
+                   help="single shooting and validation: simulation window length, s (default 10)")
     p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
     p.add_argument("--max-iter", type=int, default=60)
     p.add_argument("--no-default-scale", action="store_true",

@@ -22,7 +22,7 @@ import numpy as np
 
 from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry
 from lotsen.sysid.data import IdRecord, Segment, split_segments, split_windows
-from lotsen.sysid.estimate import wrap_angle
+from lotsen.model.angles import wrap_angle
 from lotsen.sysid.validate import OutputFit, fit_percent
 
 

@@ -1,17 +1,22 @@
 """Identification data: one record of inputs and measured outputs, its segments, and loaders.
 
-A record holds samples at times t_k (non-uniform allowed) of
+A record holds rows at times t_k (non-uniform, non-decreasing) of
     inputs  u_k = [alpha1, alpha2, n1, n2, nt]          (rad, rev/s)
     outputs y_k = [north, east, psi, r] (+ optionally u, v)  (m, m, rad, rad/s, m/s, m/s)
-Conventions used by every estimator in this package (docs/sysid.md, "Data"):
-  - inputs are held constant (zero-order hold) from t_k to t_{k+1}; a non-finite input value is
-    replaced by the last finite one of the same column (at the start of a segment: by 0);
+in the **asynchronous** form the boat records (docs/sysid.md, "Data"): every stream keeps its own
+time stamps, and a row may carry only inputs or only outputs (NaN = no value at this stamp).
+Conventions used by every estimator in this package:
+  - an input value holds from its stamp until the next stamp of the same column (zero-order hold
+    of what the actuators achieved; the row's other cells may be empty);
+  - the record starts where every input column has had a value (earlier rows cannot be simulated);
   - outputs are compared only where they are finite (a NaN entry simply has no residual);
-  - a gap t_{k+1} - t_k > `gap_s` splits the record into separate segments, each with its own
-    initial state; estimators may further cut segments into windows (`split_windows`).
+  - a gap of more than `gap_s` between consecutive *measurements* splits the record into separate
+    segments, each with its own initial state (the inputs keep holding across the gap).
 
 Loaders live at the I/O boundary (`load_csv`, `load_record`); `LOADERS` maps a file suffix to a
 loader so that a second source (the MCAP run logs) can be registered without touching callers.
+`check_record` refuses data no estimator can use (non-finite or decreasing time, infinite values,
+no measurements, an input column that never has a value) with a DataError naming the place.
 """
 
 from __future__ import annotations
@@ -55,9 +60,17 @@ class IdRecord:
         return float(self.t[-1] - self.t[0]) if len(self.t) > 1 else 0.0
 
     def slice(self, t_start: float, t_end: float) -> "IdRecord":
-        """Samples with t_start <= t < t_end (e.g. an estimation / validation split)."""
+        """Rows with t_start <= t < t_end (e.g. an estimation / validation split).
+
+        The inputs holding at the slice's first row (stamped earlier) are written into that row,
+        so the slice means the same as the part of the record it came from."""
         m = (self.t >= t_start) & (self.t < t_end)
-        return IdRecord(self.t[m], self.inputs[m], self.outputs[m], self.output_names, self.source)
+        U = self.inputs[m].copy()
+        idx = np.flatnonzero(m)
+        if len(idx) and idx[0] > 0:
+            held = _hold_inputs(self.inputs[: idx[0] + 1])[-1]
+            U[0] = held
+        return IdRecord(self.t[m], U, self.outputs[m], self.output_names, self.source)
 
     def to_csv_rows(self) -> tuple[list[str], list[list[float]]]:
         header = ["t", *INPUT_COLUMNS, *self.output_names]
@@ -84,7 +97,7 @@ class Segment:
 
 
 def _hold_inputs(inputs: np.ndarray) -> np.ndarray:
-    """Zero-order hold over non-finite entries (last finite value; 0 before the first)."""
+    """Zero-order hold over non-finite entries (last finite value of the column; NaN before the first)."""
     out = np.array(inputs, dtype=float)
     for j in range(out.shape[1]):
         col = out[:, j]
@@ -92,28 +105,94 @@ def _hold_inputs(inputs: np.ndarray) -> np.ndarray:
         if bad.any():
             idx = np.where(~bad, np.arange(len(col)), 0)
             np.maximum.accumulate(idx, out=idx)
-            filled = col[idx]
-            filled[~np.isfinite(filled)] = 0.0
-            out[:, j] = filled
+            out[:, j] = col[idx]  # before the first finite value: col[0], i.e. NaN
     return out
 
 
+def check_record(record: IdRecord) -> None:
+    """Refuse a record no estimator can use, with a DataError that names the problem and place."""
+    src = record.source
+    t = record.t
+    if len(t) < 2:
+        raise DataError(f"{src}: fewer than 2 rows")
+    bad_t = np.flatnonzero(~np.isfinite(t))
+    if len(bad_t):
+        raise DataError(f"{src}, row {bad_t[0]}: time t is not finite")
+    back = np.flatnonzero(np.diff(t) < 0)
+    if len(back):
+        k = int(back[0]) + 1
+        raise DataError(f"{src}, row {k}: time {t[k]:g} s is before the previous row's {t[k - 1]:g} s "
+                        "(time must not decrease)")
+    for name, arr, cols in (("input", record.inputs, INPUT_COLUMNS), ("output", record.outputs, record.output_names)):
+        inf = np.argwhere(np.isinf(arr))
+        if len(inf):
+            k, j = inf[0]
+            raise DataError(f"{src}, row {k}, {name} {cols[j]}: infinite value")
+    never = [c for j, c in enumerate(INPUT_COLUMNS) if not np.isfinite(record.inputs[:, j]).any()]
+    if never:
+        raise DataError(f"{src}: input column(s) {', '.join(never)} never have a value (an input holds from its "
+                        "stamp until the next, so every column needs at least one)")
+    if not np.isfinite(record.outputs).any():
+        raise DataError(f"{src}: no finite measurement in any output column ({', '.join(record.output_names)})")
+
+
 def split_segments(record: IdRecord, gap_s: float = 1.0, min_samples: int = 8) -> list[Segment]:
-    """Cut a record where t_{k+1} - t_k > gap_s; drop pieces with fewer than `min_samples` finite outputs."""
+    """Gap-free pieces of a record, each from its first to its last measurement.
+
+    Inputs are held (each from its stamp to the next) and known from the first row where every
+    input column has had a value; a gap of more than `gap_s` between consecutive measurement times
+    starts a new segment. Pieces with fewer than `min_samples` measurement rows are dropped.
+    """
     t = record.t
     if len(t) == 0:
         return []
-    breaks = np.where(np.diff(t) > gap_s)[0] + 1
-    starts = np.concatenate([[0], breaks])
-    ends = np.concatenate([breaks, [len(t)]])
+    U = _hold_inputs(record.inputs)
+    known = np.all(np.isfinite(U), axis=1)
+    if not known.any():
+        return []
+    first = int(np.argmax(known))
+    meas = np.flatnonzero(np.isfinite(record.outputs).any(axis=1))
+    meas = meas[meas >= first]
+    if len(meas) == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(t[meas]) > gap_s) + 1
     segs = []
-    for a, b in zip(starts, ends):
-        y = record.outputs[a:b]
-        if np.isfinite(y).any(axis=1).sum() < min_samples:
+    for piece in np.split(meas, breaks):
+        if len(piece) < min_samples:
             continue
-        segs.append(Segment(t[a:b].copy(), _hold_inputs(record.inputs[a:b]), y.copy(),
-                            record.output_names, record.source, int(a)))
+        a, b = int(piece[0]), int(piece[-1]) + 1
+        segs.append(Segment(t[a:b].copy(), U[a:b].copy(), record.outputs[a:b].copy(), record.output_names,
+                            record.source, a))
     return segs
+
+
+def check_excitation(segments: list[Segment]) -> None:
+    """Refuse data that cannot identify anything: every input zero, or a boat that did not move."""
+    if not segments:
+        return
+    src = segments[0].source
+    if all(np.all(s.inputs == 0.0) for s in segments):
+        raise DataError(f"{src}: no excitation: every input (alpha1, alpha2, n1, n2, nt) is zero throughout; "
+                        "the data carry no information about the vessel's parameters")
+    names = segments[0].output_names
+    moved = 0.0
+    turned = 0.0
+    for s in segments:
+        for name in ("north", "east"):
+            if name in names:
+                col = s.outputs[:, names.index(name)]
+                ok = np.isfinite(col)
+                if ok.sum() > 1:
+                    moved = max(moved, float(np.ptp(col[ok])))
+        if "psi" in names:
+            col = s.outputs[:, names.index("psi")]
+            ok = np.isfinite(col)
+            if ok.sum() > 1:
+                turned = max(turned, float(np.ptp(np.unwrap(col[ok]))))
+    # sensor noise alone spans a few cm and a few degrees over a long record
+    if moved < 0.5 and turned < math.radians(10.0):
+        raise DataError(f"{src}: no excitation: the boat did not move (position range {moved:.3f} m, heading range "
+                        f"{math.degrees(turned):.1f} deg): nothing to identify")
 
 
 def split_windows(segments: list[Segment], window_s: float | None) -> list[Segment]:
@@ -147,8 +226,10 @@ def split_windows(segments: list[Segment], window_s: float | None) -> list[Segme
 def load_csv(path: str | Path) -> IdRecord:
     """Read `t,alpha1,alpha2,n1,n2,nt,north,east,psi,r[,u,v]` (header row, SI units, rev/s).
 
-    Raises DataError naming the file and row (1-based, header = row 1) of malformed data.
-    Empty cells and 'nan' are NaN. Time must be finite and strictly increasing.
+    Asynchronous form: a row may carry only inputs or only outputs (empty cells or 'nan'); rows
+    with the same t are merged (a column given twice at one stamp with different values is an
+    error). Raises DataError naming the file and row (1-based, header = row 1) of malformed data:
+    unparsable or infinite cells, a missing or non-finite t, a t before the previous row's.
     """
     path = Path(path)
     try:
@@ -169,8 +250,12 @@ def load_csv(path: str | Path) -> IdRecord:
         if dup:
             raise DataError(f"{path}, row 1: duplicate column(s) {', '.join(sorted(dup))}")
         out_names = OUTPUT_COLUMNS + tuple(c for c in OPTIONAL_OUTPUT_COLUMNS if c in header)
-        cols = [header.index(c) for c in ("t",) + INPUT_COLUMNS + out_names]
-        rows = []
+        names = ("t",) + INPUT_COLUMNS + out_names
+        cols = [header.index(c) for c in names]
+        nan = math.nan
+        rows: list[list[float]] = []
+        line_of: list[int] = []
+        t_prev = -math.inf
         for i, row in enumerate(reader, start=2):
             if not row or all(not c.strip() for c in row):
                 continue
@@ -180,33 +265,52 @@ def load_csv(path: str | Path) -> IdRecord:
             for j in cols:
                 cell = row[j].strip()
                 if cell == "" or cell.lower() == "nan":
-                    vals.append(math.nan)
+                    vals.append(nan)
                     continue
                 try:
-                    vals.append(float(cell))
+                    v = float(cell)
                 except ValueError:
                     raise DataError(f"{path}, row {i}, column {header[j]}: {cell!r} is not a number") from None
-            if not math.isfinite(vals[0]):
+                if math.isinf(v):
+                    raise DataError(f"{path}, row {i}, column {header[j]}: infinite value")
+                vals.append(v)
+            t = vals[0]
+            if not math.isfinite(t):
                 raise DataError(f"{path}, row {i}: time t is missing or not finite")
-            if rows and vals[0] <= rows[-1][0]:
-                raise DataError(f"{path}, row {i}: time {vals[0]:g} s is not after the previous row's "
-                                f"{rows[-1][0]:g} s (t must increase strictly)")
-            if any(math.isinf(v) for v in vals):
-                raise DataError(f"{path}, row {i}: infinite value")
+            if t < t_prev:
+                raise DataError(f"{path}, row {i}: time {t:g} s is before the previous row's {t_prev:g} s "
+                                "(time must not decrease)")
+            if t == t_prev:  # same stamp: merge into the previous row
+                last = rows[-1]
+                for j in range(1, len(vals)):
+                    v = vals[j]
+                    if v == v:  # finite
+                        if last[j] == last[j] and last[j] != v:
+                            raise DataError(f"{path}, row {i}, column {names[j]}: {v:g} differs from {last[j]:g} "
+                                            f"given at the same time {t:g} s (row {line_of[-1]})")
+                        last[j] = v
+                continue
+            t_prev = t
             rows.append(vals)
+            line_of.append(i)
     if len(rows) < 2:
         raise DataError(f"{path}: fewer than 2 data rows")
     a = np.array(rows)
-    return IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], out_names, str(path))
+    del rows
+    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], out_names, str(path))
+    check_record(rec)
+    return rec
 
 
 def save_csv(record: IdRecord, path: str | Path) -> None:
-    header, rows = record.to_csv_rows()
+    """Write the record; a cell without a value at its row's stamp is left empty (asynchronous form)."""
+    header = ["t", *INPUT_COLUMNS, *record.output_names]
+    data = np.column_stack([record.t, record.inputs, record.outputs])
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        for row in rows:
-            w.writerow(["nan" if not math.isfinite(v) else f"{v:.9g}" for v in row])
+        for row in data.tolist():
+            w.writerow(["" if v != v else f"{v:.10g}" for v in row])
 
 
 # suffix -> loader; the logs work adds ".mcap" here (register_loader)

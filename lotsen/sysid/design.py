@@ -1,17 +1,19 @@
-"""Experiment design: inputs that make the Fisher information of the parameters large, in a box.
+"""Experiment design: inputs that make the Fisher information of the parameters large, in a box,
+for a range of parameter values (robust to the prior).
 
 The inputs are piecewise constant over `segment_s` levels per channel (alpha1 = alpha2 = alpha,
-n1, n2, nt); the model's prediction from rest gives the trajectory (area constraint) and the
-window-wise forward sensitivities give the Fisher information F of the free parameters, with
-the initial state of every estimation window marginalised, exactly as the estimator sees it
-(lotsen.sysid.estimate). The criterion works on the relative information (parameters scaled by
-their size):
+n1, n2, nt). For each parameter vector of a small set around the prior (the prior itself and
+`robust_samples - 1` draws within +-`robust_spread`), the model's prediction from rest gives the
+trajectory (area constraint) and the Fisher information F of the free parameters of the *whole
+record*, every node state eliminated under continuity, exactly as the multiple-shooting
+estimator sees it (lotsen.sysid.multiple.record_fisher). The criterion works on the relative
+information (parameters scaled by their size) and is averaged over the set:
     A: J = log( mean_i (relvar_i)^p )^(1/p),  relvar_i = (F^-1)_ii / theta_i^2, p = 4
        (a smooth stand-in for the worst relative variance, which the 5 % target is about)
     D: J = -log det(F_rel) / n_free
-plus a quadratic penalty on positions outside the area (with a margin). L-BFGS-B over the
-levels within the actuator limits, gradients by finite differences (each evaluation is one
-CasADi simulation with sensitivities, ~10 ms for a minute of 8 Hz data).
+plus a quadratic penalty on positions outside the area (with a margin) for every member of the
+set. L-BFGS-B over the levels within the actuator limits, gradients by finite differences.
+By default every parameter but the scale (m11) is free: nothing is held at a default.
 """
 
 from __future__ import annotations
@@ -23,76 +25,69 @@ from typing import Callable, Sequence
 import numpy as np
 
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselParameters
-from lotsen.sysid.data import OUTPUT_COLUMNS, Segment, split_windows
-from lotsen.sysid.estimate import DEFAULT_NOISE_STD, NAMES, marginal_fisher, parameter_scale, _normal_blocks, \
-    _X0_SCALE
+from lotsen.sysid.data import OUTPUT_COLUMNS, IdRecord
+from lotsen.sysid.estimate import DEFAULT_NOISE_STD, NAMES
 from lotsen.sysid.experiment import Area, Experiment, Piece
-from lotsen.sysid.sensitivity import WindowSimulator
 
-# Parameters the design does not target, and the estimator keeps at their defaults, because no
-# experiment of this vessel in a 30 m x 30 m box determines them to 5 % in minutes (see
-# docs/sysid.md, "Identifiability in practice" and bench/bench_sysid.py): m11 fixes the scale.
-DEFAULT_KNOWN = ("m11", "Y_r", "Y_rv", "N_v", "N_vv", "kappa")
+# Only the scale is fixed (docs/sysid.md "Scale"); every other parameter is designed for.
+DEFAULT_KNOWN = ("m11",)
 
 
 @dataclass
 class InformationModel:
-    """Reusable simulators for the Fisher information of one sampling grid and window length."""
+    """Whole-record Fisher information of an input sequence on a fixed time grid.
 
-    t: np.ndarray  # row times
-    output_rows: np.ndarray  # bool per row: outputs measured
-    window_s: float = 10.0
+    `t` are the row times, `output_rows` marks the rows with measurements (all outputs)."""
+
+    t: np.ndarray
+    output_rows: np.ndarray
+    window_s: float | None = None  # unused (kept for callers of the windowed version)
     noise_std: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_NOISE_STD))
     output_names: tuple[str, ...] = OUTPUT_COLUMNS
     h_max: float = 0.0625
+    node_s: float = 2.0
 
-    def __post_init__(self) -> None:
+    def _problem(self, U_rows: np.ndarray, rows: np.ndarray, node_s: float):  # type: ignore[no-untyped-def]
+        from lotsen.sysid.multiple import MultipleShootingProblem
+
         n = len(self.t)
-        y = np.where(self.output_rows[:, None], 0.0, np.nan) * np.ones((n, len(self.output_names)))
-        seg = Segment(self.t, np.zeros((n, 5)), y, self.output_names)
-        self._full = WindowSimulator([seg], h_max=self.h_max)
-        self.windows = split_windows([seg], self.window_s)
-        self._win = WindowSimulator(self.windows, h_max=self.h_max)
-        self._starts = np.array([w.first_row for w in self.windows])
-        self._mask = np.vstack([np.isfinite(w.outputs) for w in self.windows])
-        self._sqrt_w = np.array([1.0 / self.noise_std[n] for n in self.output_names])
-        self._out_idx = self._win.output_index()
-        self._wos = self._win.grid.window_of_sample
-
-    def _set_inputs(self, U_rows: np.ndarray) -> None:
-        from lotsen.sysid.sensitivity import make_grid
-
-        seg = Segment(self.t, U_rows, np.zeros((len(self.t), 1)), ("north",))
-        self._full.grid.U = make_grid([seg], self.h_max).U
-        wins = [Segment(w.t, U_rows[w.first_row:w.first_row + len(w.t)], w.outputs, w.output_names, first_row=w.first_row)
-                for w in self.windows]
-        self._win.grid.U = make_grid(wins, self.h_max).U
+        Y = np.full((n, len(self.output_names)), np.nan)
+        Y[rows] = 0.0
+        rec = IdRecord(self.t, U_rows, Y, self.output_names, "design")
+        return MultipleShootingProblem([rec], node_s, math.inf, self.noise_std, h_max=self.h_max)
 
     def trajectory(self, U_rows: np.ndarray, theta: Sequence[float], x0: Sequence[float]) -> np.ndarray:
-        self._set_inputs(U_rows)
-        return self._full.simulate(theta, np.asarray(x0, float)[None, :])
+        """The model's prediction at every row from x0 (one simulation, no noise)."""
+        prob = self._problem(U_rows, np.ones(len(self.t), bool), 1e12)
+        Xm, _ = prob.sim.run(np.asarray(theta, float), np.asarray(x0, float)[None, :], False)
+        return Xm
 
     def fisher(self, U_rows: np.ndarray, theta: Sequence[float], x0: Sequence[float],
                free_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         """(F of free_names in absolute units, predicted states per row)."""
+        from lotsen.sysid.multiple import record_fisher
+
         theta = np.asarray(theta, float)
         X = self.trajectory(U_rows, theta, x0)
-        if not np.all(np.isfinite(X)):
+        if not np.all(np.isfinite(X)) or np.abs(X[:, 3:]).max() > 50:
             return np.full((len(free_names),) * 2, np.nan), X
-        x0s = X[self._starts]
-        _, S = self._win.simulate_sens(theta, x0s)
-        free = np.array([NAMES.index(n) for n in free_names], dtype=int)
-        tscale = parameter_scale(theta)
+        prob = self._problem(U_rows, np.asarray(self.output_rows, bool), self.node_s)
+        rows = np.searchsorted(self.t, prob.grid.node_time)
+        F = record_fisher([], VesselParameters.from_vector(theta), free_names, problem=prob, nodes=X[rows])
+        return F, X
 
-        class _P:  # the fields _normal_blocks reads
-            pass
 
-        p = _P()
-        p.out_idx, p.sqrt_w, p.mask, p.n_windows, p.window_of_sample = (
-            self._out_idx, self._sqrt_w, self._mask, len(self.windows), self._wos)
-        nb = _normal_blocks(p, S, np.zeros(self._mask.shape), free, tscale, _X0_SCALE)  # type: ignore[arg-type]
-        Dinv = np.diag(1.0 / tscale[free])
-        return Dinv @ marginal_fisher(nb) @ Dinv, X
+def parameter_samples(params: VesselParameters, n: int, spread: float, seed: int = 0,
+                      keep: Sequence[str] = DEFAULT_KNOWN) -> list[np.ndarray]:
+    """The prior and n - 1 parameter vectors with every parameter but `keep` scaled by 1 +- spread."""
+    theta = np.array(params.to_vector())
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 16]))
+    out = [theta]
+    for _ in range(max(n, 1) - 1):
+        f = rng.uniform(1 - spread, 1 + spread, len(theta))
+        f[[NAMES.index(k) for k in keep if k in NAMES]] = 1.0
+        out.append(theta * f)
+    return out
 
 
 def relative_std(F: np.ndarray, theta: Sequence[float], free_names: Sequence[str]) -> np.ndarray:
@@ -122,13 +117,15 @@ class DesignConfig:
     segment_s: float = 3.0
     criterion: str = "A"
     fixed: tuple[str, ...] = DEFAULT_KNOWN
-    window_s: float = 10.0
     iterations: int = 40
     seed: int = 0
     sample_rate_hz: float = 8.0
     noise_std: tuple[tuple[str, float], ...] = tuple(DEFAULT_NOISE_STD.items())
     limits: ActuatorLimits = DEFAULT_LIMITS
     start_speed_mps: float = 0.0
+    robust_samples: int = 3  # the prior + 2 draws: the design must work for all of them
+    robust_spread: float = 0.15
+    node_s: float = 2.0
 
 
 @dataclass
@@ -140,14 +137,17 @@ class DesignResult:
     criterion_value: float
     trajectory: np.ndarray
     history: list[float]
-    time_to_5pct_s: float
+    time_to_5pct_s: float  # worst over the parameter set, repeating the experiment
+    rel_std_samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # per member of the set
+    trajectories: list[np.ndarray] = field(default_factory=list)
 
     def summary(self) -> str:
         worst = int(np.argmax(self.rel_std))
-        return (f"{self.experiment.duration_s:.0f} s designed experiment; worst 1.96-sigma relative error "
-                f"{196 * self.rel_std[worst]:.1f} % ({self.free_names[worst]}); experiment time to 5 % for all "
-                f"{len(self.free_names)} estimated parameters: {self.time_to_5pct_s:.0f} s "
-                f"(known/fixed: {', '.join(n for n in NAMES if n not in self.free_names)})")
+        return (f"{self.experiment.duration_s:.0f} s designed experiment; at the prior the worst 1.96-sigma relative "
+                f"error is {196 * self.rel_std[worst]:.1f} % ({self.free_names[worst]}); experiment time to 5 % for "
+                f"all {len(self.free_names)} estimated parameters (worst over {max(len(self.rel_std_samples), 1)} "
+                f"parameter sets, repeating it): {self.time_to_5pct_s:.0f} s "
+                f"(fixed: {', '.join(n for n in NAMES if n not in self.free_names)})")
 
 
 def _levels_to_rows(z: np.ndarray, nseg: int, rows_per_seg: int, lim: np.ndarray) -> np.ndarray:
@@ -160,18 +160,17 @@ def _levels_to_rows(z: np.ndarray, nseg: int, rows_per_seg: int, lim: np.ndarray
 def design_experiment(params: VesselParameters, config: DesignConfig = DesignConfig(),
                       progress: Callable[[int, float], None] | None = None,
                       initial: np.ndarray | None = None) -> DesignResult:
-    """Optimise piecewise-constant inputs for the Fisher information inside the area."""
+    """Optimise piecewise-constant inputs for the whole-record information over a parameter set."""
     from scipy.optimize import minimize
 
     cfg = config
-    theta = np.array(params.to_vector())
     free_names = tuple(n for n in NAMES if n not in cfg.fixed)
-    th_free = np.array([theta[NAMES.index(n)] for n in free_names])
+    samples = parameter_samples(params, cfg.robust_samples, cfg.robust_spread, cfg.seed, cfg.fixed)
     rows_per_seg = int(round(cfg.segment_s * cfg.sample_rate_hz))
     nseg = int(math.ceil(cfg.duration_s / cfg.segment_s))
     n_rows = nseg * rows_per_seg
     t = np.arange(n_rows) / cfg.sample_rate_hz
-    info = InformationModel(t, np.ones(n_rows, bool), cfg.window_s, dict(cfg.noise_std))
+    info = InformationModel(t, np.ones(n_rows, bool), None, dict(cfg.noise_std), node_s=cfg.node_s)
     lim = np.array([cfg.limits.alpha_max_rad, cfg.limits.n_az_max_rps, cfg.limits.n_az_max_rps,
                     cfg.limits.n_bow_max_rps])
     area = Area.centred(*cfg.area_size_m)
@@ -184,26 +183,37 @@ def design_experiment(params: VesselParameters, config: DesignConfig = DesignCon
     else:
         z0 = np.asarray(initial, float).ravel()
     p_norm = 4.0
+    fidx = np.array([NAMES.index(n) for n in free_names])
 
-    def objective(z: np.ndarray) -> float:
-        U = _levels_to_rows(z, nseg, rows_per_seg, lim)
-        F, X = info.fisher(U, theta, x0, free_names)
+    def crit(F: np.ndarray, th: np.ndarray) -> float:
         if not np.all(np.isfinite(F)):
-            return 1e6
-        Fr = F * th_free[:, None] * th_free[None, :]  # relative information
+            return 1e3
+        thf = th[fidx]
+        Fr = F * thf[:, None] * thf[None, :]  # relative information
         try:
             if cfg.criterion == "D":
                 sign, logdet = np.linalg.slogdet(Fr)
-                J = -logdet / len(free_names) if sign > 0 else 1e3
-            else:
-                rv = np.diag(np.linalg.inv(Fr))
-                J = math.log(np.mean(np.abs(rv) ** p_norm)) / p_norm if np.all(rv > 0) else 1e3
+                return -logdet / len(free_names) if sign > 0 else 1e3
+            rv = np.diag(np.linalg.inv(Fr))
+            return math.log(np.mean(np.abs(rv) ** p_norm)) / p_norm if np.all(rv > 0) else 1e3
         except np.linalg.LinAlgError:
-            J = 1e3
+            return 1e3
+
+    def penalty(X: np.ndarray) -> float:
         m = cfg.margin_m
+        if not np.all(np.isfinite(X)):
+            return 1e6
         over = (np.maximum(X[:, 0] - (area.north_m[1] - m), 0) + np.maximum((area.north_m[0] + m) - X[:, 0], 0)
                 + np.maximum(X[:, 1] - (area.east_m[1] - m), 0) + np.maximum((area.east_m[0] + m) - X[:, 1], 0))
-        return J + 10.0 * float(np.mean(over ** 2)) * len(over) / 8.0
+        return 10.0 * float(np.mean(over ** 2)) * len(over) / 8.0
+
+    def objective(z: np.ndarray) -> float:
+        U = _levels_to_rows(z, nseg, rows_per_seg, lim)
+        J = 0.0
+        for th in samples:
+            F, X = info.fisher(U, th, x0, free_names)
+            J += crit(F, th) + penalty(X)
+        return J / len(samples)
 
     history: list[float] = []
     it = [0]
@@ -218,12 +228,36 @@ def design_experiment(params: VesselParameters, config: DesignConfig = DesignCon
                    options=dict(maxiter=cfg.iterations, eps=1e-3, maxfun=cfg.iterations * (len(z0) + 1) * 2))
     z = res.x
     U = _levels_to_rows(z, nseg, rows_per_seg, lim)
-    F, X = info.fisher(U, theta, x0, free_names)
-    rs = relative_std(F, theta, free_names)
+    rs_all, trajs = [], []
+    for th in samples:
+        F, X = info.fisher(U, th, x0, free_names)
+        rs_all.append(relative_std(F, th, free_names) if np.all(np.isfinite(F)) else np.full(len(free_names), np.inf))
+        trajs.append(X)
+    rs_all = np.array(rs_all)
     L = U[::rows_per_seg]
     piece = Piece("piecewise", nseg * cfg.segment_s, {"segment_s": cfg.segment_s, "table": L}, "designed")
     exp = Experiment(f"designed_{cfg.duration_s:.0f}s", (piece,), area, 0.0, cfg.start_speed_mps, 20.0,
                      description=f"{cfg.criterion}-optimal piecewise-constant inputs for "
-                                 f"{', '.join(free_names)} (known: {', '.join(cfg.fixed)})")
-    return DesignResult(exp, free_names, F, rs, float(res.fun), X, history,
-                        time_to_accuracy(rs, nseg * cfg.segment_s))
+                                 f"{', '.join(free_names)} (fixed: {', '.join(cfg.fixed)}), robust over "
+                                 f"{len(samples)} parameter sets within +-{100 * cfg.robust_spread:.0f} %")
+    return DesignResult(exp, free_names, info.fisher(U, samples[0], x0, free_names)[0], rs_all[0], float(res.fun),
+                        trajs[0], history, time_to_accuracy(rs_all.max(axis=0), nseg * cfg.segment_s), rs_all, trajs)
+
+
+def experiment_information(experiment: Experiment, params: VesselParameters, free_names: Sequence[str],
+                           sample_rate_hz: float = 8.0, dt_s: float = 0.025,
+                           noise_std: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Whole-record relative std of `free_names` for an experiment (set-points applied directly,
+    outputs at sample_rate_hz), predicted with `params`: (rel_std, predicted states)."""
+    from lotsen.model import VesselModel
+    from lotsen.sysid.experiment import predict_trajectory
+
+    pred = predict_trajectory(experiment, VesselModel(params), dt_s=dt_s)
+    t, U = pred.t[:-1], pred.u[:-1]
+    every = max(1, int(round(1.0 / (sample_rate_hz * dt_s))))
+    info = InformationModel(t, np.arange(len(t)) % every == 0, None, dict(noise_std or DEFAULT_NOISE_STD))
+    x0 = pred.x[0]
+    F, X = info.fisher(U, params.to_vector(), x0, free_names)
+    if not np.all(np.isfinite(F)):
+        return np.full(len(free_names), np.inf), X
+    return relative_std(F, params.to_vector(), free_names), X

@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
-from lotsen.sysid.data import IdRecord, Segment, split_segments, split_windows
+from lotsen.model.angles import wrap_angle
+from lotsen.sysid.data import IdRecord, Segment, check_excitation, check_record, split_segments, split_windows
 from lotsen.sysid.sensitivity import WindowSimulator
 
 NAMES = VesselParameters.names()
@@ -63,12 +64,6 @@ def parameter_scale(theta: Sequence[float]) -> np.ndarray:
     d = np.abs(np.array(DEFAULT_PARAMETERS.to_vector()))
     t = np.abs(np.asarray(theta, float))
     return np.maximum(np.maximum(t, 0.1 * d), 1e-6)
-
-
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    """Wrap to (-pi, pi]."""
-    w = np.mod(a + np.pi, 2 * np.pi) - np.pi
-    return np.where(w == -np.pi, np.pi, w)
 
 
 def check_scale_fixed(fixed: Mapping[str, float]) -> None:
@@ -143,7 +138,11 @@ def build_problem(records: Sequence[IdRecord] | Sequence[Segment], window_s: flo
                   geometry: VesselGeometry = DEFAULT_GEOMETRY, h_max: float = 0.0625) -> WindowedProblem:
     segs: list[Segment] = []
     for r in records:
-        segs.extend(split_segments(r, gap_s) if isinstance(r, IdRecord) else [r])
+        if isinstance(r, IdRecord):
+            check_record(r)
+            segs.extend(split_segments(r, gap_s))
+        else:
+            segs.append(r)
     windows = split_windows(segs, window_s)
     if not windows:
         raise EstimationError("no usable data: every segment is shorter than 8 samples with outputs")
@@ -273,6 +272,7 @@ class IdentificationResult:
     method: str = "single"
     windows: list[Segment] = field(default_factory=list)
     history: list[float] = field(default_factory=list)
+    details: Any = None  # method-specific (multiple shooting: lotsen.sysid.multiple.MultipleShootingResult)
 
     def confidence_interval(self, name: str, z: float = 1.96) -> tuple[float, float]:
         v = getattr(self.params, name)
@@ -326,8 +326,11 @@ def estimate(records: Sequence[IdRecord] | WindowedProblem, theta0: VesselParame
     if unknown:
         raise LotsenError(f"cannot fix unknown parameter(s) {', '.join(unknown)} (known: {', '.join(NAMES)})")
     check_scale_fixed(fixed)
-    prob = records if isinstance(records, WindowedProblem) else build_problem(
-        records, window_s, gap_s, noise_std, geometry, h_max)
+    if isinstance(records, WindowedProblem):
+        prob = records
+    else:
+        prob = build_problem(records, window_s, gap_s, noise_std, geometry, h_max)
+        check_excitation(prob.windows)
     theta = np.array(theta0.with_updates(**fixed).to_vector(), float)
     lo, hi = parameter_bounds()
     out_of = [f"{n} = {fixed[n]:g} outside [{lo[i]:g}, {hi[i]:g}]" for i, n in enumerate(NAMES)

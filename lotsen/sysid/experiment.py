@@ -22,6 +22,7 @@ import numpy as np
 
 from lotsen.errors import ConfigError
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, rk4_step
+from lotsen.model.angles import wrap_angle
 
 CHANNELS = ("alpha1", "alpha2", "n1", "n2", "nt")
 # YAML keys -> (channels, factor to SI): angles in degrees in files, radians inside
@@ -303,10 +304,6 @@ def load_experiment(path: str | Path) -> Experiment:
 # ----------------------------------------------------------------------------------------------
 # the input generator
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 class InputGenerator:
     """u = command(t, measured_state): the experiment's set-points at time t (s since start).
 
@@ -356,7 +353,7 @@ class InputGenerator:
             psi = _heading(measured_state)
             if self._zz_piece != i:  # first call in this piece: start turning to starboard
                 self._zz_piece, self._zz_ref, self._zz_sign = i, psi, -1.0
-            dev = _wrap(psi - self._zz_ref)
+            dev = wrap_angle(psi - self._zz_ref)
             if self._zz_sign < 0 and dev >= p["heading"]:
                 self._zz_sign = 1.0
             elif self._zz_sign > 0 and dev <= -p["heading"]:

@@ -1,185 +1,639 @@
-"""Multiple shooting (seed section 4, as in the earlier thesis): CasADi + IPOPT.
+"""Multiple shooting over the whole record: the output-error estimate that reaches the record's bound.
 
-Decision variables: the free parameters (scaled by their size) and the state at every sample
-of every gap-free segment; equality constraints tie each sample's state to the RK4 prediction
-from the previous one (inputs held, `h_max` substeps). The objective is the same weighted least
-squares as single shooting; psi is compared with the measured heading unwrapped along each
-segment (a smooth objective for IPOPT instead of the wrapped residual). Because every sample
-has its own state, the open-loop instability of the vessel does not make the problem ill-posed,
-and segments need no cutting into windows.
+Every gap-free segment is cut at measurement rows into shooting intervals of about `node_s`
+seconds. Each interval is simulated from its own node state s_i (RK4, each input held from its
+stamp to the next, h <= `h_max`) with forward sensitivities d x / d[s_i, theta]
+(lotsen.sysid.sensitivity, the model's own equations through CasADi). The unknowns are all node
+states and the free parameters; the problem is
 
-Uncertainty: the Fisher information at the multiple-shooting estimate is evaluated by the
-single-shooting machinery (windows with their initial states re-estimated at fixed theta), so
-both methods report comparable standard deviations.
+    min  1/2 sum_k || W^1/2 (y_k - h(x_k(s, theta))) ||^2      (psi residuals wrapped)
+    s.t. c_i = x_i(t_{i+1}; s_i, theta) - s_{i+1} = 0            (continuity, exactly)
+
+so at the solution the trajectory is one simulation of the model over each segment, from an
+estimated initial state: the least-squares (maximum-likelihood, Gaussian noise) estimate of the
+whole record, whose covariance is the Cramer-Rao bound of the record with the initial state free.
+Short intervals keep every simulation well conditioned although the vessel is open-loop unstable
+(the sway-yaw pole reaches +1.4 1/s): the data, not a long simulation, carry the trajectory.
+
+Solver: constrained Gauss-Newton (Bock's generalised Gauss-Newton) with Levenberg-Marquardt
+damping. Each iteration solves the KKT system of the linearised problem,
+
+    [ H + mu D   C^T ] [dz]   [ -J^T e ]
+    [ C          0   ] [lam] = [ -c     ]      H = J^T J, z = (node states, parameters),
+
+exploiting its structure: the node-state / multiplier part A is block-banded (6 x 6 blocks) and is
+factorised by a sparse LU (scipy SuperLU); the parameters are eliminated through the Schur
+complement  F = H_pp - B^T A^-1 B  (a dense n_free x n_free matrix). The cost per iteration is
+linear in the record length. Steps are accepted on the exact-penalty merit function
+1/2 |e|^2 + nu |c|_1 with a ratio test; mu adapts as in Levenberg-Marquardt.
+
+Uncertainty: at the solution, F (mu = 0) is the Fisher information of the parameters with every
+node state eliminated under the continuity constraints, i.e. of the whole record with its initial
+state free; covariance = s^2 F^-1 with s^2 the a-posteriori noise factor. By default the noise
+standard deviation of each output is re-estimated from its residuals (two passes), so that the
+intervals hold when the assumed sensor noise is wrong. `record_fisher` evaluates the same F at
+given parameters (the Cramer-Rao bound for experiment design and Monte-Carlo checks).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
-from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters, geometry_tuple, \
-    symbolic_rhs
-from lotsen.sysid.data import OUTPUT_STATE_INDEX, IdRecord, Segment, split_segments
+from lotsen.errors import LotsenError
+from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters, geometry_tuple
+from lotsen.model.angles import wrap_angle
+from lotsen.sysid.data import OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments
 from lotsen.sysid.estimate import (
-    DEFAULT_NOISE_STD, NAMES, EstimationError, IdentificationResult, check_scale_fixed, estimate,
-    initial_state_guess, parameter_bounds, parameter_scale,
+    DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
+    identifiability, parameter_bounds, parameter_scale,
 )
+from lotsen.sysid.kernels import step_kernels
+from lotsen.sysid.sensitivity import NS
+
+# node-state scale (noise-like units: the continuity defects are compared with the measurement noise)
+X_SCALE = np.array([0.01, 0.01, 0.01, 0.01, 0.01, 0.003])
 
 
-def _state_guess(seg: Segment, psi_unwrapped: np.ndarray) -> np.ndarray:
-    """Initial guess of the state at every sample: measurements interpolated, velocities differenced."""
-    names = seg.output_names
-    t = seg.t
-    X = np.zeros((len(t), 6))
-    for j, name in enumerate(names):
-        col = psi_unwrapped if name == "psi" else seg.outputs[:, j]
-        ok = np.isfinite(col)
-        if ok.sum() >= 1:
-            X[:, OUTPUT_STATE_INDEX[name]] = np.interp(t, t[ok], col[ok])
-    if "u" not in names:
-        vn = np.gradient(X[:, 0], t)
-        ve = np.gradient(X[:, 1], t)
-        X[:, 3] = np.cos(X[:, 2]) * vn + np.sin(X[:, 2]) * ve
-        X[:, 4] = -np.sin(X[:, 2]) * vn + np.cos(X[:, 2]) * ve
-    X[0] = initial_state_guess(seg)
-    X[0, 2] = psi_unwrapped[np.isfinite(psi_unwrapped)][0] if np.isfinite(psi_unwrapped).any() else 0.0
+@dataclass
+class ShootingGrid:
+    """Integration steps of all shooting intervals of all segments, flattened.
+
+    Step j integrates over h[j] with the input U[j] (held); reset[j] = 1 marks the first,
+    zero-length step of an interval, which loads its node state. Node i starts at step
+    node_step[i]; if it has a successor in its segment (has_next[i]) its interval ends after
+    step end_step[i]. Measurement k (row meas_row[k] of segment meas_seg[k]) is reached after
+    step meas_step[k] and belongs to node meas_node[k].
+    """
+
+    h: np.ndarray
+    U: np.ndarray  # n_steps x 5
+    reset: np.ndarray
+    node_step: np.ndarray
+    node_time: np.ndarray
+    node_seg: np.ndarray
+    has_next: np.ndarray
+    end_step: np.ndarray
+    meas_step: np.ndarray
+    meas_node: np.ndarray
+    meas_t: np.ndarray
+    Y: np.ndarray  # n_meas x ny (NaN where not measured)
+    output_names: tuple[str, ...]
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.h)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.node_step)
+
+
+def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 0.0625) -> ShootingGrid:
+    """Shooting intervals of about `node_s` seconds, starting at measurement rows."""
+    hs, Us, resets, node_step, node_time, node_seg, has_next, end_step = [], [], [], [], [], [], [], []
+    meas_step, meas_node, meas_t, Ys = [], [], [], []
+    names = segments[0].output_names
+    offset = 0
+    for si, seg in enumerate(segments):
+        t, n = seg.t, len(seg.t)
+        measured = np.isfinite(seg.outputs).any(axis=1)
+        mrows = np.flatnonzero(measured)
+        # node rows: measurement rows about node_s apart; no interval shorter than node_s / 2 at the end
+        nodes = [int(mrows[0])]
+        tm = t[mrows]
+        while True:
+            k = int(np.searchsorted(tm, t[nodes[-1]] + node_s - 1e-9))
+            if k >= len(mrows) or t[mrows[-1]] - tm[k] < 0.5 * node_s:
+                break
+            nodes.append(int(mrows[k]))
+        is_node = np.zeros(n, bool)
+        is_node[nodes] = True
+        dt = np.diff(t)
+        m = np.zeros(n, int)
+        m[:-1] = np.maximum(1, np.ceil(dt / h_max - 1e-9).astype(int))
+        m[:-1][dt == 0] = 0
+        count = m + is_node
+        start = np.concatenate([[0], np.cumsum(count)[:-1]])
+        total = int(count.sum())
+        step_row = np.repeat(np.arange(n), count)
+        j_in_row = np.arange(total) - start[step_row]
+        rs = is_node[step_row] & (j_in_row == 0)
+        hh = np.where(rs, 0.0, np.append(dt, 0.0)[step_row] / np.maximum(m[step_row], 1))
+        hs.append(hh)
+        Us.append(seg.inputs[step_row])
+        resets.append(rs.astype(float))
+        # the step after which row k's state is reached
+        row_step = np.where(is_node, start, start - 1)
+        node_idx = np.cumsum(is_node) - 1  # interval of each row
+        base = len(node_step)
+        for q, r in enumerate(nodes):
+            node_step.append(offset + start[r])
+            node_time.append(t[r])
+            node_seg.append(si)
+            nxt = q + 1 < len(nodes)
+            has_next.append(nxt)
+            end_step.append(offset + start[nodes[q + 1]] - 1 if nxt else -1)
+        meas_step.append(offset + row_step[mrows])
+        meas_node.append(base + node_idx[mrows])
+        meas_t.append(t[mrows])
+        Ys.append(seg.outputs[mrows])
+        offset += total
+    return ShootingGrid(np.concatenate(hs), np.vstack(Us), np.concatenate(resets), np.array(node_step, int),
+                        np.array(node_time), np.array(node_seg, int), np.array(has_next, bool),
+                        np.array(end_step, int), np.concatenate(meas_step), np.concatenate(meas_node),
+                        np.concatenate(meas_t), np.vstack(Ys), names)
+
+
+class ShootingSimulator:
+    """All intervals simulated from their node states, CHUNK steps per compiled call
+    (lotsen.sysid.kernels): the memory is bounded whatever the record length."""
+
+    def __init__(self, grid: ShootingGrid, geometry: VesselGeometry = DEFAULT_GEOMETRY) -> None:
+        self.g = grid
+        self.k = step_kernels(geometry_tuple(geometry))
+        # steps whose state is needed: measurements and interval ends
+        ends = grid.end_step[grid.has_next]
+        self.need = np.unique(np.concatenate([grid.meas_step, ends]))
+        self._meas_pos = np.searchsorted(self.need, grid.meas_step)
+        self._end_pos = np.searchsorted(self.need, ends)
+
+    def run(self, theta: np.ndarray, nodes: np.ndarray, sens: bool) -> tuple[np.ndarray, ...]:
+        """(X at measurements, X at interval ends[, S at measurements, S at ends]); S: n x 6 x 24."""
+        g, k = self.g, self.k
+        L = k.chunk
+        X_need = np.empty((len(self.need), 6))
+        S_need = np.empty((len(self.need), 6, NS)) if sens else None
+        k.x0[:] = 0.0
+        k.S0[:] = 0.0
+        k.TH[:] = np.asarray(theta, float)[None, :]
+        for a in range(0, g.n_steps, L):
+            b = min(a + L, g.n_steps)
+            n = b - a
+            k.H[:n] = g.h[a:b]
+            k.H[n:] = 0.0
+            k.U[:n] = g.U[a:b]
+            k.RS[:n] = g.reset[a:b]
+            k.RS[n:] = 0.0
+            k.XR[:] = 0.0
+            lo, hi = np.searchsorted(g.node_step, [a, b])
+            k.XR[g.node_step[lo:hi] - a] = nodes[lo:hi]
+            i0, i1 = np.searchsorted(self.need, [a, b])
+            cols = self.need[i0:i1] - a
+            if sens:
+                k.run_sens()
+                X_need[i0:i1] = k.X[cols]
+                S_need[i0:i1] = k.S[cols].transpose(0, 2, 1)
+                k.S0[:] = k.S[n - 1]
+            else:
+                k.run_sim()
+                X_need[i0:i1] = k.X[cols]
+            k.x0[:] = k.X[n - 1]
+        out = (X_need[self._meas_pos], X_need[self._end_pos])
+        if sens:
+            out += (S_need[self._meas_pos], S_need[self._end_pos])
+        return out
+
+
+def initial_nodes(grid: ShootingGrid, segments: Sequence[Segment]) -> np.ndarray:
+    """Node states from the data: positions, heading (unwrapped) and r interpolated, u and v from a
+    local line fit of the positions (+-0.5 s) rotated into the body frame."""
+    names = grid.output_names
+    Y, tm = grid.Y, grid.meas_t
+    X = np.zeros((grid.n_nodes, 6))
+    seg_of_meas = grid.node_seg[grid.meas_node]
+    for si in range(len(segments)):
+        sel = seg_of_meas == si
+        nsel = grid.node_seg == si
+        tn = grid.node_time[nsel]
+        t = tm[sel]
+        y = Y[sel]
+        cols: dict[str, np.ndarray] = {}
+        for j, name in enumerate(names):
+            ok = np.isfinite(y[:, j])
+            if not ok.any():
+                continue
+            v = y[ok, j]
+            if name == "psi":
+                v = np.unwrap(v)
+            cols[name] = np.interp(tn, t[ok], v)
+            X[nsel, OUTPUT_STATE_INDEX[name]] = cols[name]
+        if "psi" not in cols:
+            X[nsel, 2] = 0.0
+        if "u" not in cols or "v" not in cols:
+            iN, iE = names.index("north"), names.index("east")
+            ok = np.isfinite(y[:, iN]) & np.isfinite(y[:, iE])
+            tt, yn, ye = t[ok], y[ok, iN], y[ok, iE]
+            vel = np.zeros((len(tn), 2))
+            for q, t0 in enumerate(tn):
+                w = np.abs(tt - t0) <= 0.5
+                if w.sum() >= 3:
+                    vel[q, 0] = np.polyfit(tt[w] - t0, yn[w], 1)[0]
+                    vel[q, 1] = np.polyfit(tt[w] - t0, ye[w], 1)[0]
+            psi = X[nsel, 2]
+            if "psi" not in cols:  # course over ground as the heading
+                psi = np.unwrap(np.arctan2(vel[:, 1], vel[:, 0]))
+                X[nsel, 2] = psi
+            X[nsel, 3] = np.cos(psi) * vel[:, 0] + np.sin(psi) * vel[:, 1]
+            X[nsel, 4] = -np.sin(psi) * vel[:, 0] + np.cos(psi) * vel[:, 1]
     return X
+
+
+@dataclass
+class _Lin:
+    """The problem linearised at one point (scaled variables, unit-weight residuals)."""
+
+    e: np.ndarray  # weighted measurement residuals, n_meas x ny (0 where not measured)
+    c: np.ndarray  # scaled continuity defects, n_con x 6
+    Jx: np.ndarray | None = None  # n_meas x ny x 6
+    Jp: np.ndarray | None = None  # n_meas x ny x nf
+    Gx: np.ndarray | None = None  # n_con x 6 x 6  d c_i / d sigma_i
+    Gp: np.ndarray | None = None  # n_con x 6 x nf
+
+    @property
+    def cost(self) -> float:
+        return 0.5 * float(np.sum(self.e * self.e))
+
+    @property
+    def l1(self) -> float:
+        return float(np.sum(np.abs(self.c)))
+
+
+class MultipleShootingProblem:
+    """Residuals, Jacobians and the structured KKT solves of one data set."""
+
+    def __init__(self, records: Sequence[IdRecord], node_s: float = 2.0, gap_s: float = 1.0,
+                 noise_std: Mapping[str, float] | None = None, geometry: VesselGeometry = DEFAULT_GEOMETRY,
+                 h_max: float = 0.0625) -> None:
+        segs: list[Segment] = []
+        for r in records:
+            check_record(r)
+            segs.extend(split_segments(r, gap_s))
+        if not segs:
+            raise EstimationError("no usable data: no gap-free piece with at least 8 measurement rows after every "
+                                  "input column has a value")
+        names = segs[0].output_names
+        if any(s.output_names != names for s in segs):
+            raise EstimationError("all data files must have the same output columns")
+        self.segments = segs
+        self.grid = build_grid(segs, node_s, h_max)
+        self.sim = ShootingSimulator(self.grid, geometry)
+        noise = dict(DEFAULT_NOISE_STD)
+        noise.update(noise_std or {})
+        self.noise = {n: float(noise[n]) for n in names}
+        self.names = names
+        self.out_idx = [OUTPUT_STATE_INDEX[n] for n in names]
+        self.psi_col = names.index("psi") if "psi" in names else None
+        self.mask = np.isfinite(self.grid.Y)
+        self.Y = np.where(self.mask, self.grid.Y, 0.0)
+        g = self.grid
+        self.con = np.flatnonzero(g.has_next)  # node i with a successor i + 1
+        self.n_nodes = g.n_nodes
+        self.n_con = len(self.con)
+        self.meas_bounds = np.searchsorted(g.meas_node, np.arange(self.n_nodes + 1))
+        self._pattern_cache: dict = {}
+
+    @property
+    def sqrt_w(self) -> np.ndarray:
+        return np.array([1.0 / self.noise[n] for n in self.names])
+
+    @property
+    def n_measurements(self) -> int:
+        return int(self.mask.sum())
+
+    def linearise(self, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray, tscale: np.ndarray,
+                  sens: bool) -> _Lin:
+        out = self.sim.run(theta, nodes, sens)
+        Xm, Xe = out[0], out[1]
+        sw = self.sqrt_w
+        e = self.Y - Xm[:, self.out_idx]
+        if self.psi_col is not None:
+            e[:, self.psi_col] = wrap_angle(e[:, self.psi_col])
+        e = np.where(self.mask, e, 0.0) * sw
+        c = (Xe - nodes[self.con + 1]) / X_SCALE
+        lin = _Lin(e, c)
+        if not (np.all(np.isfinite(e)) and np.all(np.isfinite(c))):
+            lin.e = np.full_like(e, np.inf)
+            return lin
+        if sens:
+            Sm, Se = out[2], out[3]
+            W = (sw[None, :] * self.mask)[:, :, None]
+            Sy = Sm[:, self.out_idx, :]
+            lin.Jx = -Sy[:, :, :6] * X_SCALE[None, None, :] * W
+            lin.Jp = -Sy[:, :, 6 + free] * tscale[free][None, None, :] * W
+            lin.Gx = Se[:, :, :6] * X_SCALE[None, None, :] / X_SCALE[None, :, None]
+            lin.Gp = Se[:, :, 6 + free] * tscale[free][None, None, :] / X_SCALE[None, :, None]
+        return lin
+
+    # -- the structured KKT system -------------------------------------------------------------
+    def normal_blocks(self, lin: _Lin) -> tuple[np.ndarray, ...]:
+        """H_ss (n_nodes x 6 x 6), H_sp (n_nodes x 6 x nf), H_pp, g_s (n_nodes x 6), g_p."""
+        Jx, Jp, e = lin.Jx, lin.Jp, lin.e
+        b = self.meas_bounds[:-1]
+        Hss = np.add.reduceat(np.einsum("kji,kjl->kil", Jx, Jx), b, axis=0)
+        Hsp = np.add.reduceat(np.einsum("kji,kjl->kil", Jx, Jp), b, axis=0)
+        Hpp = np.einsum("kji,kjl->il", Jp, Jp)
+        gs = np.add.reduceat(np.einsum("kji,kj->ki", Jx, e), b, axis=0)
+        gp = np.einsum("kji,kj->i", Jp, e)
+        return Hss, Hsp, Hpp, gs, gp
+
+    def _pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row/column indices of A = [[H_ss, C_s^T], [C_s, 0]] (fixed for the problem)."""
+        if "A" in self._pattern_cache:
+            return self._pattern_cache["A"]
+        N, nc = self.n_nodes, self.n_con
+        ns = 6 * N
+        i6 = np.arange(6)
+        rr, cc = [], []
+        # H_ss blocks
+        base = (np.arange(N) * 6)[:, None, None]
+        rr.append((base + i6[None, :, None] + 0 * i6[None, None, :]).ravel())
+        cc.append((base + 0 * i6[None, :, None] + i6[None, None, :]).ravel())
+        # C_s: constraint q (rows ns + 6q ..) -> node con[q] (G_x) and node con[q] + 1 (-I)
+        rq = (ns + np.arange(nc) * 6)[:, None, None]
+        cq = (self.con * 6)[:, None, None]
+        Gr = (rq + i6[None, :, None] + 0 * i6[None, None, :]).ravel()
+        Gc = (cq + 0 * i6[None, :, None] + i6[None, None, :]).ravel()
+        Ir = (ns + np.arange(nc)[:, None] * 6 + i6[None, :]).ravel()
+        Ic = ((self.con + 1)[:, None] * 6 + i6[None, :]).ravel()
+        rr += [Gr, Gc, Ir, Ic]
+        cc += [Gc, Gr, Ic, Ir]
+        self._pattern_cache["A"] = (np.concatenate(rr), np.concatenate(cc))
+        return self._pattern_cache["A"]
+
+    def factor_A(self, Hss: np.ndarray, Gx: np.ndarray, Ds: np.ndarray, mu: float):  # type: ignore[no-untyped-def]
+        rows, cols = self._pattern()
+        H = Hss.copy()
+        idx = np.arange(6)
+        H[:, idx, idx] += mu * Ds
+        nc = self.n_con
+        data = np.concatenate([H.ravel(), Gx.ravel(), Gx.ravel(), -np.ones(6 * nc), -np.ones(6 * nc)])
+        n = 6 * self.n_nodes + 6 * nc
+        A = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
+        return spla.splu(A, permc_spec="COLAMD", options={"SymmetricMode": False})
+
+    def reduced(self, lu, Hsp: np.ndarray, Gp: np.ndarray, Hpp: np.ndarray, rhs_w: np.ndarray | None,
+                rhs_p: np.ndarray | None) -> tuple[np.ndarray, ...]:
+        """F = H_pp - B^T A^-1 B and, with right-hand sides, the eliminated rhs and A^-1 (B, r_w)."""
+        nf = Hpp.shape[0]
+        B = np.vstack([Hsp.reshape(self.n_nodes * 6, nf), Gp.reshape(self.n_con * 6, nf)])
+        R = B if rhs_w is None else np.column_stack([B, rhs_w])
+        Z = lu.solve(R)
+        AinvB = Z[:, :nf]
+        F = Hpp - B.T @ AinvB
+        F = 0.5 * (F + F.T)
+        if rhs_w is None:
+            return F, AinvB
+        r = rhs_p - B.T @ Z[:, nf]
+        return F, AinvB, Z[:, nf], r
+
+
+@dataclass
+class MultipleShootingResult:
+    """Extra information of a multiple-shooting estimate (kept in IdentificationResult.details)."""
+
+    nodes: np.ndarray
+    node_time: np.ndarray
+    noise_std: dict[str, float]
+    continuity_max: float
+    n_nodes: int
+    n_steps: int
+    passes: int
+
+
+def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
+                mu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    Hss, Hsp, Hpp, gs, gp = blocks
+    lu = prob.factor_A(Hss, lin.Gx, Ds, mu)
+    rhs_w = np.concatenate([-gs.ravel(), -lin.c.ravel()])
+    F, AinvB, Ainv_rw, r = prob.reduced(lu, Hsp, lin.Gp, Hpp + mu * np.diag(Dp), rhs_w, -gp)
+    nf = len(gp)
+    if nf:
+        try:
+            dp = np.linalg.solve(F, r)
+        except np.linalg.LinAlgError:
+            dp = np.linalg.lstsq(F, r, rcond=None)[0]
+    else:
+        dp = np.zeros(0)
+    w = Ainv_rw - AinvB @ dp
+    ns = 6 * prob.n_nodes
+    ds = w[:ns].reshape(prob.n_nodes, 6)
+    lam = w[ns:]
+    return ds, dp, lam
+
+
+def _quad(prob: MultipleShootingProblem, blocks: tuple, ds: np.ndarray, dp: np.ndarray) -> float:
+    """d^T H d for the Gauss-Newton Hessian blocks."""
+    Hss, Hsp, Hpp, _, _ = blocks
+    q = np.einsum("ki,kil,kl->", ds, Hss, ds)
+    q += 2.0 * np.einsum("ki,kil,l->", ds, Hsp, dp)
+    q += dp @ Hpp @ dp
+    return float(q)
 
 
 def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
                                fixed: Mapping[str, float] | None = None, gap_s: float = 1.0,
                                noise_std: Mapping[str, float] | None = None,
                                geometry: VesselGeometry = DEFAULT_GEOMETRY, h_max: float = 0.0625,
-                               max_iterations: int = 200, window_s: float = 10.0,
-                               progress: Callable[[int, float], None] | None = None) -> IdentificationResult:
-    import casadi as ca
+                               max_iterations: int = 60, window_s: float | None = None, node_s: float = 2.0,
+                               estimate_noise: bool = True, tol: float = 1e-9,
+                               progress: Callable[[int, float], None] | None = None,
+                               problem: MultipleShootingProblem | None = None,
+                               nodes0: np.ndarray | None = None) -> IdentificationResult:
+    """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
+    `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
+    `estimate_noise` (default) the noise std of each output is re-estimated from its residuals and
+    the estimate refined once with those weights; otherwise `noise_std` (or the defaults) is used and
+    the covariance is scaled by max(1, s^2). `window_s` is accepted for compatibility and ignored.
+    """
     fixed = dict(fixed or {})
+    unknown = [n for n in fixed if n not in NAMES]
+    if unknown:
+        raise LotsenError(f"cannot fix unknown parameter(s) {', '.join(unknown)} (known: {', '.join(NAMES)})")
     check_scale_fixed(fixed)
-    segs = [s for r in records for s in split_segments(r, gap_s)]
-    if not segs:
-        raise EstimationError("no usable data segments")
-    names_out = segs[0].output_names
-    noise = dict(DEFAULT_NOISE_STD)
-    noise.update(noise_std or {})
-    theta_init = np.array(theta0.with_updates(**fixed).to_vector(), float)
+    prob = problem
+    if prob is None:
+        prob = MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max)
+        check_excitation(prob.segments)
+    theta = np.array(theta0.with_updates(**fixed).to_vector(), float)
     lo, hi = parameter_bounds()
-    theta_init = np.clip(theta_init, lo, hi)
-    free = [i for i, n in enumerate(NAMES) if n not in fixed]
-    scale = parameter_scale(theta_init)
-    f = symbolic_rhs(ca)
-    geom = geometry_tuple(geometry)
+    out_of = [f"{n} = {fixed[n]:g} outside [{lo[i]:g}, {hi[i]:g}]" for i, n in enumerate(NAMES)
+              if n in fixed and not lo[i] <= fixed[n] <= hi[i]]
+    if out_of:
+        raise LotsenError("fixed value(s) not physical: " + "; ".join(out_of))
+    theta = np.clip(theta, lo, hi)
+    free = np.array([i for i, n in enumerate(NAMES) if n not in fixed], dtype=int)
+    free_names = tuple(NAMES[i] for i in free)
+    tscale = parameter_scale(theta)
+    nodes = initial_nodes(prob.grid, prob.segments) if nodes0 is None else np.array(nodes0, float)
+    history: list[float] = []
+    total_it = 0
+    converged = False
+    passes = 2 if estimate_noise else 1
+    for pass_no in range(passes):
+        theta, nodes, it, converged = _gauss_newton(prob, theta, nodes, free, tscale, lo, hi, max_iterations, tol,
+                                                    history, progress, total_it)
+        total_it += it
+        if pass_no + 1 < passes:
+            lin = prob.linearise(theta, nodes, free, tscale, False)
+            e2 = np.sum(lin.e ** 2, axis=0)
+            m = prob.mask.sum(axis=0)
+            p_eff = len(free) + 6 * len(prob.segments)
+            dof = max(1.0 - p_eff / max(prob.n_measurements, 1), 0.05)
+            changed = False
+            for j, n in enumerate(prob.names):
+                if m[j] > 0:
+                    s2 = e2[j] / (m[j] * dof)
+                    if abs(s2 - 1.0) > 0.02:
+                        changed = True
+                    prob.noise[n] *= math.sqrt(max(s2, 1e-12))
+            if not changed:
+                break
+    lin = prob.linearise(theta, nodes, free, tscale, True)
+    blocks = prob.normal_blocks(lin)
+    F_rel = _fisher_from(prob, lin, blocks)
+    cost = 2.0 * lin.cost  # V = sum of squared weighted residuals
+    m = prob.n_measurements
+    p_eff = len(free) + 6 * len(prob.segments)
+    s2 = cost / max(m - p_eff, 1)
+    factor = s2 if estimate_noise else max(1.0, s2)
+    return _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, total_it,
+                   converged, history, passes, lin)
 
-    # one RK4 interval with M substeps, parameters as a full vector
-    x = ca.SX.sym("x", 6)
-    u = ca.SX.sym("u", 5)
-    th = ca.SX.sym("th", 18)
-    dt = ca.SX.sym("dt")
-    dts = max(float(np.max(np.diff(s.t))) for s in segs if len(s.t) > 1)
-    M = max(1, int(math.ceil(dts / h_max - 1e-9)))
-    ul, thl = ca.vertsplit(u), ca.vertsplit(th)
 
-    def rhs(xx):  # type: ignore[no-untyped-def]
-        return ca.vertcat(*f(ca.vertsplit(xx), ul, thl, geom))
+def _fisher_from(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple) -> np.ndarray:
+    Hss, Hsp, Hpp, _, _ = blocks
+    if Hpp.shape[0] == 0:
+        return np.zeros((0, 0))
+    Ds = np.maximum(np.einsum("kii->ki", Hss), 0.0)
+    lu = prob.factor_A(Hss, lin.Gx, Ds, 1e-12)  # a whisper of damping: motionless data keep A regular
+    F, _ = prob.reduced(lu, Hsp, lin.Gp, Hpp, None, None)
+    return F
 
-    h = dt / M
-    xk = x
-    for _ in range(M):
-        k1 = rhs(xk)
-        k2 = rhs(xk + h / 2 * k1)
-        k3 = rhs(xk + h / 2 * k2)
-        k4 = rhs(xk + h * k3)
-        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    Phi = ca.Function("Phi", [x, u, th, dt], [xk])
 
-    p = ca.MX.sym("p", len(free))
-    th_full = []
-    for i in range(18):
-        th_full.append(p[free.index(i)] * scale[i] if i in free else ca.MX(theta_init[i]))
-    TH = ca.vertcat(*th_full)
-    w_vars, w0, g, J = [p], [theta_init[free] / scale[free]], [], 0
-    lbw = [lo[free] / scale[free]]
-    ubw = [hi[free] / scale[free]]
-    out_idx = [OUTPUT_STATE_INDEX[n] for n in names_out]
-    sw = np.array([1.0 / noise[n] for n in names_out])
-    for s in segs:
-        n = len(s.t)
-        yv = s.outputs.copy()
-        if "psi" in names_out:
-            j = names_out.index("psi")
-            ok = np.isfinite(yv[:, j])
-            yv[ok, j] = np.unwrap(yv[ok, j])
-        Xg = _state_guess(s, yv[:, names_out.index("psi")] if "psi" in names_out else np.zeros(n))
-        S = ca.MX.sym("S", 6, n)
-        w_vars.append(ca.vec(S))
-        w0.append(Xg.T.ravel(order="F"))
-        lbw.append(np.full(6 * n, -np.inf))
-        ubw.append(np.full(6 * n, np.inf))
-        if n > 1:
-            F = Phi.map(n - 1)
-            Xn = F(S[:, :-1], s.inputs[:-1].T, ca.repmat(TH, 1, n - 1), np.diff(s.t)[None, :])
-            g.append(ca.vec(Xn - S[:, 1:]))
-        mask = np.isfinite(yv)
-        Y = np.where(mask, yv, 0.0)
-        E = (Y.T - S[out_idx, :]) * mask.T * sw[:, None]
-        J = J + ca.sumsqr(E)
-    nlp = {"x": ca.vertcat(*w_vars), "f": J, "g": ca.vertcat(*g)}
-    it_count = [0]
-
-    class _Cb(ca.Callback):  # iteration callback for the progress bar
-        def __init__(self) -> None:
-            ca.Callback.__init__(self)
-            self.construct("cb", {})
-
-        def get_n_in(self):  # type: ignore[no-untyped-def]
-            return ca.nlpsol_n_out()
-
-        def get_n_out(self):  # type: ignore[no-untyped-def]
-            return 1
-
-        def get_name_in(self, i):  # type: ignore[no-untyped-def]
-            return ca.nlpsol_out(i)
-
-        def get_name_out(self, i):  # type: ignore[no-untyped-def]
-            return "ret"
-
-        def get_sparsity_in(self, i):  # type: ignore[no-untyped-def]
-            name = ca.nlpsol_out(i)
-            if name == "f":
-                return ca.Sparsity.scalar()
-            if name in ("x", "lam_x"):
-                return ca.Sparsity.dense(nlp["x"].numel(), 1)
-            if name in ("g", "lam_g"):
-                return ca.Sparsity.dense(nlp["g"].numel(), 1)
-            return ca.Sparsity(0, 0)
-
-        def eval(self, arg):  # type: ignore[no-untyped-def]
-            it_count[0] += 1
-            if progress:
-                progress(it_count[0], float(arg[1]))
-            return [0]
-
-    cb = _Cb()
-    opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.max_iter": max_iterations, "ipopt.tol": 1e-8,
-            "iteration_callback": cb, "ipopt.sb": "yes"}
-    solver = ca.nlpsol("ms", "ipopt", nlp, opts)
-    sol = solver(x0=np.concatenate(w0), lbx=np.concatenate(lbw), ubx=np.concatenate(ubw), lbg=0, ubg=0)
-    stats = solver.stats()
-    pv = np.array(sol["x"][: len(free)]).ravel()
-    theta = theta_init.copy()
-    theta[free] = pv * scale[free]
-    params = VesselParameters.from_vector(theta)
-    # uncertainty at the estimate, as single shooting sees it (initial states re-estimated at fixed theta)
-    all_fixed = dict(zip(NAMES, theta))
-    x0_res = estimate(records, params, fixed=all_fixed, window_s=window_s, gap_s=gap_s, noise_std=noise_std,
-                      geometry=geometry, max_iterations=20, h_max=h_max)
-    res = estimate(records, params, fixed=fixed, window_s=window_s, gap_s=gap_s, noise_std=noise_std,
-                   geometry=geometry, max_iterations=0, h_max=h_max, x0s=x0_res.x0s)
-    res.method = "multiple"
-    res.iterations = int(stats.get("iter_count", it_count[0]))
-    res.converged = bool(stats.get("success", False))
-    res.history = [float(sol["f"])]
+def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, iterations, converged,
+            history, passes, lin) -> IdentificationResult:  # type: ignore[no-untyped-def]
+    F_rel = 0.5 * (F_rel + F_rel.T)
+    try:
+        cov_rel = np.linalg.inv(F_rel) * factor
+        if not np.all(np.isfinite(cov_rel)):
+            raise np.linalg.LinAlgError
+    except np.linalg.LinAlgError:
+        cov_rel = np.linalg.pinv(F_rel) * factor
+    ts = tscale[free]
+    rel_std = np.sqrt(np.clip(np.diag(cov_rel), 0, None)) * ts / np.maximum(np.abs(theta[free]), 1e-12)
+    ident = identifiability(F_rel / factor if factor > 0 else F_rel, free_names, rel_std)
+    D = np.diag(ts)
+    cov = D @ cov_rel @ D
+    Dinv = np.diag(1.0 / ts)
+    fisher = Dinv @ F_rel @ Dinv
+    std = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(free_names)}
+    g = prob.grid
+    first = np.array([np.flatnonzero(g.node_seg == s)[0] for s in range(len(prob.segments))])
+    res = IdentificationResult(VesselParameters.from_vector(theta), std, {n: float(v) for n, v in fixed.items()},
+                               free_names, cov, fisher, nodes[first], cost, prob.n_measurements, s2, iterations,
+                               converged, ident, "multiple", [], history)
+    res.details = MultipleShootingResult(nodes, g.node_time, dict(prob.noise),
+                                         float(np.max(np.abs(lin.c))) * 1.0 if lin.c.size else 0.0,
+                                         g.n_nodes, g.n_steps, passes)
     return res
+
+
+def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray,
+                  tscale: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_iterations: int, tol: float,
+                  history: list[float], progress: Callable[[int, float], None] | None,
+                  it_offset: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
+    lin = prob.linearise(theta, nodes, free, tscale, True)
+    if not math.isfinite(lin.cost):
+        raise EstimationError("the simulation with the initial parameters diverged within a shooting interval "
+                              "(non-finite state); check the data units (radians, rev/s) and the initial guess")
+    mu = 1e-4
+    nu = 1.0
+    converged = False
+    it = 0
+    for it in range(1, max_iterations + 1):
+        blocks = prob.normal_blocks(lin)
+        Hss, _, Hpp, gs, gp = blocks
+        Ds = np.maximum(np.einsum("kii->ki", Hss), 1e-9 * max(float(np.max(np.einsum("kii->ki", Hss))), 1.0))
+        Dp = np.maximum(np.diag(Hpp).copy(), 1e-9 * max(float(np.max(np.diag(Hpp))) if len(Hpp) else 1.0, 1.0))
+        merit0 = lin.cost + nu * lin.l1
+        accepted = False
+        for trial in range(14):
+            ds, dp, lam = _solve_step(prob, lin, blocks, Ds, Dp, mu)
+            alpha = 1.0 if trial < 6 else 0.5 ** (trial - 5)
+            if lam.size:
+                nu = max(nu, 1.2 * float(np.max(np.abs(lam))))
+            merit0 = lin.cost + nu * lin.l1
+            gd = float(np.sum(gs * ds) + gp @ dp)
+            qd = _quad(prob, blocks, ds, dp)
+            pred = -(alpha * gd + 0.5 * alpha * alpha * qd) + nu * alpha * lin.l1
+            th_new = theta.copy()
+            th_new[free] = np.clip(theta[free] + alpha * dp * tscale[free], lo[free], hi[free])
+            nodes_new = nodes + alpha * ds * X_SCALE[None, :]
+            lin_new = prob.linearise(th_new, nodes_new, free, tscale, False)
+            merit1 = lin_new.cost + nu * lin_new.l1
+            ared = merit0 - merit1
+            if math.isfinite(merit1) and pred > 0 and ared >= 1e-4 * pred:
+                accepted = True
+                break
+            if math.isfinite(merit1) and pred <= 1e-14 * max(merit0, 1.0) and abs(ared) <= 1e-12 * max(merit0, 1.0):
+                # nothing left to gain at any damping: converged
+                break
+            mu = max(mu * 4.0, 1e-6)
+        if not accepted:
+            converged = lin.l1 <= 1e-3 * max(1, prob.n_con)
+            break
+        rel = ared / max(merit0, 1e-300)
+        theta, nodes = th_new, nodes_new
+        lin = prob.linearise(theta, nodes, free, tscale, True)
+        history.append(2.0 * lin.cost)
+        ratio = ared / pred
+        mu = mu / 3.0 if ratio > 0.75 else (mu * 2.0 if ratio < 0.25 else mu)
+        mu = max(mu, 1e-12)
+        if progress:
+            progress(it_offset + it, 2.0 * lin.cost)
+        cmax = float(np.max(np.abs(lin.c))) if lin.c.size else 0.0
+        # statistically converged: the last step changed chi^2 by < 1e-3 (parameters by ~0.03 sigma)
+        # and the trajectory is continuous to 1e-3 of the noise
+        if cmax < 1e-3 and ((ared < 5e-4 and pred < 1e-3) or rel < tol):
+            converged = True
+            break
+    return theta, nodes, it, converged
+
+
+def record_fisher(records: Sequence[IdRecord], params: VesselParameters, free_names: Sequence[str],
+                  noise_std: Mapping[str, float] | None = None, node_s: float = 2.0, gap_s: float = 1.0,
+                  geometry: VesselGeometry = DEFAULT_GEOMETRY, h_max: float = 0.0625,
+                  nodes: np.ndarray | None = None, problem: MultipleShootingProblem | None = None) -> np.ndarray:
+    """Fisher information (absolute units) of `free_names` from the whole record, every segment's
+    initial state free, at `params` and the given noise: its inverse is the Cramer-Rao bound.
+
+    The trajectory is the model's own at `params`: node states fitted to the data with the
+    parameters held (`nodes` skips that fit, e.g. the true states of a simulation)."""
+    prob = problem or MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max)
+    theta = np.array(params.to_vector(), float)
+    if nodes is None:
+        all_fixed = dict(zip(NAMES, theta))
+        res = estimate_multiple_shooting(records, params, all_fixed, problem=prob, estimate_noise=False,
+                                         max_iterations=30)
+        nodes = res.details.nodes
+    free = np.array([NAMES.index(n) for n in free_names], dtype=int)
+    tscale = parameter_scale(theta)
+    lin = prob.linearise(theta, nodes, free, tscale, True)
+    F_rel = _fisher_from(prob, lin, prob.normal_blocks(lin))
+    Dinv = np.diag(1.0 / tscale[free])
+    return Dinv @ F_rel @ Dinv
+
+
+def check_identifiable(result: IdentificationResult) -> None:
+    """Raise IdentifiabilityError when the data leave a parameter direction undetermined."""
+    if result.identifiability.unidentifiable:
+        dirs = "; ".join(d for d in result.identifiability.directions if d.startswith("UNIDENTIFIABLE"))
+        raise IdentifiabilityError(f"the data do not determine every parameter ({dirs}); fix those parameters "
+                                   "(--fix NAME=VALUE) or record data that excite them")

@@ -6,10 +6,9 @@ step function propagates the state and its sensitivity
 
     S = d x / d [x0 (6), theta (18)],   S_{j+1} = dPhi/dx S_j + [0, dPhi/dtheta]
 
-and `mapaccum` runs it over all steps of all windows in one call (a reset flag at each window
-start loads the window's initial state and S = [I, 0]). When a C compiler is available the step
-function is JIT-compiled (about 3 s once per process, then ~5 us per step including the 6 x 24
-sensitivity; the CasADi virtual machine needs ~50 us).
+and the compiled chunk kernels of lotsen.sysid.kernels run it over all steps of all windows,
+CHUNK steps per call (a reset flag at each window start loads the window's initial state and
+S = [I, 0]); about 4 us per step with the 6 x 24 sensitivity, memory bounded by the chunk.
 """
 
 from __future__ import annotations
@@ -124,41 +123,63 @@ def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
 
 
 class WindowSimulator:
-    """Simulate windows for a theta and initial states; optionally with sensitivities."""
+    """Simulate windows for a theta and initial states; optionally with sensitivities.
+
+    Runs the compiled chunk kernels of lotsen.sysid.kernels (CHUNK steps per call), so the memory
+    is bounded whatever the record length; only the states at the samples are kept."""
 
     def __init__(self, windows: Sequence[Segment], geometry: VesselGeometry = DEFAULT_GEOMETRY,
                  h_max: float = 0.0625, jit: bool | None = None) -> None:
+        from lotsen.sysid.kernels import step_kernels
+
         self.windows = list(windows)
         self.geom = geometry_tuple(geometry)
         self.grid = make_grid(self.windows, h_max)
-        use_jit = jit_available() if jit is None else jit
-        self._step, self._step_sens = _build_step_functions(self.geom, use_jit)
-        n = len(self.grid.h)
-        self._sim = self._step.mapaccum("sim", n, [0], [0])
-        self._sim_sens = self._step_sens.mapaccum("sim_sens", n, [0, 1], [0, 1])
-        self.n_steps = n
+        self.n_steps = len(self.grid.h)
+        self.k = step_kernels(self.geom)
 
-    def _xr(self, x0s: np.ndarray) -> np.ndarray:
-        XR = np.zeros((6, self.n_steps))
-        XR[:, self.grid.window_start_step] = np.asarray(x0s, dtype=float).T
-        return XR
+    def _run(self, theta: Sequence[float], x0s: np.ndarray, sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        g, k = self.grid, self.k
+        L = k.chunk
+        need = g.sample_step
+        X = np.empty((len(need), 6))
+        S = np.empty((len(need), 6, NS)) if sens else None
+        x0s = np.asarray(x0s, dtype=float).reshape(-1, 6)
+        k.x0[:] = 0.0
+        k.S0[:] = 0.0
+        k.TH[:] = np.asarray(theta, float)[None, :]
+        UT = g.U.T  # 5 x n -> n x 5 view
+        for a in range(0, self.n_steps, L):
+            b = min(a + L, self.n_steps)
+            n = b - a
+            k.H[:n] = g.h[a:b]
+            k.H[n:] = 0.0
+            k.U[:n] = UT[a:b]
+            k.RS[:n] = g.reset[a:b]
+            k.RS[n:] = 0.0
+            k.XR[:] = 0.0
+            lo, hi = np.searchsorted(g.window_start_step, [a, b])
+            k.XR[g.window_start_step[lo:hi] - a] = x0s[lo:hi]
+            i0, i1 = np.searchsorted(need, [a, b])
+            cols = need[i0:i1] - a
+            if sens:
+                k.run_sens()
+                S[i0:i1] = k.S[cols].transpose(0, 2, 1)
+                k.S0[:] = k.S[n - 1]
+            else:
+                k.run_sim()
+            X[i0:i1] = k.X[cols]
+            k.x0[:] = k.X[n - 1]
+        return X, S
 
     def simulate(self, theta: Sequence[float], x0s: np.ndarray) -> np.ndarray:
         """States at every sample (n_samples x 6), windows concatenated."""
-        g = self.grid
-        X = self._sim(np.zeros(6), g.U, np.asarray(theta, float), g.h[None, :], g.reset[None, :],
-                      self._xr(x0s))
-        X = np.asarray(X)
-        return X[:, g.sample_step].T
+        return self._run(theta, x0s, False)[0]
 
     def simulate_sens(self, theta: Sequence[float], x0s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (n_samples x 6) and sensitivities (n_samples x 6 x 24: d x / d[x0_window, theta])."""
-        g = self.grid
-        X, S = self._sim_sens(np.zeros(6), np.zeros((6, NS)), g.U, np.asarray(theta, float),
-                              g.h[None, :], g.reset[None, :], self._xr(x0s))
-        X = np.asarray(X)[:, g.sample_step].T
-        S = np.asarray(S).reshape(6, self.n_steps, NS)[:, g.sample_step, :].transpose(1, 0, 2)
-        return X, S
+        X, S = self._run(theta, x0s, True)
+        return X, S  # type: ignore[return-value]
 
     def output_index(self) -> list[int]:
         names = self.windows[0].output_names

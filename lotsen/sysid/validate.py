@@ -17,7 +17,8 @@ import numpy as np
 
 from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
 from lotsen.sysid.data import INPUT_COLUMNS, IdRecord
-from lotsen.sysid.estimate import NAMES, build_problem, estimate, wrap_angle
+from lotsen.model.angles import wrap_angle
+from lotsen.sysid.estimate import NAMES, build_problem, estimate
 
 
 @dataclass
@@ -88,23 +89,33 @@ def _xcorr(a: np.ndarray, b: np.ndarray, max_lag: int) -> np.ndarray:
 
 
 def residual_analysis(fit: OutputFit, inputs: np.ndarray | None = None, max_lag: int = 25) -> ResidualAnalysis:
-    """Autocorrelation of residuals (rows with all outputs finite) and cross-correlation with inputs."""
-    ok = np.all(np.isfinite(fit.y), axis=1)
-    E = fit.y[ok] - fit.yhat[ok]
+    """Autocorrelation of each output's residuals (over the rows where that output is measured:
+    asynchronous outputs have their own rows) and cross-correlation with the inputs held there.
+
+    The lag range shrinks to fit a short record (at most a third of the fewest samples of an
+    output); an output with fewer than 6 samples is left out."""
+    E_all = fit.y - fit.yhat
     if "psi" in fit.output_names:
         j = fit.output_names.index("psi")
-        E[:, j] = wrap_angle(E[:, j])
-    n = len(E)
-    bound = 1.96 / np.sqrt(max(n, 1))
-    lags = np.arange(0, max_lag + 1)
+        E_all[:, j] = wrap_angle(E_all[:, j])
+    counts = {name: int(np.isfinite(fit.y[:, j]).sum()) for j, name in enumerate(fit.output_names)}
+    usable = [name for name, c in counts.items() if c >= 6]
+    n_min = min((counts[name] for name in usable), default=0)
+    L = max(0, min(max_lag, n_min // 3))
+    bound = 1.96 / np.sqrt(max(n_min, 1))
+    lags = np.arange(0, L + 1)
     auto, cross, white, indep = {}, {}, {}, {}
     for j, name in enumerate(fit.output_names):
-        c = _xcorr(E[:, j], E[:, j], max_lag)[max_lag:]
+        if name not in usable:
+            continue
+        ok = np.isfinite(fit.y[:, j])
+        e = E_all[ok, j]
+        c = _xcorr(e, e, L)[L:]
         auto[name] = c
-        white[name] = float(np.mean(np.abs(c[1:]) > bound))
+        white[name] = float(np.mean(np.abs(c[1:]) > bound)) if L else 0.0
         if inputs is not None:
             U = inputs[ok]
-            cross[name] = {INPUT_COLUMNS[i]: _xcorr(E[:, j], U[:, i], max_lag) for i in range(5) if np.std(U[:, i]) > 0}
+            cross[name] = {INPUT_COLUMNS[i]: _xcorr(e, U[:, i], L) for i in range(5) if np.std(U[:, i]) > 0}
             vals = [np.mean(np.abs(v) > bound) for v in cross[name].values()]
             indep[name] = float(np.mean(vals)) if vals else 0.0
     return ResidualAnalysis(lags, auto, cross, float(bound), white, indep)

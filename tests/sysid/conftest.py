@@ -1,8 +1,14 @@
 """Shared fixtures: one short simulated run (sensors on) reused by the estimation and CLI tests."""
 
+import sys
+from pathlib import Path
+
 import pytest
 
 from lotsen.sysid.experiment import parse_experiment
+
+# the independent simulator (tests/sysid/independent_sim.py) is imported by name (--import-mode=importlib)
+sys.path.insert(0, str(Path(__file__).parent))
 
 SHORT_EXPERIMENT = {
     "name": "short_prbs",

@@ -29,15 +29,6 @@ def test_identify_writes_params_and_report(run_csv, tmp_path, capsys):
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html and "black-box" in html
 
 
-def test_identify_writes_a_pdf_report(run_csv, tmp_path):
-    rep = tmp_path / "r.pdf"
-    assert main_standalone(["identify", str(run_csv), "--out", str(tmp_path / "p.json"), "--report", str(rep),
-                            "--fix", "kappa=0.02", "--fix", "Y_rv=-2", "--fix", "N_vv=-1"]) == 0
-    pdf = rep.read_bytes()
-    pages = pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages")
-    assert pdf.startswith(b"%PDF") and pages == 5  # summary + residuals, validation, track, estimation
-
-
 def test_cli_errors_are_clean(run_csv, tmp_path, capsys):
     assert main_standalone(["identify", str(run_csv), "--out", str(tmp_path / "p.json"), "--fix", "m99=1"]) == 2
     assert "unknown parameter 'm99'" in capsys.readouterr().err
@@ -71,3 +62,62 @@ def test_simulated_measurements_match_truth(short_run):
     dpsi = np.angle(np.exp(1j * (rec.outputs[ok, 2] - tx[idx, 2])))
     assert 0.005 < np.std(dpsi) < 0.02
     assert abs(np.mean(rec.outputs[ok, 3] - tx[idx, 5])) < 0.003  # gyro bias removed
+
+
+def _csv(path, t, U, Y):
+    import numpy as np
+
+    from lotsen.sysid.data import IdRecord
+
+    save_csv(IdRecord(np.asarray(t, float), U, Y), path)
+    return path
+
+
+@pytest.mark.parametrize("case, message", [
+    ("all_nan", "never have a value"),
+    ("no_outputs", "no finite measurement"),
+    ("all_zero", "every input (alpha1, alpha2, n1, n2, nt) is zero"),
+    ("motionless", "the boat did not move"),
+    ("backwards", "must not decrease"),
+])
+def test_identify_refuses_data_without_information(tmp_path, capsys, case, message):
+    import numpy as np
+
+    n = 400
+    t = np.arange(n) * 0.125
+    rng = np.random.default_rng(0)
+    U = np.column_stack([0.2 * np.sign(np.sin(t))] * 2 + [50 + 0 * t] * 2 + [40 * np.sign(np.sin(0.7 * t))])
+    Y = 0.01 * rng.standard_normal((n, 4))  # sensor noise around a boat that does not move
+    if case == "all_nan":
+        U[:] = np.nan
+        Y[:] = np.nan
+    elif case == "no_outputs":
+        Y[:] = np.nan
+    elif case == "all_zero":
+        U[:] = 0.0
+        Y[:] = 0.0
+    elif case == "backwards":
+        t[200] = t[100]
+    out = tmp_path / "p.json"
+    assert main_standalone(["identify", str(_csv(tmp_path / "d.csv", t, U, Y)), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not out.exists()  # nothing written
+
+
+def test_pdf_report_on_a_short_record_and_no_progress_spam(short_run, tmp_path, capsys):
+    """12 s of data: the held-out 2.4 s are shorter than the default correlation lag (25 samples)."""
+    from lotsen.model import DEFAULT_PARAMETERS
+
+    data = tmp_path / "short.csv"
+    save_csv(short_run.record.slice(0.0, 12.0), data)
+    free = ("m33", "N_r", "mu_az", "mu_t")
+    fix = [a for n in NAMES if n not in free for a in ("--fix", f"{n}={getattr(DEFAULT_PARAMETERS, n)}")]
+    rep = tmp_path / "r.pdf"
+    assert main_standalone(["identify", str(data), "--out", str(tmp_path / "p.json"), "--report", str(rep),
+                            *fix]) == 0
+    err = capsys.readouterr().err
+    pdf = rep.read_bytes()
+    pages = pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages")
+    assert pdf.startswith(b"%PDF") and pages == 5  # summary + residuals, validation, track, estimation
+    assert "it/s" not in err and "identify (multiple" not in err  # stderr is not a terminal: no progress bar

@@ -36,7 +36,9 @@ def test_optional_uv_columns(tmp_path):
 
 @pytest.mark.parametrize("body, row, what", [
     ("0,0,0,0,0,0,0,0,0,0\n0.1,0,0,abc,0,0,0,0,0,0\n", 3, "n1"),
-    ("0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0,0\n", 3, "not after"),
+    ("0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,1,0,0,0\n", 3, "differs"),  # same stamp, conflicting value
+    ("0.2,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,0,0\n", 3, "before"),
+    ("0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,inf,0\n", 3, "infinite"),
     ("0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0\n", 3, "fields"),
     ("0,0,0,0,0,0,0,0,0,0\n,0,0,0,0,0,0,0,0,0\n", 3, "time"),
 ])
@@ -59,13 +61,33 @@ def test_gaps_split_segments_and_inputs_are_held():
     t = np.concatenate([np.arange(20) * 0.1, 5.0 + np.arange(20) * 0.1])
     u = np.ones((40, 5))
     u[5, 2] = np.nan  # held from the previous row
-    u[20, :] = np.nan  # first row of the second segment: no previous value -> 0
+    u[19, :] = 2.0
+    u[20, :] = np.nan  # first row after the gap: the inputs stamped before the gap still hold
     y = np.zeros((40, 4))
     segs = split_segments(IdRecord(t, u, y), gap_s=1.0)
     assert len(segs) == 2
     assert segs[0].inputs[5, 2] == 1.0
-    assert np.all(segs[1].inputs[0] == 0.0) and segs[1].first_row == 20
+    assert np.all(segs[1].inputs[0] == 2.0) and segs[1].first_row == 20
     wins = split_windows(segs, 0.5)
     assert all(w.duration_s <= 0.5 + 1e-9 for w in wins)
     assert sum(len(w.t) for w in wins) == 40
     assert not math.isnan(wins[0].inputs.sum())
+
+
+def test_asynchronous_rows_merge_hold_and_start_where_every_input_is_known(tmp_path):
+    # inputs and outputs on their own stamps; nt first given at 0.2 s; two cells at one stamp merge
+    body = ("0.0,0.1,0.1,10,10,,,,,\n"
+            "0.05,,,,,,1.0,2.0,0.5,0.01\n"
+            "0.2,,,,,5,,,,\n"
+            "0.2,,,20,,,,,,\n"
+            "0.25,,,,,,1.1,2.1,0.5,0.01\n")
+    body += "".join(f"{0.25 + 0.125 * k:.3f},,,,,,{1.1 + 0.01 * k},2.1,0.5,0.01\n" for k in range(1, 12))
+    rec = load_csv(_write(tmp_path, HEADER + body))
+    assert len(rec.t) == 15 and np.isnan(rec.outputs[0]).all() and np.isnan(rec.inputs[1]).all()
+    assert rec.inputs[2, 2] == 20.0 and rec.inputs[2, 4] == 5.0 and np.isnan(rec.inputs[2, 3])
+    segs = split_segments(rec, gap_s=1.0)
+    assert len(segs) == 1
+    s = segs[0]
+    assert s.t[0] == 0.25  # the measurement at 0.05 s comes before nt has a value: not usable
+    assert s.inputs[0].tolist() == [0.1, 0.1, 20.0, 10.0, 5.0]  # each column held from its own stamp
+    assert np.all(np.isfinite(s.inputs))

@@ -19,7 +19,10 @@ def test_design_improves_information_and_respects_limits_and_area():
     check_experiment(res.experiment, margin_m=0.0)  # limits and area: raises otherwise
     u = np.array([InputGenerator(res.experiment).command(t, None) for t in np.arange(0, 6, 0.1)])
     assert np.all(np.abs(u[:, :2]) <= np.radians(45) + 1e-9) and np.all(np.abs(u[:, 2:4]) <= 100 + 1e-9)
-    assert np.all(np.isfinite(res.rel_std)) and len(res.free_names) == 12
+    # issue 16: nothing held at a default but the scale (m11): 17 free parameters, designed for a
+    # set of parameter vectors around the prior (robust design)
+    assert res.free_names == tuple(n for n in NAMES if n != "m11")
+    assert np.all(np.isfinite(res.rel_std)) and res.rel_std_samples.shape == (cfg.robust_samples, 17)
 
 
 def test_multiple_shooting_recovers_a_few_parameters(short_run):

@@ -4,18 +4,11 @@ import pytest
 from lotsen.model import DEFAULT_PARAMETERS
 from lotsen.sysid.data import IdRecord, Segment
 from lotsen.sysid.estimate import (
-    NAMES, IdentifiabilityError, build_problem, estimate, fisher_information, identifiability, wrap_angle,
+    NAMES, IdentifiabilityError, build_problem, estimate, fisher_information, identifiability,
 )
 from lotsen.sysid.sensitivity import WindowSimulator
 
 TRUE = DEFAULT_PARAMETERS
-
-
-def test_wrap_angle_range():
-    a = np.array([-np.pi, np.pi, 3 * np.pi, -3.5 * np.pi, 0.1])
-    w = wrap_angle(a)
-    assert np.all(w > -np.pi) and np.all(w <= np.pi)
-    assert np.allclose(np.cos(w), np.cos(a)) and np.allclose(np.sin(w), np.sin(a))
 
 
 def test_sensitivities_match_finite_differences():

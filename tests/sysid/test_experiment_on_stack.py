@@ -3,6 +3,7 @@
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from lotsen.cli.experiment import run_on_stack
 from lotsen.runtime.config import LaunchConfig, LoggingSection
@@ -15,11 +16,18 @@ def _config(tmp_path):
                    extra={"emulated": True})
 
 
-def test_speed_steps_on_the_emulated_boat(tmp_path):
+@pytest.fixture(scope="module")
+def steps_run(tmp_path_factory):
+    """8 s of speed steps on the emulated boat, recorded to MCAP: (node, log directory)."""
+    d = tmp_path_factory.mktemp("steps")
     exp = parse_experiment({"name": "steps", "area": {"size_m": [60, 60]},
                                 "pieces": [{"type": "steps", "step_duration_s": 4,
                                             "levels": [{"n_rps": 40}, {"n_rps": 70}]}]})
-    node = run_on_stack(exp, _config(tmp_path), realtime=False)
+    return run_on_stack(exp, _config(d), realtime=False), d
+
+
+def test_speed_steps_on_the_emulated_boat(steps_run, tmp_path):
+    node, logdir = steps_run
     assert node.done and not node.aborted
     rec = node.record()
     assert 150 <= len(rec.t) <= 165  # 8 s at 20 Hz
@@ -29,7 +37,49 @@ def test_speed_steps_on_the_emulated_boat(tmp_path):
     save_csv(rec, tmp_path / "run.csv")
     back = load_csv(tmp_path / "run.csv")
     assert back.output_names == ("north", "east", "psi", "r", "u", "v")
-    assert list(tmp_path.glob("*.mcap")), "the run is also in its MCAP log"
+    assert list(logdir.glob("*.mcap")), "the run is also in its MCAP log"
+
+
+def test_run_log_to_asynchronous_record_export_and_identify(steps_run, tmp_path, capsys):
+    """`lotsen export RUN.mcap` and `lotsen identify RUN.mcap` share one path (issue 16)."""
+    import json
+
+    from lotsen.cli.logs import sysid_record
+    from lotsen.cli.main import main
+    from lotsen.logs.reader import LogReader
+    from lotsen.messages import Topic
+    from lotsen.model import DEFAULT_PARAMETERS
+
+    node, logdir = steps_run
+    (log,) = logdir.glob("*.mcap")
+    rec = sysid_record(log)
+    assert rec.output_names == ("north", "east", "psi", "r") and "outputs raw" in rec.source
+    has_u, has_y = np.isfinite(rec.inputs).any(axis=1), np.isfinite(rec.outputs).any(axis=1)
+    assert not (has_u & has_y).any() and has_u.any() and has_y.any()  # each row: inputs or outputs
+    # inputs: the achieved values (tachometers), one row per actuator message, at its own stamp
+    act = [m for t, m in LogReader(log).messages([Topic.ACTUATORS])]
+    assert has_u.sum() == len(act)
+    assert np.allclose(np.sort(rec.t[has_u]), np.sort([m.stamp_s for m in act]))
+    assert abs(np.nanmax(rec.inputs[:, 2]) - max(m.n1_rps for m in act)) < 1e-9
+    # outputs: GNSS positions (relative to the first fix), IMU yaw rate, the estimate's heading
+    n_gnss = sum(1 for _, m in LogReader(log).messages([Topic.GNSS]) if m.usable)
+    assert np.isfinite(rec.outputs[:, 0]).sum() == n_gnss and np.nanmax(rec.outputs[:, 0]) > 2.0
+
+    assert main(["export", str(log), "--out", str(tmp_path / "x")]) == 0
+    exported = tmp_path / "x" / "sysid.csv"
+    assert exported.read_text().splitlines()[0] == "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r"
+    free = ("X_uu", "mu_az")
+    fix = [a for n in DEFAULT_PARAMETERS.names() if n not in free
+           for a in ("--fix", f"{n}={getattr(DEFAULT_PARAMETERS, n)}")]
+    outs = []
+    for src in (log, exported):
+        out = tmp_path / f"{src.suffix[1:]}.json"
+        assert main(["identify", str(src), "--out", str(out), "--holdout", "0", *fix]) == 0
+        outs.append(json.loads(out.read_text()))
+    capsys.readouterr()
+    a, b = outs
+    for n in free:  # the same record, whichever file it came from
+        assert np.isfinite(a[n]) and abs(a[n] - b[n]) <= 1e-6 * abs(a[n]) and 0 < a["std"][n] < 0.1 * abs(a[n])
 
 
 def test_leaving_the_area_aborts_to_neutral(tmp_path):
