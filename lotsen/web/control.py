@@ -1,26 +1,37 @@
 """Control-message handler: one text frame in, replies out, bus messages published only for
 a valid message from the pilot. It has no sockets and no threads of its own, so it is tested
-(and fuzzed) directly; the hub feeds it frames and sends the replies."""
+(and fuzzed) directly; the hub feeds it frames and sends the replies.
+
+Who may do what (docs/web.md, "Access rules"): a viewer may authenticate, ping, and convert
+routes to and from YAML/GeoJSON (64 kB messages, one viewer conversion at a time in all); every
+thing that plans, commands, drives or downloads tiles needs the pilot seat.
+"""
 
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import itertools
 from dataclasses import dataclass, field
 from typing import Any, Awaitable, Callable
 
 from lotsen.errors import LotsenError
-from lotsen.messages import LinkStatus, ManualCommand, OperatorCommand, RouteMessage, Topic
+from lotsen.messages import LinkStatus, ManualCommand, OperatorCommand, Topic
 from lotsen.planning import GeoOrigin, PlannerConfig
-from lotsen.web.auth import MAX_AUTH_FAILURES, AuthError, PilotSeat
-from lotsen.web.planning_api import export_route, import_route, plan_for_display
+from lotsen.web.auth import MAX_AUTH_FAILURES, AuthError, AuthGuard, PilotSeat
+from lotsen.web.planning_api import export_route, import_route, plan_for_display, plan_for_upload
 from lotsen.web.ratelimit import RateLimiter
-from lotsen.web.validation import PILOT_ONLY, Message, ValidationError, parse_message
+from lotsen.web.validation import (
+    MAX_MESSAGE_CHARS, PILOT_ONLY, VIEWER_MAX_MESSAGE_CHARS, Message, ValidationError, parse_message,
+)
 
 Publish = Callable[[str, Any], None]
 RunBlocking = Callable[..., Awaitable[Any]]
 
 _ids = itertools.count(1)
+MAX_ERROR_CHARS = 600
+#: a frame this long is charged to the connection's rate limit before it is even decoded
+PRECHARGE_CHARS = 2048
 
 
 @dataclass(eq=False)
@@ -28,6 +39,7 @@ class Session:
     """One WebSocket connection's control state."""
 
     limiter: RateLimiter
+    address: str = "?"  # lotsen.web.auth.address_key of the peer
     id: int = field(default_factory=lambda: next(_ids))
     auth_failures: int = 0
     manual_active: bool = False  # the last manual command was non-zero
@@ -39,17 +51,31 @@ async def _to_thread(fn: Callable[..., Any], *args: Any) -> Any:
     return await asyncio.to_thread(fn, *args)
 
 
+class TileJobs:
+    """What the handler needs of the tile pre-load (the hub implements it)."""
+
+    def start(self, session: Session, fields: dict) -> dict:  # pragma: no cover - interface
+        """Start a pre-load in the background; ConfigError when the request breaks the caps."""
+        raise NotImplementedError
+
+    def cancel(self) -> bool:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
 class ControlHandler:
     """Validates, authorises, rate-limits and turns messages into bus publications.
 
-    `publish(topic, msg)` must be thread-safe towards the nodes (the server passes a function
-    that hands the publication to the executor thread). `notify(session, reply)` sends a message
-    to another session (a pilot that was taken over).
+    `publish(topic, msg)` must be thread-safe towards the nodes. `run_blocking(fn, *args)` runs a
+    module-level function with picklable arguments away from the event loop (the stack binds it to
+    the planner worker process with its time and memory budget); every planner call and every
+    route conversion goes through it. `notify(session, reply)` sends a message to another session
+    (a pilot that was taken over).
     """
 
     def __init__(self, seat: PilotSeat, publish: Publish, clock: Callable[[], float],
                  planner_config: PlannerConfig | None = None, run_blocking: RunBlocking = _to_thread,
-                 notify: Callable[[Session, dict], None] | None = None, origin: GeoOrigin | None = None) -> None:
+                 notify: Callable[[Session, dict], None] | None = None, origin: GeoOrigin | None = None,
+                 auth_guard: AuthGuard | None = None, tiles: TileJobs | None = None) -> None:
         self.seat = seat
         self.publish = publish
         self.clock = clock
@@ -58,10 +84,14 @@ class ControlHandler:
         self.notify = notify or (lambda s, m: None)
         self.sessions: set[Session] = set()
         self.origin = origin  # geographic origin of the local frame, for GeoJSON export
+        self.auth_guard = auth_guard or AuthGuard(clock)
+        self.tiles = tiles
+        self.viewer_jobs = 0  # conversions in flight for viewers (all together)
+        self.last_upload: dict | None = None  # {"route_id", "route"} of the pilot's last upload
 
     # -- connection life cycle ---------------------------------------------------------------
-    def open_session(self) -> Session:
-        s = Session(limiter=RateLimiter(self.clock))
+    def open_session(self, address: str = "?") -> Session:
+        s = Session(limiter=RateLimiter(self.clock), address=address)
         self.sessions.add(s)
         return s
 
@@ -89,32 +119,49 @@ class ControlHandler:
         return status
 
     # -- messages ----------------------------------------------------------------------------
-    SLOW = frozenset({"plan", "route", "export", "import"})  # planner / file conversions
+    SLOW = frozenset({"plan", "route", "export", "import"})  # planner and conversions
 
     def receive(self, session: Session, raw: Any) -> tuple[list[dict], Awaitable[list[dict]] | None]:
         """Validate, authorise and rate-limit one frame. Fast messages are executed at once;
         slow ones (planning, conversions) come back as a coroutine for the caller to await, so a
         connection's manual driving is never queued behind a planner run. Never raises."""
         try:
-            msg = parse_message(raw)
+            return self._receive(session, raw)
+        except Exception as exc:  # noqa: BLE001 - no input may take the server down
+            return [_error(None, "internal", f"failed: {exc!r}")], None
+
+    def _receive(self, session: Session, raw: Any) -> tuple[list[dict], Awaitable[list[dict]] | None]:
+        is_pilot = self.seat.is_pilot(session)
+        precharged = isinstance(raw, (str, bytes)) and len(raw) > PRECHARGE_CHARS
+        if precharged and not session.limiter.allow("other"):  # big frames pay before decoding
+            return self._rate_error(session, None), None
+        try:
+            msg = parse_message(raw, MAX_MESSAGE_CHARS if is_pilot else VIEWER_MAX_MESSAGE_CHARS)
         except ValidationError as exc:
-            if not session.limiter.allow("other"):
+            if not precharged and not session.limiter.allow("other"):
                 return self._rate_error(session, exc.mid), None
             return [_error(exc.mid, exc.code, str(exc))], None
         kind = msg.type if msg.type in ("manual", "ping") else "other"
-        if not session.limiter.allow(kind):
+        if not precharged and not session.limiter.allow(kind):
             return self._rate_error(session, msg.id), None
-        if msg.type in PILOT_ONLY and not self.seat.is_pilot(session):
+        if msg.type in PILOT_ONLY and not is_pilot:
             return [_error(msg.id, "not_pilot", f"{msg.type}: only the pilot may do this; "
-                                                "authenticate with the pilot token first")], None
+                                                "take the controls with the pilot token first")], None
         self.seat.heard(session)
         method = getattr(self, f"_on_{msg.type}")
         if msg.type in self.SLOW:
+            if not is_pilot:
+                if self.viewer_jobs >= 1:
+                    return [_error(msg.id, "busy", f"{msg.type}: a viewer conversion is running; "
+                                                   "viewers convert one at a time, try again")], None
+                return [], self._viewer_job(method(session, msg), msg)
             return [], self._guarded(method(session, msg), msg)
         try:
             return method(session, msg), None
+        except LotsenError as exc:
+            return [_error(msg.id, "invalid", str(exc))], None
         except Exception as exc:  # noqa: BLE001 - no input may take the server down
-            return [_error(msg.id, "internal", f"{msg.type}: failed: {exc!r}"[:300])], None
+            return [_error(msg.id, "internal", f"{msg.type}: failed: {exc!r}")], None
 
     async def handle(self, session: Session, raw: Any) -> list[dict]:
         """All replies to one frame, slow work included (tests, simple callers)."""
@@ -127,7 +174,17 @@ class ControlHandler:
         except LotsenError as exc:
             return [_error(msg.id, "invalid", str(exc))]
         except Exception as exc:  # noqa: BLE001
-            return [_error(msg.id, "internal", f"{msg.type}: failed: {exc!r}"[:300])]
+            return [_error(msg.id, "internal", f"{msg.type}: failed: {exc!r}")]
+
+    async def _viewer_job(self, coro: Any, msg: Message) -> list[dict]:
+        if self.viewer_jobs >= 1:  # another viewer's job started since this one was accepted
+            coro.close()
+            return [_error(msg.id, "busy", f"{msg.type}: a viewer conversion is running; try again")]
+        self.viewer_jobs += 1
+        try:
+            return await self._guarded(coro, msg)
+        finally:
+            self.viewer_jobs -= 1
 
     def _rate_error(self, session: Session, mid: int | None) -> list[dict]:
         now = self.clock()
@@ -138,10 +195,17 @@ class ControlHandler:
                                             "(manual 30/s, ping 20/s, others 5/s)")]
 
     def _on_auth(self, session: Session, msg: Message) -> list[dict]:
+        if not self.auth_guard.allow(session.address):
+            session.auth_failures += 1
+            if session.auth_failures >= MAX_AUTH_FAILURES:
+                session.close_requested = "too many token attempts"
+            return [_error(msg.id, "rate_limited", "auth: too many wrong tokens from your address "
+                           f"(5, then one every {self.auth_guard.wait_s():g} s); wait and try again")]
         try:
             change = self.seat.claim(session, msg.fields["token"], msg.fields.get("takeover", False))
         except AuthError as exc:
             if exc.code == "bad_token":
+                self.auth_guard.failed(session.address)
                 session.auth_failures += 1
                 if session.auth_failures >= MAX_AUTH_FAILURES:
                     session.close_requested = "too many wrong tokens"
@@ -164,6 +228,7 @@ class ControlHandler:
     def _on_command(self, session: Session, msg: Message) -> list[dict]:
         action = msg.fields["action"]
         self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source="web"))
+        # "requested", not "done": the supervisor decides; a refusal comes back as an Alert
         return [{"type": "ack", "id": msg.id, "action": action}]
 
     def _on_manual(self, session: Session, msg: Message) -> list[dict]:
@@ -177,14 +242,19 @@ class ControlHandler:
         return [{"type": "plan_result", "id": msg.id, **result}]
 
     async def _on_route(self, session: Session, msg: Message) -> list[dict]:
-        # refuse a route the planner cannot plan: the operator sees why before the boat does
-        result = await self.run_blocking(plan_for_display, msg.fields["route"], self.planner_config)
+        """Upload: plan once (in the worker), publish that very plan as a PlannedRoute; the boat's
+        read-back (planning/active_route) carries the same route_id."""
+        result = await self.run_blocking(plan_for_upload, msg.fields["route"], self.planner_config,
+                                         self.clock(), "web")
         if not result["ok"]:
             return [{**_error(msg.id, "route_invalid", result["errors"][0]["message"]), "errors": result["errors"]}]
         if not self.seat.is_pilot(session):  # the seat may have changed while planning
             return [_error(msg.id, "not_pilot", "route: you are no longer the pilot")]
-        self.publish(Topic.ROUTE, RouteMessage(stamp_s=self.clock(), route=result["route"], source="web"))
-        return [{"type": "route_ok", "id": msg.id, "length_m": result["length_m"]}]
+        planned = dataclasses.replace(result.pop("message"), stamp_s=self.clock())
+        self.publish(Topic.ROUTE, planned)
+        self.last_upload = {"route_id": planned.route_id, "route": result["route"]}
+        return [{"type": "route_ok", "id": msg.id, **{k: result[k] for k in (
+            "route_id", "route", "path", "length_m", "duration_s", "segments", "start_ramp")}}]
 
     async def _on_export(self, session: Session, msg: Message) -> list[dict]:
         text = await self.run_blocking(export_route, msg.fields["route"], msg.fields["format"], self.origin)
@@ -194,6 +264,19 @@ class ControlHandler:
         route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"])
         return [{"type": "import_result", "id": msg.id, "route": route}]
 
+    def _on_tiles_preload(self, session: Session, msg: Message) -> list[dict]:
+        """Starts the download in the background (progress as `tiles_progress` to every page)."""
+        if self.tiles is None:
+            return [_error(msg.id, "invalid", "tiles_preload: this server has no tile cache (extra.web.tile_dir)")]
+        return [{"type": "tiles_started", "id": msg.id, **self.tiles.start(session, msg.fields)}]
+
+    def _on_tiles_cancel(self, session: Session, msg: Message) -> list[dict]:
+        cancelled = self.tiles.cancel() if self.tiles is not None else False
+        return [{"type": "tiles_cancelled", "id": msg.id, "cancelled": cancelled}]
+
 
 def _error(mid: int | None, code: str, text: str) -> dict:
+    text = str(text)
+    if len(text) > MAX_ERROR_CHARS:
+        text = text[:MAX_ERROR_CHARS - 1] + "…"
     return {"type": "error", "id": mid, "code": code, "error": text}

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import os
 import secrets
 from dataclasses import dataclass, field
 
+from lotsen.errors import ConfigError
 from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.web.auth import check_token_strength
+
+OSM_TILE_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png"
+OSM_ATTRIBUTION = "© OpenStreetMap contributors"
 
 
 @dataclass(frozen=True)
@@ -16,6 +22,21 @@ class WebExtra:
     # default: the supervisor's extra.failsafes.link_timeout_s, so both sides agree
     link_timeout_s: float | None = field(default=None, metadata={"range": (0.2, 60.0)})
     max_viewers: int = field(default=16, metadata={"range": (1, 256)})
+    # connections per address (IPv4 address or IPv6 /64) besides the pilot's seat
+    max_per_address: int = field(default=4, metadata={"range": (1, 64)})
+    # offline map tiles: the cache the page's background comes from (served at /tiles/z/x/y.png)
+    tile_dir: str = "~/.cache/lotsen/tiles"
+    tile_url: str = OSM_TILE_URL  # {z}/{x}/{y} template for the pre-load (pilot, while online)
+    tile_attribution: str = OSM_ATTRIBUTION
+    tile_max_count: int = field(default=1000, metadata={"range": (1, 20000)})  # per pre-load
+    tile_max_zoom: int = field(default=19, metadata={"range": (0, 22)})
+    # battery: time left from the capacity when given, else from the observed discharge
+    battery_capacity_ah: float | None = field(default=None, metadata={"range": (0.01, 1000.0)})
+    # TLS: `lotsen run --tls` creates a self-signed pair in tls_dir once (lotsen.web.tls), or serves
+    # the given certificate and key; setting both files turns TLS on without the flag
+    tls_dir: str = "~/.config/lotsen/tls"
+    tls_certfile: str | None = None
+    tls_keyfile: str | None = None
 
 
 @dataclass(frozen=True)
@@ -27,28 +48,45 @@ class WebOptions:
     telemetry_rate_hz: float = 20.0
     link_timeout_s: float = 1.5
     max_viewers: int = 16
+    max_per_address: int = 4
+    log_dir: str = ""  # MCAP files listed and served at /logs/ ("" = none)
+    tile_dir: str = ""  # "" = no tile cache
+    tile_url: str = OSM_TILE_URL
+    tile_attribution: str = OSM_ATTRIBUTION
+    tile_max_count: int = 1000
+    tile_max_zoom: int = 19
+    battery_capacity_ah: float | None = None
+    tls_dir: str = ""
+    tls_certfile: str | None = None
+    tls_keyfile: str | None = None
 
     @classmethod
-    def from_config(cls, config: LaunchConfig) -> "WebOptions":
+    def from_config(cls, config: LaunchConfig, failsafe_link_timeout_s: float = 1.5) -> "WebOptions":
+        """`failsafe_link_timeout_s`: the supervisor's link timeout, the default of ours so both agree.
+        A configured `web.pilot_token` weaker than 128 bits is refused here (ConfigError)."""
         extra = from_mapping(WebExtra, config.extra.get("web"), "extra.web")
         web = config.web
         token = web.pilot_token
         generated = not token
         if generated:
-            token = secrets.token_urlsafe(16)
+            token = secrets.token_urlsafe(16)  # 128 random bits, 22 characters
+        else:
+            check_token_strength(token)
+        if not all(k in extra.tile_url for k in ("{z}", "{x}", "{y}")) or not extra.tile_url.startswith(
+                ("http://", "https://")):
+            raise ConfigError(f"extra.web.tile_url: {extra.tile_url[:80]!r} must be an http(s) URL with "
+                              "{z}, {x} and {y}")
+        if (extra.tls_certfile is None) != (extra.tls_keyfile is None):
+            raise ConfigError("extra.web: tls_certfile and tls_keyfile go together")
         return cls(host=web.host, port=web.port, pilot_token=token, token_generated=generated,
                    telemetry_rate_hz=web.telemetry_rate_hz,
-                   link_timeout_s=extra.link_timeout_s or _failsafe_link_timeout(config),
-                   max_viewers=extra.max_viewers)
-
-
-def _failsafe_link_timeout(config: LaunchConfig) -> float:
-    fs = config.extra.get("failsafes")
-    value = fs.get("link_timeout_s") if isinstance(fs, dict) else None
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
-        return float(value)
-    try:
-        from lotsen.runtime.failsafes import FailsafeConfig
-    except ImportError:  # pragma: no cover - runtime without the supervisor
-        return 1.5
-    return FailsafeConfig().link_timeout_s
+                   link_timeout_s=extra.link_timeout_s or failsafe_link_timeout_s,
+                   max_viewers=extra.max_viewers, max_per_address=extra.max_per_address,
+                   log_dir=config.logging.directory or "",
+                   tile_dir=os.path.expanduser(extra.tile_dir) if extra.tile_dir else "",
+                   tile_url=extra.tile_url, tile_attribution=extra.tile_attribution,
+                   tile_max_count=extra.tile_max_count, tile_max_zoom=extra.tile_max_zoom,
+                   battery_capacity_ah=extra.battery_capacity_ah,
+                   tls_dir=os.path.expanduser(extra.tls_dir) if extra.tls_dir else "",
+                   tls_certfile=extra.tls_certfile and os.path.expanduser(extra.tls_certfile),
+                   tls_keyfile=extra.tls_keyfile and os.path.expanduser(extra.tls_keyfile))

@@ -10,9 +10,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-from lotsen.errors import LotsenError
+from lotsen.errors import ConfigError, LotsenError
 from lotsen.planning import GeoOrigin, PlannerConfig, plan_route
+from lotsen.planning.exchange import planned_route_message, route_id
 from lotsen.planning.io import route_from_dict, route_from_geojson, route_to_dict, route_to_geojson
+from lotsen.web.validation import ValidationError, check_json_tree
 
 DISPLAY_SPACING_M = 0.2  # the planner's 1 cm points, thinned for drawing
 
@@ -44,31 +46,61 @@ def _error(exc: BaseException) -> dict[str, Any]:
     return {"message": text, "error_class": type(exc).__name__, **locate_error(text)}
 
 
-def plan_for_display(route_data: dict, config: PlannerConfig | None = None) -> dict[str, Any]:
-    """{"ok": True, "route", "path": {n, e, v}, "length_m", "duration_s", "segments"} or
-    {"ok": False, "errors": [{message, kind, index?}]}. Never raises for bad input."""
-    try:
-        route = route_from_dict(route_data)
-        path = plan_route(route, config or PlannerConfig())
-    except LotsenError as exc:  # ConfigError (schema, geometry) and PlanningError (segments)
-        return {"ok": False, "errors": [_error(exc)]}
-    except Exception as exc:  # noqa: BLE001 - a planner bug must reach the operator, not kill the server
-        return {"ok": False, "errors": [{"message": f"planner failed: {exc!r}", "error_class": type(exc).__name__,
-                                          "kind": "route"}]}
+def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
     step = max(1, int(round(DISPLAY_SPACING_M / max(float(np.median(np.diff(path.s_m))), 1e-4))))
     idx = np.unique(np.r_[np.arange(0, len(path), step), len(path) - 1])
     ds = np.diff(path.s_m)
     v_mid = np.maximum(0.5 * (path.speed_mps[1:] + path.speed_mps[:-1]), 0.05)
+    first = route.nodes[0].speed_mps if route.nodes else 0.0
+    a = config.a_long_max_mps2
     return {
         "ok": True,
         "route": route_to_dict(route),
+        "route_id": route_id(route),
         "path": {"n": np.round(path.north_m[idx], 3).tolist(), "e": np.round(path.east_m[idx], 3).tolist(),
-                 "v": np.round(path.speed_mps[idx], 3).tolist()},
+                 "v": np.round(path.speed_mps[idx], 3).tolist(), "s": np.round(path.s_m[idx], 2).tolist()},
         "length_m": round(path.length_m, 2),
         "duration_s": round(float(np.sum(ds / v_mid)), 1),
         "segments": [{"label": s.label, "length_m": round(s.length_m, 2), "detour": bool(s.detour)}
                      for s in path.segments],
+        # leaving the harbour: from rest to the first node's speed at the acceleration limit
+        "start_ramp": {"speed_mps": first, "accel_mps2": a, "distance_m": round(first**2 / (2 * a), 3),
+                       "time_s": round(first / a, 2)},
     }
+
+
+def plan_for_display(route_data: dict, config: PlannerConfig | None = None) -> dict[str, Any]:
+    """{"ok": True, "route", "route_id", "path": {n, e, v, s}, "length_m", "duration_s", "segments",
+    "start_ramp"} or {"ok": False, "errors": [{message, kind, index?}]}. Never raises for bad input."""
+    config = config or PlannerConfig()
+    try:
+        route = route_from_dict(route_data)
+        path = plan_route(route, config)
+    except LotsenError as exc:  # ConfigError (schema, geometry) and PlanningError (segments)
+        return {"ok": False, "errors": [_error(exc)]}
+    except Exception as exc:  # noqa: BLE001 - a planner bug must reach the operator, not kill the server
+        return {"ok": False, "errors": [{"message": f"planner failed: {exc!r}"[:500], "error_class": type(exc).__name__,
+                                          "kind": "route"}]}
+    return _display(route, path, config)
+
+
+def plan_for_upload(route_data: dict, config: PlannerConfig | None = None, stamp_s: float = 0.0,
+                    source: str = "web") -> dict[str, Any]:
+    """Plan once for the upload: the display result (as `plan_for_display`) and, when it
+    succeeded, `"message"`: the `PlannedRoute` built from the very same path (picklable, so this
+    runs in the planner worker process)."""
+    config = config or PlannerConfig()
+    try:
+        route = route_from_dict(route_data)
+        path = plan_route(route, config)
+    except LotsenError as exc:
+        return {"ok": False, "errors": [_error(exc)]}
+    except Exception as exc:  # noqa: BLE001
+        return {"ok": False, "errors": [{"message": f"planner failed: {exc!r}"[:500], "error_class": type(exc).__name__,
+                                          "kind": "route"}]}
+    out = _display(route, path, config)
+    out["message"] = planned_route_message(route, path, stamp_s=stamp_s, source=source)
+    return out
 
 
 def export_route(route_data: dict, fmt: str, origin: GeoOrigin | None = None) -> str:
@@ -80,13 +112,37 @@ def export_route(route_data: dict, fmt: str, origin: GeoOrigin | None = None) ->
     return yaml.safe_dump(route_to_dict(route), sort_keys=False, default_flow_style=None)
 
 
+class _NoAliasLoader(yaml.SafeLoader):
+    """Safe YAML without anchors/aliases: a route file never needs them, and nested aliases
+    ("billion laughs") would make a few kB of text expand into millions of nodes."""
+
+    def compose_node(self, parent, index):  # noqa: ANN001 - PyYAML's signature
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.YAMLError(f"aliases (*{event.anchor}) are not allowed in a route file "
+                                 f"(line {event.start_mark.line + 1})")
+        return super().compose_node(parent, index)
+
+
+def _load_yaml(text: str) -> Any:
+    """libyaml's fast loader when the text cannot hold an alias (no '*'); else the Python
+    loader that refuses aliases (libyaml composes in C, out of reach of compose_node)."""
+    if "*" not in text and hasattr(yaml, "CSafeLoader"):
+        return yaml.load(text, Loader=yaml.CSafeLoader)  # noqa: S506 - a safe loader
+    return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506
+
+
 def import_route(text: str, fmt: str) -> dict:
     """Route dict from YAML or GeoJSON text. Raises LotsenError with the location of the problem."""
-    from lotsen.errors import ConfigError
-
     try:
-        data = json.loads(text) if fmt == "geojson" else yaml.safe_load(text)
+        data = json.loads(text) if fmt == "geojson" else _load_yaml(text)
+    except RecursionError:
+        raise ConfigError(f"import: the {fmt.upper()} is nested too deeply") from None
     except (ValueError, yaml.YAMLError) as exc:
         raise ConfigError(f"import: not valid {fmt.upper()}: {str(exc)[:200]}") from None
+    try:
+        check_json_tree(data, ("import",))
+    except ValidationError as exc:
+        raise ConfigError(str(exc)) from None
     route = route_from_geojson(data) if fmt == "geojson" else route_from_dict(data)
     return route_to_dict(route)

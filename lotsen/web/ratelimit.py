@@ -15,10 +15,18 @@ class TokenBucket:
         self._tokens = burst
         self._t = clock()
 
-    def take(self, n: float = 1.0) -> bool:
+    def _refill(self) -> None:
         now = self._clock()
         self._tokens = min(self.burst, self._tokens + (now - self._t) * self.rate)
         self._t = now
+
+    def available(self, n: float = 1.0) -> bool:
+        """Whether `take(n)` would succeed now (nothing is taken)."""
+        self._refill()
+        return self._tokens >= n
+
+    def take(self, n: float = 1.0) -> bool:
+        self._refill()
         if self._tokens >= n:
             self._tokens -= n
             return True

@@ -1,5 +1,14 @@
 """HTTP and WebSocket routes: the page, its static assets (shipped in the package, nothing from
-a CDN), the `/ws` socket, and security headers on every response."""
+a CDN), the `/ws` socket, cached map tiles, the MCAP logs, and security headers on every response.
+
+| path | what | who |
+|---|---|---|
+| `/`, `/static/...` | the page | anyone who reaches the server |
+| `/ws` | telemetry, control (pilot token inside) | anyone (control: the pilot) |
+| `/api/health` | liveness, no secrets | anyone |
+| `/api/tiles`, `/tiles/{z}/{x}/{y}.png` | the offline tile cache | anyone |
+| `/api/logs`, `/logs/{name}.mcap` | MCAP logs (GET, HEAD, Range; CORS for Foxglove's web app) | anyone |
+"""
 
 from __future__ import annotations
 
@@ -8,22 +17,30 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request, WebSocket
-from fastapi.responses import FileResponse, JSONResponse
+from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 
 from lotsen.web.hub import Hub
+from lotsen.web.logfiles import FOXGLOVE_APP, foxglove_url, list_logs, resolve_log
+from lotsen.web.tiles import tile_image_type, valid_tile
 
 STATIC = Path(__file__).resolve().parent / "static"
 
-#: the page may load only its own files and talk only to its own server
+#: the page may load only its own files (tiles included) and talk only to its own server
 SECURITY_HEADERS = {
-    "Content-Security-Policy": ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
-                                "connect-src 'self'; frame-ancestors 'none'; base-uri 'none'; form-action 'none'"),
+    "Content-Security-Policy": ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; "
+                                "connect-src 'self'; media-src 'self' data:; frame-ancestors 'none'; base-uri 'none'; "
+                                "form-action 'none'"),
     "X-Content-Type-Options": "nosniff",
     "X-Frame-Options": "DENY",
     "Referrer-Policy": "no-referrer",
     "Cache-Control": "no-cache",
 }
+
+#: Foxglove's web app fetches a remote MCAP from the browser: it needs CORS (and, from a public
+#: site to a private address, Chrome's Private Network Access preflight)
+LOG_CORS = {"Access-Control-Allow-Origin": FOXGLOVE_APP, "Vary": "Origin",
+            "Access-Control-Expose-Headers": "Content-Length, Content-Range, Accept-Ranges, ETag, Last-Modified"}
 
 
 def create_app(hub: Hub) -> FastAPI:
@@ -53,6 +70,48 @@ def create_app(hub: Hub) -> FastAPI:
         """Liveness for scripts: no secrets, no control."""
         return JSONResponse({"ok": True, "clients": len(hub.clients), "pilot": hub.seat.holder is not None,
                              "frames": hub.frames_built})
+
+    # -- offline map tiles --------------------------------------------------------------------
+    @app.get("/api/tiles")
+    async def tiles_index() -> JSONResponse:
+        if hub.tiles is None:
+            return JSONResponse({"enabled": False, "count": 0, "zooms": {}})
+        index = await asyncio.to_thread(hub.tiles.store.index)
+        return JSONResponse({**hub.tiles.info(), **index})
+
+    @app.get("/tiles/{z}/{x}/{y}.png")
+    async def tile(z: int, x: int, y: int) -> Response:
+        if hub.tiles is None or not valid_tile(z, x, y):
+            return Response(status_code=404)
+        p = hub.tiles.store.path(z, x, y)
+        if not p.is_file():
+            return Response(status_code=404)
+        data = await asyncio.to_thread(p.read_bytes)
+        return Response(data, media_type=tile_image_type(data) or "application/octet-stream",
+                        headers={"Cache-Control": "public, max-age=86400"})
+
+    # -- logs ------------------------------------------------------------------------------------
+    @app.get("/api/logs")
+    async def logs(request: Request) -> JSONResponse:
+        entries = await asyncio.to_thread(list_logs, hub.options.log_dir)
+        base = str(request.base_url).rstrip("/")
+        for e in entries:
+            e["url"] = f"/logs/{e['name']}"
+            e["foxglove"] = foxglove_url(f"{base}/logs/{e['name']}")
+        return JSONResponse({"directory_set": bool(hub.options.log_dir), "logs": entries})
+
+    @app.api_route("/logs/{name}", methods=["GET", "HEAD"])
+    async def log_file(name: str) -> Response:
+        p = resolve_log(hub.options.log_dir, name)
+        if p is None:
+            return Response(status_code=404, headers=LOG_CORS)
+        return FileResponse(p, media_type="application/octet-stream", filename=p.name, headers=LOG_CORS)
+
+    @app.options("/logs/{name}")
+    async def log_preflight(name: str) -> Response:
+        return Response(status_code=204, headers={
+            **LOG_CORS, "Access-Control-Allow-Methods": "GET, HEAD", "Access-Control-Allow-Headers": "Range",
+            "Access-Control-Allow-Private-Network": "true", "Access-Control-Max-Age": "600"})
 
     @app.websocket("/ws")
     async def ws(websocket: WebSocket) -> None:

@@ -1,4 +1,5 @@
-"""uvicorn in a background thread, bound to the configured address (loopback by default)."""
+"""uvicorn in a background thread, bound to the configured address (loopback by default),
+optionally with TLS (`ssl_certfile`/`ssl_keyfile`, see lotsen.web.tls)."""
 
 from __future__ import annotations
 
@@ -13,12 +14,15 @@ from lotsen.web.routes import create_app
 
 
 class WebServer:
-    def __init__(self, hub: Hub, host: str, port: int) -> None:
+    def __init__(self, hub: Hub, host: str, port: int, *, ssl_certfile: str | None = None,
+                 ssl_keyfile: str | None = None) -> None:
         self.hub = hub
         self.host = host
+        self.tls = ssl_certfile is not None
         config = uvicorn.Config(create_app(hub), host=host, port=port, log_level="warning", access_log=False,
                                 ws_max_size=1 << 20, ws_ping_interval=5.0, ws_ping_timeout=5.0,
-                                lifespan="on", server_header=False)
+                                lifespan="on", server_header=False, ssl_certfile=ssl_certfile,
+                                ssl_keyfile=ssl_keyfile)
         self._server = uvicorn.Server(config)
         self._thread: threading.Thread | None = None
         self.port = port
@@ -42,7 +46,7 @@ class WebServer:
     @property
     def url(self) -> str:
         host = f"[{self.host}]" if ":" in self.host else self.host
-        return f"http://{host}:{self.port}/"
+        return f"{'https' if self.tls else 'http'}://{host}:{self.port}/"
 
     def stop(self, timeout_s: float = 5.0) -> None:
         self._server.should_exit = True

@@ -4,19 +4,26 @@ message type and the field, e.g. ``manual.surge: 1.5 outside [-1, 1]``.
 
 Client -> server messages (all may carry an integer `id`, echoed in the reply):
 
-====== ===================================================== =========
-type   fields                                                pilot only
-====== ===================================================== =========
-auth   token: str, takeover: bool (optional)                 no
-release                                                      yes
-ping   t: number (optional, client clock, echoed)            no
-command action: one of lotsen.messages.OPERATOR_ACTIONS      yes
-manual surge, sway, yaw: numbers in [-1, 1]                  yes
-plan   route: route dict (docs/planning.md schema)           no
-route  route: route dict -> RouteMessage ("use this route")  yes
-export route: route dict, format: "yaml" | "geojson"         no
-import text: str, format: "yaml" | "geojson"                 no
-====== ===================================================== =========
+============= ======================================================== =========
+type          fields                                                   who
+============= ======================================================== =========
+auth          token: str, takeover: bool (optional)                    anyone
+release                                                                pilot
+ping          t: number (optional, client clock, echoed)               anyone
+command       action: one of lotsen.messages.OPERATOR_ACTIONS          pilot
+manual        surge, sway, yaw: numbers in [-1, 1]                     pilot
+plan          route: route dict (docs/planning.md schema)              pilot
+route         route: route dict -> PlannedRoute (upload)               pilot
+export        route: route dict, format: "yaml" | "geojson"            anyone
+import        text: str, format: "yaml" | "geojson"                    anyone
+tiles_preload south, west, north, east (deg), zoom_min, zoom_max        pilot
+tiles_cancel                                                           pilot
+============= ======================================================== =========
+
+Before any of this the raw text is size-checked (512 kB for the pilot, 64 kB for viewers) and
+the decoded JSON is walked once (iteratively, no recursion): nesting at most 16 levels, at most
+200 000 values, integers within +-2^53 (a 1e400 integer is refused here, never reaches float()),
+every number finite.
 """
 
 from __future__ import annotations
@@ -29,9 +36,16 @@ from typing import Any
 from lotsen.messages import OPERATOR_ACTIONS
 
 MAX_MESSAGE_CHARS = 512 * 1024
+VIEWER_MAX_MESSAGE_CHARS = 64 * 1024  # a viewer needs no more (auth, ping, small conversions)
+MAX_JSON_DEPTH = 16
+MAX_JSON_VALUES = 200_000
+MAX_SAFE_INT = 2**53
 MAX_ROUTE_NODES = 200
 MAX_POLYGONS = 50
 MAX_POLYGON_VERTICES = 1000
+MAX_TOTAL_VERTICES = 5000
+#: every coordinate of a route within this distance of the local origin (a 1 m model ship's basin)
+MAX_EXTENT_M = 2000.0
 MAX_TOKEN_CHARS = 256
 MAX_IMPORT_CHARS = 400 * 1024
 
@@ -45,7 +59,7 @@ class ValidationError(Exception):
 
 @dataclass(frozen=True)
 class Field:
-    kind: str  # "number", "bool", "str", "enum", "route"
+    kind: str  # "number", "int", "bool", "str", "enum", "route"
     required: bool = True
     lo: float = -math.inf
     hi: float = math.inf
@@ -65,9 +79,16 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "route": {"route": Field("route")},
     "export": {"route": Field("route"), "format": Field("enum", choices=("yaml", "geojson"))},
     "import": {"text": Field("str", max_len=MAX_IMPORT_CHARS), "format": Field("enum", choices=("yaml", "geojson"))},
+    "tiles_preload": {"south": Field("number", lo=-85.0, hi=85.0), "north": Field("number", lo=-85.0, hi=85.0),
+                      "west": Field("number", lo=-180.0, hi=180.0), "east": Field("number", lo=-180.0, hi=180.0),
+                      "zoom_min": Field("int", lo=0, hi=22), "zoom_max": Field("int", lo=0, hi=22)},
+    "tiles_cancel": {},
 }
 
-PILOT_ONLY = frozenset({"release", "command", "manual", "route"})
+#: everything that plans, commands or downloads on the boat's behalf needs the pilot seat
+PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel"})
+#: what a viewer may send (docs/web.md, "Access rules")
+VIEWER_ALLOWED = frozenset(SCHEMAS) - PILOT_ONLY
 
 
 @dataclass(frozen=True)
@@ -77,40 +98,105 @@ class Message:
     fields: dict[str, Any]
 
 
-def _check_route_size(route: Any, where: str) -> None:
-    """Structure caps only (the planner's own loader checks the schema and reports per node)."""
-    if not isinstance(route, dict):
-        raise ValidationError("wrong_type", f"{where}: expected an object, got {_tname(route)}")
-    nodes = route.get("nodes")
-    if isinstance(nodes, list) and len(nodes) > MAX_ROUTE_NODES:
-        raise ValidationError("too_large", f"{where}.nodes: {len(nodes)} nodes, at most {MAX_ROUTE_NODES}")
-    polys = [route.get("area")] if route.get("area") is not None else []
-    obstacles = route.get("obstacles")
-    if isinstance(obstacles, list):
-        if len(obstacles) > MAX_POLYGONS:
-            raise ValidationError("too_large", f"{where}.obstacles: {len(obstacles)} polygons, at most {MAX_POLYGONS}")
-        polys += [o.get("polygon") if isinstance(o, dict) else o for o in obstacles]
-    for p in polys:
-        if isinstance(p, list) and len(p) > MAX_POLYGON_VERTICES:
-            raise ValidationError("too_large", f"{where}: a polygon has {len(p)} vertices, at most {MAX_POLYGON_VERTICES}")
-
-
 def _tname(v: Any) -> str:
     return {dict: "object", list: "array", str: "string", bool: "boolean", type(None): "null",
             int: "number", float: "number"}.get(type(v), type(v).__name__)
 
 
+def _where(path: tuple) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "message"
+
+
+def check_json_tree(data: Any, root: tuple = ()) -> None:
+    """Bounds on decoded JSON, checked iteratively (no recursion, so no RecursionError): depth,
+    number of values, integer magnitude (Python ints are unbounded: 10**400 would overflow
+    float() later), finite floats. Raises ValidationError naming the place."""
+    stack: list[tuple[Any, tuple, int]] = [(data, root, 0)]
+    count = 0
+    while stack:
+        value, path, depth = stack.pop()
+        count += 1
+        if count > MAX_JSON_VALUES:
+            raise ValidationError("too_large", f"message: more than {MAX_JSON_VALUES} values")
+        if isinstance(value, bool) or value is None or isinstance(value, str):
+            continue
+        if isinstance(value, int):
+            if not -MAX_SAFE_INT <= value <= MAX_SAFE_INT:
+                digits = len(str(abs(value))) if abs(value) < 10**4000 else 4000
+                raise ValidationError("out_of_range", f"{_where(path)}: integer of {digits} digits is out of "
+                                      f"range (at most 2^53 = {MAX_SAFE_INT})")
+            continue
+        if isinstance(value, float):
+            if not math.isfinite(value):
+                raise ValidationError("out_of_range", f"{_where(path)}: number out of range (not a finite "
+                                      "double, e.g. 1e400)")
+            continue
+        if depth >= MAX_JSON_DEPTH:
+            raise ValidationError("too_large", f"{_where(path)}: nested more than {MAX_JSON_DEPTH} levels deep")
+        if isinstance(value, dict):
+            stack.extend((v, path + (str(k)[:40],), depth + 1) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((v, path + (i,), depth + 1) for i, v in enumerate(value))
+
+
+def _check_coordinate(value: Any, where: str) -> None:
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) > MAX_EXTENT_M:
+        raise ValidationError("out_of_range", f"{where}: {value:g} m outside [-{MAX_EXTENT_M:g}, {MAX_EXTENT_M:g}] "
+                              "(routes stay within 2 km of the origin)")
+
+
+def _check_route_size(route: Any, where: str) -> None:
+    """Structure caps and extent only (the planner's own loader checks the schema and reports per node)."""
+    if not isinstance(route, dict):
+        raise ValidationError("wrong_type", f"{where}: expected an object, got {_tname(route)}")
+    nodes = route.get("nodes")
+    if isinstance(nodes, list):
+        if len(nodes) > MAX_ROUTE_NODES:
+            raise ValidationError("too_large", f"{where}.nodes: {len(nodes)} nodes, at most {MAX_ROUTE_NODES}")
+        for i, n in enumerate(nodes):
+            if isinstance(n, dict):
+                for k in ("north", "east"):
+                    _check_coordinate(n.get(k), f"{where}.nodes[{i}].{k}")
+    harbour = route.get("harbour")
+    if isinstance(harbour, dict):
+        for k in ("north", "east"):
+            _check_coordinate(harbour.get(k), f"{where}.harbour.{k}")
+    polys = [("area", route.get("area"))] if route.get("area") is not None else []
+    obstacles = route.get("obstacles")
+    if isinstance(obstacles, list):
+        if len(obstacles) > MAX_POLYGONS:
+            raise ValidationError("too_large", f"{where}.obstacles: {len(obstacles)} polygons, at most {MAX_POLYGONS}")
+        polys += [(f"obstacles[{i}]", o.get("polygon") if isinstance(o, dict) else o) for i, o in enumerate(obstacles)]
+    total = 0
+    for name, p in polys:
+        if isinstance(p, list):
+            total += len(p)
+            if len(p) > MAX_POLYGON_VERTICES:
+                raise ValidationError("too_large", f"{where}.{name}: {len(p)} vertices, at most {MAX_POLYGON_VERTICES}")
+            for j, v in enumerate(p):
+                if isinstance(v, list):
+                    for c in v[:2]:
+                        _check_coordinate(c, f"{where}.{name}[{j}]")
+    if total > MAX_TOTAL_VERTICES:
+        raise ValidationError("too_large", f"{where}: {total} polygon vertices in all, at most {MAX_TOTAL_VERTICES}")
+
+
 def _check_field(mtype: str, name: str, spec: Field, value: Any) -> Any:
     where = f"{mtype}.{name}"
-    if spec.kind == "number":
+    if spec.kind in ("number", "int"):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ValidationError("wrong_type", f"{where}: expected a number, got {_tname(value)}")
-        v = float(value)
+        if spec.kind == "int" and not (isinstance(value, int) or float(value).is_integer()):
+            raise ValidationError("wrong_type", f"{where}: expected an integer, got {value!r}")
+        v = float(value)  # finite and bounded: check_json_tree ran first
         if not math.isfinite(v):
             raise ValidationError("out_of_range", f"{where}: {value!r} is not finite")
         if not spec.lo <= v <= spec.hi:
             raise ValidationError("out_of_range", f"{where}: {v:g} outside [{spec.lo:g}, {spec.hi:g}]")
-        return v
+        return int(v) if spec.kind == "int" else v
     if spec.kind == "bool":
         if not isinstance(value, bool):
             raise ValidationError("wrong_type", f"{where}: expected true or false, got {_tname(value)}")
@@ -133,22 +219,27 @@ def _check_field(mtype: str, name: str, spec: Field, value: Any) -> Any:
     raise AssertionError(spec.kind)
 
 
-def parse_message(raw: Any) -> Message:
-    """Decode and validate one WebSocket text frame."""
+def parse_message(raw: Any, max_chars: int = MAX_MESSAGE_CHARS) -> Message:
+    """Decode and validate one WebSocket text frame (`max_chars`: the sender's size limit)."""
     if not isinstance(raw, str):
         raise ValidationError("bad_json", "expected a JSON text message")
-    if len(raw) > MAX_MESSAGE_CHARS:
-        raise ValidationError("too_large", f"message of {len(raw)} characters, at most {MAX_MESSAGE_CHARS}")
+    if len(raw) > max_chars:
+        raise ValidationError("too_large", f"message of {len(raw)} characters, at most {max_chars}"
+                              + (" for a viewer" if max_chars < MAX_MESSAGE_CHARS else ""))
     try:
         data = json.loads(raw, parse_constant=_reject_constant)
-    except (ValueError, RecursionError) as exc:
+    except RecursionError:
+        raise ValidationError("too_large", f"message: nested more than {MAX_JSON_DEPTH} levels deep") from None
+    except ValueError as exc:  # incl. an integer literal of more than 4300 digits
         raise ValidationError("bad_json", f"not valid JSON: {str(exc)[:120]}") from None
     if not isinstance(data, dict):
         raise ValidationError("bad_json", f"expected a JSON object, got {_tname(data)}")
     mid = data.get("id")
     if mid is not None and (isinstance(mid, bool) or not isinstance(mid, int) or not 0 <= mid < 2**53):
         raise ValidationError("wrong_type", f"id: expected a non-negative integer, got {_tname(mid)}")
+    mtype = data.get("type")
     try:
+        check_json_tree(data, (mtype[:40],) if isinstance(mtype, str) else ("message",))
         return _parse_fields(data, mid)
     except ValidationError as exc:
         exc.mid = mid
@@ -173,6 +264,11 @@ def _parse_fields(data: dict, mid: int | None) -> Message:
                 raise ValidationError("missing_field", f"{mtype}.{name}: required")
             continue
         fields[name] = _check_field(mtype, name, spec, data[name])
+    if mtype == "tiles_preload":
+        if fields["south"] >= fields["north"] or fields["west"] >= fields["east"]:
+            raise ValidationError("out_of_range", "tiles_preload: expected south < north and west < east")
+        if fields["zoom_min"] > fields["zoom_max"]:
+            raise ValidationError("out_of_range", "tiles_preload: zoom_min > zoom_max")
     return Message(mtype, mid, fields)
 
 

@@ -10,10 +10,11 @@ from typing import Any
 import pytest
 
 from lotsen.runtime.config import LaunchConfig, LoggingSection, WebSection
-from lotsen.runtime.launch import Stack, build_stack
-from lotsen.web.part import add_web
+from lotsen.stack.launch import build_stack
+from lotsen.stack.stack import Stack
+from lotsen.stack.web import add_web
 
-TOKEN = "test-pilot-token"
+TOKEN = "Tq7-vLx2_Rb9KmZ4wNc8Hs"  # 22 URL-safe characters: 132 bits by the strength rule
 
 
 @dataclass
@@ -35,12 +36,14 @@ class RunningStack:
         return list(self.seen.get(topic, []))
 
 
-def start_stack(parts: tuple[str, ...] | None = (), **web: Any) -> RunningStack:
+def start_stack(parts: tuple[str, ...] | None = (), extra_web: dict | None = None, tls: bool = False,
+                log_dir: str = "", **web: Any) -> RunningStack:
     cfg = LaunchConfig(web=WebSection(port=0, pilot_token=web.pop("pilot_token", TOKEN), **web),
-                       logging=LoggingSection(enabled=False))
+                       logging=LoggingSection(enabled=False, **({"directory": log_dir} if log_dir else {})),
+                       extra={"web": extra_web} if extra_web else {})
     stack = build_stack(cfg, realtime=True, parts=parts)
     if "web" not in stack.services:  # not registered as a part (yet): attach it here
-        add_web(stack)
+        add_web(stack, tls=tls)
     seen: dict[str, list] = {}
     stack.bus.subscribe_all(lambda topic, msg: seen.setdefault(topic, []).append(msg)
                             if topic.startswith("operator/") or topic in ("planning/route",) else None)

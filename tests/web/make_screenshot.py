@@ -18,11 +18,19 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from lotsen.runtime.config import LaunchConfig, LoggingSection, SimSection, WebSection  # noqa: E402
-from lotsen.runtime.launch import build_stack  # noqa: E402
+from lotsen.stack.launch import build_stack  # noqa: E402
 
-TOKEN = "screenshot"
+TOKEN = "screenshot-Tq7vLx2Rb9KmZ4wNc8"  # >= 128 bits (a weak token is refused at start)
 ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
         "--no-first-run", "--disable-sync"]
+
+
+def wait_js(pg, expr: str, timeout: float = 30.0) -> None:
+    t_end = time.monotonic() + timeout
+    while not pg.evaluate(f"() => ({expr})"):
+        if time.monotonic() > t_end:
+            raise SystemExit(f"timed out waiting for: {expr}")
+        time.sleep(0.1)
 
 
 def main() -> int:
@@ -58,16 +66,20 @@ def main() -> int:
             time.sleep(1.5)
             pg.fill("#token", TOKEN)
             pg.click("#btn-auth")
-            time.sleep(0.5)
+            wait_js(pg, "window.lotsen.pilot === true")
             pg.click("#btn-use")
-            time.sleep(1.0)
+            wait_js(pg, "window.lotsen.readbackMatch === true")
             pg.click("[data-tab=operate]")
+            wait_js(pg, "window.lotsen.actionState('arm').ok")  # the ESCs need neutral for a moment
+            pg.click("[data-action=arm]")
+            wait_js(pg, "window.lotsen.actionState('auto').ok")
             pg.click("[data-action=auto]")
             t_start = ex.clock.now()
             while ex.clock.now() - t_start < args.sim_seconds:
                 time.sleep(0.2)
             pg.click("[data-tab=plan]")
             pg.evaluate("() => window.lotsen.map.fit()")
+            pg.evaluate("() => { document.querySelector('#side').scrollTop = 0; }")  # the next action on top
             time.sleep(0.5)
             pg.screenshot(path=args.out)
             mode = pg.evaluate("() => window.lotsen.telemetry.sup && window.lotsen.telemetry.sup.mode")

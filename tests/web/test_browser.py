@@ -16,6 +16,7 @@ import pytest
 from lotsen.messages import Topic
 
 from .conftest import TOKEN, start_stack, stop_stack
+from .test_maps_and_logs import TileServer
 
 CHROMIUM = "/usr/bin/chromium"
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,8 +34,8 @@ LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking
 
 def _supervisor_available() -> bool:
     try:
-        import lotsen.runtime.nodes.parts  # noqa: F401  (registers the supervisor part)
-        import lotsen.runtime.supervisor  # noqa: F401
+        import lotsen.stack.parts  # noqa: F401  (registers the supervisor part)
+        import lotsen.supervisor.node  # noqa: F401
     except ImportError:
         return False
     return True
@@ -44,9 +45,19 @@ needs_supervisor = pytest.mark.xfail(not _supervisor_available(), strict=False, 
 
 
 @pytest.fixture(scope="module")
-def stack():
+def tile_server():
+    ts = TileServer(refuse_from_zoom=23)  # a stand-in for the online tile server
+    yield ts
+    ts.close()
+
+
+@pytest.fixture(scope="module")
+def stack(tile_server, tmp_path_factory):
     parts = None if _supervisor_available() else ()
-    rs = start_stack(parts=parts)
+    logs = tmp_path_factory.mktemp("logs")
+    (logs / "2026-11-23_lake.mcap").write_bytes(b"\x89MCAP0\r\n" + b"x" * 1000)
+    rs = start_stack(parts=parts, log_dir=str(logs),
+                     extra_web={"tile_dir": str(tmp_path_factory.mktemp("tiles")), "tile_url": tile_server.url})
     yield rs
     stop_stack(rs)
 
@@ -69,7 +80,8 @@ def page(browser, stack):
     pg.on("request", lambda r: pg.requests.append(r.url))
     pg.on("pageerror", lambda e: pg.errors.append(str(e)))
     pg.goto(stack.url)
-    wait_js(pg, "window.lotsen && window.lotsen.framesRx > 3")
+    # the simulated boat's first pose can take a second or two on a busy machine
+    wait_js(pg, "window.lotsen && window.lotsen.framesRx > 3 && !!window.lotsen.telemetry.pose", timeout=20)
     yield pg
     ctx.close()
 
@@ -119,7 +131,36 @@ def test_page_works_offline_and_shows_the_live_boat(page, stack):
     assert page.errors == []
 
 
+def test_viewer_cannot_control(page, stack):
+    assert page.locator("[data-action=auto]").is_disabled()
+    assert page.locator("#btn-use").is_disabled()
+    n = len(stack.messages(Topic.OPERATOR))
+    page.click("#estop")  # always visible; without the token it only explains
+    wait_js(page, "document.querySelector('#toast').textContent.includes('take the controls')")
+    assert len(stack.messages(Topic.OPERATOR)) == n
+    # drafts are planned by the boat's planner worker, which only the pilot may load
+    assert "pilot" in page.get_attribute("#btn-use", "title")
+
+
+def take_controls(pg) -> None:
+    if not pg.evaluate("() => window.lotsen.pilot"):
+        pg.fill("#token", TOKEN)
+        pg.click("#btn-auth")
+        wait_js(pg, "window.lotsen.pilot === true")
+
+
+def arm(pg) -> None:
+    """Arm (thrust allowed) once the simulated ESCs are ready: the button is enabled only then."""
+    pg.click("[data-tab=operate]")
+    if not pg.evaluate("() => window.lotsen.telemetry.sup.armed"):
+        wait_js(pg, "window.lotsen.actionState('arm').ok", timeout=10)
+        pg.click("[data-action=arm]")
+        wait_js(pg, "window.lotsen.telemetry.sup.armed === true")
+
+
+
 def test_draw_a_route_by_clicking_and_see_the_plan_and_its_errors(page):
+    take_controls(page)
     page.evaluate("() => window.lotsen.map.fit()")
     page.evaluate("() => { const m = window.lotsen.map; m.scale = 14; m.n0 = 8; m.e0 = 4; m.invalidate(); }")
     page.click("[data-tool=harbour]")
@@ -159,33 +200,96 @@ def test_drag_a_node_and_the_path_follows(page):
     assert abs(page.evaluate("() => window.lotsen.route.nodes[1].east") - 8.0) < 0.3
 
 
-def test_viewer_cannot_control(page, stack):
-    assert page.locator("[data-action=auto]").is_disabled()
-    assert page.locator("#btn-use").is_disabled()
-    n = len(stack.messages(Topic.OPERATOR))
-    page.click("#estop")  # always visible; without the token it only explains
-    wait_js(page, "document.querySelector('#toast').textContent.includes('take the controls')")
-    assert len(stack.messages(Topic.OPERATOR)) == n
+def test_insert_a_node_undo_redo_and_numbers_are_validated_on_entry(page):
+    before = page.evaluate("() => window.lotsen.route.toDict()")
+    page.locator("#nodetable button[data-ins='1']").click()  # + : a node halfway before node 1
+    wait_js(page, "window.lotsen.route.nodes.length === 3")
+    mid = page.evaluate("() => window.lotsen.route.nodes[1]")
+    n0, n2 = before["nodes"][0], before["nodes"][1]
+    assert abs(mid["north"] - (n0["north"] + n2["north"]) / 2) < 0.01
+    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')")
+    page.click("#btn-undo")
+    wait_js(page, "window.lotsen.route.nodes.length === 2")
+    page.click("#btn-redo")
+    wait_js(page, "window.lotsen.route.nodes.length === 3")
+    page.locator("#map").focus()
+    page.keyboard.press("Control+z")
+    wait_js(page, "window.lotsen.route.nodes.length === 2")
+    assert page.evaluate("() => window.lotsen.route.toDict()") == before
+    # a cleared or nonsensical cell is refused with the reason, never read as 0
+    cell = "#nodetable tr[data-kind=node][data-i='1'] input[data-f=speed_mps]"
+    for text, why in (("", "a number is required"), ("fast", "is not a number"), ("1e308", "outside")):
+        page.fill(cell, text)
+        page.press(cell, "Enter")
+        wait_js(page, f"document.querySelector('#fielderr').textContent.includes('{why}')")
+    assert page.evaluate("() => window.lotsen.route.nodes[1].speed_mps") == 0.4
+    page.fill(cell, "0.4")
+    page.press(cell, "Enter")
+    wait_js(page, "document.querySelector('#fielderr').textContent === ''")
+    # the navigable area: corners clicked with the Area tool, closed with Finish polygon
+    page.click("[data-tool=area]")
+    for n, e in ((-4, -4), (18, -4), (18, 12), (-4, 12)):
+        click_map(page, n, e)
+    page.click("#btn-finish")
+    wait_js(page, "window.lotsen.route.area && window.lotsen.route.area.length === 4")
+    corner = page.evaluate("() => window.lotsen.route.area[2]")
+    assert abs(corner[0] - 18) < 0.2 and abs(corner[1] - 12) < 0.2
+    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')")
+    assert "navigable area, 4 corners" in page.inner_text("#polylist")
+    page.click("[data-tool=select]")
+
+
+def test_preload_map_tiles_for_the_area_and_see_them_under_the_route(page, tile_server):
+    take_controls(page)
+    page.evaluate("() => window.lotsen.map.fit()")
+    page.click("[data-tab=maps]")
+    wait_js(page, "document.querySelector('#tilecount').textContent.includes('tiles')")
+    page.click("#btn-tiles")
+    wait_js(page, "window.lotsen.tileProgress && window.lotsen.tileProgress.state === 'done'", timeout=15)
+    prog = page.evaluate("() => window.lotsen.tileProgress")
+    assert prog["fetched"] == prog["total"] > 0 and prog["failed"] == 0
+    wait_js(page, f"window.lotsen.tiles.count === {prog['total']}")
+    # drawn from the boat's cache, never from the tile server
+    wait_js(page, "window.lotsen.map.tilesDrawn > 0 || performance.getEntriesByType('resource')"
+                  ".some(e => e.name.includes('/tiles/'))")
+    assert not [u for u in page.requests if str(tile_server.httpd.server_address[1]) in u]
+    assert "tiles cached" in page.inner_text("#tilestatus")
+    page.click("[data-tab=plan]")
+
+
+def test_logs_are_listed_and_downloaded(page):
+    page.click("[data-tab=logs]")
+    link = page.locator("a[data-log='2026-11-23_lake.mcap']")
+    link.wait_for()
+    assert "app.foxglove.dev" in page.get_attribute("a[data-foxglove='2026-11-23_lake.mcap']", "href")
+    with page.expect_download() as info:
+        link.click()
+    d = info.value
+    assert d.suggested_filename == "2026-11-23_lake.mcap"
+    assert Path(d.path()).read_bytes().startswith(b"\x89MCAP0")
+    page.click("[data-tab=plan]")
 
 
 @needs_supervisor
 def test_use_the_route_and_run_a_simulated_mission(page, stack):
-    page.fill("#token", TOKEN)
-    page.click("#btn-auth")
-    wait_js(page, "window.lotsen.pilot === true")
+    take_controls(page)
     page.click("#btn-use")
-    wait_js(page, "document.querySelector('#toast').textContent.startsWith('route sent')")
+    wait_js(page, "document.querySelector('#toast').textContent.startsWith('route uploaded')")
     # the server hands the message to the executor thread: it reaches the bus a moment later
     deadline = time.monotonic() + 5.0
     while not stack.messages(Topic.ROUTE) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert stack.messages(Topic.ROUTE)[-1].route["nodes"][1]["speed_mps"] == 0.4
     wait_js(page, "window.lotsen.map.activePath && window.lotsen.map.activePath.n.length > 10")
-    page.click("[data-tab=operate]")
+    wait_js(page, "window.lotsen.readbackMatch === true")  # the boat holds what was uploaded
+    arm(page)
     page.click("[data-action=auto]")
     wait_js(page, "window.lotsen.telemetry.sup && window.lotsen.telemetry.sup.mode === 'AUTO'")
     # moving along the route (the speed ramps up from 0 at the harbour, seed eq. 42)
     wait_js(page, "window.lotsen.telemetry.pose.n > 1.2 && window.lotsen.telemetry.ctrl.progress > 1.0", timeout=20)
+    # progress along the route with the distance left and an ETA, on the HUD and the next-action line
+    wait_js(page, "document.querySelector('#hud-progress').textContent.includes('ETA')")
+    assert "% of" in page.inner_text("#next-text")
     t = page.evaluate("() => window.lotsen.telemetry")
     assert abs(t["ctrl"]["xte"]) < 0.5 and abs(t["pose"]["e"]) < 0.5 and len(t["ctrl"]["pred_n"]) > 2
     page.evaluate("() => { document.querySelector('[data-tab=plan]').click(); }")
@@ -199,11 +303,8 @@ def test_use_the_route_and_run_a_simulated_mission(page, stack):
 
 @needs_supervisor
 def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
-    if not page.evaluate("() => window.lotsen.pilot"):
-        page.fill("#token", TOKEN)
-        page.click("#btn-auth")
-        wait_js(page, "window.lotsen.pilot === true")
-    page.click("[data-tab=operate]")
+    take_controls(page)
+    arm(page)
     page.click("[data-action=manual]")
     wait_js(page, "window.lotsen.telemetry.sup.mode === 'MANUAL'")
     page.locator("#map").focus()
@@ -223,10 +324,32 @@ def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
     page.click("#estop")
     page.keyboard.up("w")
     wait_js(page, "window.lotsen.telemetry.sup.mode === 'ESTOP'")
+    # the latched stop is a critical alert on the map, and the mode buttons say why they are off
+    wait_js(page, "!!document.querySelector('#alerts .alert.critical[data-code=estop]')")
+    wait_js(page, "document.querySelector('[data-action=auto]').disabled")
+    assert "emergency stop" in page.get_attribute("[data-action=auto]", "title")
     wait_js(page, "['n1','n2','nt'].every(k => Math.abs(window.lotsen.telemetry.act[k]) < 0.5)", timeout=3)
     wait_until(lambda: all(getattr(stack.stack.bus.latest[Topic.SHIP_COMMAND], k) == 0.0
                            for k in ("n1_rps", "n2_rps", "nt_rps")))
     shot(page, "estop")
     page.click("[data-action=reset_estop]")
     wait_js(page, "window.lotsen.telemetry.sup.mode === 'MANUAL'")
+    wait_js(page, "!document.querySelector('#alerts .alert.critical')")  # cleared with the latch
+    assert page.errors == []
+
+
+@needs_supervisor
+def test_a_refusal_is_a_visible_dismissable_alert(page, stack):
+    """The page offers only what the supervisor allows; a request it refuses anyway (sent by a
+    second page, or racing a mode change) comes back as an error alert, not as a 'sent' toast."""
+    take_controls(page)
+    wait_js(page, "window.lotsen.telemetry.sup.armed === false")  # the e-stop reset disarmed
+    assert page.locator("[data-action=auto]").is_disabled()
+    assert "arm first" in page.get_attribute("[data-action=auto]", "title")
+    page.evaluate("() => window.lotsen.send({type: 'command', action: 'auto'})")
+    sel = "#alerts .alert.error[data-code='refused:auto']"
+    wait_js(page, f"!!document.querySelector(\"{sel}\")")
+    assert "arm first" in page.inner_text(sel)
+    page.click(f"{sel} button.dismiss")
+    wait_js(page, f"!document.querySelector(\"{sel}\")")
     assert page.errors == []

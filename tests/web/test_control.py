@@ -11,14 +11,15 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from lotsen.messages import OPERATOR_ACTIONS, LinkStatus, ManualCommand, OperatorCommand, RouteMessage, Topic
-from lotsen.web.auth import MAX_AUTH_FAILURES, PilotSeat, token_matches
+from lotsen.messages import OPERATOR_ACTIONS, LinkStatus, ManualCommand, OperatorCommand, PlannedRoute, Topic
+from lotsen.planning.exchange import route_id
+from lotsen.web.auth import MAX_AUTH_FAILURES, AuthGuard, PilotSeat, token_matches
 from lotsen.web.control import ControlHandler
-from lotsen.web.planning_api import locate_error, plan_for_display
+from lotsen.web.planning_api import import_route, locate_error, plan_for_display
 from lotsen.web.ratelimit import TokenBucket
-from lotsen.web.validation import ValidationError, parse_message
+from lotsen.web.validation import VIEWER_MAX_MESSAGE_CHARS, ValidationError, parse_message
 
-TOKEN = "correct horse battery staple"
+TOKEN = "correct horse battery staple"  # the handler itself does not check strength (options do)
 ROUTE = {"harbour": {"north": 0.0, "east": 0.0, "heading_deg": 0.0},
          "nodes": [{"north": 12.0, "east": 0.0, "heading_deg": 0.0, "speed_mps": 0.5},
                    {"north": 20.0, "east": 8.0, "heading_deg": 90.0, "speed_mps": 0.5}]}
@@ -42,7 +43,7 @@ def make(link_timeout_s: float = 1.0):
     notified: list[tuple[object, dict]] = []
     seat = PilotSeat(TOKEN, link_timeout_s, clock)
     h = ControlHandler(seat, lambda t, m: published.append((t, m)), clock, run_blocking=_inline,
-                       notify=lambda s, m: notified.append((s, m)))
+                       notify=lambda s, m: notified.append((s, m)), auth_guard=AuthGuard(clock))
     return h, clock, published, notified
 
 
@@ -51,8 +52,8 @@ def send(h, session, msg) -> list[dict]:
     return asyncio.run(h.handle(session, raw))
 
 
-def pilot(h):
-    s = h.open_session()
+def pilot(h, address: str = "10.0.0.1"):
+    s = h.open_session(address)
     assert send(h, s, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
     return s
 
@@ -67,7 +68,9 @@ def test_control_without_token_is_refused_and_publishes_nothing():
     h, _, published, _ = make()
     viewer = h.open_session()
     for msg in ({"type": "command", "action": "auto"}, {"type": "manual", "surge": 0.5, "sway": 0, "yaw": 0},
-                {"type": "route", "route": ROUTE}, {"type": "release"}):
+                {"type": "route", "route": ROUTE}, {"type": "plan", "route": ROUTE}, {"type": "release"},
+                {"type": "tiles_preload", "south": 1, "north": 2, "west": 1, "east": 2, "zoom_min": 1, "zoom_max": 2},
+                {"type": "tiles_cancel"}):
         r = send(h, viewer, msg)
         assert code(r) == "not_pilot" and "pilot token" in r[0]["error"]
     assert published == []
@@ -101,7 +104,7 @@ def test_release_and_takeover_of_a_silent_pilot():
     second = h.open_session()
     clock.t += 2.0  # first pilot silent for longer than the link timeout
     r = send(h, second, {"type": "auth", "token": TOKEN})
-    assert code(r) == "pilot_busy" and "takeover" in r[0]["error"]
+    assert code(r) == "pilot_busy" and "Take over" in r[0]["error"]
     assert send(h, second, {"type": "auth", "token": TOKEN, "takeover": True})[0]["type"] == "auth_ok"
     assert notified and notified[0][0] is first and notified[0][1]["pilot"] is False
     assert isinstance(published[-1][1], ManualCommand) and published[-1][1].surge == 0.0
@@ -177,7 +180,30 @@ def test_valid_pilot_messages_publish_the_bus_messages():
     r = send(h, s, {"type": "route", "route": ROUTE})
     assert r[0]["type"] == "route_ok" and r[0]["length_m"] > 20
     (t, m), = published
-    assert t == Topic.ROUTE and isinstance(m, RouteMessage) and m.route["nodes"][1]["east"] == 8.0
+    assert t == Topic.ROUTE and isinstance(m, PlannedRoute) and m.route["nodes"][1]["east"] == 8.0
+
+
+def test_upload_plans_once_and_publishes_that_plan_with_its_route_id():
+    """The displayed result and the published PlannedRoute come from the same plan; the id is
+    the content id the boat's read-back will carry."""
+    h, clock, published, _ = make()
+    s = pilot(h)
+    published.clear()
+    calls = []
+
+    async def counting(fn, *args):
+        calls.append(fn.__name__)
+        return fn(*args)
+
+    h.run_blocking = counting
+    r = send(h, s, {"type": "route", "route": ROUTE})[0]
+    assert calls == ["plan_for_upload"]  # planned once, in the worker
+    (t, m), = published
+    assert r["route_id"] == m.route_id == route_id(r["route"]) and m.stamp_s == clock.t
+    assert math.isclose(m.s_m[-1], r["length_m"], abs_tol=0.01)
+    assert r["path"]["n"][-1] == pytest.approx(m.north_m[-1], abs=1e-3) and len(m.node_s_m) == 3
+    assert r["start_ramp"]["time_s"] == pytest.approx(0.5 / 0.2)  # harbour start at the acceleration limit
+    assert h.last_upload["route_id"] == m.route_id
 
 
 def test_a_route_the_planner_cannot_plan_is_not_published():
@@ -276,11 +302,22 @@ _types = st.sampled_from(["auth", "release", "ping", "command", "manual", "plan"
                           "import", "nope"])
 
 
+HOSTILE = [
+    '{"type": "plan", "route": {"harbour": {"north": 1' + "0" * 400 + ', "east": 0, "heading_deg": 0}, "nodes": []}}',
+    '{"type": "route", "route": {"harbour": {"north": 1e400, "east": 0, "heading_deg": 0}, "nodes": []}}',
+    '{"type": "plan", "route": ' + "[" * 5000 + "]" * 5000 + "}",
+    "[" * 5000,
+    '{"type": "import", "format": "yaml", "text": "' + "x" * 300_000 + '"}',
+    '{"type": "auth", "token": "' + "y" * 100_000 + '"}',
+    '{"type": "manual", "surge": 1' + "0" * 5000 + ', "sway": 0, "yaw": 0}',
+]
+
+
 @st.composite
 def _messages(draw):
     kind = draw(st.integers(0, 3))
     if kind == 0:
-        return draw(st.text(max_size=80))  # arbitrary text
+        return draw(st.one_of(st.text(max_size=80), st.sampled_from(HOSTILE)))  # arbitrary or hostile text
     if kind == 1:
         return json.dumps(draw(_json))  # arbitrary JSON
     msg = {"type": draw(_types)}
@@ -315,8 +352,123 @@ def test_fuzz_no_input_crashes_the_handler_or_publishes_anything_unexpected(fram
             assert new == [] or all(isinstance(m, ManualCommand) and m.surge == 0 for _, m in new)
         for topic, m in new:
             assert (topic, type(m)) in {(Topic.MANUAL, ManualCommand), (Topic.OPERATOR, OperatorCommand),
-                                        (Topic.ROUTE, RouteMessage)}
+                                        (Topic.ROUTE, PlannedRoute)}
             if isinstance(m, ManualCommand):
                 assert all(-1 <= v <= 1 and math.isfinite(v) for v in (m.surge, m.sway, m.yaw))
             if isinstance(m, OperatorCommand):
                 assert m.action in OPERATOR_ACTIONS
+
+
+# -- hostile input (issue 14) and viewers' rights (issue 15) ----------------------------------------
+@pytest.mark.parametrize("raw, expected_code, expected_text", [
+    ('{"type": "plan", "route": {"harbour": {"north": 1' + "0" * 400 + ', "east": 0, "heading_deg": 0}, "nodes": []}}',
+     "out_of_range", "plan.route.harbour.north: integer of 401 digits is out of range"),
+    ('{"type": "plan", "route": {"harbour": {"north": 1e400, "east": 0, "heading_deg": 0}, "nodes": []}}',
+     "out_of_range", "plan.route.harbour.north: number out of range"),
+    ('{"type": "plan", "route": ' + "[" * 5000 + "]" * 5000 + "}", "too_large", "nested more than 16 levels"),
+    ('{"type": "plan", "route": ' + "[" * 30 + "]" * 30 + "}", "too_large", "nested more than 16 levels"),
+    ('{"type": "manual", "surge": 1' + "0" * 5000 + ', "sway": 0, "yaw": 0}', "bad_json", "4300 digits"),
+    ('{"type": "plan", "route": {"harbour": {"north": 0, "east": 0, "heading_deg": 0}, "nodes": '
+     '[{"north": 50000, "east": 0, "heading_deg": 0, "speed_mps": 0.5}]}}', "out_of_range",
+     "plan.route.nodes[0].north: 50000 m outside [-2000, 2000]"),
+    ('{"type": "import", "format": "yaml", "text": "' + "x" * 500_000 + '"}', "too_large", "at most 409600"),
+])
+def test_hostile_json_gets_a_clear_error_never_an_exception(raw, expected_code, expected_text):
+    h, _, published, _ = make()
+    s = pilot(h)
+    published.clear()
+    r = send(h, s, raw)
+    assert code(r) == expected_code and expected_text in r[0]["error"], r
+    assert published == []
+
+
+def test_a_viewer_may_convert_routes_but_not_plan_and_sends_small_messages_only():
+    h, _, published, _ = make()
+    viewer = h.open_session("10.0.0.9")
+    r = send(h, viewer, {"type": "export", "format": "yaml", "route": ROUTE})
+    assert r[0]["type"] == "export_result" and "harbour" in r[0]["text"]
+    r = send(h, viewer, {"type": "import", "format": "yaml", "text": r[0]["text"]})
+    assert r[0]["type"] == "import_result" and r[0]["route"]["nodes"][1]["east"] == 8.0
+    assert code(send(h, viewer, {"type": "plan", "route": ROUTE})) == "not_pilot"
+    big = {"type": "import", "format": "yaml", "text": "a: " + "x" * VIEWER_MAX_MESSAGE_CHARS}
+    r = send(h, viewer, big)
+    assert code(r) == "too_large" and "for a viewer" in r[0]["error"]
+    s = pilot(h)  # the pilot may send the same
+    assert code(send(h, s, big)) == "invalid"  # parsed, then refused by the route loader
+    assert published == []
+
+
+def test_viewers_convert_one_at_a_time_in_all():
+    h, _, _, _ = make()
+    v1, v2 = h.open_session("10.0.0.8"), h.open_session("10.0.0.9")
+    gate = asyncio.Event()
+
+    async def slow(fn, *args):
+        await gate.wait()
+        return fn(*args)
+
+    h.run_blocking = slow
+
+    async def scenario():
+        _, job1 = h.receive(v1, json.dumps({"type": "export", "format": "yaml", "route": ROUTE}))
+        task = asyncio.ensure_future(job1)
+        await asyncio.sleep(0)
+        replies, job2 = h.receive(v2, json.dumps({"type": "export", "format": "yaml", "route": ROUTE}))
+        gate.set()
+        return replies, job2, await task
+
+    replies, job2, first = asyncio.run(scenario())
+    assert job2 is None and code(replies) == "busy" and first[0]["type"] == "export_result"
+    assert h.viewer_jobs == 0
+
+
+def test_yaml_aliases_are_refused_on_import():
+    bomb = "a: &a [x, x, x, x, x, x, x, x, x]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
+    with pytest.raises(Exception, match="aliases .* are not allowed"):
+        import_route(bomb, "yaml")
+
+
+def test_token_attempts_are_limited_per_address_across_connections():
+    h, clock, _, _ = make()
+    replies = []
+    for i in range(8):  # a new connection for every guess from the same address
+        replies.append(send(h, h.open_session("192.0.2.7"), {"type": "auth", "token": f"guess{i}"})[0]["code"])
+    assert replies[:5] == ["bad_token"] * 5 and set(replies[5:]) == {"rate_limited"}
+    # the pilot at another address is not affected
+    s = h.open_session("10.0.0.1")
+    assert send(h, s, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
+    clock.t += 2.0  # one more attempt every 2 s
+    assert send(h, h.open_session("192.0.2.7"), {"type": "auth", "token": "x"})[0]["code"] == "bad_token"
+
+
+def test_the_right_token_is_never_throttled_by_reconnections():
+    """A pilot reloading the page (or a Wi-Fi that drops) reconnects with the right token many
+    times: only wrong tokens use the address's budget."""
+    h, _, _, _ = make()
+    for _ in range(12):
+        s = h.open_session("192.0.2.9")
+        assert send(h, s, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
+        h.close_session(s)
+
+
+def test_large_frames_are_charged_before_decoding():
+    h, _, _, _ = make()
+    viewer = h.open_session()
+    big = json.dumps({"type": "export", "format": "yaml", "route": {**ROUTE, "pad": "x" * 4000}})
+    codes = [send(h, viewer, big) for _ in range(14)]
+    assert sum(1 for r in codes if r and r[0].get("code") == "rate_limited") == 1  # then dropped silently
+    assert sum(1 for r in codes if not r) >= 3
+
+
+def test_the_harbour_start_is_a_short_ramp_not_a_slow_leg():
+    """Issue 17: 'leaving the harbour at 0.15 m/s, a 100 m leg planned at 660 s'. The plan
+    leaves the harbour from rest at the acceleration limit and then holds the node speed; the
+    page shows the ramp (start_ramp) so the first slow metres are explained."""
+    route = {"harbour": {"north": 0, "east": 0, "heading_deg": 0},
+             "nodes": [{"north": 100, "east": 0, "heading_deg": 0, "speed_mps": 0.5}]}
+    res = plan_for_display(route)
+    ramp = res["start_ramp"]
+    assert ramp["speed_mps"] == 0.5 and ramp["distance_m"] < 1.0 and ramp["time_s"] < 5.0
+    assert res["duration_s"] < 100 / 0.5 + 2 * ramp["time_s"] + 1.0  # about 200 s, not 660
+    v, s = res["path"]["v"], res["path"]["s"]
+    assert min(x for x, d in zip(v, s) if 2.0 < d < 98.0) >= 0.49

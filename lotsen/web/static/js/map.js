@@ -1,15 +1,17 @@
-// Canvas map in local metres (north up, east right) with a grid: works without any tiles.
-// Draws the route being edited, the planner's draft path, the active path, the boat, its trail
-// and the MPC prediction, and handles editing: place, drag, set bearing, pan, zoom.
-import { bearingDeg } from "./route.js";
+// Canvas map in local metres (north up, east right): offline tiles in Web Mercator underneath when
+// cached (placed through the stack's geographic origin), a metre grid always. Draws the route
+// being edited, the planner's draft path, the active path, the boat, its trail and the MPC
+// prediction, and handles editing: place, insert (the + handles halfway along legs and polygon
+// edges), drag, delete corners (select + Delete, or right-click), set bearing, pan, zoom.
+import { bearingDeg, round2 } from "./route.js";
 
-const HIT_PX = 10, HANDLE_PX = 34;
+const HIT_PX = 10, HANDLE_PX = 34, PLUS_PX = 7;
 
 export class MapView {
   constructor(canvas, route, opts = {}) {
     this.canvas = canvas;
     this.route = route;
-    this.opts = opts;                 // {defaultSpeed(), onSelect(), onInfo()}
+    this.opts = opts;                 // {defaultSpeed(), onSelect(), onInfo(), onPan(), onPolygonDone(), onEdit()}
     this.tool = "select";
     this.n0 = 10; this.e0 = 10; this.scale = 14;   // view centre (m) and px per metre
     this.boat = null;                 // {n, e, psi}
@@ -18,10 +20,14 @@ export class MapView {
     this.draftPath = null;            // {n: [], e: []}
     this.activePath = null;
     this.predicted = null;
+    this.tiles = null;                // TileLayer
+    this.origin = null;               // {lat, lon, h}
     this.follow = false;
     this.drag = null;
     this.dirty = true;
     this.cursor = null;
+    this.hover = null;
+    this.tilesDrawn = 0;
     this.bindEvents();
     const loop = () => { if (this.dirty) { this.dirty = false; this.draw(); } requestAnimationFrame(loop); };
     requestAnimationFrame(loop);
@@ -40,7 +46,24 @@ export class MapView {
     return [this.n0 - (y - h / 2) / this.scale, this.e0 + (x - w / 2) / this.scale];
   }
   eventPos(ev) { const r = this.canvas.getBoundingClientRect(); return [ev.clientX - r.left, ev.clientY - r.top]; }
+  // the visible box in local metres: [nMin, eMin, nMax, eMax]
+  viewBox() {
+    const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+    const [nTop, eLeft] = this.toWorld(0, 0), [nBot, eRight] = this.toWorld(w, h);
+    return [nBot, eLeft, nTop, eRight];
+  }
 
+  fitPoints(pts, minSpan = 10) {
+    if (!pts.length) pts = [[0, 0]];
+    let nlo = Infinity, nhi = -Infinity, elo = Infinity, ehi = -Infinity;
+    for (const [n, e] of pts) { nlo = Math.min(nlo, n); nhi = Math.max(nhi, n); elo = Math.min(elo, e); ehi = Math.max(ehi, e); }
+    this.n0 = (nlo + nhi) / 2; this.e0 = (elo + ehi) / 2;
+    const w = this.canvas.clientWidth || 800, h = this.canvas.clientHeight || 600;
+    this.scale = Math.min(60, Math.max(0.5, 0.85 * Math.min(w / Math.max(ehi - elo, minSpan), h / Math.max(nhi - nlo, minSpan))));
+    this.invalidate();
+  }
+
+  // everything: the route being edited, the boat's active path and the boat
   fit() {
     const pts = [];
     const r = this.route;
@@ -48,20 +71,16 @@ export class MapView {
     r.nodes.forEach(n => pts.push([n.north, n.east]));
     if (r.area) pts.push(...r.area);
     r.obstacles.forEach(o => pts.push(...o.polygon));
+    const ap = this.activePath;
+    if (ap && ap.n) for (let i = 0; i < ap.n.length; i += 10) pts.push([ap.n[i], ap.e[i]]);
     if (this.boat) pts.push([this.boat.n, this.boat.e]);
-    if (!pts.length) pts.push([0, 0]);
-    let nlo = Infinity, nhi = -Infinity, elo = Infinity, ehi = -Infinity;
-    for (const [n, e] of pts) { nlo = Math.min(nlo, n); nhi = Math.max(nhi, n); elo = Math.min(elo, e); ehi = Math.max(ehi, e); }
-    this.n0 = (nlo + nhi) / 2; this.e0 = (elo + ehi) / 2;
-    const w = this.canvas.clientWidth || 800, h = this.canvas.clientHeight || 600;
-    this.scale = Math.min(60, Math.max(1, 0.85 * Math.min(w / Math.max(ehi - elo, 10), h / Math.max(nhi - nlo, 10))));
-    this.invalidate();
+    this.fitPoints(pts);
   }
 
   // -- telemetry --------------------------------------------------------------------------------
   setBoat(pose, truth) {
-    if (!pose) return;
-    this.boat = { n: pose.n, e: pose.e, psi: pose.psi };
+    if (!pose || pose.n == null || pose.e == null) return;
+    this.boat = { n: pose.n, e: pose.e, psi: pose.psi || 0 };
     this.truth = truth ? { n: truth.n, e: truth.e, psi: truth.psi } : null;
     const last = this.trail[this.trail.length - 1];
     if (!last || Math.hypot(pose.n - last[0], pose.e - last[1]) > 0.05) {
@@ -84,6 +103,28 @@ export class MapView {
     this.invalidate();
   }
 
+  editing() { return this.tool === "select" || this.tool === "node" || this.tool === "harbour"; }
+
+  // the "+" handles: halfway along each leg (insert a node) and each polygon edge (insert a corner)
+  plusHandles() {
+    const r = this.route, out = [];
+    if (!this.editing()) return out;
+    const chain = r.harbour ? [r.harbour, ...r.nodes] : [];
+    for (let i = 1; i < chain.length; i++) {
+      const a = chain[i - 1], b = chain[i];
+      out.push({ kind: "insert", index: i - 1, n: (a.north + b.north) / 2, e: (a.east + b.east) / 2 });
+    }
+    const sel = r.selected && r.selected.kind === "vertex" ? r.selected.poly : null;
+    for (const [which, poly] of r.polygons()) {
+      if (which !== sel) continue;   // a polygon's edge handles once one of its corners is selected
+      for (let k = 0; k < poly.length; k++) {
+        const a = poly[k], b = poly[(k + 1) % poly.length];
+        out.push({ kind: "vinsert", poly: which, k, n: (a[0] + b[0]) / 2, e: (a[1] + b[1]) / 2 });
+      }
+    }
+    return out;
+  }
+
   hit(x, y) {
     const r = this.route;
     const sel = r.point(r.selected);
@@ -99,14 +140,15 @@ export class MapView {
       const [sx, sy] = this.toScreen(r.harbour.north, r.harbour.east);
       if (Math.hypot(x - sx, y - sy) < HIT_PX + 2) return { kind: "harbour" };
     }
-    const polys = [];
-    if (r.area) polys.push(r.area);
-    r.obstacles.forEach(o => polys.push(o.polygon));
-    for (const poly of polys) {
+    for (const [which, poly] of r.polygons()) {
       for (let k = 0; k < poly.length; k++) {
         const [sx, sy] = this.toScreen(poly[k][0], poly[k][1]);
-        if (Math.hypot(x - sx, y - sy) < HIT_PX) return { kind: "vertex", poly, k };
+        if (Math.hypot(x - sx, y - sy) < HIT_PX) return { kind: "vertex", poly: which, k };
       }
+    }
+    for (const p of this.plusHandles()) {
+      const [sx, sy] = this.toScreen(p.n, p.e);
+      if (Math.hypot(x - sx, y - sy) < PLUS_PX + 2) return p;
     }
     return null;
   }
@@ -119,13 +161,21 @@ export class MapView {
 
   bindEvents() {
     const c = this.canvas;
-    c.addEventListener("contextmenu", ev => ev.preventDefault());
+    c.addEventListener("contextmenu", ev => {
+      ev.preventDefault();
+      const [x, y] = this.eventPos(ev);
+      const h = this.editing() ? this.hit(x, y) : null;
+      if (h && h.kind === "vertex") this.route.deleteVertex(h.poly, h.k);   // right-click deletes a corner
+    });
     c.addEventListener("pointerdown", ev => {
       c.focus();
+      if (ev.button !== 0) return;
       const [x, y] = this.eventPos(ev);
-      const h = this.tool === "select" || this.tool === "node" || this.tool === "harbour" ? this.hit(x, y) : null;
+      const h = this.editing() ? this.hit(x, y) : null;
       this.drag = { x0: x, y0: y, x, y, moved: false, hit: h, button: ev.button, n0: this.n0, e0: this.e0 };
-      if (h && (h.kind === "node" || h.kind === "harbour")) { this.route.selected = h; this.opts.onSelect && this.opts.onSelect(); }
+      if (h && (h.kind === "node" || h.kind === "harbour" || h.kind === "vertex")) {
+        this.route.selected = h; this.opts.onSelect && this.opts.onSelect();
+      }
       c.setPointerCapture(ev.pointerId);
       this.invalidate();
     });
@@ -134,7 +184,13 @@ export class MapView {
       this.cursor = this.toWorld(x, y);
       this.opts.onInfo && this.opts.onInfo(this.cursor);
       const d = this.drag;
-      if (!d) { if (this.route.drawing) this.invalidate(); return; }
+      if (!d) {
+        const h = this.editing() ? this.hit(x, y) : null;
+        const key = h ? JSON.stringify(h) : null;
+        if (key !== this.hover) { this.hover = key; c.style.cursor = h ? (h.kind === "insert" || h.kind === "vinsert" ? "copy" : "move") : ""; this.invalidate(); }
+        if (this.route.drawing) this.invalidate();
+        return;
+      }
       if (Math.hypot(x - d.x0, y - d.y0) > 4) d.moved = true;
       if (!d.moved) return;
       const [n, e] = this.toWorld(x, y);
@@ -142,15 +198,15 @@ export class MapView {
       if (h && h.kind === "heading") {
         const p = this.route.point(h.target);
         p.heading_deg = bearingDeg(p.north, p.east, n, e);
-        this.route.changed();
+        this.route.changed(true, false);
       } else if (h && (h.kind === "node" || h.kind === "harbour")) {
         const p = this.route.point(h);
         p.north = round2(n); p.east = round2(e);
-        this.route.changed();
+        this.route.changed(true, false);
       } else if (h && h.kind === "vertex") {
-        h.poly[h.k] = [round2(n), round2(e)];
-        this.route.changed();
-      } else {  // pan
+        const poly = this.route.polygon(h.poly);
+        if (poly) { poly[h.k] = [round2(n), round2(e)]; this.route.changed(true, false); }
+      } else if (!h) {  // pan
         this.n0 = d.n0 + (y - d.y0) / this.scale;
         this.e0 = d.e0 - (x - d.x0) / this.scale;
         this.follow = false;
@@ -161,17 +217,24 @@ export class MapView {
     c.addEventListener("pointerup", ev => {
       const d = this.drag;
       this.drag = null;
-      if (!d || d.moved || d.button !== 0) return;
+      if (!d || d.button !== 0) return;
+      if (d.moved) {   // the end of a drag is one undo step
+        if (d.hit) { this.route.commit(); this.opts.onEdit && this.opts.onEdit(); }
+        return;
+      }
       const [x, y] = this.eventPos(ev);
       const [n, e] = this.toWorld(x, y).map(round2);
       const r = this.route;
-      if (this.tool === "harbour") r.setHarbour(n, e);
-      else if (this.tool === "node" && !d.hit) r.addNode(n, e, this.opts.defaultSpeed ? this.opts.defaultSpeed() : 0.5);
+      const h = d.hit;
+      if (h && h.kind === "insert") r.insertNode(h.index, round2(h.n), round2(h.e));
+      else if (h && h.kind === "vinsert") r.insertVertex(h.poly, h.k, round2(h.n), round2(h.e));
+      else if (this.tool === "harbour") r.setHarbour(n, e);
+      else if (this.tool === "node" && !h) r.addNode(n, e, this.opts.defaultSpeed ? this.opts.defaultSpeed() : 0.5);
       else if (this.tool === "area" || this.tool === "obstacle") {
         if (!r.drawing) r.startPolygon(this.tool);
         r.drawing.pts.push([n, e]);
-        r.changed(false);
-      } else if (this.tool === "select" && !d.hit) { r.selected = null; this.opts.onSelect && this.opts.onSelect(); }
+        r.changed(false, false);
+      } else if (this.tool === "select" && !h) { r.selected = null; this.opts.onSelect && this.opts.onSelect(); }
       this.invalidate();
     });
     c.addEventListener("dblclick", () => {
@@ -181,7 +244,7 @@ export class MapView {
       ev.preventDefault();
       const [x, y] = this.eventPos(ev);
       const [n, e] = this.toWorld(x, y);
-      this.scale = Math.min(400, Math.max(0.5, this.scale * Math.exp(-ev.deltaY * 0.0015)));
+      this.scale = Math.min(400, Math.max(0.05, this.scale * Math.exp(-ev.deltaY * 0.0015)));
       const [n2, e2] = this.toWorld(x, y);   // keep the point under the cursor fixed
       this.n0 += n - n2; this.e0 += e - e2;
       this.invalidate();
@@ -197,39 +260,50 @@ export class MapView {
     const g = c.getContext("2d");
     g.setTransform(dpr, 0, 0, dpr, 0, 0);
     g.fillStyle = "#0b1a2a"; g.fillRect(0, 0, w, h);
-    this.drawGrid(g, w, h);
+    this.tilesDrawn = this.tiles && this.origin ? this.tiles.draw(g, this, this.origin) : 0;
+    this.drawGrid(g, w, h, this.tilesDrawn > 0);
     this.drawRegions(g);
     this.drawLine(g, this.activePath, "#38c172", 3, []);
     this.drawLine(g, this.draftPath, "#3fa7ff", 2, [8, 5]);
     if (this.trail.length > 1) this.drawPolyline(g, this.trail, "rgba(255,216,74,0.85)", 2.5, []);
     this.drawLine(g, this.predicted, "#ff8c2e", 2.5, []);
+    this.drawPlus(g);
     this.drawNodes(g);
     if (this.truth) this.drawBoat(g, this.truth, "rgba(255,255,255,0.35)");
     if (this.boat) this.drawBoat(g, this.boat, "#ffd84a");
+    if (this.tilesDrawn && this.tiles.attribution) {
+      g.font = "11px system-ui, sans-serif";
+      const t = this.tiles.attribution, tw = g.measureText(t).width;
+      g.fillStyle = "rgba(255,255,255,0.8)"; g.fillRect(w - tw - 12, h - 44, tw + 8, 15);
+      g.fillStyle = "#222"; g.fillText(t, w - tw - 8, h - 33);
+    }
   }
 
-  drawGrid(g, w, h) {
+  drawGrid(g, w, h, overTiles) {
     const minPx = 50;
-    const steps = [0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000];
-    const step = steps.find(s => s * this.scale >= minPx) || 1000;
+    const steps = [0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000];
+    const step = steps.find(s => s * this.scale >= minPx) || 5000;
     const [nTop, eLeft] = this.toWorld(0, 0), [nBot, eRight] = this.toWorld(w, h);
     g.lineWidth = 1; g.font = "11px system-ui, sans-serif";
+    const minor = overTiles ? "rgba(11,26,42,0.25)" : "#15304a", axis = overTiles ? "rgba(11,26,42,0.6)" : "#3d5a78";
+    const label = overTiles ? "#0b1a2a" : "#5d7a96";
     for (let e = Math.ceil(eLeft / step) * step; e <= eRight; e += step) {
       const [x] = this.toScreen(0, e);
-      g.strokeStyle = Math.abs(e) < 1e-9 ? "#3d5a78" : "#15304a";
+      g.strokeStyle = Math.abs(e) < 1e-9 ? axis : minor;
       g.beginPath(); g.moveTo(Math.round(x) + 0.5, 0); g.lineTo(Math.round(x) + 0.5, h); g.stroke();
-      g.fillStyle = "#5d7a96"; g.fillText(`E ${fmtM(e)}`, x + 3, h - 24);
+      g.fillStyle = label; g.fillText(`E ${fmtM(e)}`, x + 3, h - 24);
     }
     for (let n = Math.ceil(nBot / step) * step; n <= nTop; n += step) {
       const [, y] = this.toScreen(n, 0);
-      g.strokeStyle = Math.abs(n) < 1e-9 ? "#3d5a78" : "#15304a";
+      g.strokeStyle = Math.abs(n) < 1e-9 ? axis : minor;
       g.beginPath(); g.moveTo(0, Math.round(y) + 0.5); g.lineTo(w, Math.round(y) + 0.5); g.stroke();
-      g.fillStyle = "#5d7a96"; g.fillText(`N ${fmtM(n)}`, 4, y - 3);
+      g.fillStyle = label; g.fillText(`N ${fmtM(n)}`, 4, y - 3);
     }
-    // north arrow and scale bar
-    g.fillStyle = "#93a1b0"; g.font = "bold 13px system-ui"; g.fillText("N ↑", w - 36, 60);
+    // north arrow and scale bar (on a backing so they stay readable over tiles)
+    g.fillStyle = "rgba(16,21,28,0.75)"; g.fillRect(w - 30 - step * this.scale, 46, step * this.scale + 24, 52);
+    g.fillStyle = "#e3e9ef"; g.font = "bold 13px system-ui"; g.fillText("N ↑", w - 36, 62);
     const bar = step * this.scale;
-    g.strokeStyle = "#93a1b0"; g.lineWidth = 2;
+    g.strokeStyle = "#e3e9ef"; g.lineWidth = 2;
     g.beginPath(); g.moveTo(w - 20 - bar, 78); g.lineTo(w - 20, 78); g.stroke();
     g.font = "11px system-ui"; g.fillText(`${fmtM(step)} m`, w - 20 - bar, 92);
   }
@@ -242,29 +316,43 @@ export class MapView {
 
   drawRegions(g) {
     const r = this.route;
+    const sel = r.selected && r.selected.kind === "vertex" ? r.selected : null;
     if (r.area) {
       this.polyPath(g, r.area, true);
       g.fillStyle = "rgba(63,167,255,0.08)"; g.fill();
       g.strokeStyle = r.errorFor("area") ? "#ef4c4c" : "#3fa7ff"; g.lineWidth = 2; g.stroke();
-      this.drawVertices(g, r.area, "#3fa7ff");
+      this.drawVertices(g, r.area, "#3fa7ff", sel && sel.poly === "area" ? sel.k : -1);
     }
     r.obstacles.forEach((o, i) => {
       this.polyPath(g, o.polygon, true);
       g.fillStyle = o.forbidden === "inside" ? "rgba(239,76,76,0.28)" : "rgba(239,76,76,0.08)"; g.fill();
       g.strokeStyle = r.errorFor("obstacle", i) ? "#ffffff" : "#ef4c4c"; g.lineWidth = 2; g.stroke();
-      this.drawVertices(g, o.polygon, "#ef4c4c");
+      this.drawVertices(g, o.polygon, "#ef4c4c", sel && sel.poly === i ? sel.k : -1);
     });
     if (r.drawing && r.drawing.pts.length) {
       const pts = this.cursor ? [...r.drawing.pts, this.cursor] : r.drawing.pts;
       this.polyPath(g, pts, false);
       g.strokeStyle = r.drawing.kind === "area" ? "#3fa7ff" : "#ef4c4c"; g.setLineDash([5, 4]); g.lineWidth = 2; g.stroke(); g.setLineDash([]);
-      this.drawVertices(g, r.drawing.pts, "#ffffff");
+      this.drawVertices(g, r.drawing.pts, "#ffffff", -1);
     }
   }
 
-  drawVertices(g, pts, color) {
-    g.fillStyle = color;
-    for (const p of pts) { const [x, y] = this.toScreen(p[0], p[1]); g.fillRect(x - 3, y - 3, 6, 6); }
+  drawVertices(g, pts, color, selected) {
+    pts.forEach((p, k) => {
+      const [x, y] = this.toScreen(p[0], p[1]);
+      if (k === selected) { g.fillStyle = "#ffffff"; g.fillRect(x - 5, y - 5, 10, 10); }
+      g.fillStyle = color; g.fillRect(x - 3, y - 3, 6, 6);
+    });
+  }
+
+  drawPlus(g) {
+    for (const p of this.plusHandles()) {
+      const [x, y] = this.toScreen(p.n, p.e);
+      g.beginPath(); g.arc(x, y, PLUS_PX - 1, 0, 2 * Math.PI);
+      g.fillStyle = "rgba(16,21,28,0.75)"; g.fill();
+      g.strokeStyle = p.kind === "insert" ? "#9fd2ff" : "#c9d3dd"; g.lineWidth = 1.5; g.stroke();
+      g.beginPath(); g.moveTo(x - 3.5, y); g.lineTo(x + 3.5, y); g.moveTo(x, y - 3.5); g.lineTo(x, y + 3.5); g.stroke();
+    }
   }
 
   drawLine(g, path, color, width, dash) {
@@ -298,7 +386,8 @@ export class MapView {
       g.beginPath(); g.arc(x, y, isSel ? 9 : 7, 0, 2 * Math.PI);
       g.fillStyle = err ? "#ef4c4c" : color; g.fill();
       g.lineWidth = isSel ? 3 : 1.5; g.strokeStyle = isSel ? "#ffffff" : "#0b1a2a"; g.stroke();
-      g.fillStyle = "#ffffff"; g.fillText(label, x + 10, y - 8);
+      g.fillStyle = "#ffffff"; g.strokeStyle = "#0b1a2a"; g.lineWidth = 3;
+      g.strokeText(label, x + 10, y - 8); g.fillText(label, x + 10, y - 8);
       if (isSel) {
         const [qx, qy] = this.handlePos(p);
         g.beginPath(); g.arc(qx, qy, 6, 0, 2 * Math.PI); g.strokeStyle = "#ffffff"; g.lineWidth = 2; g.stroke();
@@ -331,5 +420,4 @@ export class MapView {
   }
 }
 
-function round2(x) { return Math.round(x * 100) / 100; }
 function fmtM(x) { return Math.abs(x) < 1e-9 ? "0" : (Math.round(x * 10) / 10).toString(); }

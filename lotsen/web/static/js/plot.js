@@ -1,4 +1,9 @@
 // Rolling strip chart on a canvas: a few series against time, autoscaled, no dependencies.
+// Keeps up to HISTORY_S of data (10 Hz); the window shown is selectable (windowS); long windows
+// are drawn with one min/max pair per pixel column.
+export const HISTORY_S = 900;
+const MIN_DT = 0.095;
+
 export class StripChart {
   // series: [{label, color, dash}]; opts: {title, unit, windowS, minSpan}
   constructor(canvas, series, opts = {}) {
@@ -14,13 +19,15 @@ export class StripChart {
 
   push(t, values) {
     if (t == null) return;
-    if (this.t.length && t < this.t[this.t.length - 1]) { this.clear(); }  // server restarted
+    const last = this.t.length ? this.t[this.t.length - 1] : null;
+    if (last !== null && t < last) { this.clear(); }  // server restarted
+    else if (last !== null && t - last < MIN_DT) return;
     this.t.push(t);
     values.forEach((v, i) => this.data[i].push(v == null || !isFinite(v) ? null : v));
-    const tmin = t - this.windowS;
-    let k = 0;
-    while (k < this.t.length && this.t[k] < tmin) k++;
-    if (k > 0) { this.t.splice(0, k); this.data.forEach(d => d.splice(0, k)); }
+    if (this.t.length > 200 && this.t[0] < t - HISTORY_S - 30) {   // trim in chunks
+      const k = lowerBound(this.t, t - HISTORY_S);
+      this.t.splice(0, k); this.data.forEach(d => d.splice(0, k));
+    }
   }
 
   clear() { this.t = []; this.data = this.series.map(() => []); }
@@ -36,12 +43,13 @@ export class StripChart {
     g.setTransform(dpr, 0, 0, dpr, 0, 0);
     g.clearRect(0, 0, w, h);
     const L = 38, R = 6, T = 18, B = 14;
+    const t1 = this.t.length ? this.t[this.t.length - 1] : 0, t0 = t1 - this.windowS;
+    const i0 = lowerBound(this.t, t0);
     let lo = Infinity, hi = -Infinity;
-    for (const d of this.data) for (const v of d) if (v != null) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+    for (const d of this.data) for (let k = i0; k < d.length; k++) { const v = d[k]; if (v != null) { if (v < lo) lo = v; if (v > hi) hi = v; } }
     if (!isFinite(lo)) { lo = -this.minSpan / 2; hi = this.minSpan / 2; }
     if (hi - lo < this.minSpan) { const m = (hi + lo) / 2; lo = m - this.minSpan / 2; hi = m + this.minSpan / 2; }
     const pad = 0.08 * (hi - lo); lo -= pad; hi += pad;
-    const t1 = this.t.length ? this.t[this.t.length - 1] : 0, t0 = t1 - this.windowS;
     const X = t => L + (t - t0) / this.windowS * (w - L - R);
     const Y = v => T + (hi - v) / (hi - lo) * (h - T - B);
     g.font = "11px system-ui, sans-serif";
@@ -56,22 +64,46 @@ export class StripChart {
     g.fillStyle = "#e3e9ef";
     g.fillText(`${this.title}${this.unit ? " (" + this.unit + ")" : ""}`, L, 12);
     let lx = L + g.measureText(this.title + " (" + this.unit + ")").width + 10;
+    const n = this.t.length - i0, cols = Math.max(1, Math.floor(w - L - R));
     this.series.forEach((s, i) => {
       g.strokeStyle = s.color; g.lineWidth = 1.5; g.setLineDash(s.dash || []);
       g.beginPath();
-      let pen = false;
       const d = this.data[i];
-      for (let k = 0; k < d.length; k++) {
-        if (d[k] == null) { pen = false; continue; }
-        const x = X(this.t[k]), y = Y(d[k]);
-        if (pen) g.lineTo(x, y); else { g.moveTo(x, y); pen = true; }
+      if (n > 2 * cols) this.traceMinMax(g, d, i0, X, Y, L, cols, t0);
+      else {
+        let pen = false;
+        for (let k = i0; k < d.length; k++) {
+          if (d[k] == null) { pen = false; continue; }
+          const x = X(this.t[k]), y = Y(d[k]);
+          if (pen) g.lineTo(x, y); else { g.moveTo(x, y); pen = true; }
+        }
       }
       g.stroke(); g.setLineDash([]);
       g.fillStyle = s.color; g.fillText(s.label, lx, 12); lx += g.measureText(s.label).width + 8;
     });
-    g.fillStyle = "#93a1b0"; g.fillText(`${this.windowS} s`, w - R - 28, h - 2);
+    g.fillStyle = "#93a1b0"; g.fillText(fmtWindow(this.windowS), w - R - 34, h - 2);
+  }
+
+  traceMinMax(g, d, i0, X, Y, L, cols, t0) {   // one vertical min-max stroke per pixel column
+    let col = -1, vmin = 0, vmax = 0, have = false, started = false;
+    const flush = () => {
+      if (!have) return;
+      const x = L + col + 0.5;
+      if (started) g.lineTo(x, Y(vmax)); else { g.moveTo(x, Y(vmax)); started = true; }
+      g.lineTo(x, Y(vmin) + 0.5);
+    };
+    for (let k = i0; k < d.length; k++) {
+      const v = d[k];
+      if (v == null) continue;
+      const c = Math.floor(X(this.t[k]) - L);
+      if (c !== col) { flush(); col = c; vmin = vmax = v; have = true; }
+      else { if (v < vmin) vmin = v; if (v > vmax) vmax = v; }
+    }
+    flush();
   }
 }
+
+function lowerBound(a, x) { let lo = 0, hi = a.length; while (lo < hi) { const m = (lo + hi) >> 1; if (a[m] < x) lo = m + 1; else hi = m; } return lo; }
 
 function niceStep(x) {
   const p = Math.pow(10, Math.floor(Math.log10(x || 1)));
@@ -83,3 +115,4 @@ function fmt(v, step) {
   const d = step >= 1 ? 0 : Math.min(3, Math.ceil(-Math.log10(step)));
   return (Math.abs(v) < step / 1e6 ? 0 : v).toFixed(d);
 }
+function fmtWindow(s) { return s >= 60 ? `${s / 60} min` : `${s} s`; }

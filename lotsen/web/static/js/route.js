@@ -1,4 +1,23 @@
-// The route being edited, in the planner's YAML schema (local NED metres, degrees).
+// The route being edited, in the planner's YAML schema (local NED metres, degrees), with undo/redo.
+export const LIMITS = {   // what the table accepts (the server checks again: validation.py, planning.io)
+  north: [-2000, 2000, "m"], east: [-2000, 2000, "m"], heading_deg: [-360, 360, "deg"], speed_mps: [0, 1.5, "m/s"],
+  lat: [-90, 90, "deg"], lon: [-180, 180, "deg"],
+};
+const NUMBER = /^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$/;
+
+// Strict number from a table cell: {value} or {error} naming the problem (never a silent 0).
+export function parseField(field, text) {
+  const t = String(text).trim().replace(",", ".");
+  if (t === "") return { error: `${field}: a number is required` };
+  if (!NUMBER.test(t)) return { error: `${field}: "${t.slice(0, 20)}" is not a number` };
+  const v = Number(t);
+  const [lo, hi, unit] = LIMITS[field] || [-Infinity, Infinity, ""];
+  if (!Number.isFinite(v) || v < lo || v > hi) return { error: `${field}: ${t.slice(0, 20)} outside [${lo}, ${hi}] ${unit}` };
+  return { value: field === "heading_deg" ? ((v % 360) + 360) % 360 : v };
+}
+
+const HISTORY_MAX = 200;
+
 export class RouteModel {
   constructor() {
     this.harbour = null;          // {north, east, heading_deg}
@@ -7,13 +26,51 @@ export class RouteModel {
     this.obstacles = [];          // [{polygon: [[n, e], ...], forbidden: "inside" | "outside"}]
     this.origin = null;           // geographic origin {lat_deg, lon_deg, height_m} of a loaded route
     this.drawing = null;          // polygon being drawn: {kind: "area" | "obstacle", pts: [[n, e]]}
-    this.selected = null;         // {kind: "node", index} | {kind: "harbour"}
+    this.selected = null;         // {kind: "node", index} | {kind: "harbour"} | {kind: "vertex", poly, k}
     this.errors = [];             // planner errors with {kind, index?, message}
     this.listeners = [];
+    this.past = [this.snapshot()]; this.future = [];
   }
 
   onChange(fn) { this.listeners.push(fn); }
-  changed(replan = true) { this.listeners.forEach(fn => fn(replan)); }
+  // replan: ask the planner again; commit: record an undo step (false while dragging)
+  changed(replan = true, commit = true) {
+    if (commit) this.commit();
+    this.listeners.forEach(fn => fn(replan));
+  }
+
+  // -- undo / redo ------------------------------------------------------------------------------
+  snapshot() {
+    return JSON.stringify({ h: this.harbour, n: this.nodes, a: this.area, o: this.obstacles, g: this.origin });
+  }
+  restore(s) {
+    const d = JSON.parse(s);
+    this.harbour = d.h; this.nodes = d.n; this.area = d.a; this.obstacles = d.o; this.origin = d.g;
+    this.selected = null; this.drawing = null; this.errors = [];
+  }
+  commit() {
+    const s = this.snapshot();
+    if (s === this.past[this.past.length - 1]) return;
+    this.past.push(s); this.future = [];
+    if (this.past.length > HISTORY_MAX) this.past.shift();
+  }
+  canUndo() { return this.past.length > 1; }
+  canRedo() { return this.future.length > 0; }
+  undo() {
+    if (!this.canUndo()) return false;
+    this.future.push(this.past.pop());
+    this.restore(this.past[this.past.length - 1]);
+    this.changed(true, false);
+    return true;
+  }
+  redo() {
+    if (!this.canRedo()) return false;
+    const s = this.future.pop();
+    this.past.push(s);
+    this.restore(s);
+    this.changed(true, false);
+    return true;
+  }
 
   complete() { return this.harbour !== null && this.nodes.length >= 1; }
 
@@ -31,7 +88,7 @@ export class RouteModel {
 
   fromDict(d) {
     this.harbour = d.harbour ? { north: d.harbour.north, east: d.harbour.east, heading_deg: d.harbour.heading_deg || 0 } : null;
-    this.nodes = (d.nodes || []).map(n => ({ ...n }));
+    this.nodes = (d.nodes || []).map(n => ({ north: n.north, east: n.east, heading_deg: n.heading_deg, speed_mps: n.speed_mps }));
     this.origin = d.origin ? { ...d.origin } : null;
     this.area = d.area ? d.area.map(p => [p[0], p[1]]) : null;
     this.obstacles = (d.obstacles || []).map(o => Array.isArray(o) ? { polygon: o, forbidden: "inside" } : { polygon: o.polygon, forbidden: o.forbidden || "inside" });
@@ -60,6 +117,23 @@ export class RouteModel {
     this.changed();
   }
 
+  // a node before nodes[i] (i = nodes.length appends), at (n, e) or halfway along the chord
+  insertNode(i, n, e) {
+    const prev = i === 0 ? this.harbour : this.nodes[i - 1], next = this.nodes[i];
+    if (!prev) return false;
+    if (n === undefined) {
+      if (!next) return false;
+      n = round2((prev.north + next.north) / 2); e = round2((prev.east + next.east) / 2);
+    }
+    const hdg = next ? bearingDeg(prev.north, prev.east, next.north, next.east) : bearingDeg(prev.north, prev.east, n, e);
+    const speeds = [prev.speed_mps, next && next.speed_mps].filter(v => v !== undefined && v > 0);
+    const speed = speeds.length ? Math.round(speeds.reduce((a, b) => a + b, 0) / speeds.length * 100) / 100 : 0.5;
+    this.nodes.splice(i, 0, { north: n, east: e, heading_deg: hdg, speed_mps: speed });
+    this.selected = { kind: "node", index: i };
+    this.changed();
+    return true;
+  }
+
   deleteNode(i) {
     this.nodes.splice(i, 1);
     this.selected = null;
@@ -73,12 +147,42 @@ export class RouteModel {
     return null;
   }
 
-  startPolygon(kind) { this.drawing = { kind, pts: [] }; this.changed(false); }
+  // polygons: "area" or an obstacle index
+  polygon(which) { return which === "area" ? this.area : (this.obstacles[which] ? this.obstacles[which].polygon : null); }
+  polygons() {
+    const out = [];
+    if (this.area) out.push(["area", this.area]);
+    this.obstacles.forEach((o, i) => out.push([i, o.polygon]));
+    return out;
+  }
+  insertVertex(which, k, n, e) {   // after corner k
+    const p = this.polygon(which);
+    if (!p) return false;
+    p.splice(k + 1, 0, [n, e]);
+    this.selected = { kind: "vertex", poly: which, k: k + 1 };
+    this.changed();
+    return true;
+  }
+  deleteVertex(which, k) {
+    const p = this.polygon(which);
+    if (!p || p.length <= 3) return false;   // a polygon keeps at least 3 corners
+    p.splice(k, 1);
+    this.selected = null;
+    this.changed();
+    return true;
+  }
+  deletePolygon(which) {
+    if (which === "area") this.area = null; else this.obstacles.splice(Number(which), 1);
+    this.selected = null;
+    this.changed();
+  }
+
+  startPolygon(kind) { this.drawing = { kind, pts: [] }; this.changed(false, false); }
 
   finishPolygon() {
     const d = this.drawing;
     this.drawing = null;
-    if (!d || d.pts.length < 3) { this.changed(false); return false; }
+    if (!d || d.pts.length < 3) { this.changed(false, false); return false; }
     if (d.kind === "area") this.area = d.pts; else this.obstacles.push({ polygon: d.pts, forbidden: "inside" });
     this.changed();
     return true;
@@ -91,5 +195,45 @@ export class RouteModel {
 
 export function bearingDeg(n0, e0, n1, e1) {
   const b = Math.atan2(e1 - e0, n1 - n0) * 180 / Math.PI;
-  return Math.round(b * 10) / 10;
+  return Math.round(((b % 360) + 360) % 360 * 10) / 10;
+}
+export function round2(x) { return Math.round(x * 100) / 100; }
+
+// one form for comparisons: obstacles as {polygon, forbidden}, bearings in [0, 360), no origin
+export function normalizeRoute(d) {
+  if (!d || typeof d !== "object") return d;
+  const hdg = (x) => (typeof x === "number" ? ((x % 360) + 360) % 360 : x);
+  const out = { harbour: d.harbour ? { ...d.harbour, heading_deg: hdg(d.harbour.heading_deg) } : d.harbour,
+    nodes: (d.nodes || []).map(n => ({ ...n, heading_deg: hdg(n.heading_deg) })) };
+  if (d.area) out.area = d.area;
+  const obs = (d.obstacles || []).map(o => Array.isArray(o) ? { polygon: o, forbidden: "inside" } : { polygon: o.polygon, forbidden: o.forbidden || "inside" });
+  if (obs.length) out.obstacles = obs;
+  return out;
+}
+
+// differences between two route dicts (the upload and the boat's read-back), [] when equal
+export function routeDiff(a, b, tol = 1e-6) {
+  a = normalizeRoute(a); b = normalizeRoute(b);
+  const out = [];
+  const walk = (x, y, path) => {
+    if (out.length > 5) return;
+    if (typeof x === "number" && typeof y === "number") {
+      let d = Math.abs(x - y);
+      if (path.endsWith("heading_deg")) d = Math.min(d, 360 - d);
+      if (d > tol) out.push(`${path}: ${x} vs ${y}`);
+      return;
+    }
+    if (Array.isArray(x) && Array.isArray(y)) {
+      if (x.length !== y.length) { out.push(`${path}: ${x.length} vs ${y.length} items`); return; }
+      x.forEach((v, i) => walk(v, y[i], `${path}[${i}]`)); return;
+    }
+    if (x && y && typeof x === "object" && typeof y === "object") {
+      const keys = new Set([...Object.keys(x), ...Object.keys(y)]);
+      for (const k of keys) if (k !== "origin") walk(x[k], y[k], path ? `${path}.${k}` : k);
+      return;
+    }
+    if (x !== y && !(x == null && y == null)) out.push(`${path}: ${JSON.stringify(x)} vs ${JSON.stringify(y)}`);
+  };
+  walk(a, b, "");
+  return out;
 }

@@ -1,0 +1,70 @@
+"""`add_web(stack)`: attach the operator interface to a running stack.
+
+Part "web" of `lotsen.stack.launch.PARTS`, or the main of the web process. The server never enters
+node code: it reads the bus through a queue and publishes through
+``executor.call_soon_threadsafe``, so every publication happens on the executor's thread.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from typing import Any
+
+from lotsen.errors import ConfigError
+from lotsen.stack.stack import Stack, failsafe_config
+from lotsen.web.hub import Hub
+from lotsen.web.options import WebOptions
+from lotsen.web.server import WebServer
+from lotsen.web.tls import Certificate, ensure_certificate, fingerprint
+
+
+def tls_certificate(options: WebOptions, tls: bool) -> Certificate | None:
+    """The certificate to serve: the configured pair (extra.web.tls_certfile/keyfile, TLS on
+    without the flag), else with `tls` (`lotsen run --tls`) a self-signed one in `tls_dir`,
+    created once for this machine's names; None = plain HTTP."""
+    if options.tls_certfile and options.tls_keyfile:
+        for f in (options.tls_certfile, options.tls_keyfile):
+            if not os.path.isfile(f):
+                raise ConfigError(f"extra.web: TLS file {f} does not exist")
+        return Certificate(options.tls_certfile, options.tls_keyfile, fingerprint(options.tls_certfile))
+    if not tls:
+        return None
+    hosts = ["localhost", "127.0.0.1", "::1", socket.gethostname()]
+    if options.host not in ("0.0.0.0", "::", "") and options.host not in hosts:
+        hosts.append(options.host)
+    return ensure_certificate(options.tls_dir or "~/.config/lotsen/tls", tuple(hosts))
+
+
+def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebServer | None:
+    """The web server on `stack`'s bus. `run_blocking`: how planning requests run (the planner
+    worker process in `lotsen run`; a thread of this process by default). `tls`: serve HTTPS with
+    a self-signed certificate (`tls_certificate`; its fingerprint goes to the banner)."""
+    config = stack.config
+    if not config.web.enabled:
+        return None
+    options = WebOptions.from_config(config, failsafe_config(config).link_timeout_s)
+    bus, executor = stack.bus, stack.executor
+
+    def publish(topic: str, msg: Any) -> None:
+        executor.call_soon_threadsafe(lambda: bus.publish(topic, msg))
+
+    cert = tls_certificate(options, tls)
+    hub = Hub(bus, executor.clock.now, publish, options, origin=stack.origin)
+    if run_blocking is not None:
+        hub.handler.run_blocking = run_blocking
+    server = WebServer(hub, options.host, options.port, ssl_certfile=cert.certfile if cert else None,
+                       ssl_keyfile=cert.keyfile if cert else None)
+    server.start()
+    stack.services["web"] = server
+    banner = stack.services.setdefault("banner", [])
+    banner.append(f"operator interface: {server.url}")
+    if cert is not None:
+        banner.append(f"TLS certificate {cert.certfile}: SHA-256 fingerprint {cert.fingerprint_sha256} "
+                      "(compare it with the browser's certificate viewer on first connection)")
+    if options.token_generated:
+        banner.append(f"pilot token (this run only; set web.pilot_token to fix it): {options.pilot_token}")
+    if options.host not in ("127.0.0.1", "localhost", "::1"):
+        banner.append(f"warning: the operator interface is reachable from the network ({options.host})")
+    stack.services.setdefault("on_shutdown", []).append(server.stop)
+    return server
