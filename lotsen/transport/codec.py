@@ -26,7 +26,7 @@ Two layers:
       .       p     payload: JSON text (UTF-8) or CDR bytes (with their 4-byte encapsulation header)
       .       rest  CDR only: JSON object of the lotsen fields the ROS type cannot hold (may be empty)
 
-  ROS 2 CDR (via `rosbags`, typestore ROS2_HUMBLE) is used where a standard message fits:
+  ROS 2 CDR (via `rosbags`, typestore ROS2_JAZZY, `ros2_types`) is used where a standard message fits:
   `ImuSample` -> sensor_msgs/msg/Imu, `MagSample` -> sensor_msgs/msg/MagneticField,
   `GnssFix` -> sensor_msgs/msg/NavSatFix, `VesselState` -> nav_msgs/msg/Odometry; frames follow
   ROS REP 103 (body FLU, world ENU), so a ROS 2 tool reading the CDR payload sees ROS
@@ -48,6 +48,7 @@ from typing import Any
 
 from lotsen import messages as M
 from lotsen.errors import DataError
+from lotsen.transport import ros2_types
 
 FORMAT_VERSION = 1
 MAGIC = b"LTS"
@@ -296,11 +297,10 @@ def schema_name(cls: type) -> str:
 
 
 # ---------------------------------------------------------------------------- ROS 2 CDR
-@functools.lru_cache(maxsize=1)
 def _typestore():
-    from rosbags.typesys import Stores, get_typestore
-
-    return get_typestore(Stores.ROS2_HUMBLE)
+    # one typestore for every ROS 2 use in lotsen: ROS 2 Jazzy's standard types + lotsen_msgs
+    # (the CDR of the four types below is the same in Humble, Jazzy and Kilted)
+    return ros2_types.typestore()
 
 
 ROS_TYPE_OF = {
