@@ -63,8 +63,6 @@ def main() -> int:
         files = [f for f in files if f.stem.removeprefix("bench_") in args.names]
     machine = {"python": platform.python_version(), "machine": platform.machine(),
                "processor": platform.processor() or platform.machine(), "date": time.strftime("%Y-%m-%d %H:%M")}
-    index = ["# Benchmark results", "", f"Machine: {machine['machine']}, Python {machine['python']}, "
-             f"run {machine['date']}{' (quick mode)' if args.quick else ''}.", ""]
     failed = 0
     for f in files:
         name = f.stem.removeprefix("bench_")
@@ -85,9 +83,30 @@ def main() -> int:
         table = markdown_table(rows) if error is None else f"```\n{error}\n```\n"
         (RESULTS / f"{name}.md").write_text(f"# {name}\n\n{doc}\n\n{table}\n(run took {elapsed:.1f} s)\n")
         print(table, flush=True)
-        index += [f"## {name}", "", doc.splitlines()[0] if doc else "", "", table]
-    (RESULTS / "README.md").write_text("\n".join(index) + "\n")
+    (RESULTS / "README.md").write_text(index_page())
     return 1 if failed else 0
+
+
+def index_page() -> str:
+    """bench/results/README.md from every result present, so running one benchmark updates its
+    entry and keeps the others (each with the machine and date it was measured on)."""
+    lines = ["# Benchmark results", "", "Written by `make bench` (bench/run.py); each entry says when and where "
+             "it was measured.", ""]
+    for path in sorted(RESULTS.glob("*.json")):
+        try:
+            result = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        name = result.get("benchmark", path.stem)
+        m = result.get("machine", {})
+        md = RESULTS / f"{name}.md"
+        parts = md.read_text().split("\n\n") if md.exists() else []
+        doc_lines = parts[1].strip().splitlines() if len(parts) > 1 else []
+        doc = doc_lines[0] if doc_lines and not doc_lines[0].startswith("|") else ""
+        table = markdown_table(result.get("rows", [])) if not result.get("error") else "(failed: see the .md)\n"
+        lines += [f"## {name}", "", doc, "", f"Measured {m.get('date', '?')} on {m.get('machine', '?')}, Python "
+                  f"{m.get('python', '?')}{' (quick mode)' if result.get('quick') else ''}.", "", table]
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":

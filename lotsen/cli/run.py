@@ -1,14 +1,23 @@
-"""`lotsen run`: the whole stack, on the simulated boat (default) or the hardware, at wall-clock pace."""
+"""`lotsen run`: the whole stack, on the simulated boat (default) or the hardware, at wall-clock pace.
+
+The control core runs in its own process; the web server (with its planner worker), the
+recorder and the Foxglove server run in others (lotsen.stack.processes). `--one-process` runs
+everything in this process instead (debugging only: a busy web server then shares the control
+loop's interpreter).
+"""
 
 from __future__ import annotations
 
 import argparse
+import secrets
 import signal
 import threading
 from dataclasses import replace
 
-from lotsen.runtime.config import load_config
-from lotsen.runtime.launch import build_stack, summary
+from lotsen.runtime.config import LaunchConfig, load_config
+from lotsen.stack.launch import build_stack, summary
+from lotsen.stack.logs import add_foxglove_server, recover_unclosed_logs
+from lotsen.stack.processes import Launcher, freeze_heap, validate
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,26 +32,63 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, help="random seed of the simulation")
     p.add_argument("--foxglove", nargs="?", type=int, const=8765, metavar="PORT",
                    help="also stream every topic to Foxglove (WebSocket, default port 8765)")
+    p.add_argument("--tls", action="store_true",
+                   help="serve the operator page over HTTPS with a self-signed certificate (its fingerprint is printed)")
+    p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
     p.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+def launch_config(args: argparse.Namespace) -> tuple[LaunchConfig, bool]:
+    """The config with the command line's overrides; a generated pilot token for this run (the
+    same for every process and every restart of the web process). Returns (config, generated)."""
     config = load_config(args.config)
     if args.hardware:
         config = replace(config, mode="hardware", extra={**config.extra, "emulated": bool(args.emulated)})
     web = config.web
     if args.host is not None or args.port is not None:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
+    generated = not web.pilot_token
+    if generated:
+        web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
+    validate(config, tls=bool(getattr(args, "tls", False)))
+    return config, generated
+
+
+def run(args: argparse.Namespace) -> int:
+    config, generated = launch_config(args)
+    for line in recover_unclosed_logs(config):
+        print(line, flush=True)
+    if generated and config.web.enabled:
+        print(f"pilot token (this run only; set web.pilot_token to fix it): {config.web.pilot_token}", flush=True)
+    if args.one_process:
+        return _run_one_process(config, args)
+    roles = ("core", "recorder") + (("web",) if config.web.enabled else ()) + \
+        (("foxglove",) if args.foxglove is not None else ()) + (("ros2",) if "ros2" in config.extra else ())
+    launcher = Launcher(config, roles, role_kwargs={"web": {"tls": bool(args.tls)},
+                                                    "foxglove": {"port": args.foxglove or 8765}},
+                        out=lambda line: print(line, flush=True))
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
+        signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
+    print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
+    try:
+        launcher.start()
+        print("processes: " + " ".join(f"{role}={pid}" for role, pid in launcher.pids().items()), flush=True)
+        return launcher.supervise(args.duration)
+    finally:
+        launcher.stop()
+
+
+def _run_one_process(config: LaunchConfig, args: argparse.Namespace) -> int:
     stack = build_stack(config, realtime=True)
     if args.foxglove is not None:
-        from lotsen.logs.part import add_foxglove_server
-
         add_foxglove_server(stack, config.web.host, args.foxglove)
-    print(f"lotsen: {config.mode} stack with nodes: {', '.join(stack.nodes)}", flush=True)
+    print(f"lotsen: {config.mode} stack in one process with nodes: {', '.join(stack.nodes)}", flush=True)
     for line in stack.services.get("banner", []):
         print(line, flush=True)
     stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
+    freeze_heap()
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: stack.executor.stop())
     try:
@@ -51,7 +97,6 @@ def run(args: argparse.Namespace) -> int:
         pass
     finally:
         stack.executor.stop()
-        for close in stack.services.get("on_shutdown", []):
-            close()
+        stack.shutdown()
     print(summary(stack))
     return 0

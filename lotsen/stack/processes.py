@@ -1,0 +1,579 @@
+"""`lotsen run` as processes: the helm alone in one, the edge in others (docs/architecture.md).
+
+    core      the boat (simulated, or the drivers), the actuator guard, fusion, the supervisor and
+              the controllers, on one clock; a Zenoh router on loopback; its own watchdog
+    web       the operator's web server and its planner worker (time and memory budget)
+    recorder  the MCAP log of every topic
+    foxglove  the live Foxglove server (`--foxglove`)
+
+The processes talk only through Zenoh (lotsen.transport): the core publishes every topic and
+accepts from the edge only the operator's topics coming from the web process. An edge process
+may crash, hang or be flooded; the core notices only through its link monitors and keeps its
+10 Hz and its failsafe table. The launcher starts the core first, then the edge, restarts a dead
+edge process (logged), stops everything when the core ends, and stops the core first on the
+way out so the recorder keeps its last words. All processes stamp on one clock (LOTSEN_CLOCK_T0).
+
+On the boat the core asks for the highest priority, its own CPU and locked memory where the OS
+allows it (root or CAP_SYS_NICE / CAP_IPC_LOCK); what it got is printed at start.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import gc
+import multiprocessing as mp
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable
+
+from lotsen.errors import ConfigError, LotsenError
+from lotsen.messages import LogEvent, ThrustCommand, Topic
+from lotsen.planning.budget import PlanningBudget
+from lotsen.runtime.clock import CLOCK_ENV
+from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.executor import RealtimeExecutor
+from lotsen.drivers import hardware_config_from_launch
+from lotsen.stack.launch import build_stack, summary
+from lotsen.stack.logs import add_foxglove_server, add_recorder, recorder_config
+from lotsen.stack.planner_worker import PlannerWorker
+from lotsen.stack.stack import Stack, failsafe_config, load_parameters, resolve_origin, vessel_model
+from lotsen.stack.web import add_web, tls_certificate
+from lotsen.stack.zenoh import bridge_config
+from lotsen.transport import codec
+from lotsen.transport.ros2_bridge import Ros2Bridge, Ros2BridgeConfig
+from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge, zenoh_config
+from lotsen.web.options import WebOptions
+
+#: what the core accepts from the web process (nothing else from the edge reaches the helm)
+OPERATOR_TOPICS = (Topic.OPERATOR, Topic.MANUAL, Topic.LINK, Topic.ROUTE)
+#: ... and from the ROS 2 process: operator commands that passed its token gate (CommandGate)
+ROS2_TOPICS = (Topic.OPERATOR,)
+ROLES = ("core", "recorder", "web", "foxglove", "ros2")
+#: what the ROS 2 process publishes to ROS 2 by default (the seed's Table 3 and the status)
+ROS2_DEFAULT_PUBLISH = (Topic.IMU_RAW, Topic.IMU_MAG, Topic.GNSS, Topic.RPM, Topic.STATE, Topic.SENS_FUS,
+                        Topic.PATH, Topic.SHIP_COMMAND, Topic.VELOCITY_COMMAND, Topic.ANGLE_COMMAND,
+                        Topic.SUPERVISOR, Topic.BATTERY, Topic.ALERT, Topic.PROGRESS)
+
+
+def _r(lo: float, hi: float) -> dict:
+    return {"range": (lo, hi)}
+
+
+@dataclass(frozen=True)
+class ProcessOptions:
+    """`extra.processes` of the launch config."""
+
+    zenoh_port: int = field(default=0, metadata=_r(0, 65535))  # 0: a free port on 127.0.0.1
+    core_cpu: int | None = None  # pin the core here; None: the last CPU when there are 2 or more
+    core_nice: int = field(default=-10, metadata=_r(-20, 19))  # applied when permitted
+    # SCHED_FIFO for the core when permitted (0: off). Needed, not a luxury: with the kernel's
+    # autogroups a nice value only counts inside one terminal session, so any busy program
+    # elsewhere takes half the CPU from a niced core (stalls of 0.3-0.5 s measured under load)
+    realtime_priority: int = field(default=10, metadata=_r(0, 98))
+    lock_memory: bool = True  # mlockall in the core (no page faults in the control loop)
+    recorder_nice: int = field(default=0, metadata=_r(-20, 19))
+    web_nice: int = field(default=5, metadata=_r(-20, 19))
+    watchdog_s: float = field(default=0.3, metadata=_r(0.05, 5.0))  # core loop silent this long: neutral
+    watchdog_exit_s: float = field(default=3.0, metadata=_r(0.2, 60.0))  # ... this long: the core exits
+    restart_backoff_s: float = field(default=1.0, metadata=_r(0.1, 60.0))
+    ready_timeout_s: float = field(default=60.0, metadata=_r(1.0, 600.0))
+
+
+def process_options(config: LaunchConfig) -> ProcessOptions:
+    return from_mapping(ProcessOptions, config.extra.get("processes", {}), "extra.processes")
+
+
+def ros2_config(config: LaunchConfig) -> Ros2BridgeConfig:
+    """`extra.ros2` of the launch config (present = the ROS 2 process runs). Commands from ROS 2
+    need the run's pilot token, as on the web page."""
+    data = dict(config.extra.get("ros2") or {})
+    if "pilot_token" in data:
+        raise ConfigError("extra.ros2.pilot_token: not configurable; ROS 2 commands need the run's pilot token "
+                          "(web.pilot_token or the one printed at start)")
+    data.setdefault("publish", list(ROS2_DEFAULT_PUBLISH))
+    data.setdefault("subscribe", [Topic.OPERATOR])
+    return replace(from_mapping(Ros2BridgeConfig, data, "extra.ros2"), pilot_token=config.web.pilot_token)
+
+
+def planning_budget(config: LaunchConfig) -> PlanningBudget:
+    return from_mapping(PlanningBudget, config.extra.get("planning", {}), "extra.planning")
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+# ------------------------------------------------------------------------------------------------
+# priority, CPU, memory (best effort, reported)
+# ------------------------------------------------------------------------------------------------
+def _set_nice(target: int) -> str:
+    current = os.nice(0)
+    try:
+        os.nice(target - current)
+        return f"nice {os.nice(0)}"
+    except PermissionError:
+        if target > current:
+            return f"nice {current}"
+        return f"nice {current} (wanted {target}: not permitted)"
+
+
+def _pin(cpus: set[int]) -> str:
+    try:
+        os.sched_setaffinity(0, cpus)
+        return f"CPU {','.join(map(str, sorted(cpus)))}"
+    except (AttributeError, OSError, ValueError):
+        return "CPU not pinned"
+
+
+def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:
+    try:
+        cpus = sorted(os.sched_getaffinity(0))
+    except AttributeError:
+        return None, None
+    if len(cpus) < 2:
+        return None, None
+    core = opts.core_cpu if opts.core_cpu is not None and opts.core_cpu in cpus else cpus[-1]
+    return {core}, set(cpus) - {core}
+
+
+def _threads_of_this_process() -> list[int]:
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return []
+
+
+def apply_core_priority(opts: ProcessOptions) -> list[str]:
+    """Priority, CPU and locked memory for the core, called from the control loop's thread when
+    every other thread of the process (Zenoh's, the bridge's) exists.
+
+    All threads of the core get the core CPU and SCHED_RR at `realtime_priority`, the loop one
+    level above (SCHED_FIFO): no program outside the core can delay any thread that may hold
+    the interpreter lock the loop needs (a lock holder preempted by an ordinary busy process
+    stalled the loop for 0.2 s), and no core thread can delay the loop. With the kernel's
+    autogroups, nice values alone count only within one terminal session."""
+    done = [_set_nice(opts.core_nice)]
+    core_cpus, _ = _cpu_split(opts)
+    me = threading.get_native_id()
+    tids = _threads_of_this_process()
+    if core_cpus:
+        for tid in tids:
+            try:
+                os.sched_setaffinity(tid, core_cpus)
+            except OSError:
+                pass
+        done.append(_pin(core_cpus))
+    if opts.realtime_priority > 0:
+        try:
+            for tid in tids:
+                if tid != me:
+                    os.sched_setscheduler(tid, os.SCHED_RR, os.sched_param(opts.realtime_priority))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(opts.realtime_priority + 1))
+            done.append(f"real-time priority {opts.realtime_priority + 1} (SCHED_FIFO; other threads SCHED_RR)")
+        except (AttributeError, PermissionError, OSError):
+            done.append("real-time priority not permitted")
+    if opts.lock_memory:
+        try:
+            libc = ctypes.CDLL("libc.so.6", use_errno=True)
+            ok = libc.mlockall(1 | 2) == 0  # MCL_CURRENT | MCL_FUTURE
+            done.append("memory locked" if ok else "memory not locked (not permitted)")
+        except OSError:
+            done.append("memory not locked (no libc)")
+    return done
+
+
+def freeze_heap() -> None:
+    """Move every object made during start-up out of the garbage collector's reach: a full
+    collection of the ~200 000 objects a core holds (numpy, scipy, OSQP, Zenoh) takes 0.3 s on
+    this machine, a stall of three control periods whenever Python decides to run one."""
+    gc.collect()
+    gc.freeze()
+
+
+def apply_edge_priority(opts: ProcessOptions, nice: int) -> list[str]:
+    done = [_set_nice(nice)]
+    _, edge_cpus = _cpu_split(opts)
+    if edge_cpus:
+        done.append(_pin(edge_cpus))
+    return done
+
+
+# ------------------------------------------------------------------------------------------------
+# the core's watchdog
+# ------------------------------------------------------------------------------------------------
+class CoreWatchdog:
+    """A thread that watches the core's control loop: when the executor has not run for
+    `stall_s`, the actuators are sent to neutral directly (not through the stalled loop); after
+    `exit_s` the process exits, so the launcher (or systemd) sees it and the ESCs' own signal
+    loss failsafe takes over."""
+
+    def __init__(self, stack: Stack, stall_s: float, exit_s: float,
+                 exit_fn: Callable[[int], None] = os._exit) -> None:
+        self.stack = stack
+        self.stall_s = stall_s
+        self.exit_s = exit_s
+        self.exit_fn = exit_fn
+        self.beat = time.monotonic()
+        self.stalls = 0
+        self.loop_thread = threading.current_thread()  # start() is called from the thread that runs the loop
+        self._stop = threading.Event()
+        stack.executor.add_timer(min(0.02, stall_s / 4), self._beat, "watchdog")
+        self._thread = threading.Thread(target=self._watch, name="core-watchdog", daemon=True)
+
+    def start(self) -> None:
+        self.loop_thread = threading.current_thread()
+        self.beat = time.monotonic()
+        self._thread.start()
+
+    def where(self) -> str:
+        """Where the control loop is now, and the other Python threads (one may hold the GIL):
+        the cause of a stall, for the log."""
+        frames = sys._current_frames()
+        names = {t.ident: t.name for t in threading.enumerate()}
+
+        def spots(frame: Any, depth: int) -> str:
+            out = []
+            while frame is not None and len(out) < depth:
+                out.append(f"{os.path.basename(frame.f_code.co_filename)}:{frame.f_lineno} {frame.f_code.co_name}")
+                frame = frame.f_back
+            return " < ".join(out)
+
+        loop = spots(frames.get(self.loop_thread.ident or -1), 4) or "unknown"
+        others = [f"{names.get(ident, ident)}: {spots(f, 2)}" for ident, f in frames.items()
+                  if ident not in (self.loop_thread.ident, threading.get_ident())]
+        return loop + ("; other threads: " + " | ".join(others) if others else "")
+
+    def _beat(self) -> None:
+        self.beat = time.monotonic()
+
+    def _watch(self) -> None:
+        try:  # above the loop it watches, so it runs even if the loop spins at real-time priority
+            if os.sched_getscheduler(0) == os.SCHED_FIFO:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(os.sched_getparam(0).sched_priority + 1))
+        except (AttributeError, OSError):
+            pass
+        stalled = False
+        while not self._stop.wait(self.stall_s / 4):
+            silent = time.monotonic() - self.beat
+            if silent > self.stall_s and not stalled:
+                stalled = True
+                self.stalls += 1
+                emergency_neutral(self.stack)
+                print(f"lotsen core: t={self.stack.executor.clock.now():.1f} s: control loop silent for {silent:.2f} s: "
+                      "actuators to neutral "
+                      f"(loop at {self.where()})", file=sys.stderr, flush=True)
+            elif silent <= self.stall_s:
+                stalled = False
+            if silent > self.exit_s:
+                print(f"lotsen core: control loop silent for {silent:.1f} s: exiting", file=sys.stderr, flush=True)
+                self.exit_fn(70)
+                return
+
+    def stop(self) -> None:
+        self._stop.set()
+
+
+def emergency_neutral(stack: Stack) -> None:
+    """Neutral at the actuators from any thread: the hardware drivers write neutral pulses now;
+    the simulated boat's guard gets a neutral command."""
+    hw = stack.services.get("hardware")
+    if hw is not None and "actuators" in getattr(hw, "drivers", {}):
+        try:
+            hw.drivers["actuators"].neutral()
+        except Exception as exc:  # noqa: BLE001 - a dead pigpiod: the ESC signal-loss failsafe remains
+            print(f"lotsen core: neutral failed: {exc!r}", file=sys.stderr, flush=True)
+    boat = stack.nodes.get("sim_boat")
+    if boat is not None:
+        boat.guard.accept(ThrustCommand.neutral(stack.executor.clock.now(), source="watchdog"),
+                          stack.executor.clock.now())
+
+
+# ------------------------------------------------------------------------------------------------
+# the roles (each the main function of one process)
+# ------------------------------------------------------------------------------------------------
+def _bridge(stack: Stack, **kw: Any) -> ZenohBridge:
+    bridge = ZenohBridge(BridgeConfig(**kw))
+    stack.add(bridge)
+    stack.on_shutdown(bridge.close)
+    return bridge
+
+
+def _edge_stack(config: LaunchConfig) -> Stack:
+    return Stack(config=config, executor=RealtimeExecutor(), model=vessel_model(config), origin=resolve_origin(config))
+
+
+def _run_until_stopped(stack: Stack, ready: Any, info: dict) -> None:
+    stop = lambda *_: stack.executor.stop()  # noqa: E731
+    freeze_heap()  # no 0.3 s collector pauses in the web server's or the recorder's loop either
+    signal.signal(signal.SIGTERM, stop)
+    ready.send(("ready", info))
+    ready.close()
+    try:
+        stack.executor.run()
+    finally:
+        stack.executor.stop()
+        stack.shutdown()
+
+
+def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+    opts = process_options(config)
+    stack = build_stack(config, realtime=True, parts=("state", "supervisor"))
+    sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
+    _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources))
+    watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
+    stack.on_shutdown(watchdog.stop)
+    stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
+    done = apply_core_priority(opts)  # this thread runs the loop
+    watchdog.start()
+    info = {"banner": [f"core: {config.mode} boat with {', '.join(stack.nodes)}; {', '.join(done)}",
+                       *stack.services.get("banner", [])]}
+    _run_until_stopped(stack, ready, info)
+    # the last command on the way out is neutral (the guard's deadline would do it too)
+    emergency_neutral(stack)
+
+
+def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+    opts = process_options(config)
+    done = apply_edge_priority(opts, opts.recorder_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",))
+    add_recorder(stack)
+    _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
+
+
+def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
+    opts = process_options(config)
+    done = apply_edge_priority(opts, opts.web_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+            subscribe=("core/**", "recorder/log", "launcher/log"))
+    worker = PlannerWorker(planning_budget(config))
+    threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
+    stack.on_shutdown(worker.close)
+    add_web(stack, run_blocking=worker.run, tls=tls)
+    _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
+
+
+def ros2_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+    """The boat as a ROS 2 node (rmw_zenoh wire format, docs/runtime.md): the core's topics out,
+    authorised operator commands in (they reach the core as ros2/operator/command)."""
+    opts = process_options(config)
+    done = apply_edge_priority(opts, opts.web_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="ros2", mode="client", connect=(endpoint,), publish=(*ROS2_TOPICS, Topic.LOG),
+            subscribe=("core/**",))
+    bridge = Ros2Bridge(ros2_config(config))
+    stack.add(bridge)
+    stack.on_shutdown(bridge.close)
+    _run_until_stopped(stack, ready, {"banner": [f"ros2: namespace {bridge.namespace}, {len(bridge.config.publish)} "
+                                                 f"topics out, commands with the pilot token in; {', '.join(done)}"]})
+
+
+def foxglove_main(config: LaunchConfig, endpoint: str, ready: Any, port: int = 8765) -> None:
+    opts = process_options(config)
+    apply_edge_priority(opts, opts.web_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",))
+    add_foxglove_server(stack, config.web.host, port)
+    _run_until_stopped(stack, ready, {"banner": stack.services.get("banner", [])})
+
+
+_MAINS: dict[str, Callable[..., None]] = {"core": core_main, "recorder": recorder_main, "web": web_main,
+                                         "foxglove": foxglove_main, "ros2": ros2_main}
+
+
+def _child(role: str, config: LaunchConfig, endpoint: str, ready: Any, kwargs: dict) -> None:
+    # Ctrl-C reaches every process of the terminal's group: only the launcher acts on it, so the
+    # shutdown order stays core first, then the edge
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        _MAINS[role](config, endpoint, ready, **kwargs)
+    except LotsenError as exc:
+        print(f"lotsen {role}: error: {exc}", file=sys.stderr, flush=True)
+        try:
+            ready.send(("error", str(exc)))
+        except OSError:
+            pass
+        sys.exit(2)
+
+
+# ------------------------------------------------------------------------------------------------
+# the launcher
+# ------------------------------------------------------------------------------------------------
+@dataclass
+class Child:
+    role: str
+    kwargs: dict
+    proc: Any = None
+    started_s: float = 0.0
+    restarts: int = 0
+    next_start_s: float = 0.0
+
+
+class Launcher:
+    """Starts, watches and stops the processes of one run (`lotsen run`)."""
+
+    def __init__(self, config: LaunchConfig, roles: tuple[str, ...] = ("core", "recorder", "web"),
+                 role_kwargs: dict[str, dict] | None = None, out: Callable[[str], None] = print) -> None:
+        unknown = set(roles) - set(ROLES)
+        if unknown or "core" not in roles:
+            raise ConfigError(f"processes: roles must include 'core' and be among {ROLES}, got {roles}")
+        self.config = config
+        self.opts = process_options(config)
+        self.port = self.opts.zenoh_port or free_port()
+        self.endpoint = f"tcp/127.0.0.1:{self.port}"
+        self.out = out
+        self.children = {r: Child(r, (role_kwargs or {}).get(r, {})) for r in ROLES if r in roles}
+        self._ctx = mp.get_context("spawn")
+        self._stop = threading.Event()
+        self.events: list[str] = []
+        self._session: Any = None
+        self._log_pub: Any = None
+        os.environ.setdefault(CLOCK_ENV, repr(time.monotonic()))  # one clock for every process of the run
+        self.clock_t0 = float(os.environ[CLOCK_ENV])
+        self.exit_code = 0
+        self.created_s = time.monotonic()
+
+    # -- starting ----------------------------------------------------------------------------
+    def _spawn(self, child: Child) -> list[str]:
+        return self._wait_ready(child, self._launch(child))
+
+    def _launch(self, child: Child) -> Any:
+        parent, conn = self._ctx.Pipe(duplex=False)
+        proc = self._ctx.Process(target=_child, name=f"lotsen-{child.role}",
+                                 args=(child.role, self.config, self.endpoint, conn, child.kwargs))
+        proc.start()
+        conn.close()
+        child.proc, child.started_s = proc, time.monotonic()
+        return parent
+
+    def _wait_ready(self, child: Child, parent: Any) -> list[str]:
+        proc = child.proc
+        if not parent.poll(self.opts.ready_timeout_s):
+            proc.kill()
+            raise LotsenError(f"the {child.role} process did not start within {self.opts.ready_timeout_s:g} s")
+        try:
+            kind, info = parent.recv()
+        except EOFError:
+            proc.join(1.0)
+            raise LotsenError(f"the {child.role} process ended while starting (exit code {proc.exitcode})") from None
+        if kind != "ready":
+            proc.join(2.0)
+            raise LotsenError(f"{child.role}: {info}")
+        return list(info.get("banner", []))
+
+    def start(self) -> None:
+        """The core first (the Zenoh router lives there), then the edge processes side by side."""
+        for line in self._spawn(self.children["core"]):
+            self.out(line)
+        edges = [(c, self._launch(c)) for r, c in self.children.items() if r != "core"]
+        for child, conn in edges:
+            for line in self._wait_ready(child, conn):
+                self.out(line)
+        self._open_log()
+
+    def _open_log(self) -> None:
+        try:
+            import zenoh
+
+            self._session = zenoh.open(zenoh_config(BridgeConfig(vessel="launcher", mode="client",
+                                                                 connect=(self.endpoint,))))
+            self._log_pub = self._session.declare_publisher("lotsen/launcher/log")
+        except Exception as exc:  # noqa: BLE001 - the launcher's own log line is a nicety
+            self.out(f"launcher: no log channel ({exc!r})")
+
+    def log(self, level: str, text: str) -> None:
+        self.events.append(text)
+        self.out(f"launcher: {text}")
+        if self._log_pub is not None:
+            msg = LogEvent(stamp_s=time.monotonic() - self.clock_t0, level=level, source="launcher", text=text)
+            try:
+                self._log_pub.put(codec.encode(msg, "json", origin="launcher"))
+            except Exception:  # noqa: BLE001
+                pass
+
+    # -- watching ----------------------------------------------------------------------------
+    def supervise(self, duration_s: float | None = None) -> int:
+        """Watch until stopped, the core ends, or `duration_s` from now (every process is up)."""
+        end = None if duration_s is None else time.monotonic() + duration_s
+        while not self._stop.wait(0.1):
+            if end is not None and time.monotonic() >= end:
+                break
+            core = self.children["core"]
+            if not core.proc.is_alive():
+                self.log("error", f"the core process ended (exit code {core.proc.exitcode}): stopping the run")
+                self.exit_code = 1
+                break
+            for child in self.children.values():
+                if child.role == "core" or child.proc is None:
+                    continue
+                if not child.proc.is_alive() and time.monotonic() >= child.next_start_s:
+                    code = child.proc.exitcode
+                    child.restarts += 1
+                    self.log("warning", f"the {child.role} process ended (exit code {code}); restarting it "
+                                        f"(restart {child.restarts})")
+                    child.next_start_s = time.monotonic() + self.opts.restart_backoff_s * min(child.restarts, 10)
+                    try:
+                        for line in self._spawn(child):
+                            self.out(line)
+                    except LotsenError as exc:
+                        self.log("error", f"restarting {child.role} failed: {exc}")
+        self.stop()
+        return self.exit_code
+
+    def request_stop(self) -> None:
+        self._stop.set()
+
+    # -- stopping ----------------------------------------------------------------------------
+    def stop(self, timeout_s: float = 5.0) -> None:
+        order = ["core"] + [r for r in ("web", "ros2", "foxglove", "recorder") if r in self.children]
+        for i, role in enumerate(order):
+            p = self.children[role].proc
+            if p is not None and p.is_alive():
+                p.terminate()
+                p.join(timeout_s)
+                if p.is_alive():
+                    p.kill()
+                    p.join(1.0)
+            if role == "core":
+                time.sleep(0.3)  # the recorder takes the core's last messages
+        if self._session is not None:
+            try:
+                self._session.close()
+            except Exception:  # noqa: BLE001
+                pass
+            self._session = None
+
+    def pids(self) -> dict[str, int]:
+        return {r: c.proc.pid for r, c in self.children.items() if c.proc is not None}
+
+
+def validate(config: LaunchConfig, tls: bool = False) -> None:
+    """Every section a run uses, built once before any process starts: a bad value is an error
+    naming the key, at once, not a traceback in a child process (restarted again and again).
+    With `tls` the certificate is made here too (once, before the web process needs it)."""
+    process_options(config)
+    planning_budget(config)
+    load_parameters(config.vessel.parameters_file)
+    failsafe = failsafe_config(config)
+    recorder_config(config, resolve_origin(config))
+    web = WebOptions.from_config(config, failsafe.link_timeout_s)
+    if config.web.enabled:
+        tls_certificate(web, tls)
+    bridge_config(config)
+    if "ros2" in config.extra:
+        ros2_config(config)
+    if config.mode == "hardware":
+        hardware_config_from_launch(config.extra)
+    known = {"processes", "planning", "failsafes", "logs", "web", "zenoh", "hardware", "emulated", "ros2"}
+    unknown = set(config.extra) - known
+    if unknown:
+        raise ConfigError(f"extra: unknown section(s) {sorted(unknown)} (known: {', '.join(sorted(known))})")
+

@@ -1,0 +1,73 @@
+"""Planning in its own process with a time and a memory budget (issue: viewers starve the loop)."""
+
+import asyncio
+
+import pytest
+
+from lotsen.errors import PlanningError
+from lotsen.planning import plan_route
+from lotsen.planning.budget import PlanningBudget, check_budget
+from lotsen.planning.io import load_route, route_from_dict
+from lotsen.stack.planner_worker import PlannerWorker
+from lotsen.stack.stack import example_route
+from tests.stack.worker_jobs import allocate, sleep
+
+
+@pytest.fixture
+def worker():
+    w = PlannerWorker(PlanningBudget(time_s=2.0, memory_mb=600.0), max_pending=2)
+    yield w
+    w.close()
+
+
+def test_plans_in_the_worker(worker):
+    route = load_route(example_route("figure_eight"))
+    path = worker.call(plan_route, route)
+    assert path.length_m > 100.0
+
+
+def test_a_request_over_the_time_budget_is_stopped_and_the_worker_replaced(worker):
+    with pytest.raises(PlanningError, match="longer than its budget of 2 s"):
+        worker.call(sleep, 30.0)
+    assert worker.stats["timeouts"] == 1
+    assert worker.call(sleep, 0.01) == 0.01  # a fresh worker serves the next request
+
+
+def test_a_request_over_the_memory_budget_is_refused(worker):
+    with pytest.raises(PlanningError, match="memory budget of 600 MB"):
+        worker.call(allocate, 2000.0)
+    assert worker.call(allocate, 10.0) == 10 * 1024 * 1024
+
+
+def test_requests_beyond_the_queue_are_refused_at_once(worker):
+    async def flood():
+        jobs = [worker.run(sleep, 0.5) for _ in range(4)]
+        return await asyncio.gather(*jobs, return_exceptions=True)
+
+    results = asyncio.run(flood())
+    busy = [r for r in results if isinstance(r, PlanningError) and "busy" in str(r)]
+    assert len(busy) == 2 and results.count(0.5) == 2
+
+
+def test_the_budget_bounds_the_route_before_any_planning():
+    far = {"harbour": {"north": 0, "east": 0}, "nodes": [{"north": 100000, "east": 0, "heading_deg": 0,
+                                                          "speed_mps": 1}]}
+    with pytest.raises(PlanningError, match="spans 100000 m.*max_extent_m"):
+        check_budget(route_from_dict(far), PlanningBudget())
+    many = {"harbour": {"north": 0, "east": 0},
+            "nodes": [{"north": i, "east": 0, "heading_deg": 0, "speed_mps": 1} for i in range(1, 300)]}
+    with pytest.raises(PlanningError, match="299 nodes"):
+        check_budget(route_from_dict(many), PlanningBudget())
+    check_budget(load_route(example_route("figure_eight")), PlanningBudget())  # the demo fits
+
+
+def test_the_worker_refuses_the_100_km_route_before_planning(worker):
+    """The issue's 300-byte route (two nodes 100 km apart: 1.5 GB, 10 s unbounded) is refused by the
+    budget in the worker; the plan function never runs."""
+    from lotsen.web.planning_api import plan_for_display
+
+    far = {"harbour": {"north": 0, "east": 0, "heading_deg": 0},
+           "nodes": [{"north": 100000, "east": 0, "heading_deg": 0, "speed_mps": 1}]}
+    with pytest.raises(PlanningError, match="max_extent_m"):
+        worker.call(plan_for_display, far)
+    assert worker.stats["timeouts"] == 0 and worker.stats["out_of_memory"] == 0
