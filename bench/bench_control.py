@@ -6,6 +6,11 @@ do-mpc (CasADi + IPOPT, nonlinear multiple shooting) for the speed ratio and clo
 
 Targets: MPC median step <= 1 ms at horizon >= 20; >= 20x faster than do-mpc; cross-track RMS
 <= 5 cm calm and <= 15 cm with current + wind at 0.5 m/s; >= 2x better than pure pursuit.
+
+Issue 14 item 3 / issue 19: AUTO soak on the closed figure eight (looped), 0.1 m/s current + 3 m/s
+wind, EKF in the loop, supervisor with its failsafes: 10 runs x 10 min without any failsafe
+(quick: 2 runs x 2 min); propeller reversals per 10 s beside the MPC without the reversal
+penalty and ESC lag (the issue-5 design) on the same seeds.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from lotsen.control import ControlConfig, MPCConfig, MPCController, PathReferenc
 from lotsen.model import Environment, VesselModel, symbolic_rhs  # noqa: E402
 from lotsen.planning import plan_route  # noqa: E402
 from lotsen.planning.io import load_route  # noqa: E402
-from lotsen.runtime.mission import MissionConfig, run_mission  # noqa: E402
+from lotsen.stack.mission import MissionConfig, run_mission  # noqa: E402
 from lotsen.sim import SimConfig, Simulator  # noqa: E402
 
 ROUTES = ("figure_eight", "harbour_approach")
@@ -101,7 +106,30 @@ def timing_rows(quick: bool) -> list[dict]:
                      # the target asks for one horizon >= 20; longer horizons are shown for scale
                      "target": f"median <= {TARGET_STEP_MS} ms at N >= 20" if N == 20 else "(longer horizon, info)",
                      "pass": bool(np.median(t) <= TARGET_STEP_MS) if N == 20 else None})
+    rows.append(_step_time_vs_issue5(path, 300 if quick else 900))
     return rows
+
+
+def _step_time_vs_issue5(path, steps: int) -> dict:
+    """The cost of the reversal slacks and the ESC lag: the default MPC and the issue-5 configuration
+    (no penalty, no lag) stepped alternately in the same run on the same states (load-robust ratio)."""
+    x0 = [path.north_m[0], path.east_m[0], path.heading_rad[0], 0, 0, 0]
+    sims, ctrls = [], []
+    for cfg in (MPCConfig(), UNPENALISED):
+        c = MPCController(config=cfg)
+        c.reset(path)
+        ctrls.append(c)
+        sims.append(Simulator(config=SimConfig(sensors=False, environment=DISTURBED), x0=x0))
+    for _ in range(steps):
+        for c, sim in zip(ctrls, sims):
+            cmd, _st = c.update(sim.t, sim.truth())
+            sim.command(cmd)
+            sim.advance(0.1)
+    med = [float(np.median(c.solve_times_ms[5:])) for c in ctrls]
+    return {"table": "mpc step time", "horizon": 20, "steps": steps,
+            "median_ms": round(med[0], 3), "issue5_config_median_ms": round(med[1], 3),
+            "ratio_to_issue5": round(med[0] / med[1], 2), "reversals": ctrls[0].reversals,
+            "issue5_config_reversals": ctrls[1].reversals, "target": "(info: same-run comparison)", "pass": None}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -194,7 +222,9 @@ def dompc_rows(quick: bool) -> list[dict]:
     except Exception as exc:  # pragma: no cover
         return [{"table": "do-mpc peer", "note": f"do-mpc not available: {exc}"}]
     path = _path("figure_eight")
-    cfg = MPCConfig(disturbance_gain=0.0)  # calm water, no observer: exactly the OCP do-mpc solves
+    # calm water, no observer, no reversal penalty, no ESC lag in the prediction: exactly the OCP do-mpc solves
+    cfg = MPCConfig(disturbance_gain=0.0, reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0,
+                    esc_in_prediction=False)
     model = VesselModel()
     from lotsen.model import DEFAULT_LIMITS
 
@@ -261,8 +291,85 @@ def dompc_rows(quick: bool) -> list[dict]:
     }]
 
 
+SOAK_RUNS, SOAK_S = 10, 600.0
+SOAK_QUICK_RUNS, SOAK_QUICK_S = 2, 120.0
+MAX_REVERSALS_PER_10S = 1.0
+UNPENALISED = MPCConfig(reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0, esc_in_prediction=False)
+
+
+def _looped_figure_eight(min_length_m: float):
+    """figure_eight_loop.yaml with its nodes repeated until the route is at least min_length_m long
+    (the route ends where it starts, so AUTO runs the figure eight again and again)."""
+    import dataclasses
+
+    route = load_route(ROOT / "examples" / "routes" / "figure_eight_loop.yaml")
+    path = plan_route(route)
+    laps = max(1, math.ceil(min_length_m / path.length_m))
+    return plan_route(dataclasses.replace(route, nodes=route.nodes * laps)) if laps > 1 else path
+
+
+def _reversals_per_10s(u: np.ndarray, t: np.ndarray, threshold_rps: float = 5.0) -> float:
+    """Sign changes of the commanded propeller speeds (|n| <= threshold keeps the direction)."""
+    n = 0
+    for j in (2, 3, 4):
+        d = 0
+        for v in u[:, j]:
+            s = 1 if v > threshold_rps else (-1 if v < -threshold_rps else 0)
+            if s and d == -s:
+                n += 1
+            if s:
+                d = s
+    span = float(t[-1] - t[0]) if t.size > 1 else 1.0
+    return 10.0 * n / span
+
+
+def soak_rows(quick: bool) -> list[dict]:
+    """AUTO on the looped figure eight in current + wind with the EKF and the failsafes: zero
+    failsafes over runs x minutes (issue 14 item 3), reversals per 10 s (issue 19)."""
+    from lotsen.stack.mission import make_sim_ekf
+
+    runs, dur = (SOAK_QUICK_RUNS, SOAK_QUICK_S) if quick else (SOAK_RUNS, SOAK_S)
+    path = _looped_figure_eight(0.5 * dur + 20.0)  # still following the route when the time is up
+    rows: list[dict] = []
+    total_fs, total_rev, total_t = 0, 0.0, 0.0
+    for seed in range(runs):
+        row: dict = {"table": "auto soak (figure eight loop, current 0.1 + wind 3, EKF)", "seed": seed}
+        for name, cfg in (("", MPCConfig()), ("unpenalised_", UNPENALISED)):
+            if name and seed >= (1 if quick else 3):  # the comparison on the first seeds only
+                continue
+            mc = MissionConfig(environment=DISTURBED, seed=seed, sensors=True, max_duration_s=dur)
+            follower = make_path_follower(ControlConfig(mpc=cfg))
+            r = run_mission(path, follower, mc, estimator=make_sim_ekf(mc, path))
+            m = r.metrics
+            rev = _reversals_per_10s(r.u, r.t)
+            row[f"{name}minutes"] = round(float(r.t[-1]) / 60.0, 2)
+            row[f"{name}stayed_in_auto"] = r.reason == "timeout"
+            row[f"{name}failsafes"] = ",".join(m["failsafes_triggered"]) or "none"
+            row[f"{name}reversals_per_10s"] = round(rev, 2)
+            row[f"{name}cross_track_rms_cm"] = round(m["cross_track_rms_m"] * 100, 2)
+            row[f"{name}solve_median_ms"] = m["solve_time_median_ms"]
+            # OSQP's wall-clock time limit (20 ms) makes these load-dependent: on a loaded machine a burst
+            # of overruns can trip the controller failsafe (that is not a thruster failsafe)
+            row[f"{name}solver_failures"] = m["failures"]
+            if not name:
+                total_fs += len(m["failsafes_triggered"]) + (0 if r.reason == "timeout" else 1)
+                total_rev += rev * float(r.t[-1])
+                total_t += float(r.t[-1])
+        rows.append(row)
+    rows.append({"table": "auto soak summary", "runs": runs, "minutes_each": dur / 60.0,
+                 "failsafes_or_aborts": total_fs, "reversals_per_10s": round(total_rev / max(total_t, 1e-9), 2),
+                 "target": f"0 failsafes in {runs} x {dur / 60:.0f} min (issue 14)"
+                           + (" (quick form; the bar is 10 x 10 min)" if quick else ""),
+                 "pass": bool(total_fs == 0),
+                 # issue 19 asks <= 1 per 10 s: met only with reversal_penalty_azimuth ~0.6, which costs
+                 # tracking in current + wind (docs/control.md); reported, not judged
+                 "issue19_reversal_target_met": bool(total_rev / max(total_t, 1e-9) <= MAX_REVERSALS_PER_10S)})
+    return rows
+
+
 def run(quick: bool = False) -> list[dict]:
     rows = timing_rows(quick)
+    rows += soak_rows(quick)
     rows += dompc_rows(quick)
     rows += tracking_rows(quick)
     return rows

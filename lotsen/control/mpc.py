@@ -21,14 +21,18 @@ Commands: n = sign(q) n_max sqrt|q|, then clipped to the ESC ramp (`allocation.r
 
 Decision vector (OSQP variable z), horizon N, n_x = 6, n_w = 5:
 
-    z = [x_0, x_1, ..., x_N, w_0, ..., w_{N-1}]        length 6 (N + 1) + 5 N
-    positions are relative to the measured position (N0, E0) of the current step.
+    z = [x_0, x_1, ..., x_N, w_0, ..., w_{N-1}, t_0, ..., t_{N-1}]        length 6 (N + 1) + 5 N + 3 N
+    positions are relative to the measured position (N0, E0) of the current step; t_k = the
+    reversal slacks of the three propellers (below).
 
 QP (seed eq. 43-44):
 
     min  sum_{k=1..N} rho_k ||C_k x_k + d_k||^2_Q  +  sum_k ||w_k - w_ref,k||^2_R  +  sum_k ||w_k - w_{k-1}||^2_S
+         + sum_k lambda' t_k + mu ||t_k||^2                                (reversal penalty)
     s.t. x_0 = x_measured
-         x_{k+1} - Ad_k x_k - Bd_k w_k = c_k                               (linearised dynamics)
+         x_{k+1} - Ad_k x_k - Bd_k u_k = c_k                               (linearised dynamics)
+         u_k = w_k with the thrust part beta q_k + (1 - beta) q_{k-1}      (ESC lag, q_{-1} = achieved)
+         t_k >= 0, t_k + sigma q_k >= 0 (azimuths);  t_k >= +-q_t (bow)
          w_min <= w_k <= w_max                                             (44: input bounds)
          -dw_max <= w_k - w_{k-1} <= dw_max,  w_{-1} = previous command    (44: rate bounds)
 
@@ -53,8 +57,18 @@ warm-started from its previous primal-dual solution (measured: fewer iterations 
 warm start with the shifted plan, `MPCConfig.warm_start_shifted`); Ruiz scaling is off
 (`scaling=0`) because re-scaling on every matrix update cost more than it saved here.
 
+Propeller reversals (issue 14 item 3, issue 19): t_k is the thrust of each azimuth against its
+present direction sigma (+-1, from the commands with a hysteresis; an azimuth astern for
+`reversal_release_s` counts as ahead again, else it would lock astern), and |q_t| for the bow
+thruster; the L1 cost makes a reversal worth lambda per unit of reversed thrust and stage. sigma
+lives in fixed entries of A, rewritten when it changes. ESC lag: the thrust over a step is the
+average of a first-order response (motor time constant T_m) from the previous set-point to the new
+one, beta = 1 - T_m/dt (1 - exp(-dt/T_m)); stage 0 starts from the modelled achieved speed (the
+simulator's actuator model run on the commands sent). The previous set-point stands for the
+achieved speed at the start of later stages (an approximation: 71 % reached after one step).
+
 Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
-from the one-step prediction error of the model and adds it to f_d.
+from the one-step prediction error of the model (with the ESC lag's effective thrust) and adds it to f_d.
 
 Safety (issue item 6): a solver status other than solved, a time-limit hit (OSQP `time_limit`)
 or a non-finite solution never reaches the actuators. The controller then plays the previous
@@ -79,8 +93,10 @@ from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model._jit import njit
 from lotsen.model.dynamics import VesselModel, _jacobians, rk4_step
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
+from lotsen.sim.actuators import actuator_step
 
 NX, NW, NY = 6, 5, 5
+NREV = 3  # propellers with a direction: azimuth 1, azimuth 2, bow
 _SOLVED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
 
 
@@ -112,18 +128,38 @@ class MPCConfig:
     disturbance_gain: float = 0.15  # observer gain per step (0 switches it off)
     disturbance_max_N: float = 5.0
     max_fallback_steps: int = 5  # play the previous plan this many steps, then neutral
-    max_iter: int = 200
+    max_iter: int = 400  # 200 ran out on the first steps after a cold start with the reversal slacks
     time_limit_s: float = 0.02  # OSQP time limit (0 = none)
     eps: float = 1e-4
     check_termination: int = 5
     scaling: int = 0  # OSQP Ruiz equilibration iterations
     warm_start_shifted: bool = False  # warm-start with the shifted plan (else OSQP's last solution)
+    # Propeller reversals (issue 14 item 3, issue 19): exact L1 penalties per stage on each azimuth's
+    # thrust against its present direction (max(0, -sigma q)) and on the bow thruster's |q|. Without
+    # them the MPC flips the azimuths on estimator noise (~1.4 reversals/s on the EKF figure eight).
+    reversal_penalty_azimuth: float = 0.2  # cost per unit of reversed q per stage (0 = off)
+    reversal_penalty_bow: float = 1.0  # cost per unit of |q_t| per stage (0 = off)
+    reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
+    reversal_hysteresis_rps: float = 5.0  # direction changes on commands beyond +-this (also for counting)
+    # an azimuth running astern for this long counts as "ahead" again, so returning is free: without
+    # this release a propeller reversed during a large correction stays locked astern (the boat then
+    # drifts on one propeller, because going ahead again costs the penalty on every stage)
+    reversal_release_s: float = 3.0
+    # ESC + motor lag in the prediction (first order, motor_time_constant_s of the limits): each
+    # step's thrust is the step average of a first-order response from the previous set-point
+    # (for stage 0: the modelled achieved speed) to the new one. False: set-points act at once.
+    esc_in_prediction: bool = True
 
     def __post_init__(self) -> None:
         if self.horizon < 2:
             raise ValueError(f"MPCConfig.horizon: {self.horizon} must be >= 2")
         if not self.dt_s > 0:
             raise ValueError(f"MPCConfig.dt_s: {self.dt_s} must be positive")
+        for name in ("reversal_penalty_azimuth", "reversal_penalty_bow", "reversal_quadratic",
+                     "reversal_hysteresis_rps", "reversal_release_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
 
 
 def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor, Ad, Bd, c):  # type: ignore[no-untyped-def]
@@ -325,7 +361,7 @@ class MPCController:
         N = self.N
         self.scale = np.array([1.0, 1.0, limits.n_az_max_rps ** 2, limits.n_az_max_rps ** 2,
                                limits.n_bow_max_rps ** 2])
-        self.nz = NX * (N + 1) + NW * N
+        self.nz = NX * (N + 1) + NW * N + NREV * N
         self._build_qp()
         self.path: PathReference | None = None
         self.failures = 0
@@ -338,6 +374,10 @@ class MPCController:
 
     def _wi(self, k: int) -> int:
         return NX * (self.N + 1) + NW * k
+
+    def _ti(self, k: int) -> int:
+        """Reversal slacks t_k (one per propeller) of stage k."""
+        return NX * (self.N + 1) + NW * self.N + NREV * k
 
     def _build_qp(self) -> None:
         N, cfg, lim = self.N, self.config, self.limits
@@ -367,6 +407,10 @@ class MPCController:
                 for j in range(NW):
                     p_entries.append((self._wi(k - 1) + j, b + j))
                     p_in_vals.append(-S[j])
+        for k in range(N):
+            for j in range(NREV):
+                p_entries.append((self._ti(k) + j, self._ti(k) + j))
+                p_in_vals.append(cfg.reversal_quadratic)
         P, self._p_pos = _csc_template(self.nz, self.nz, p_entries)
         self._p_state_pos = self._p_pos[:n_state_p].reshape(N, len(iu[0]))
         self._Px = np.zeros(P.nnz)
@@ -389,6 +433,15 @@ class MPCController:
             a_entries += [(r + i, self._wi(k) + j) for i, j in zip(bi, bj)]
             a_vals += [0.0] * (len(ai) + len(bi))
         dyn_count = len(a_entries) - dyn_entries_start
+        # ESC lag: stage k's dynamics also depend on the previous set-point's thrust columns (k >= 1)
+        lag_sel = bj >= 2
+        self._lag_sel = lag_sel
+        lag_start = len(a_entries)
+        for k in range(1, N):
+            r = row + NX * k
+            a_entries += [(r + i, self._wi(k - 1) + j) for i, j in zip(bi[lag_sel], bj[lag_sel])]
+            a_vals += [0.0] * int(lag_sel.sum())
+        lag_count = len(a_entries) - lag_start
         for k in range(N):
             for i in range(NX):
                 a_entries.append((row + NX * k + i, self._xi(k + 1) + i))
@@ -409,12 +462,35 @@ class MPCController:
                     a_entries.append((row + NW * k + j, self._wi(k - 1) + j))
                     a_vals.append(-1.0)
         row += NW * N
+        # penalty slacks: azimuths t >= 0, t + sigma q >= 0 (t >= reversed part; sigma = present
+        # direction, written at run time); bow t - q >= 0, t + q >= 0 (t >= |q|)
+        self._row_rev = row
+        sigma_start = len(a_entries)
+        for k in range(N):
+            for j in range(2):
+                a_entries.append((row + 2 * NREV * k + NREV + j, self._wi(k) + 2 + j))
+                a_vals.append(1.0)
+        for k in range(N):
+            for j in range(NREV):
+                r1, r2, tj, qj = row + 2 * NREV * k + j, row + 2 * NREV * k + NREV + j, self._ti(k) + j, self._wi(k) + 2 + j
+                a_entries += [(r1, tj), (r2, tj)]
+                a_vals += [1.0, 1.0]
+                if j == 2:
+                    a_entries += [(r1, qj), (r2, qj)]
+                    a_vals += [-1.0, 1.0]
+        row += 2 * NREV * N
         self.m = row
         A, a_pos = _csc_template(self.m, self.nz, a_entries)
+        self._a_sigma_pos = a_pos[sigma_start:sigma_start + 2 * N]  # per stage: azimuth 1, azimuth 2
         self._Ax = np.zeros(A.nnz)
         self._Ax[a_pos] = a_vals
         # per stage k: the Ad entries of the pattern, then the Bd entries
         self._a_dyn_pos = a_pos[dyn_entries_start:dyn_entries_start + dyn_count].reshape(N, len(ai) + len(bi))
+        self._a_lag_pos = a_pos[lag_start:lag_start + lag_count].reshape(N - 1, int(lag_sel.sum()))
+        self._a_bq_pos = self._a_dyn_pos[:, len(ai):][:, lag_sel]  # Bd entries of the thrust columns
+        T_m = lim.motor_time_constant_s
+        # weight of the new set-point in the step-average thrust of a first-order response
+        self._esc_beta = 1.0 - T_m / cfg.dt_s * (1.0 - math.exp(-cfg.dt_s / T_m)) if cfg.esc_in_prediction else 1.0
         # bounds
         self._l = np.zeros(self.m)
         self._u = np.zeros(self.m)
@@ -427,9 +503,13 @@ class MPCController:
         dq_bow = min(1.0, 2.0 * dn / lim.n_bow_max_rps)
         da = lim.alpha_rate_max_radps * cfg.dt_s
         self._dw_max = np.array([da, da, dq_az, dq_az, dq_bow])
-        self._l[self._row_rate:] = np.tile(-self._dw_max, N)
-        self._u[self._row_rate:] = np.tile(self._dw_max, N)
+        self._l[self._row_rate:self._row_rev] = np.tile(-self._dw_max, N)
+        self._u[self._row_rate:self._row_rev] = np.tile(self._dw_max, N)
+        self._l[self._row_rev:] = 0.0
+        self._u[self._row_rev:] = np.inf
         self._q = np.zeros(self.nz)
+        lam = np.array([cfg.reversal_penalty_azimuth, cfg.reversal_penalty_azimuth, cfg.reversal_penalty_bow])
+        self._q[self._ti(0):] = np.tile(lam, N)
         P.data[:] = self._Px
         A.data[:] = self._Ax
         self.solver = osqp.OSQP()
@@ -484,6 +564,63 @@ class MPCController:
         self._dist = np.zeros(3)  # estimated disturbance force (N, N, N m) in the body frame
         self._obs: tuple[np.ndarray, tuple[float, ...]] | None = None
         self._done = False
+        self._direction = np.zeros(NREV)  # last commanded direction beyond the hysteresis (0: none yet)
+        self.reversals = 0  # propeller reversals commanded since reset (all three propellers)
+        self._sigma = np.ones(2)  # present direction of the azimuths in the penalty (+1 ahead)
+        self._astern_s = np.zeros(2)  # time each azimuth has run astern (for the release)
+        self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
+        self._cmd_effective: tuple[float, ...] = (0.0,) * NW
+        self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
+
+    def _q_achieved(self) -> np.ndarray:
+        n = self._n_achieved
+        return n * np.abs(n) / self.scale[2:]
+
+    def _effective_command(self, cmd: tuple[float, ...]) -> tuple[float, ...]:
+        """The step-average thrust of the ESC response to cmd, as propeller speeds (the prediction's input)."""
+        b = self._esc_beta
+        if b >= 1.0:
+            return tuple(cmd)
+        q = b * self.command_to_w(cmd)[2:] + (1.0 - b) * self._q_achieved()
+        n = np.sign(q) * np.sqrt(np.abs(q) * self.scale[2:])
+        return (cmd[0], cmd[1], float(n[0]), float(n[1]), float(n[2]))
+
+    def _advance_esc(self, cmd: tuple[float, ...]) -> None:
+        """The modelled ESC speeds one control period on under cmd (the simulator's actuator model)."""
+        lim = self.limits
+        h = 0.01
+        steps = max(1, int(round(self.config.dt_s / h)))
+        h = self.config.dt_s / steps
+        gain = 1.0 - math.exp(-h / lim.motor_time_constant_s)
+        c = np.array(lim.clip(*cmd))
+        st = (0.0, 0.0, *self._n_achieved)
+        for _ in range(steps):
+            st = actuator_step(st, (0.0, 0.0, c[2], c[3], c[4]), (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, gain,
+                               lim.n_rate_max_rps2 * h)
+        self._n_achieved = np.array(st[2:])
+
+    def _update_direction(self, cmd: tuple[float, ...]) -> None:
+        """Count reversals of the commanded speeds (|n| within the hysteresis keeps the direction) and
+        set each azimuth's present direction sigma for the penalty, with the release to ahead."""
+        cfg = self.config
+        h = cfg.reversal_hysteresis_rps
+        for j in range(NREV):
+            n = cmd[2 + j]
+            d = 1.0 if n > h else (-1.0 if n < -h else 0.0)
+            if d != 0.0:
+                if self._direction[j] == -d:
+                    self.reversals += 1
+                self._direction[j] = d
+        sigma = self._sigma.copy()
+        for j in range(2):
+            if self._direction[j] < 0.0:
+                self._astern_s[j] += cfg.dt_s
+            else:
+                self._astern_s[j] = 0.0
+            sigma[j] = -1.0 if 0.0 < self._astern_s[j] < cfg.reversal_release_s else 1.0
+        if np.any(sigma != self._sigma):
+            self._sigma = sigma
+            self._Ax[self._a_sigma_pos] = np.tile(sigma, self.N)
 
     def reset(self, path: Any) -> None:
         self.path = PathReference(path, self.config.min_speed_ref_mps)
@@ -570,13 +707,29 @@ class MPCController:
             s_pred[0] = s0
             np.maximum(s_pred, s0, out=s_pred)
         pr = self.path
-        _assemble(x, xb, wb, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
+        # ESC lag: the linearisation runs on the effective (step-average) thrust of each stage
+        beta = self._esc_beta
+        qa = self._q_achieved()
+        ub = wb.copy()
+        if beta < 1.0:
+            ub[0, 2:] = beta * wb[0, 2:] + (1.0 - beta) * qa
+            ub[1:, 2:] = beta * wb[1:, 2:] + (1.0 - beta) * wb[:-1, 2:]
+        _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
                   pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,
                   cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev, self._dw_max,
                   self._q_trim_gain, cfg.min_speed_course_mps, self._ad_idx[0], self._ad_idx[1],
                   self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos, self._iu[0],
                   self._iu[1], self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q, self._l, self._u,
                   self._row_bounds, self._row_rate, self._ref)
+        if beta < 1.0:
+            bi, bj = self._bd_idx
+            sel = self._lag_sel
+            Bq = self._Bd[:, bi[sel], bj[sel]]
+            self._Ax[self._a_bq_pos] = -beta * Bq
+            self._Ax[self._a_lag_pos] = -(1.0 - beta) * Bq[1:]
+            off0 = (1.0 - beta) * (self._Bd[0, :, 2:] @ qa)  # stage 0: from the achieved thrust
+            self._l[NX:2 * NX] += off0
+            self._u[NX:2 * NX] += off0
         self._s_pred = s_pred
         pv = self._ref[:, 4]
         if not (np.isfinite(self._Ax).all() and np.isfinite(self._l).all() and np.isfinite(self._q).all()):
@@ -588,7 +741,10 @@ class MPCController:
         xr[:, 1] -= origin[1]
         self.solver.update(q=q, l=l, u=u, Px=self._Px, Ax=self._Ax)
         if cfg.warm_start_shifted:
-            self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel()]))
+            tb = np.abs(wb[:, 2:])
+            tb[:, :2] = np.maximum(0.0, -self._sigma * wb[:, 2:4])
+            tb = tb.ravel()
+            self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel(), tb]))
         res = self.solver.solve(raise_error=False)
         z = None if res.x is None else np.array(res.x, dtype=float)
         ok = res.info.status_val in _SOLVED and z is not None and z.shape == (self.nz,) and bool(np.all(np.isfinite(z)))
@@ -596,7 +752,7 @@ class MPCController:
             return self._failure(t, state, f"solver: {res.info.status}", t0, cte, hdg, s0, float(pv[0]))
         assert z is not None
         xs = z[:NX * (N + 1)].reshape(N + 1, NX).copy()
-        ws = z[NX * (N + 1):].reshape(N, NW).copy()
+        ws = z[NX * (N + 1):NX * (N + 1) + NW * N].reshape(N, NW).copy()
         ws = np.clip(ws, -self._w_max, self._w_max)
         xs[:, 0] += origin[0]
         xs[:, 1] += origin[1]
@@ -604,7 +760,7 @@ class MPCController:
         self._plan = ws.copy()
         self._plan_age = 0
         cmd = self._apply(ws[0])
-        self._obs = (x, cmd)
+        self._obs = (x, self._cmd_effective)
         solve_ms = (time.perf_counter() - t0) * 1e3
         self.solve_times_ms.append(solve_ms)
         status = make_status(t, self.name, cte, wrap_angle(x[2] - hdg), state, float(pv[0]), s0, solve_ms,
@@ -613,9 +769,17 @@ class MPCController:
 
     def _apply(self, w: np.ndarray) -> tuple[float, ...]:
         cmd = rate_limit(self._cmd_prev, self.w_to_command(w), self.config.dt_s, self.limits)
+        self._commit(cmd)
+        return cmd
+
+    def _commit(self, cmd: tuple[float, ...]) -> None:
+        """cmd goes to the actuators: remember it, count reversals, step the ESC model (the
+        observer's input is the step-average thrust from the achieved speed before the step)."""
         self._cmd_prev = cmd
         self._w_prev = self.command_to_w(cmd)
-        return cmd
+        self._update_direction(cmd)
+        self._cmd_effective = self._effective_command(cmd)
+        self._advance_esc(cmd)
 
     def _failure(self, t: float, state: VesselState, why: str, t0: float, cte: float, hdg: float,
                  s0: float, v_ref: float) -> tuple[ThrustCommand, ControllerStatus]:
@@ -629,11 +793,10 @@ class MPCController:
             status = f"fallback_plan ({why})"
         else:
             cmd = (0.0, 0.0, 0.0, 0.0, 0.0)  # safe stop: neutral
-            self._cmd_prev = cmd
-            self._w_prev = np.zeros(NW)
+            self._commit(cmd)
             status = f"safe_stop ({why})"
         x = np.array(state.as_array_tuple(), dtype=float)
-        self._obs = (x, cmd) if np.all(np.isfinite(x)) else None
+        self._obs = (x, self._cmd_effective) if np.all(np.isfinite(x)) else None
         solve_ms = (time.perf_counter() - t0) * 1e3
         self.solve_times_ms.append(solve_ms)
         heading_err = wrap_angle(state.heading_rad - hdg) if math.isfinite(state.heading_rad) else float("nan")
