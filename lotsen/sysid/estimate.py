@@ -309,6 +309,22 @@ def _lm_solve(nb: NormalBlocks, lam: float) -> tuple[np.ndarray, np.ndarray]:
 _X0_SCALE = np.array([1.0, 1.0, 0.1, 0.1, 0.1, 0.1])
 
 
+def starting_point(theta0: VesselParameters, fixed: Mapping[str, float]
+                   ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray]:
+    """The parameter vector to start from (fixed values in, clipped to the physical bounds), the
+    indices and names of the free parameters, and their scale; a fixed value outside its
+    physical range is a LotsenError naming it."""
+    theta = np.array(theta0.with_updates(**fixed).to_vector(), float)
+    lo, hi = parameter_bounds()
+    out_of = [f"{n} = {fixed[n]:g} outside [{lo[i]:g}, {hi[i]:g}]" for i, n in enumerate(NAMES)
+              if n in fixed and not lo[i] <= fixed[n] <= hi[i]]
+    if out_of:
+        raise LotsenError("fixed value(s) not physical: " + "; ".join(out_of))
+    theta = np.clip(theta, lo, hi)
+    free = np.array([i for i, n in enumerate(NAMES) if n not in fixed], dtype=int)
+    return theta, free, tuple(NAMES[i] for i in free), parameter_scale(theta)
+
+
 def estimate(records: Sequence[IdRecord] | WindowedProblem, theta0: VesselParameters = DEFAULT_PARAMETERS,
              fixed: Mapping[str, float] | None = None, window_s: float | None = 10.0, gap_s: float = 1.0,
              noise_std: Mapping[str, float] | None = None, geometry: VesselGeometry = DEFAULT_GEOMETRY,
@@ -331,16 +347,8 @@ def estimate(records: Sequence[IdRecord] | WindowedProblem, theta0: VesselParame
     else:
         prob = build_problem(records, window_s, gap_s, noise_std, geometry, h_max)
         check_excitation(prob.windows)
-    theta = np.array(theta0.with_updates(**fixed).to_vector(), float)
+    theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
-    out_of = [f"{n} = {fixed[n]:g} outside [{lo[i]:g}, {hi[i]:g}]" for i, n in enumerate(NAMES)
-              if n in fixed and not lo[i] <= fixed[n] <= hi[i]]
-    if out_of:
-        raise LotsenError("fixed value(s) not physical: " + "; ".join(out_of))
-    theta = np.clip(theta, lo, hi)
-    free = np.array([i for i, n in enumerate(NAMES) if n not in fixed], dtype=int)
-    free_names = tuple(NAMES[i] for i in free)
-    tscale = parameter_scale(theta)
     X0 = np.array(x0s, float) if x0s is not None else np.array([initial_state_guess(w) for w in prob.windows])
     xscale = _X0_SCALE if estimate_x0 else np.zeros(6)
 

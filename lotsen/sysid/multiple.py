@@ -51,7 +51,7 @@ from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments
 from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
-    identifiability, parameter_bounds, parameter_scale,
+    identifiability, parameter_bounds, parameter_scale, starting_point,
 )
 from lotsen.sysid.kernels import step_kernels
 from lotsen.sysid.sensitivity import NS
@@ -461,16 +461,8 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     if prob is None:
         prob = MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max)
         check_excitation(prob.segments)
-    theta = np.array(theta0.with_updates(**fixed).to_vector(), float)
+    theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
-    out_of = [f"{n} = {fixed[n]:g} outside [{lo[i]:g}, {hi[i]:g}]" for i, n in enumerate(NAMES)
-              if n in fixed and not lo[i] <= fixed[n] <= hi[i]]
-    if out_of:
-        raise LotsenError("fixed value(s) not physical: " + "; ".join(out_of))
-    theta = np.clip(theta, lo, hi)
-    free = np.array([i for i, n in enumerate(NAMES) if n not in fixed], dtype=int)
-    free_names = tuple(NAMES[i] for i in free)
-    tscale = parameter_scale(theta)
     nodes = initial_nodes(prob.grid, prob.segments) if nodes0 is None else np.array(nodes0, float)
     history: list[float] = []
     total_it = 0
