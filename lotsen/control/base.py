@@ -14,11 +14,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
-
-
-def wrap_angle(a: float) -> float:
-    """Angle in [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
+from lotsen.model.angles import all_finite, wrap_angle
 
 
 @runtime_checkable
@@ -148,4 +144,4 @@ def make_status(t: float, controller: str, cte: float, heading_error: float, sta
 
 
 def state_is_finite(state: VesselState) -> bool:
-    return all(math.isfinite(v) for v in state.as_array_tuple())
+    return all_finite(*state.as_array_tuple())

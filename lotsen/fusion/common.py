@@ -7,20 +7,11 @@ from typing import Any
 from dataclasses import dataclass, field
 
 from lotsen.messages import GnssFix, GnssFixType
+from lotsen.model.angles import all_finite as finite, wrap_angle  # the project's one wrap and finite check
 
 TWO_PI = 2.0 * math.pi
 
 
-def wrap_angle(a: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (a + math.pi) % TWO_PI - math.pi
-
-
-def finite(*values: float) -> bool:
-    for v in values:
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 class LocalFrame:
