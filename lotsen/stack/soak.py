@@ -117,24 +117,28 @@ class PilotSocket:
 
     def _read(self) -> None:
         try:
-            for raw in self.ws:
-                t = self.clock.now()
-                msg = json.loads(raw)
-                with self._cv:
-                    if msg.get("id") is not None and msg.get("type") not in ("telemetry",):
-                        self.replies[int(msg["id"])] = msg
-                    if msg.get("type") == "telemetry":
-                        self.latest = msg
-                    elif msg.get("type") == "alert":
-                        self.alerts.append(msg)
-                    self._cv.notify_all()
-                if self.on_frame is not None:
-                    self.on_frame(t, msg)
+            with self.ws:  # the reader owns the connection's lifetime
+                self._read_frames()
         except Exception as exc:  # noqa: BLE001 - a closed or killed server ends the reader
             self.close_reason = repr(exc)[:200]
         with self._cv:
             self.closed = True
             self._cv.notify_all()
+
+    def _read_frames(self) -> None:
+        for raw in self.ws:
+            t = self.clock.now()
+            msg = json.loads(raw)
+            with self._cv:
+                if msg.get("id") is not None and msg.get("type") not in ("telemetry",):
+                    self.replies[int(msg["id"])] = msg
+                if msg.get("type") == "telemetry":
+                    self.latest = msg
+                elif msg.get("type") == "alert":
+                    self.alerts.append(msg)
+                self._cv.notify_all()
+            if self.on_frame is not None:
+                self.on_frame(t, msg)
 
     def request(self, msg: dict, timeout_s: float = 30.0) -> dict:
         from websockets.exceptions import ConnectionClosed
