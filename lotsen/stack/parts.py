@@ -18,7 +18,7 @@ from lotsen.planning.exchange import path_from_message, planned_route_message
 from lotsen.planning.io import load_route
 from lotsen.stack.fusion_node import FusionNode, TruthStateNode
 from lotsen.stack.logs import add_recorder as _add_recorder
-from lotsen.stack.stack import Stack, failsafe_config
+from lotsen.stack.stack import Stack, failsafe_config, planner_config
 from lotsen.stack.web import add_web as _add_web
 from lotsen.stack.zenoh import add_bridge
 from lotsen.supervisor.node import SupervisorConfig, SupervisorNode
@@ -79,11 +79,11 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
     sup = SupervisorNode(stack.model, stack.simulator.limits if stack.simulator else DEFAULT_LIMITS,
                          SupervisorConfig(control_rate_hz=cfg.nodes.control_rate_hz,
                                           controller=cfg.nodes.controller,
-                                          failsafes=failsafe_config(cfg)),
+                                          failsafes=failsafe_config(cfg), planner=planner_config(cfg)),
                          mag_calibrator=mag_calibrator, follower=follower, station_keeper=station_keeper)
     if cfg.route:
         route = load_route(cfg.route)
-        msg = planned_route_message(route, plan_route(route), source="config")
+        msg = planned_route_message(route, plan_route(route, planner_config(cfg)), source="config")
         sup.set_route(route, path_from_message(msg), msg.route_id, msg.node_s_m)
     stack.add(sup)
     return sup

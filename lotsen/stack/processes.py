@@ -41,7 +41,7 @@ from lotsen.drivers import hardware_config_from_launch
 from lotsen.stack.launch import build_stack, summary
 from lotsen.stack.logs import add_foxglove_server, add_recorder, recorder_config
 from lotsen.stack.planner_worker import PlannerWorker
-from lotsen.stack.stack import Stack, failsafe_config, load_parameters, resolve_origin, vessel_model
+from lotsen.stack.stack import Stack, failsafe_config, load_parameters, planner_config, resolve_origin, vessel_model
 from lotsen.stack.web import add_web, tls_certificate
 from lotsen.stack.zenoh import bridge_config
 from lotsen.transport import codec
@@ -561,6 +561,7 @@ def validate(config: LaunchConfig, tls: bool = False) -> None:
     With `tls` the certificate is made here too (once, before the web process needs it)."""
     process_options(config)
     planning_budget(config)
+    planner_config(config)
     load_parameters(config.vessel.parameters_file)
     failsafe = failsafe_config(config)
     recorder_config(config, resolve_origin(config))
@@ -572,7 +573,7 @@ def validate(config: LaunchConfig, tls: bool = False) -> None:
         ros2_config(config)
     if config.mode == "hardware":
         hardware_config_from_launch(config.extra)
-    known = {"processes", "planning", "failsafes", "logs", "web", "zenoh", "hardware", "emulated", "ros2"}
+    known = {"processes", "planning", "planner", "failsafes", "logs", "web", "zenoh", "hardware", "emulated", "ros2"}
     unknown = set(config.extra) - known
     if unknown:
         raise ConfigError(f"extra: unknown section(s) {sorted(unknown)} (known: {', '.join(sorted(known))})")

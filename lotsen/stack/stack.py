@@ -10,7 +10,7 @@ from typing import Any
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.model import Environment, VesselGeometry, VesselModel, VesselParameters
-from lotsen.planning import GeoOrigin
+from lotsen.planning import GeoOrigin, PlannerConfig
 from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig, from_mapping
 from lotsen.runtime.executor import Executor, Node
@@ -72,6 +72,12 @@ def resolve_origin(config: LaunchConfig) -> GeoOrigin | None:
 
 def failsafe_config(config: LaunchConfig) -> FailsafeConfig:
     return from_mapping(FailsafeConfig, config.extra.get("failsafes", {}), "extra.failsafes")
+
+
+def planner_config(config: LaunchConfig) -> PlannerConfig:
+    """`extra.planner`: the one PlannerConfig of a run (the planner worker's plans for the page
+    and the upload, the config's route, the supervisor's return to the harbour)."""
+    return from_mapping(PlannerConfig, config.extra.get("planner", {}), "extra.planner")
 
 
 @dataclass

@@ -12,7 +12,7 @@ import socket
 from typing import Any
 
 from lotsen.errors import ConfigError
-from lotsen.stack.stack import Stack, failsafe_config
+from lotsen.stack.stack import Stack, failsafe_config, planner_config
 from lotsen.web.hub import Hub
 from lotsen.web.options import WebOptions
 from lotsen.web.server import WebServer
@@ -51,6 +51,7 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
 
     cert = tls_certificate(options, tls)
     hub = Hub(bus, executor.clock.now, publish, options, origin=stack.origin)
+    hub.handler.planner_config = planner_config(config)  # the run's one PlannerConfig
     if run_blocking is not None:
         hub.handler.run_blocking = run_blocking
     server = WebServer(hub, options.host, options.port, ssl_certfile=cert.certfile if cert else None,

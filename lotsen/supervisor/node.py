@@ -29,7 +29,7 @@ from lotsen.messages import (
     RcOverride, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, all_finite
-from lotsen.planning import plan_return_route
+from lotsen.planning import PlannerConfig, plan_return_route
 from lotsen.planning.exchange import path_from_message
 from lotsen.planning.io import route_from_dict, route_to_dict
 from lotsen.runtime.executor import Node, NodeContext
@@ -60,6 +60,7 @@ class SupervisorConfig:
     progress_rate_hz: float = 2.0
     route_fence_tolerance_m: float = 0.05  # a received path may touch the area's edge by this much
     failsafes: FailsafeConfig = field(default_factory=FailsafeConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)  # the return to the harbour
 
 
 @dataclass
@@ -382,7 +383,7 @@ class SupervisorNode(Node):
             self.enter_hold(t, f"{reason}: no route/harbour known, holding instead")
             return
         try:
-            path = plan_return_route(self.route, s.north_m, s.east_m, s.heading_rad)
+            path = plan_return_route(self.route, s.north_m, s.east_m, s.heading_rad, self.config.planner)
         except LotsenError as exc:
             self.ctx.log("error", f"return to harbour cannot be planned: {exc}")
             self.alert("error", "return", f"return to harbour cannot be planned: {exc}")
