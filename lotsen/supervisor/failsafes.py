@@ -13,6 +13,7 @@ Monitors are pure: they get the inputs and the time, never read a clock.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -71,6 +72,9 @@ class FailsafeConfig:
     thruster_mismatch_frac: float = field(default=0.5, metadata=_r(0.05, 1.0))
     thruster_mismatch_min_rps: float = field(default=8.0, metadata=_r(0.0, 100.0))
     thruster_persist_s: float = field(default=0.5, metadata=_r(0.1, 30.0))
+    # a command reaches the ESCs up to this late (bus, driver, PWM period): the tachometer may show
+    # the modelled response of any moment in the last thruster_latency_s
+    thruster_latency_s: float = field(default=0.15, metadata=_r(0.0, 2.0))
     thruster_fault_action: Literal["hold", "stop", "continue"] = "hold"
     # state estimate: uncertainty above this (position std, m) counts as no position
     max_position_std_m: float = field(default=2.0, metadata=_r(0.01, 100.0))
@@ -252,6 +256,8 @@ class ThrusterMonitor(Monitor):
         self.frac = cfg.thruster_mismatch_frac
         self.min_rps = cfg.thruster_mismatch_min_rps
         self.model_n = [0.0, 0.0, 0.0]
+        self.latency_s = cfg.thruster_latency_s
+        self._history: deque[tuple[float, list[float]]] = deque()  # (t, model_n) over the latency window
         self._t: float | None = None
         self._cmd = (0.0, 0.0, 0.0)
         self.mismatch = ""
@@ -275,13 +281,25 @@ class ThrusterMonitor(Monitor):
                             self.limits.n_rate_max_rps2 * dt)
         self.model_n = [out[2], out[3], out[4]]
         self._t = t
+        self._history.append((t, self.model_n))
+        while len(self._history) > 1 and self._history[1][0] <= t - self.latency_s:
+            self._history.popleft()
+
+    def expected_band(self, j: int) -> tuple[float, float]:
+        """The range of modelled speeds of propeller j over the latency window."""
+        values = [n[j] for _, n in self._history] or [self.model_n[j]]
+        return min(values), max(values)
 
     def on_rpm(self, msg: RpmSample, actuators: ActuatorState | None) -> None:
         self._advance(msg.stamp_s)
         bad = []
-        for name, meas, want in (("azimuth 1", msg.n1_rps, self.model_n[0]), ("azimuth 2", msg.n2_rps, self.model_n[1]),
-                                 ("bow", msg.nt_rps, self.model_n[2])):
-            if math.isfinite(meas) and abs(meas - want) > max(self.frac * abs(want), self.min_rps):
+        for j, (name, meas) in enumerate((("azimuth 1", msg.n1_rps), ("azimuth 2", msg.n2_rps), ("bow", msg.nt_rps))):
+            if not math.isfinite(meas):
+                continue
+            lo, hi = self.expected_band(j)
+            want = self.model_n[j]
+            off = lo - meas if meas < lo else meas - hi if meas > hi else 0.0
+            if off > max(self.frac * abs(want), self.min_rps):
                 bad.append(f"{name} {meas:.0f} rev/s, expected {want:.0f}")
         self.mismatch = "; ".join(bad)
 

@@ -11,12 +11,14 @@ from lotsen.supervisor.failsafes import FailsafeConfig, PersistentCondition, Thr
 from lotsen.supervisor.node import SupervisorInputs
 
 
-def drive(commands, failed=(), noise_rps=1.5, armed=True, seed=0):
-    """Commands at 10 Hz through the simulator's actuator model, tachometers at 20 Hz: returns
-    the times at which the monitor's (persistent) condition was active."""
+def drive(commands, failed=(), noise_rps=1.5, armed=True, seed=0, delay_s=0.0, cfg=None):
+    """Commands at 10 Hz through the simulator's actuator model (reaching it `delay_s` after the
+    monitor saw them leave), tachometers at 20 Hz: returns the times at which the monitor's
+    (persistent) condition was active."""
     rng = np.random.default_rng(seed)
-    cfg = FailsafeConfig()
+    cfg = cfg or FailsafeConfig()
     mon = ThrusterMonitor(cfg, DEFAULT_LIMITS)
+    delay = round(delay_s / 0.01)
     act = ActuatorDynamics(DEFAULT_LIMITS, dt_s=0.01)
     act.set_faults(failed_units=set(failed))
     inputs = SupervisorInputs()
@@ -27,7 +29,9 @@ def drive(commands, failed=(), noise_rps=1.5, armed=True, seed=0):
             n = commands[k // 10]
             cmd = ThrustCommand(stamp_s=t, n1_rps=n, n2_rps=n, nt_rps=0.0)
             mon.on_command(cmd, t, escs_armed=armed)
-            act.set_command(*(cmd.as_tuple() if armed else (0.0,) * 5))
+        if (k - delay) % 10 == 0 and k >= delay:
+            n = commands[(k - delay) // 10]
+            act.set_command(*((0.0, 0.0, n, n, 0.0) if armed else (0.0,) * 5))
         state = act.step()
         if k % 5 == 4:
             meas = [v + noise_rps * rng.standard_normal() for v in state[2:]]
@@ -53,9 +57,17 @@ def test_propeller_reversals_are_no_thruster_fault():
     assert fired
 
 
+def test_commands_that_reach_the_escs_late_are_no_thruster_fault():
+    """Reversals at every command, each reaching the ESCs 0.1 s after it left the supervisor (bus,
+    driver, PWM): within the latency window no alarm; a monitor without it raises a false one."""
+    commands = [60.0 if i % 2 == 0 else -60.0 for i in range(300)]
+    assert drive(commands, delay_s=0.1) == []
+    assert drive(commands, delay_s=0.1, cfg=FailsafeConfig(thruster_latency_s=0.0)) != []
+
+
 def test_a_failed_motor_is_declared_within_the_persistence_time():
     commands = [50.0] * 100
-    active = drive(commands, failed=(0,))
+    active = drive(commands, failed=(0,), delay_s=0.1)
     assert active, "a dead azimuth motor went unnoticed"
     assert active[0] <= FailsafeConfig().thruster_persist_s + 0.3  # model settles in ~0.2 s
 
