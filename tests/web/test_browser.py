@@ -57,7 +57,8 @@ def stack(tile_server, tmp_path_factory):
     logs = tmp_path_factory.mktemp("logs")
     (logs / "2026-11-23_lake.mcap").write_bytes(b"\x89MCAP0\r\n" + b"x" * 1000)
     rs = start_stack(parts=parts, log_dir=str(logs),
-                     extra_web={"tile_dir": str(tmp_path_factory.mktemp("tiles")), "tile_url": tile_server.url})
+                     extra_web={"tile_dir": str(tmp_path_factory.mktemp("tiles")), "tile_url": tile_server.url,
+                                "battery_capacity_ah": 5.0})
     yield rs
     stop_stack(rs)
 
@@ -140,6 +141,49 @@ def test_viewer_cannot_control(page, stack):
     assert len(stack.messages(Topic.OPERATOR)) == n
     # drafts are planned by the boat's planner worker, which only the pilot may load
     assert "pilot" in page.get_attribute("#btn-use", "title")
+
+
+def test_alerts_are_ordered_by_severity_dismissable_and_can_sound(page):
+    """Alerts stack most severe first; the sound option (off by default: autoplay rules) beeps
+    once per new or changed alert above info, through one AudioContext made on the click."""
+    assert page.get_attribute("#btn-sound", "aria-pressed") == "false"
+    push = "(a) => window.lotsen.alerts.push(a)"
+    page.evaluate(push, {"severity": "warning", "code": "test:w", "text": "test warning"})
+    assert page.evaluate("() => window.lotsen.alerts.beeps || 0") == 0  # silent while off
+    page.click("#btn-sound")
+    assert page.get_attribute("#btn-sound", "aria-pressed") == "true"
+    assert page.inner_text("#btn-sound") == "sound on"
+    wait_js(page, "!!window.lotsen.alerts.audio && window.lotsen.alerts.audio.state === 'running'")
+    for sev in ("info", "critical", "error"):
+        page.evaluate(push, {"severity": sev, "code": f"test:{sev[0]}", "text": f"test {sev}"})
+    codes = page.evaluate("() => [...document.querySelectorAll('#alerts .alert')].map(e => e.dataset.code)"
+                          ".filter(c => c.startsWith('test:'))")
+    assert codes == ["test:c", "test:e", "test:w", "test:i"]
+    assert page.evaluate("() => window.lotsen.alerts.beeps") == 2  # critical and error; info never beeps
+    page.evaluate(push, {"severity": "error", "code": "test:e", "text": "test error"})  # a repeat: counted, silent
+    assert "×2" in page.inner_text("#alerts .alert[data-code='test:e']")
+    assert page.evaluate("() => window.lotsen.alerts.beeps") == 2
+    page.click("#btn-sound")
+    assert page.get_attribute("#btn-sound", "aria-pressed") == "false"
+    page.evaluate(push, {"severity": "critical", "code": "test:c2", "text": "another"})
+    assert page.evaluate("() => window.lotsen.alerts.beeps") == 2
+    for code in ("test:i", "test:c", "test:e", "test:w", "test:c2"):
+        page.click(f"#alerts .alert[data-code='{code}'] button.dismiss")
+    wait_js(page, "![...document.querySelectorAll('#alerts .alert')].some(e => e.dataset.code.startsWith('test:'))")
+    assert page.errors == []
+
+
+
+def test_battery_with_current_and_time_left(page):
+    """The HUD's time left = remaining fraction x capacity (configured: 5 Ah) / mean current."""
+    wait_js(page, "window.lotsen.telemetry.bat && window.lotsen.telemetry.bat.left_s != null", timeout=10)
+    b = page.evaluate("() => window.lotsen.telemetry.bat")
+    assert b["a"] > 0 and 0 < b["frac"] <= 1 and b["left_basis"] == "capacity"
+    assert b["left_s"] == pytest.approx(b["frac"] * 5.0 * 3600 / b["a_avg"], rel=0.02)
+    text = page.inner_text("#hud-bat")
+    assert " A" in text and "%" in text and "left" in text and " h " in text  # hours at the idle current
+    assert "configured capacity" in page.get_attribute("#hud-bat", "title")
+
 
 
 def take_controls(pg) -> None:
@@ -239,6 +283,125 @@ def test_insert_a_node_undo_redo_and_numbers_are_validated_on_entry(page):
     page.click("[data-tool=select]")
 
 
+def drag_map(pg, n0: float, e0: float, n1: float, e1: float) -> None:
+    box = pg.locator("#map").bounding_box()
+    x0, y0 = pg.evaluate(f"() => window.lotsen.map.toScreen({n0}, {e0})")
+    x1, y1 = pg.evaluate(f"() => window.lotsen.map.toScreen({n1}, {e1})")
+    pg.mouse.move(box["x"] + x0, box["y"] + y0)
+    pg.mouse.down()
+    pg.mouse.move(box["x"] + (x0 + x1) / 2, box["y"] + (y0 + y1) / 2, steps=4)
+    pg.mouse.move(box["x"] + x1, box["y"] + y1, steps=4)
+    pg.mouse.up()
+
+
+def test_edit_area_corners_and_draw_an_obstacle(page):
+    """Corners as in QGroundControl: drag one (one undo step), + on an edge inserts, Delete or a
+    right-click removes (never below 3); an obstacle drawn on the map is planned around."""
+    take_controls(page)
+    page.click("[data-tab=plan]")
+    page.click("[data-tool=select]")
+    page.evaluate("() => { const m = window.lotsen.map; m.scale = 14; m.n0 = 7; m.e0 = 4; m.invalidate(); }")
+    area = lambda: page.evaluate("() => window.lotsen.route.area")  # noqa: E731
+    assert area() == [[-4, -4], [18, -4], [18, 12], [-4, 12]]
+    drag_map(page, 18, 12, 20, 14)
+    wait_js(page, "window.lotsen.route.area[2][0] > 19")
+    assert area()[2] == pytest.approx([20, 14], abs=0.15)
+    assert page.evaluate("() => window.lotsen.route.selected") == {"kind": "vertex", "poly": "area", "k": 2}
+    page.click("#btn-undo")
+    wait_js(page, "window.lotsen.route.area[2][0] === 18")
+    page.click("#btn-redo")
+    wait_js(page, "window.lotsen.route.area[2][0] > 19")
+    assert page.evaluate("() => window.lotsen.route.selected") is None  # undo/redo clear the selection
+    click_map(page, *area()[2])  # select the corner again: its polygon shows + handles halfway
+    wait_js(page, "window.lotsen.route.selected && window.lotsen.route.selected.kind === 'vertex'")
+    # along its edges, and one inserts a corner
+    click_map(page, 7, -4)
+    wait_js(page, "window.lotsen.route.area.length === 5")
+    assert area()[1] == [7, -4]
+    assert "navigable area, 5 corners" in page.inner_text("#polylist")
+    page.locator("#map").focus()
+    page.keyboard.press("Delete")  # the inserted corner is selected: Delete removes it
+    wait_js(page, "window.lotsen.route.area.length === 4")
+    click_map(page, -4, -4)  # select a corner (deleting cleared the selection), + once more,
+    click_map(page, 7, -4)  # then a right-click removes that corner
+    wait_js(page, "window.lotsen.route.area.length === 5")
+    x, y = page.evaluate("() => window.lotsen.map.toScreen(7, -4)")
+    box = page.locator("#map").bounding_box()
+    page.mouse.click(box["x"] + x, box["y"] + y, button="right")
+    wait_js(page, "window.lotsen.route.area.length === 4")
+    assert area() == [[-4, -4], [18, -4], pytest.approx([20, 14], abs=0.15), [-4, 12]]
+    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')")
+    # an obstacle: corners clicked with the Obstacle tool, closed with Finish polygon
+    page.click("[data-tool=obstacle]")
+    for n, e in ((0, 6), (3, 6), (3, 9), (0, 9)):
+        click_map(page, n, e)
+    page.click("#btn-finish")
+    wait_js(page, "window.lotsen.route.obstacles.length === 1")
+    obst = page.evaluate("() => window.lotsen.route.toDict().obstacles")
+    assert obst[0]["forbidden"] == "inside" and len(obst[0]["polygon"]) == 4
+    assert "obstacle 0, 4 corners" in page.inner_text("#polylist")
+    page.click("[data-tool=select]")
+    drag_map(page, 3, 9, 4, 10)  # its corners are edited like the area's
+    wait_js(page, "window.lotsen.route.obstacles[0].polygon[2][0] > 3.5")
+    assert page.evaluate("() => window.lotsen.route.obstacles[0].polygon[2]") == pytest.approx([4, 10], abs=0.15)
+    # with a corner selected a polygon keeps at least 3 corners
+    page.locator("#map").focus()
+    page.keyboard.press("Delete")
+    wait_js(page, "window.lotsen.route.obstacles[0].polygon.length === 3")
+    click_map(page, 0, 9)
+    page.locator("#map").focus()
+    page.keyboard.press("Delete")
+    wait_js(page, "document.querySelector('#toast').textContent.includes('at least 3 corners')")
+    assert page.evaluate("() => window.lotsen.route.obstacles[0].polygon.length") == 3
+    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')")
+    assert page.errors == []
+
+
+def test_edit_a_node_in_latitude_and_longitude(page):
+    pymap3d = pytest.importorskip("pymap3d")
+    origin = page.evaluate("() => window.lotsen.origin")
+    assert origin is not None
+    before = page.evaluate("() => window.lotsen.route.nodes[0]")
+    page.click("#nodetable tr[data-kind=node][data-i='0'] td:first-child")
+    wait_js(page, "!document.querySelector('#nodegeo').hidden")
+    assert page.inner_text("#nodegeo-label") == "node 0"
+    lat0, lon0 = float(page.input_value("#geo-lat")), float(page.input_value("#geo-lon"))
+    la, lo, _ = pymap3d.ned2geodetic(before["north"], before["east"], 0.0, origin["lat"], origin["lon"], origin["h"])
+    assert lat0 == pytest.approx(la, abs=2e-7) and lon0 == pytest.approx(lo, abs=2e-7)
+    lat, lon, _ = pymap3d.ned2geodetic(6.5, 0.75, 0.0, origin["lat"], origin["lon"], origin["h"])
+    page.fill("#geo-lat", f"{lat:.8f}")
+    page.fill("#geo-lon", f"{lon:.8f}")
+    page.press("#geo-lon", "Enter")
+    wait_js(page, "Math.abs(window.lotsen.route.nodes[0].east - 0.75) < 0.01")
+    node = page.evaluate("() => window.lotsen.route.nodes[0]")
+    assert node["north"] == pytest.approx(6.5, abs=0.01) and node["east"] == pytest.approx(0.75, abs=0.01)
+    assert page.input_value("#nodetable tr[data-kind=node][data-i='0'] input[data-f=north]") == str(node["north"])
+    # bad input is refused with the reason; the node stays
+    page.fill("#geo-lat", "91")
+    page.press("#geo-lat", "Enter")
+    wait_js(page, "document.querySelector('#fielderr').textContent !== ''")
+    assert page.evaluate("() => window.lotsen.route.nodes[0].north") == node["north"]
+    page.fill("#geo-lat", f"{lat:.8f}")
+    page.press("#geo-lat", "Enter")
+    wait_js(page, "document.querySelector('#fielderr').textContent === ''")
+    # a polygon corner too: the obstacle's corner at N3 E6 moved to N2.5 E6.5
+    click_map(page, 3, 6)
+    wait_js(page, "document.querySelector('#nodegeo-label').textContent === 'obstacle 0 corner 1'")
+    lat, lon, _ = pymap3d.ned2geodetic(2.5, 6.5, 0.0, origin["lat"], origin["lon"], origin["h"])
+    page.fill("#geo-lat", f"{lat:.8f}")
+    page.fill("#geo-lon", f"{lon:.8f}")
+    page.press("#geo-lon", "Enter")
+    wait_js(page, "Math.abs(window.lotsen.route.obstacles[0].polygon[1][1] - 6.5) < 0.01")
+    assert page.evaluate("() => window.lotsen.route.obstacles[0].polygon[1]") == pytest.approx([2.5, 6.5], abs=0.01)
+    # back where it was, in local metres (the mission below uses the original route)
+    for f in ("north", "east"):
+        cell = f"#nodetable tr[data-kind=node][data-i='0'] input[data-f={f}]"
+        page.fill(cell, str(before[f]))
+        page.press(cell, "Enter")
+        wait_js(page, f"window.lotsen.route.nodes[0].{f} === {before[f]}")
+    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')")
+
+
 def test_preload_map_tiles_for_the_area_and_see_them_under_the_route(page, tile_server):
     take_controls(page)
     page.evaluate("() => window.lotsen.map.fit()")
@@ -280,6 +443,10 @@ def test_use_the_route_and_run_a_simulated_mission(page, stack):
     while not stack.messages(Topic.ROUTE) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert stack.messages(Topic.ROUTE)[-1].route["nodes"][1]["speed_mps"] == 0.4
+    sent = stack.messages(Topic.ROUTE)[-1].route  # the area and obstacle drawn on the map go with it
+    drawn = page.evaluate("() => window.lotsen.route.toDict()")
+    assert sent["area"] == drawn["area"] and len(sent["area"]) == 4
+    assert sent["obstacles"] == [drawn["obstacles"][0]["polygon"]]  # inside forbidden: a plain polygon
     wait_js(page, "window.lotsen.map.activePath && window.lotsen.map.activePath.n.length > 10")
     wait_js(page, "window.lotsen.readbackMatch === true")  # the boat holds what was uploaded
     arm(page)

@@ -74,6 +74,7 @@ export class AlertCenter {
       const Ctx = window.AudioContext || window.webkitAudioContext;
       this.audio = Ctx ? new Ctx() : null;   // created on the click that enabled it (autoplay rules)
     }
+    if (on && this.audio && this.audio.state === "suspended") this.audio.resume();   // a browser may start it suspended
   }
 
   beep(sev) {

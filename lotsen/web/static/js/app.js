@@ -459,13 +459,24 @@ function renderTable() {
   renderNodeGeo();
 }
 
+// the selected node, harbour or polygon corner, for editing in lat/lon: {label, n, e, set(n, e)}
+function geoTarget() {
+  const sel = route.selected;
+  const p = route.point(sel);
+  if (p) return { label: sel.kind === "harbour" ? "harbour" : `node ${sel.index}`, n: p.north, e: p.east, set: (n, e) => { p.north = n; p.east = e; } };
+  const poly = sel && sel.kind === "vertex" ? route.polygon(sel.poly) : null;
+  const c = poly ? poly[sel.k] : null;
+  if (!c) return null;
+  return { label: `${sel.poly === "area" ? "area" : "obstacle " + sel.poly} corner ${sel.k}`, n: c[0], e: c[1], set: (n, e) => { poly[sel.k] = [n, e]; } };
+}
+
 function renderNodeGeo() {
   const box = $("#nodegeo");
-  const p = route.point(route.selected);
-  box.hidden = !(p && state.origin);
+  const g = geoTarget();
+  box.hidden = !(g && state.origin);
   if (box.hidden || box.contains(document.activeElement)) return;
-  const [lat, lon] = neToLatLon(p.north, p.east, state.origin);
-  $("#nodegeo-label").textContent = route.selected.kind === "harbour" ? "harbour" : `node ${route.selected.index}`;
+  const [lat, lon] = neToLatLon(g.n, g.e, state.origin);
+  $("#nodegeo-label").textContent = g.label;
   $("#geo-lat").value = lat.toFixed(7); $("#geo-lon").value = lon.toFixed(7);
   $("#geo-lat").classList.remove("invalid"); $("#geo-lon").classList.remove("invalid");
 }
@@ -489,8 +500,8 @@ $("#nodetable").addEventListener("change", ev => {
   route.changed();
 });
 $("#nodegeo").addEventListener("change", ev => {
-  const inp = ev.target, p = route.point(route.selected);
-  if (!inp.dataset.geo || !p || !state.origin) return;
+  const inp = ev.target, g = geoTarget();
+  if (!inp.dataset.geo || !g || !state.origin) return;
   const lat = parseField("lat", $("#geo-lat").value), lon = parseField("lon", $("#geo-lon").value);
   const bad = lat.error || lon.error;
   if (bad) { fieldError(inp, bad); return; }
@@ -498,7 +509,7 @@ $("#nodegeo").addEventListener("change", ev => {
   const cn = parseField("north", String(n)), ce = parseField("east", String(e));
   if (cn.error || ce.error) { fieldError(inp, `too far from the origin: ${cn.error || ce.error}`); return; }
   fieldError(inp, "");
-  p.north = Math.round(n * 1000) / 1000; p.east = Math.round(e * 1000) / 1000;
+  g.set(Math.round(n * 1000) / 1000, Math.round(e * 1000) / 1000);
   inp.blur();
   route.changed();
 });
