@@ -22,6 +22,7 @@ validates on it (the report says so). Progress bars are shown only when stderr i
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -83,7 +84,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from lotsen.cli.experiment import load_params
-    from lotsen.cli.logs import sysid_record
+    from lotsen.logs.export import sysid_record
     from lotsen.sysid.data import load_record, register_loader
     from lotsen.sysid.estimate import estimate
     from lotsen.sysid.multiple import check_identifiable, estimate_multiple_shooting
@@ -105,10 +106,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print(msg, file=sys.stderr)
         warnings.append(msg)
     theta0 = load_params(args.init) if args.init else DEFAULT_PARAMETERS
-    records = [load_record(p) for p in args.data]
+    records = [_with_kind(load_record(p), args.inputs) for p in args.data]
     if args.validate:
         est_records = records
-        val_records = [load_record(p) for p in args.validate]
+        val_records = [_with_kind(load_record(p), args.inputs) for p in args.validate]
     elif args.holdout > 0:
         if not 0 < args.holdout < 0.9:
             raise ConfigError("--holdout must be between 0 and 0.9")
@@ -210,11 +211,22 @@ def _write_report(args: argparse.Namespace, res, est_records: list, val_records:
              if bb is not None and shown is not None else ""), file=sys.stderr)
 
 
+def _with_kind(record, kind: str | None):  # type: ignore[no-untyped-def]
+    """The record with its input kind overridden by --inputs (None: as the file says)."""
+    if kind is None:
+        return record
+    return dataclasses.replace(record, input_kind=kind)
+
+
 def register(subparsers: Any) -> None:
     p = subparsers.add_parser("identify", help="estimate the vessel parameters from experiment data")
     p.add_argument("data", nargs="+", help="data files: CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r[,u,v]; a row "
                                            "may carry only inputs or only outputs) or a run log RUN.mcap")
     p.add_argument("--out", required=True, help="parameter JSON to write (the 18 parameters + std)")
+    p.add_argument("--inputs", choices=("held", "mean", "sample"), default=None,
+                   help="how the input values are meant (default: as the file says, '# inputs: ...' in a CSV, "
+                        "else held): held = commands (zero-order hold); mean / sample = achieved values logged "
+                        "as interval means / point samples (reconstructed piecewise linearly; docs/sysid.md)")
     p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter at a known value")
     p.add_argument("--method", choices=("multiple", "single"), default="multiple",
                    help="multiple shooting over the whole record (default) or single shooting in --window windows")

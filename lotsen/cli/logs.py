@@ -8,13 +8,8 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from lotsen.errors import DataError, LotsenError
-
-if TYPE_CHECKING:
-    from lotsen.sysid.data import IdRecord
-
 
 def _add_zenoh_args(p: argparse.ArgumentParser, default_vessel: str) -> None:
     g = p.add_argument_group("Zenoh (multi-process / multi-machine)")
@@ -84,7 +79,7 @@ def _print_problems(reader_problems: list) -> None:
 
 
 def export(args: argparse.Namespace) -> int:
-    from lotsen.logs.export import check_format, export_topics
+    from lotsen.logs.export import check_format, export_topics, sysid_record
     from lotsen.sysid.data import save_csv
     from lotsen.logs.reader import LogReader
 
@@ -124,81 +119,6 @@ def export(args: argparse.Namespace) -> int:
             print(f"sysid.csv not written: {exc}", file=sys.stderr)
     _print_problems(problems)
     return 0
-
-
-def sysid_record(path: str | Path, outputs: str = "auto", inputs: str = "auto") -> "IdRecord":
-    """The identification record of a run log, in the asynchronous form of docs/sysid.md ("Data"):
-    every message becomes a row at its own `stamp_s` carrying only what it measured.
-
-    inputs:  `actuators/state` (achieved servo angles and measured propeller speeds: what drove the
-             boat), or `ship_command` (set-points) with inputs="command" or when there is no
-             actuator state; each holds from its stamp until the next.
-    outputs: "raw": north/east of every usable GNSS fix (WGS84 -> NED at the first usable fix;
-             the origin only shifts the estimated initial state), r = IMU gyro z minus the gyro
-             bias the estimate last published (0 before it), psi from `state/estimate`;
-             "estimate" / "truth": north, east, psi, r, u, v of `state/estimate` / `sim/truth`.
-    `lotsen export` writes this record as sysid.csv and `lotsen identify RUN.mcap` reads it:
-    both go through this function."""
-    from lotsen.fusion.common import LocalFrame
-    from lotsen.logs.reader import LogReader
-    from lotsen.messages import Topic
-    from lotsen.sysid.data import IdRecord, check_record
-
-    import numpy as np
-
-    reader = LogReader(path)
-    counts: dict[str, int] = {}
-    for ch, *_ in reader.iter_raw():
-        counts[ch.topic] = counts.get(ch.topic, 0) + 1
-    has = lambda topic: counts.get(topic, 0) > 0  # noqa: E731
-    if outputs == "auto":
-        outputs = ("raw" if has(Topic.GNSS) and has(Topic.IMU_RAW) and has(Topic.STATE)
-                   else "estimate" if has(Topic.STATE) else "truth")
-    if inputs == "auto":
-        inputs = "achieved" if has(Topic.ACTUATORS) else "command"
-    in_topic = Topic.ACTUATORS if inputs == "achieved" else Topic.SHIP_COMMAND
-    if outputs not in ("raw", "estimate", "truth"):
-        raise LotsenError(f"sysid outputs {outputs!r}: expected auto, raw, estimate or truth")
-    need = [in_topic] + ([Topic.GNSS, Topic.IMU_RAW, Topic.STATE] if outputs == "raw"
-                         else [Topic.STATE if outputs == "estimate" else Topic.TRUTH])
-    for topic in need:
-        if not has(topic):
-            raise DataError(f"{path}: no {topic} messages (needed for the identification record, outputs "
-                            f"{outputs}, inputs {inputs})")
-    names = ("north", "east", "psi", "r") + (("u", "v") if outputs != "raw" else ())
-    ny = len(names)
-    nan = float("nan")
-    rows: list[tuple[float, ...]] = []  # (t, 5 inputs, ny outputs)
-    blank_u, blank_y = (nan,) * 5, (nan,) * ny
-    frame = None
-    bias = 0.0
-    for topic, msg in reader.messages(need):
-        t = float(msg.stamp_s)
-        if topic == in_topic:
-            rows.append((t, *msg.as_tuple(), *blank_y))
-        elif outputs == "raw" and topic == Topic.GNSS:
-            if not msg.usable:
-                continue
-            if frame is None:
-                frame = LocalFrame(msg.lat_deg, msg.lon_deg, msg.height_m if math.isfinite(msg.height_m) else 0.0)
-            n, e = frame.to_ne(msg.lat_deg, msg.lon_deg, msg.height_m)
-            rows.append((t, *blank_u, n, e, nan, nan))
-        elif outputs == "raw" and topic == Topic.IMU_RAW:
-            rows.append((t, *blank_u, nan, nan, nan, msg.gyro_radps[2] - bias))
-        elif outputs == "raw":  # the estimate: heading, and the gyro bias for the following IMU rows
-            bias = msg.gyro_bias_radps if math.isfinite(msg.gyro_bias_radps) else bias
-            rows.append((t, *blank_u, nan, nan, msg.heading_rad, nan))
-        else:
-            rows.append((t, *blank_u, msg.north_m, msg.east_m, msg.heading_rad, msg.r_radps, msg.u_mps, msg.v_mps))
-    if len(rows) < 2:
-        raise DataError(f"{path}: fewer than 2 identification rows")
-    a = np.array(rows, dtype=float)
-    a[~np.isfinite(a)] = np.nan  # an infinite reading is no reading
-    a = a[np.argsort(a[:, 0], kind="stable")]  # topics are recorded on receipt: order by stamp
-    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], names,
-                   f"{path} (inputs {in_topic}, outputs {outputs})")
-    check_record(rec)
-    return rec
 
 
 def _run_executor(executor, duration: float | None, stop_when=None) -> None:

@@ -5,14 +5,9 @@ the log), then the message fields; fixed-size tuples are split into columns (`gy
 enums written as their integer (the name in a `<field>_name` column), variable-length tuples,
 dicts and bytes as JSON / hex text in one cell. NaN is written as `nan`.
 
-Identification table (`sysid.csv`, the format of `lotsen.sysid.data.load_csv`):
-`t,alpha1,alpha2,n1,n2,nt,north,east,psi,r,u,v`, one row per output message.
-* outputs from `state/estimate` (what the boat believed), or `sim/truth` with `outputs="truth"`;
-  `outputs="auto"` takes the estimate when the log has one, else the truth;
-* inputs from `sim/actuators` (achieved servo angles and propeller speeds; what actually drove
-  the boat) when present, else `ship_command` (the set-points), zero-order held to each output
-  time (the latest input received before the output);
-* `t` is the output message's `stamp_s`; psi is as recorded (the estimators wrap psi residuals).
+Identification record (`sysid_record`, written as `sysid.csv` by `lotsen export` and read by
+`lotsen identify RUN.mcap`): the asynchronous form of docs/sysid.md, every message a row at its
+own stamp carrying only what it measured.
 """
 
 from __future__ import annotations
@@ -28,9 +23,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Literal
 
+import numpy as np
+
 from lotsen.errors import DataError, LotsenError
+from lotsen.fusion.common import LocalFrame
 from lotsen.logs.reader import LogReader
 from lotsen.messages import Topic
+from lotsen.sysid.data import IdRecord, check_record
 
 
 def _fmt(v: Any) -> str:
@@ -131,66 +130,72 @@ def export_topics(path: str | os.PathLike, out_dir: str | os.PathLike, topics: I
     return files
 
 
-@dataclass
-class SysidTable:
-    header: list[str]
-    rows: list[list[float]]
-    inputs_topic: str
-    outputs_topic: str
+def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "auto") -> IdRecord:
+    """The identification record of a run log, in the asynchronous form of docs/sysid.md ("Data"):
+    every message becomes a row at its own `stamp_s` carrying only what it measured.
 
-
-def sysid_table(path: str | os.PathLike, outputs: Literal["auto", "estimate", "truth"] = "auto",
-                inputs: Literal["auto", "achieved", "command"] = "auto") -> SysidTable:
-    """The identification table of a log (see module docstring for the choices)."""
+    inputs:  `actuators/state` (achieved servo angles and measured propeller speeds: what drove the
+             boat), or `ship_command` (set-points) with inputs="command" or when there is no
+             actuator state. Commands hold from their stamp until the next (input kind "held");
+             achieved values are readings at their stamps (input kind "sample": the estimator
+             interpolates them linearly, docs/sysid.md).
+    outputs: "raw": north/east of every usable GNSS fix (WGS84 -> NED at the first usable fix;
+             the origin only shifts the estimated initial state), r = IMU gyro z minus the gyro
+             bias the estimate last published (0 before it), psi from `state/estimate`;
+             "estimate" / "truth": north, east, psi, r, u, v of `state/estimate` / `sim/truth`.
+    `lotsen export` writes this record as sysid.csv and `lotsen identify RUN.mcap` reads it:
+    both go through this function."""
     reader = LogReader(path)
-    want = [Topic.STATE, Topic.TRUTH, Topic.ACTUATORS, Topic.SHIP_COMMAND]
-    counts = {t: 0 for t in want}
+    counts: dict[str, int] = {}
     for ch, *_ in reader.iter_raw():
-        if ch.topic in counts:
-            counts[ch.topic] += 1
-    out_topic = {"estimate": Topic.STATE, "truth": Topic.TRUTH}.get(outputs) or (
-        Topic.STATE if counts[Topic.STATE] else Topic.TRUTH)
-    in_topic = {"achieved": Topic.ACTUATORS, "command": Topic.SHIP_COMMAND}.get(inputs) or (
-        Topic.ACTUATORS if counts[Topic.ACTUATORS] else Topic.SHIP_COMMAND)
-    if not counts[out_topic]:
-        raise DataError(f"{path}: no {out_topic} messages (outputs of the identification table)")
-    if not counts[in_topic]:
-        raise DataError(f"{path}: no {in_topic} messages (inputs of the identification table)")
-    header = ["t", "alpha1", "alpha2", "n1", "n2", "nt", "north", "east", "psi", "r", "u", "v"]
-    rows: list[list[float]] = []
-    u_last: tuple[float, ...] | None = None
-    for topic, msg in reader.messages([in_topic, out_topic]):
+        counts[ch.topic] = counts.get(ch.topic, 0) + 1
+    has = lambda topic: counts.get(topic, 0) > 0  # noqa: E731
+    if outputs == "auto":
+        outputs = ("raw" if has(Topic.GNSS) and has(Topic.IMU_RAW) and has(Topic.STATE)
+                   else "estimate" if has(Topic.STATE) else "truth")
+    if inputs == "auto":
+        inputs = "achieved" if has(Topic.ACTUATORS) else "command"
+    in_topic = Topic.ACTUATORS if inputs == "achieved" else Topic.SHIP_COMMAND
+    if outputs not in ("raw", "estimate", "truth"):
+        raise LotsenError(f"sysid outputs {outputs!r}: expected auto, raw, estimate or truth")
+    need = [in_topic] + ([Topic.GNSS, Topic.IMU_RAW, Topic.STATE] if outputs == "raw"
+                         else [Topic.STATE if outputs == "estimate" else Topic.TRUTH])
+    for topic in need:
+        if not has(topic):
+            raise DataError(f"{path}: no {topic} messages (needed for the identification record, outputs "
+                            f"{outputs}, inputs {inputs})")
+    names = ("north", "east", "psi", "r") + (("u", "v") if outputs != "raw" else ())
+    ny = len(names)
+    nan = float("nan")
+    rows: list[tuple[float, ...]] = []  # (t, 5 inputs, ny outputs)
+    blank_u, blank_y = (nan,) * 5, (nan,) * ny
+    frame = None
+    bias = 0.0
+    for topic, msg in reader.messages(need):
+        t = float(msg.stamp_s)
         if topic == in_topic:
-            u_last = msg.as_tuple()
-        elif u_last is not None:
-            if rows and not msg.stamp_s > rows[-1][0]:
-                continue  # sysid needs strictly increasing time
-            rows.append([msg.stamp_s, *u_last, msg.north_m, msg.east_m, msg.heading_rad, msg.r_radps,
-                         msg.u_mps, msg.v_mps])
+            rows.append((t, *msg.as_tuple(), *blank_y))
+        elif outputs == "raw" and topic == Topic.GNSS:
+            if not msg.usable:
+                continue
+            if frame is None:
+                frame = LocalFrame(msg.lat_deg, msg.lon_deg, msg.height_m if math.isfinite(msg.height_m) else 0.0)
+            n, e = frame.to_ne(msg.lat_deg, msg.lon_deg, msg.height_m)
+            rows.append((t, *blank_u, n, e, nan, nan))
+        elif outputs == "raw" and topic == Topic.IMU_RAW:
+            rows.append((t, *blank_u, nan, nan, nan, msg.gyro_radps[2] - bias))
+        elif outputs == "raw":  # the estimate: heading, and the gyro bias for the following IMU rows
+            bias = msg.gyro_bias_radps if math.isfinite(msg.gyro_bias_radps) else bias
+            rows.append((t, *blank_u, nan, nan, msg.heading_rad, nan))
+        else:
+            rows.append((t, *blank_u, msg.north_m, msg.east_m, msg.heading_rad, msg.r_radps, msg.u_mps, msg.v_mps))
     if len(rows) < 2:
-        raise DataError(f"{path}: fewer than 2 rows with both {in_topic} and {out_topic}")
-    return SysidTable(header, rows, in_topic, out_topic)
-
-
-def write_sysid_csv(path: str | os.PathLike, out_file: str | os.PathLike, **kw: Any) -> SysidTable:
-    table = sysid_table(path, **kw)
-    Path(out_file).parent.mkdir(parents=True, exist_ok=True)
-    with open(out_file, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(table.header)
-        for row in table.rows:
-            w.writerow(["nan" if not math.isfinite(v) else f"{v:.9g}" for v in row])
-    return table
-
-
-def sysid_loader(path: Path) -> Any:
-    """`lotsen.sysid.data` loader for `.mcap` files (register with
-    `lotsen.sysid.data.register_loader(".mcap", sysid_loader)`)."""
-    import numpy as np
-
-    from lotsen.sysid.data import IdRecord
-
-    table = sysid_table(path)
-    a = np.array(table.rows, dtype=float)
-    return IdRecord(a[:, 0], a[:, 1:6], np.column_stack([a[:, 6:10], a[:, 10:12]]),
-                    ("north", "east", "psi", "r", "u", "v"), f"{path} ({table.inputs_topic} -> {table.outputs_topic})")
+        raise DataError(f"{path}: fewer than 2 identification rows")
+    a = np.array(rows, dtype=float)
+    a[~np.isfinite(a)] = np.nan  # an infinite reading is no reading
+    a = a[np.argsort(a[:, 0], kind="stable")]  # topics are recorded on receipt: order by stamp
+    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], names,
+                   f"{path} (inputs {in_topic}, outputs {outputs})",
+                   input_kind="sample" if in_topic == Topic.ACTUATORS else "held")
+    check_record(rec)
+    return rec

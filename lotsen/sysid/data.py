@@ -6,8 +6,10 @@ A record holds rows at times t_k (non-uniform, non-decreasing) of
 in the **asynchronous** form the boat records (docs/sysid.md, "Data"): every stream keeps its own
 time stamps, and a row may carry only inputs or only outputs (NaN = no value at this stamp).
 Conventions used by every estimator in this package:
-  - an input value holds from its stamp until the next stamp of the same column (zero-order hold
-    of what the actuators achieved; the row's other cells may be empty);
+  - a commanded input (input_kind "held", the default) holds from its stamp until the next stamp
+    of the same column (zero-order hold; the row's other cells may be empty); achieved actuator
+    values are continuous signals: "mean" (interval means) and "sample" (point samples) are
+    reconstructed piecewise linearly and each integration step uses the step average (INPUT_KINDS);
   - the record starts where every input column has had a value (earlier rows cannot be simulated);
   - outputs are compared only where they are finite (a NaN entry simply has no residual);
   - a gap of more than `gap_s` between consecutive *measurements* splits the record into separate
@@ -38,6 +40,18 @@ REQUIRED_COLUMNS = ("t",) + INPUT_COLUMNS + OUTPUT_COLUMNS
 # index of each output in the model state x = [N, E, psi, u, v, r]
 OUTPUT_STATE_INDEX = {"north": 0, "east": 1, "psi": 2, "u": 3, "v": 4, "r": 5}
 PSI_OUTPUT = "psi"
+# how a record's input values are meant (docs/sysid.md, "Data"):
+#   "held"   - commands: each value holds from its stamp until the next (zero-order hold);
+#   "mean"   - achieved values, each the mean over [its stamp, the next stamp of its column) (a
+#              tachometer count, a logger's interval mean): reconstructed as the piecewise-linear
+#              signal with those interval means and central-difference slopes;
+#   "sample" - achieved values sampled at their stamps: linearly interpolated between stamps.
+# After a column's last stamp every kind holds its last value.
+INPUT_KINDS = ("held", "mean", "sample")
+# integration step limit where the inputs are reconstructed piecewise linearly: a step uses its average
+# input, so the steps must resolve the motion within a 20 ms (50 Hz) input interval (measured on the
+# independent simulator, 600 s: kappa 10.7 bounds off with the hold, 3.7 at 10 ms steps, 2.1 at 5 ms)
+ACHIEVED_H_MAX_S = 0.005
 
 
 @dataclass
@@ -49,8 +63,11 @@ class IdRecord:
     outputs: np.ndarray
     output_names: tuple[str, ...] = OUTPUT_COLUMNS
     source: str = "<memory>"
+    input_kind: str = "held"  # one of INPUT_KINDS
 
     def __post_init__(self) -> None:
+        if self.input_kind not in INPUT_KINDS:
+            raise DataError(f"{self.source}: input kind {self.input_kind!r} is not one of {', '.join(INPUT_KINDS)}")
         self.t = np.asarray(self.t, dtype=float)
         self.inputs = np.asarray(self.inputs, dtype=float).reshape(len(self.t), 5)
         self.outputs = np.asarray(self.outputs, dtype=float).reshape(len(self.t), len(self.output_names))
@@ -70,7 +87,7 @@ class IdRecord:
         if len(idx) and idx[0] > 0:
             held = _hold_inputs(self.inputs[: idx[0] + 1])[-1]
             U[0] = held
-        return IdRecord(self.t[m], U, self.outputs[m], self.output_names, self.source)
+        return IdRecord(self.t[m], U, self.outputs[m], self.output_names, self.source, self.input_kind)
 
     def to_csv_rows(self) -> tuple[list[str], list[list[float]]]:
         header = ["t", *INPUT_COLUMNS, *self.output_names]
@@ -90,6 +107,10 @@ class Segment:
     source: str = "<memory>"
     first_row: int = 0  # row index of t[0] in the record (for messages)
     x0: np.ndarray | None = field(default=None)  # a given initial state (else estimated)
+    # d inputs / dt within each row interval (None: inputs held); inputs[k] is then the value of the
+    # reconstructed input just after t[k], and a step of the integrator over [a, b] inside row k
+    # uses the step average inputs[k] + input_slopes[k] * ((a + b) / 2 - t[k]) (step_inputs)
+    input_slopes: np.ndarray | None = field(default=None)
 
     @property
     def duration_s(self) -> float:
@@ -107,6 +128,56 @@ def _hold_inputs(inputs: np.ndarray) -> np.ndarray:
             np.maximum.accumulate(idx, out=idx)
             out[:, j] = col[idx]  # before the first finite value: col[0], i.e. NaN
     return out
+
+
+def _reconstruct_inputs(t: np.ndarray, inputs: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Per row: the input value just after t[k] and its slope within the row interval (module docstring
+    of INPUT_KINDS). "held" gives the zero-order hold and no slopes. NaN before a column's first stamp."""
+    U = _hold_inputs(inputs)
+    if kind == "held":
+        return U, None
+    slopes = np.zeros_like(U)
+    for j in range(U.shape[1]):
+        st = np.flatnonzero(np.isfinite(inputs[:, j]))
+        if len(st) < 2:
+            continue
+        ts, us = t[st], inputs[st, j]
+        dts = np.diff(ts)
+        # stamp interval q = [ts[q], ts[q+1]) of every row from the first to the last stamp
+        rows = np.arange(st[0], st[-1])
+        q = np.searchsorted(st, rows, side="right") - 1
+        if kind == "sample":
+            sl = np.where(dts > 0, np.diff(us) / np.where(dts > 0, dts, 1.0), 0.0)
+            slopes[rows, j] = sl[q]
+            U[rows, j] = us[q] + sl[q] * (t[rows] - ts[q])
+        else:  # "mean": value us[q] is the mean over interval q, centred at c[q]
+            c = 0.5 * (ts[:-1] + ts[1:])
+            m = us[:-1]
+            nq = len(c)
+            sl = np.zeros(nq)
+            if nq >= 2:
+                lo = np.maximum(np.arange(nq) - 1, 0)
+                hi = np.minimum(np.arange(nq) + 1, nq - 1)
+                dc = c[hi] - c[lo]
+                sl = np.where(dc > 0, (m[hi] - m[lo]) / np.where(dc > 0, dc, 1.0), 0.0)
+            slopes[rows, j] = sl[q]
+            U[rows, j] = m[q] + sl[q] * (t[rows] - c[q])
+    return U, slopes
+
+
+def step_limit(seg: Segment, h_max: float) -> float:
+    """The integration step limit for a segment (finer where the inputs change within a row)."""
+    return h_max if seg.input_slopes is None else min(h_max, ACHIEVED_H_MAX_S)
+
+
+def step_inputs(seg: Segment, k: int | np.ndarray, frac: float | np.ndarray) -> np.ndarray:
+    """Input used by an integration step inside row interval k of `seg` whose midpoint lies at
+    fraction `frac` of the interval (the step average of the reconstructed input)."""
+    U = seg.inputs[k]
+    if seg.input_slopes is None:
+        return U
+    dt = np.append(np.diff(seg.t), 0.0)[k]
+    return U + seg.input_slopes[k] * np.asarray(frac * dt)[..., None]
 
 
 def check_record(record: IdRecord) -> None:
@@ -146,7 +217,7 @@ def split_segments(record: IdRecord, gap_s: float = 1.0, min_samples: int = 8) -
     t = record.t
     if len(t) == 0:
         return []
-    U = _hold_inputs(record.inputs)
+    U, S = _reconstruct_inputs(t, record.inputs, record.input_kind)
     known = np.all(np.isfinite(U), axis=1)
     if not known.any():
         return []
@@ -162,7 +233,7 @@ def split_segments(record: IdRecord, gap_s: float = 1.0, min_samples: int = 8) -
             continue
         a, b = int(piece[0]), int(piece[-1]) + 1
         segs.append(Segment(t[a:b].copy(), U[a:b].copy(), record.outputs[a:b].copy(), record.output_names,
-                            record.source, a))
+                            record.source, a, input_slopes=None if S is None else S[a:b].copy()))
     return segs
 
 
@@ -215,7 +286,8 @@ def split_windows(segments: list[Segment], window_s: float | None) -> list[Segme
             if n - k_end < 0.3 * max(k_end - k, 1):
                 k_end = n
             out.append(Segment(s.t[k:k_end], s.inputs[k:k_end], s.outputs[k:k_end], s.output_names,
-                               s.source, s.first_row + k))
+                               s.source, s.first_row + k,
+                               input_slopes=None if s.input_slopes is None else s.input_slopes[k:k_end]))
             k = k_end
     return out
 
@@ -225,6 +297,9 @@ def split_windows(segments: list[Segment], window_s: float | None) -> list[Segme
 
 def load_csv(path: str | Path) -> IdRecord:
     """Read `t,alpha1,alpha2,n1,n2,nt,north,east,psi,r[,u,v]` (header row, SI units, rev/s).
+
+    Lines before the header starting with '#' are comments; `# inputs: held|mean|sample` sets the
+    record's input_kind (default held: commands; mean / sample: achieved values, see INPUT_KINDS).
 
     Asynchronous form: a row may carry only inputs or only outputs (empty cells or 'nan'); rows
     with the same t are merged (a column given twice at one stamp with different values is an
@@ -238,17 +313,31 @@ def load_csv(path: str | Path) -> IdRecord:
         raise DataError(f"{path}: cannot open ({exc.strerror})") from exc
     with fh:
         reader = csv.reader(fh)
+        kind = "held"
+        first_line = 1
         try:
-            header = [h.strip() for h in next(reader)]
+            row0 = next(reader)
+            # leading comment lines; "# inputs: held|mean|sample" says how the input values are meant
+            while row0 and row0[0].lstrip().startswith("#"):
+                text = ",".join(row0).lstrip()[1:].strip()
+                key, _, val = text.partition(":")
+                if key.strip().lower() == "inputs":
+                    kind = val.strip().lower()
+                    if kind not in INPUT_KINDS:
+                        raise DataError(f"{path}, row {first_line}: inputs {val.strip()!r} is not one of "
+                                        f"{', '.join(INPUT_KINDS)}")
+                row0 = next(reader)
+                first_line += 1
+            header = [h.strip() for h in row0]
         except StopIteration:
             raise DataError(f"{path}: empty file (expected a header row {','.join(REQUIRED_COLUMNS)})") from None
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
-            raise DataError(f"{path}, row 1: missing column(s) {', '.join(missing)} "
+            raise DataError(f"{path}, row {first_line}: missing column(s) {', '.join(missing)} "
                             f"(expected {','.join(REQUIRED_COLUMNS)}[,u,v])")
         dup = {h for h in header if header.count(h) > 1}
         if dup:
-            raise DataError(f"{path}, row 1: duplicate column(s) {', '.join(sorted(dup))}")
+            raise DataError(f"{path}, row {first_line}: duplicate column(s) {', '.join(sorted(dup))}")
         out_names = OUTPUT_COLUMNS + tuple(c for c in OPTIONAL_OUTPUT_COLUMNS if c in header)
         names = ("t",) + INPUT_COLUMNS + out_names
         cols = [header.index(c) for c in names]
@@ -256,7 +345,7 @@ def load_csv(path: str | Path) -> IdRecord:
         rows: list[list[float]] = []
         line_of: list[int] = []
         t_prev = -math.inf
-        for i, row in enumerate(reader, start=2):
+        for i, row in enumerate(reader, start=first_line + 1):
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
@@ -297,7 +386,7 @@ def load_csv(path: str | Path) -> IdRecord:
         raise DataError(f"{path}: fewer than 2 data rows")
     a = np.array(rows)
     del rows
-    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], out_names, str(path))
+    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], out_names, str(path), kind)
     check_record(rec)
     return rec
 
@@ -308,6 +397,8 @@ def save_csv(record: IdRecord, path: str | Path) -> None:
     data = np.column_stack([record.t, record.inputs, record.outputs])
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
+        if record.input_kind != "held":  # the default needs no line (files stay plain CSV)
+            fh.write(f"# inputs: {record.input_kind}\n")
         w.writerow(header)
         for row in data.tolist():
             w.writerow(["" if v != v else f"{v:.10g}" for v in row])

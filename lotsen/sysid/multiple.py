@@ -1,8 +1,9 @@
 """Multiple shooting over the whole record: the output-error estimate that reaches the record's bound.
 
 Every gap-free segment is cut at measurement rows into shooting intervals of about `node_s`
-seconds. Each interval is simulated from its own node state s_i (RK4, each input held from its
-stamp to the next, h <= `h_max`) with forward sensitivities d x / d[s_i, theta]
+seconds. Each interval is simulated from its own node state s_i (RK4, h <= `h_max`, each step with the
+step average of the input as the record's input kind defines it: held for commands, piecewise linear
+for achieved values; lotsen.sysid.data) with forward sensitivities d x / d[s_i, theta]
 (lotsen.sysid.sensitivity, the model's own equations through CasADi). The unknowns are all node
 states and the free parameters; the problem is
 
@@ -48,7 +49,10 @@ import scipy.sparse.linalg as spla
 from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters, geometry_tuple
 from lotsen.model.angles import wrap_angle
-from lotsen.sysid.data import OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments
+from lotsen.sysid.data import (
+    OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_inputs,
+    step_limit,
+)
 from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
     identifiability, parameter_bounds, parameter_scale, starting_point,
@@ -116,7 +120,7 @@ def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 
         is_node[nodes] = True
         dt = np.diff(t)
         m = np.zeros(n, int)
-        m[:-1] = np.maximum(1, np.ceil(dt / h_max - 1e-9).astype(int))
+        m[:-1] = np.maximum(1, np.ceil(dt / step_limit(seg, h_max) - 1e-9).astype(int))
         m[:-1][dt == 0] = 0
         count = m + is_node
         start = np.concatenate([[0], np.cumsum(count)[:-1]])
@@ -126,7 +130,9 @@ def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 
         rs = is_node[step_row] & (j_in_row == 0)
         hh = np.where(rs, 0.0, np.append(dt, 0.0)[step_row] / np.maximum(m[step_row], 1))
         hs.append(hh)
-        Us.append(seg.inputs[step_row])
+        # the step average of the reconstructed input (held: the row's value; docs/sysid.md, "Data")
+        sub = j_in_row - is_node[step_row]
+        Us.append(step_inputs(seg, step_row, (sub + 0.5) / np.maximum(m[step_row], 1)))
         resets.append(rs.astype(float))
         # the step after which row k's state is reached
         row_step = np.where(is_node, start, start - 1)

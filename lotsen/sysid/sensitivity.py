@@ -23,7 +23,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, geometry_tuple, symbolic_rhs
-from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment
+from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment, step_inputs, step_limit
 
 NTHETA = 18
 NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
@@ -111,10 +111,10 @@ def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
         wos.append(w)
         for k in range(len(seg.t) - 1):
             dt = float(seg.t[k + 1] - seg.t[k])
-            m = max(1, int(math.ceil(dt / h_max - 1e-9)))
-            for _ in range(m):
+            m = max(1, int(math.ceil(dt / step_limit(seg, h_max) - 1e-9)))
+            for i in range(m):
                 hs.append(dt / m)
-                us.append(seg.inputs[k])
+                us.append(step_inputs(seg, k, (i + 0.5) / m))  # held, or the step average (data.py)
                 reset.append(0.0)
             sstep.append(len(hs) - 1)
             wos.append(w)

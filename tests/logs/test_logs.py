@@ -10,7 +10,7 @@ import pytest
 
 from lotsen.errors import DataError, LotsenError
 from lotsen.logs import CorruptLogError, LogReader, McapRecorder, RecorderConfig, TruncatedLogError
-from lotsen.logs.export import export_topics, sysid_table, write_sysid_csv
+from lotsen.logs.export import export_topics, sysid_record
 from lotsen.stack.logs import add_recorder
 from lotsen.logs.replay import ReplayNode
 from lotsen.messages import GnssFix, GnssFixType, ImuSample, LogEvent, OperatorCommand, PathMessage, Topic, VesselState
@@ -104,7 +104,7 @@ def test_replay_topic_selection_and_restamp(sim_log):
 
 
 def test_export_tables_and_sysid_csv(sim_log, tmp_path):
-    from lotsen.sysid.data import load_csv
+    from lotsen.sysid.data import load_csv, save_csv
 
     path, published = sim_log
     files = export_topics(path, tmp_path, [Topic.IMU_RAW, Topic.GNSS])
@@ -115,15 +115,16 @@ def test_export_tables_and_sysid_csv(sim_log, tmp_path):
     assert imu_rows[0].startswith("log_time_s,stamp_s,gyro_radps_0,gyro_radps_1,gyro_radps_2")
     assert len(imu_rows) - 1 == sum(t == Topic.IMU_RAW for t, _ in published)
 
-    t = write_sysid_csv(path, tmp_path / "sysid.csv")
-    assert (t.inputs_topic, t.outputs_topic) == (Topic.ACTUATORS, Topic.STATE)  # estimate preferred when present
-    t2 = sysid_table(path, outputs="truth", inputs="command") if any(tp == Topic.SHIP_COMMAND for tp, _ in published) \
-        else sysid_table(path, outputs="truth")
-    assert t2.outputs_topic == Topic.TRUTH
-    write_sysid_csv(path, tmp_path / "truth.csv", outputs="truth")
-    record = load_csv(tmp_path / "truth.csv")
-    assert record.output_names == ("north", "east", "psi", "r", "u", "v")
-    assert len(record.t) == sum(tp == Topic.TRUTH for tp, _ in published) - 1  # first truth precedes first input
+    # the identification record: one row per message at its own stamp (docs/sysid.md, "Data")
+    achieved = any(tp == Topic.ACTUATORS for tp, _ in published)
+    rec = sysid_record(path, outputs="truth")
+    assert rec.output_names == ("north", "east", "psi", "r", "u", "v")
+    assert rec.input_kind == ("sample" if achieved else "held")  # readings are interpolated, commands held
+    in_topic = Topic.ACTUATORS if achieved else Topic.SHIP_COMMAND
+    assert len(rec.t) == sum(tp in (in_topic, Topic.TRUTH) for tp, _ in published)
+    save_csv(rec, tmp_path / "truth.csv")
+    back = load_csv(tmp_path / "truth.csv")
+    assert back.input_kind == rec.input_kind and len(back.t) == len(set(rec.t))  # equal stamps merge into one row
 
 
 def test_export_parquet_says_pyarrow_is_missing(sim_log, tmp_path):

@@ -200,5 +200,5 @@ def generate(duration_s: float = 120.0, params: dict | None = None, seed: int = 
         Yr = np.full((len(t_all), 4), np.nan)
         Ur[np.searchsorted(t_all, t_u)] = U
         Yr[np.searchsorted(t_all, t_meas)] = Y
-        rec = IdRecord(t_all, Ur, Yr, source=f"independent:async:{seed}")
+        rec = IdRecord(t_all, Ur, Yr, source=f"independent:async:{seed}", input_kind="mean")
     return Generated(rec, p, t_meas, X_meas, style)
