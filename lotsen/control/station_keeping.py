@@ -12,10 +12,16 @@ force), model-based gains, then the constrained thrust allocation:
 
 The integral is kept in the earth frame for position (a current's force does not rotate with
 the hull) and rotated into the body frame at every step. Anti-windup: integral clamped.
+
+Weathervaning (`weathervane`, opt-in; issue 19): the target heading is a preference; the heading
+reference is `lotsen.control.weathervane.weathervane_heading` for the estimated current in
+`VesselState.current_ne_mps` (re-chosen every `vane_period_s`, slewed at `vane_slew_radps`). With no
+estimate it stays at the target heading (unless `vane_from_integral`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -23,8 +29,10 @@ import numpy as np
 
 from lotsen.control.allocation import AllocationConfig, ThrustAllocator, rate_limit
 from lotsen.control.base import HoldTarget, make_status, state_is_finite, wrap_angle
+from lotsen.control.weathervane import WeathervaneConfig, equivalent_current, weathervane_heading
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model.dynamics import VesselModel
+from lotsen.model.environment import Environment
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 
 
@@ -38,6 +46,18 @@ class StationKeepingConfig:
     integral_limit_N: float = 4.0
     integral_limit_Nm: float = 1.0
     max_position_error_m: float = 2.0  # error clamp: far away it drives at bounded force
+    # weathervaning (issue 19): the hold heading becomes a preference; the keeper points into the load
+    weathervane: bool = False  # opt-in: at the end of a route in light current the turn costs more than it saves
+    vane: WeathervaneConfig = WeathervaneConfig()
+    vane_period_s: float = 1.0  # how often the heading is re-chosen
+    vane_slew_radps: float = math.radians(15.0)  # the heading reference turns at most this fast
+    # without estimator states, read the integral as the load (opt-in: during an approach the integral
+    # holds transient force too, and the chosen heading then wanders in calm water)
+    vane_from_integral: bool = False
+    vane_min_integral_N: float = 0.05  # ... beyond this integral force
+    known_wind: Environment | None = None  # wind from an anemometer / forecast, if any
+    # bow-into-current is yaw-unstable (Munk moment, m22 > m11): a stiffer heading loop when vaning
+    vane_heading_natural_freq_radps: float = 1.5
 
 
 class StationKeepingController:
@@ -54,12 +74,15 @@ class StationKeepingController:
         self.allocator = ThrustAllocator(self.model, limits, allocation)
         p, c = self.model.params, config
         w, wp, z = c.position_natural_freq_radps, c.heading_natural_freq_radps, c.damping
+        if c.weathervane:
+            wp = max(wp, c.vane_heading_natural_freq_radps)
         m = np.array([p.m11, p.m22, p.m33])
         lin = np.array([p.X_u, p.Y_v, p.N_r])
         om = np.array([w, w, wp])
         self.kp = m * om ** 2
         self.kd = np.maximum(2.0 * z * om * m - lin, 0.1 * m * om)
         self.ki = self.kp * om / c.integral_ratio
+        self._vane_integral = dataclasses.replace(config.vane, hysteresis_abs=0.0)
         self.failures = 0
         self.reset()
 
@@ -67,7 +90,45 @@ class StationKeepingController:
         self._int_ne = np.zeros(2)  # earth-frame force integral (N)
         self._int_psi = 0.0
         self._cmd_prev: tuple[float, ...] | None = None
+        self._vane_choice: float | None = None  # heading chosen by weathervane_heading
+        self._vane_ref: float | None = None  # slewed heading reference
+        self._vane_next_t = -math.inf
         self.allocator.reset()
+
+    @property
+    def hold_heading_rad(self) -> float | None:
+        """The heading reference in use when weathervaning (None before the first update)."""
+        return self._vane_ref
+
+    def _heading_reference(self, t: float, state: VesselState, target: HoldTarget) -> float:
+        """The target's heading, or with `weathervane` the heading with the least steady thrust for the
+        estimated current (VesselState.current_ne_mps) and disturbance (disturbance_tau), else for the
+        integral's earth-frame force; slewed at vane_slew_radps."""
+        c = self.config
+        psi = state.heading_rad
+        if self._vane_ref is None:
+            self._vane_ref = psi
+        if t >= self._vane_next_t:
+            self._vane_next_t = t + c.vane_period_s
+            cur = tuple(float(x) for x in state.current_ne_mps)
+            tau_b = tuple(float(x) for x in state.disturbance_tau)
+            if (c.vane_from_integral and not any(cur) and not any(tau_b)
+                    and float(np.hypot(*self._int_ne)) > c.vane_min_integral_N):
+                # no estimator states: the integral is the thrust holding against the load (earth
+                # frame); express it as the current that would need it at this heading
+                cp, sp = math.cos(psi), math.sin(psi)
+                ix, iy = self._int_ne
+                cur = equivalent_current(psi, (cp * ix + sp * iy, -sp * ix + cp * iy), self.model.params)
+                vane = self._vane_integral  # the integral is smooth: only the relative margin
+            else:
+                vane = c.vane
+            self._vane_choice = weathervane_heading(
+                target.heading_rad, self._vane_choice, cur, self.model.params, vane, c.known_wind,
+                tau_b)  # type: ignore[arg-type]
+        d = wrap_angle(self._vane_choice - self._vane_ref) if self._vane_choice is not None else 0.0
+        step = c.vane_slew_radps * c.dt_s
+        self._vane_ref = wrap_angle(self._vane_ref + min(max(d, -step), step))
+        return self._vane_ref
 
     def update(self, t: float, state: VesselState, target: HoldTarget) -> tuple[ThrustCommand, ControllerStatus]:
         c = self.config
@@ -82,7 +143,8 @@ class StationKeepingController:
         dist = math.hypot(dn, de)
         if dist > c.max_position_error_m:
             dn, de = dn * c.max_position_error_m / dist, de * c.max_position_error_m / dist
-        e_psi = wrap_angle(target.heading_rad - psi)
+        heading_ref = self._heading_reference(t, state, target) if c.weathervane else target.heading_rad
+        e_psi = wrap_angle(heading_ref - psi)
         cp, sp = math.cos(psi), math.sin(psi)
         # integral in the earth frame (a current's force does not turn with the hull)
         self._int_ne += c.dt_s * np.array([dn, de]) * self.ki[:2].mean()

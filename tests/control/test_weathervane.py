@@ -1,0 +1,122 @@
+"""Issue 19: station keeping that points into the disturbance (weathervaning)."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from lotsen.control.base import HoldTarget
+from lotsen.control.station_keeping import StationKeepingConfig, StationKeepingController
+from lotsen.control.weathervane import (
+    WeathervaneConfig, equivalent_current, steady_hold_thrust, weathervane_heading,
+)
+from lotsen.errors import ConfigError
+from lotsen.model import Environment
+from lotsen.model.parameters import DEFAULT_PARAMETERS
+from lotsen.sim import SimConfig, Simulator
+
+from .helpers import assert_commands_within_limits, rms
+
+BEAM = Environment(current_speed_mps=0.4, current_to_deg=90.0)  # flows to the east: beam-on at heading 0
+
+
+def _hold(env, weathervane, estimate=True, duration_s=60.0, **config):
+    k = StationKeepingController(config=StationKeepingConfig(weathervane=weathervane, **config))
+    sim = Simulator(config=SimConfig(sensors=False, environment=env), x0=[0.0] * 6)
+    target, errs, cmds = HoldTarget(0.0, 0.0, 0.0), [], []
+    while sim.t < duration_s:
+        st = sim.truth()
+        if estimate:  # what the EKF publishes (its current states), here perfect
+            st = dataclasses.replace(st, current_ne_mps=env.current_ne)
+        cmd, _ = k.update(sim.t, st, target)
+        sim.command(cmd)
+        sim.advance(0.1)
+        errs.append(math.hypot(sim.x[0], sim.x[1]))
+        cmds.append(cmd.as_tuple())
+    return np.array(errs), np.array(cmds), sim
+
+
+def test_beam_current_needs_more_thrust_than_head_on():
+    t = steady_hold_thrust(np.array([0.0, -math.pi / 2]), BEAM.current_ne, DEFAULT_PARAMETERS)
+    assert abs(t[1, 0]) > 10.0 and abs(t[0, 1]) < 3.0  # 11.2 N sway vs 2.4 N surge
+
+
+def test_heading_points_into_the_current_and_respects_limits_and_hysteresis():
+    p = DEFAULT_PARAMETERS
+    h = weathervane_heading(0.0, None, BEAM.current_ne, p)
+    assert abs(h + math.pi / 2) < math.radians(3.0)  # bow to the west, into the current
+    lim = WeathervaneConfig(max_offset_rad=math.radians(30.0))
+    assert abs(weathervane_heading(0.0, None, BEAM.current_ne, p, lim)) <= math.radians(30.0) + 1e-9
+    assert math.isclose(weathervane_heading(0.3, None, (0.0, 0.0), p), 0.3)  # no load: the preferred heading
+    # hysteresis: a choice 5 deg off the optimum is kept, one 90 deg off is not
+    assert math.isclose(weathervane_heading(0.0, -math.pi / 2 + 0.09, BEAM.current_ne, p), -math.pi / 2 + 0.09)
+    assert abs(weathervane_heading(0.0, 0.0, BEAM.current_ne, p) + math.pi / 2) < math.radians(3.0)
+
+
+def test_fixed_heading_hold_fails_in_beam_current_and_weathervaning_holds():
+    errs_fixed, _, _ = _hold(BEAM, weathervane=False)
+    assert errs_fixed[-1] > 1.0  # swept away (6.8 m after 60 s)
+    errs, cmds, sim = _hold(BEAM, weathervane=True)
+    assert rms(errs[-300:]) <= 0.05
+    assert abs((sim.x[2] + math.pi / 2 + math.pi) % (2 * math.pi) - math.pi) < math.radians(5.0)
+    assert_commands_within_limits(cmds)
+
+
+def test_weathervaning_hold_in_current_and_wind():
+    env = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
+    errs, cmds, _ = _hold(env, weathervane=True)
+    assert rms(errs[-300:]) <= 0.05
+    assert_commands_within_limits(cmds)
+
+
+def test_weathervaning_without_current_estimate_uses_the_integral():
+    """No estimator states (current_ne_mps = 0): the integral's load, read as an equivalent current."""
+    errs, cmds, sim = _hold(BEAM, weathervane=True, estimate=False, duration_s=70.0, vane_from_integral=True)
+    assert rms(errs[-300:]) <= 0.05
+    assert abs((sim.x[2] + math.pi / 2 + math.pi) % (2 * math.pi) - math.pi) < math.radians(5.0)
+    assert_commands_within_limits(cmds)
+
+
+def test_weathervaning_without_estimate_keeps_the_target_heading_by_default():
+    errs, _, sim = _hold(Environment(), weathervane=True, estimate=False, duration_s=20.0)
+    assert abs(sim.x[2]) < math.radians(1.0) and errs[-1] < 0.01
+
+
+def test_equivalent_current_inverts_the_steady_thrust():
+    for psi, cur in [(0.3, (0.1, -0.25)), (-2.0, (0.4, 0.05))]:
+        t = steady_hold_thrust(psi, cur, DEFAULT_PARAMETERS)
+        assert np.allclose(equivalent_current(psi, (float(t[0]), float(t[1])), DEFAULT_PARAMETERS), cur, atol=1e-9)
+
+
+def test_bad_vane_config_is_rejected():
+    with pytest.raises(ConfigError, match="max_offset_rad"):
+        WeathervaneConfig(max_offset_rad=4.0)
+    with pytest.raises(ConfigError, match="hysteresis"):
+        WeathervaneConfig(hysteresis=1.0)
+
+
+def _choices_with_noisy_estimate(vane: WeathervaneConfig, noise_mps: float = 0.02):
+    rng = np.random.default_rng(1)
+    env = Environment(current_speed_mps=0.2, current_to_deg=90.0)
+    k = StationKeepingController(config=StationKeepingConfig(weathervane=True, vane=vane))
+    sim = Simulator(config=SimConfig(sensors=False, environment=env), x0=[0.0, 0.0, -math.pi / 2, 0.0, 0.0, 0.0])
+    choices, errs = [], []
+    while sim.t < 60.0:
+        cur = tuple(np.asarray(env.current_ne) + rng.normal(0.0, noise_mps, 2))
+        cmd, _ = k.update(sim.t, dataclasses.replace(sim.truth(), current_ne_mps=cur), HoldTarget(0.0, 0.0, 0.0))
+        sim.command(cmd)
+        sim.advance(0.1)
+        choices.append(k._vane_choice)
+        errs.append(math.hypot(sim.x[0], sim.x[1]))
+    return np.count_nonzero(np.abs(np.diff(choices)) > 1e-9), np.array(errs)
+
+
+def test_noisy_current_estimate_does_not_make_the_heading_hunt():
+    """Hysteresis: an estimate with 0.02 m/s white noise in a 0.2 m/s current (worse than the EKF's)."""
+    changes, errs = _choices_with_noisy_estimate(WeathervaneConfig())
+    changes_raw, _ = _choices_with_noisy_estimate(
+        WeathervaneConfig(hysteresis=0.0, hysteresis_abs=0.0, min_change_rad=0.0))
+    assert changes_raw > 20  # the raw minimiser follows the noise
+    assert changes <= 6
+    assert rms(errs[-300:]) <= 0.05
