@@ -15,16 +15,10 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from lotsen.stack.soak import LivePlan, run_live
+from lotsen.stack.soak import SHORT_ROUTE, LivePlan, run_live
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "sim.yaml"
 WEATHER = {"current_speed_mps": 0.1, "current_to_deg": 60.0, "wind_speed_mps": 3.0, "wind_from_deg": 200.0}
-SHORT_ROUTE = {"harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0},
-               "nodes": [{"north": 10.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5},
-                         {"north": 16.0, "east": 24.0, "heading_deg": 60.0, "speed_mps": 0.5},
-                         {"north": 22.0, "east": 30.0, "heading_deg": 45.0, "speed_mps": 0.5},
-                         {"north": 30.0, "east": 30.0, "heading_deg": 0.0, "speed_mps": 0.5}],
-               "area": [[0, 0], [40, 0], [40, 40], [0, 40]]}
 
 
 def _row(name: str, plan: LivePlan) -> dict:

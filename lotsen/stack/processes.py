@@ -165,11 +165,12 @@ def apply_core_priority(opts: ProcessOptions) -> list[str]:
     tids = _threads_of_this_process()
     if core_cpus:
         for tid in tids:
-            try:
-                os.sched_setaffinity(tid, core_cpus)
-            except OSError:
-                pass
-        done.append(_pin(core_cpus))
+            if tid != me:
+                try:
+                    os.sched_setaffinity(tid, core_cpus)
+                except OSError:
+                    pass
+        done.append(_pin(core_cpus))  # this thread, and what it got
     if opts.realtime_priority > 0:
         try:
             for tid in tids:
@@ -439,7 +440,6 @@ class Launcher:
         os.environ.setdefault(CLOCK_ENV, repr(time.monotonic()))  # one clock for every process of the run
         self.clock_t0 = float(os.environ[CLOCK_ENV])
         self.exit_code = 0
-        self.created_s = time.monotonic()
 
     # -- starting ----------------------------------------------------------------------------
     def _spawn(self, child: Child) -> list[str]:

@@ -37,6 +37,13 @@ from lotsen.runtime.clock import CLOCK_ENV
 from lotsen.stack.processes import free_port
 
 WS_PATH = "/ws"
+#: a short route from the demo config's harbour (4, 20) inside its 40 m basin, ~30 m, for live runs
+SHORT_ROUTE = {"harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0},
+               "nodes": [{"north": 10.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5},
+                         {"north": 16.0, "east": 24.0, "heading_deg": 60.0, "speed_mps": 0.5},
+                         {"north": 22.0, "east": 30.0, "heading_deg": 45.0, "speed_mps": 0.5},
+                         {"north": 30.0, "east": 30.0, "heading_deg": 0.0, "speed_mps": 0.5}],
+               "area": [[0, 0], [40, 0], [40, 40], [0, 40]]}
 
 
 @dataclass(frozen=True)
@@ -462,7 +469,7 @@ def _reconnect(url: str, token: str, clock: _Clock, frames: list, note: Callable
                 note("pilot reconnected to the restarted web process")
                 return pilot
             pilot.close()
-        except (OSError, TimeoutError, ConnectionError, Exception):  # noqa: BLE001 - not up yet
+        except Exception:  # noqa: BLE001 - refused or reset while the web process is not up yet
             pass
         if time.monotonic() > deadline:
             raise RuntimeError(f"the web process did not come back within {timeout_s:g} s")

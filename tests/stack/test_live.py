@@ -12,16 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from lotsen.stack.soak import LivePlan, run_live
+from lotsen.stack.soak import SHORT_ROUTE, LivePlan, run_live
 
 CONFIG = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
-SHORT_ROUTE = {"harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0},
-               "nodes": [{"north": 10.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5},
-                         {"north": 16.0, "east": 24.0, "heading_deg": 60.0, "speed_mps": 0.5}],
-               "area": [[0, 0], [40, 0], [40, 40], [0, 40]]}
-LONGER_ROUTE = {**SHORT_ROUTE, "nodes": SHORT_ROUTE["nodes"] + [
-    {"north": 22.0, "east": 30.0, "heading_deg": 45.0, "speed_mps": 0.5},
-    {"north": 30.0, "east": 30.0, "heading_deg": 0.0, "speed_mps": 0.5}]}
 
 pytestmark = pytest.mark.live
 
@@ -30,7 +23,7 @@ def test_idle_then_route_auto_return_under_a_flood_of_strangers(tmp_path):
     """Idle, upload a route, arm, AUTO while 20 strangers send maximal valid `plan` requests at
     the rate limit for 25 s, RETURN: no failsafe, the estimator uses its samples and is honest
     about its error, the helm keeps 10 Hz with no gap over 150 ms (issue 15's bar)."""
-    report = run_live(LivePlan(config=CONFIG, idle_s=8.0, route=LONGER_ROUTE, flood_viewers=20, flood_s=25.0),
+    report = run_live(LivePlan(config=CONFIG, idle_s=8.0, route=SHORT_ROUTE, flood_viewers=20, flood_s=25.0),
                       tmp_path)
     print(report.summary())
     assert report.ok, report.summary() + "\n" + "\n".join(report.output[-20:])
@@ -44,7 +37,7 @@ def test_killing_the_web_process_leaves_the_boat_under_control(tmp_path):
     """SIGKILL the web process during AUTO: the core keeps its 10 Hz and its failsafe table (the
     pilot's link is lost: `link_lost_auto_action: continue` keeps AUTO), the launcher restarts the
     web process, the pilot's page reconnects and finishes the mission."""
-    report = run_live(LivePlan(config=CONFIG, idle_s=3.0, route=LONGER_ROUTE, kill_web_after_s=8.0,
+    report = run_live(LivePlan(config=CONFIG, idle_s=3.0, route=SHORT_ROUTE, kill_web_after_s=8.0,
                                return_home=False, allowed_failsafes=("link_lost",)), tmp_path)
     print(report.summary())
     assert report.ok, report.summary() + "\n" + "\n".join(report.output[-20:])
