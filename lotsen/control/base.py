@@ -14,6 +14,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
+from lotsen.model._jit import njit
 from lotsen.model.angles import all_finite, wrap_angle
 
 
@@ -58,9 +59,11 @@ class PathReference:
 
     def __init__(self, path: Any, min_speed_mps: float = 0.15, window_m: float = 1.5) -> None:
         self.path = path
-        self.s = np.asarray(path.s_m, dtype=float)
-        self.north = np.asarray(path.north_m, dtype=float)
-        self.east = np.asarray(path.east_m, dtype=float)
+        # own writable copies: a Path's arrays are read-only, which numba compiles as another signature
+        # (the one warmed at start must be the one the control loop calls)
+        self.s = np.array(path.s_m, dtype=float)
+        self.north = np.array(path.north_m, dtype=float)
+        self.east = np.array(path.east_m, dtype=float)
         self.heading = np.unwrap(np.asarray(path.heading_rad, dtype=float))
         self.kappa = np.asarray(path.curvature_1pm, dtype=float)
         self.speed = np.maximum(np.asarray(path.speed_mps, dtype=float), min_speed_mps)
@@ -101,22 +104,10 @@ class PathReference:
             lo = max(0, int(np.searchsorted(self.s, min(s_hint, self.length) - self.window_m)) - 1)
             hi = min(len(self.s) - 1, int(np.searchsorted(self.s, s_hint + self.window_m)) + 1)
             hi = max(hi, lo + 1)
-            a_n = self.north[lo:hi]
-            a_e = self.east[lo:hi]
-            d_n = self._dtable[lo:hi, 0]
-            d_e = self._dtable[lo:hi, 1]
-            q_n = north - a_n
-            q_e = east - a_e
-            t = np.clip((q_n * d_n + q_e * d_e) / np.maximum(d_n * d_n + d_e * d_e, 1e-18), 0.0, 1.0)
-            r_n = q_n - t * d_n
-            r_e = q_e - t * d_e
-            j = int(np.argmin(r_n * r_n + r_e * r_e))
-            dist = math.hypot(r_n[j], r_e[j])
-            cross = d_n[j] * q_e[j] - d_e[j] * q_n[j]
-            cte = dist if cross >= 0 else -dist
-            i = lo + j
-            s = float(self.s[i] + t[j] * self._ds[i])
-            hdg = wrap_angle(float(self.heading[i] + t[j] * self._dtable[i, 2]))
+            # canonical argument types: one compiled signature, warmed at start (a new one compiles in the loop)
+            s, cte, hdg = _project_window(float(north), float(east), self.north, self.east, self.s, self._ds,
+                                          self.heading, self._dtable, int(lo), int(hi))
+            hdg = wrap_angle(hdg)
         if s >= self.length - 1e-9:  # past the end: along-track beyond the last point
             c, sn = self._cos_end, self._sin_end
             dn, de = north - self.north[-1], east - self.east[-1]
@@ -125,6 +116,31 @@ class PathReference:
                 s = self.length + along
                 cte = -sn * dn + c * de
         return s, cte, hdg
+
+
+def _project_window_py(north, east, pn, pe, ps, ds, heading, dtable, lo, hi):  # type: ignore[no-untyped-def]
+    """Closest point to (north, east) on the polyline segments lo .. hi-1: (s, signed distance
+    (+ = starboard), heading, not wrapped). Numba-compiled: every controller step calls it."""
+    best, j_best, t_best, q_nb, q_eb = math.inf, lo, 0.0, 0.0, 0.0
+    for i in range(lo, hi):
+        d_n = dtable[i, 0]
+        d_e = dtable[i, 1]
+        q_n = north - pn[i]
+        q_e = east - pe[i]
+        t = (q_n * d_n + q_e * d_e) / max(d_n * d_n + d_e * d_e, 1e-18)
+        t = min(max(t, 0.0), 1.0)
+        r_n = q_n - t * d_n
+        r_e = q_e - t * d_e
+        d2 = r_n * r_n + r_e * r_e
+        if d2 < best:
+            best, j_best, t_best, q_nb, q_eb = d2, i, t, q_n, q_e
+    dist = math.sqrt(best)
+    cross = dtable[j_best, 0] * q_eb - dtable[j_best, 1] * q_nb
+    cte = dist if cross >= 0 else -dist
+    return ps[j_best] + t_best * ds[j_best], cte, heading[j_best] + t_best * dtable[j_best, 2]
+
+
+_project_window = njit(_project_window_py)
 
 
 def make_status(t: float, controller: str, cte: float, heading_error: float, state: VesselState,

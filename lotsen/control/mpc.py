@@ -67,6 +67,12 @@ one, beta = 1 - T_m/dt (1 - exp(-dt/T_m)); stage 0 starts from the modelled achi
 simulator's actuator model run on the commands sent). The previous set-point stands for the
 achieved speed at the start of later stages (an approximation: 71 % reached after one step).
 
+Issue 19 (2026-11-23): the thrust part of each propeller's q-column is exact also at n = 0 (before,
+a propeller at rest had no authority in the prediction); by default the azimuths' direction is fixed
+ahead (`azimuth_ahead_only`: L1 cost on astern thrust), the yaw couple comes from the bow thruster
+against the angles; the estimator's water current (`VesselState.current_ne_mps`) enters the RK4 term,
+the Jacobians and the observer's prediction (docs/control.md, "Issue 19").
+
 Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
 from the one-step prediction error of the model (with the ESC lag's effective thrust) and adds it to f_d.
 
@@ -81,6 +87,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -91,7 +98,7 @@ from lotsen.control.allocation import rate_limit
 from lotsen.control.base import PathReference, make_status, state_is_finite, wrap_angle
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model._jit import njit
-from lotsen.model.dynamics import VesselModel, _jacobians, rk4_step
+from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.sim.actuators import actuator_step
 
@@ -114,7 +121,7 @@ class MPCConfig:
     terminal_factor: float = 3.0
     r_alpha: float = 0.05  # per rad^2
     r_thrust_azimuth: float = 0.05  # per q^2 (q = n|n|/n_max^2)
-    r_thrust_bow: float = 0.5
+    r_thrust_bow: float = 0.2  # was 0.5; the bow thruster now makes the yaw moment couple (issue 19)
     # Rate penalties. On the EKF estimate 0.3 / 0.5 let the noise through to the servos (rms step
     # change 5 deg per 0.1 s on the figure eight); s_alpha = 10 cuts that to 1.2 deg at no cost in
     # tracking. A thrust rate penalty above ~1 makes the MPC too slow against current and wind
@@ -124,6 +131,12 @@ class MPCConfig:
     s_thrust: float = 1.0  # rate penalty per q^2 (per step)
     min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
     min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
+    # where stage k's reference lies on the path: "predicted" = the projection of the nominal (shifted
+    # previous) prediction's position k (path following: the reference waits for a slow boat);
+    # "time" = s0 + k U dt from the measured progress (trajectory tracking along the path; the OCP
+    # the do-mpc peer in bench_control solves, so its cost gap measures the one QP per step only)
+    progress_reference: str = "predicted"
+    qp_iterations: int = 1  # QPs per step, each re-linearised along the previous one's solution (RTI: 1)
     n_floor_rps: float = 5.0  # |n| floor in d(kappa n)/dq
     disturbance_gain: float = 0.15  # observer gain per step (0 switches it off)
     disturbance_max_N: float = 5.0
@@ -133,12 +146,20 @@ class MPCConfig:
     eps: float = 1e-4
     check_termination: int = 5
     scaling: int = 0  # OSQP Ruiz equilibration iterations
+    rho: float = 0.1  # OSQP's initial ADMM step (its default)
+    adaptive_rho: bool = True
+    adaptive_rho_interval: int = 0  # 0: OSQP's own choice
     warm_start_shifted: bool = False  # warm-start with the shifted plan (else OSQP's last solution)
     # Propeller reversals (issue 14 item 3, issue 19): exact L1 penalties per stage on each azimuth's
     # thrust against its present direction (max(0, -sigma q)) and on the bow thruster's |q|. Without
     # them the MPC flips the azimuths on estimator noise (~1.4 reversals/s on the EKF figure eight).
-    reversal_penalty_azimuth: float = 0.2  # cost per unit of reversed q per stage (0 = off)
-    reversal_penalty_bow: float = 1.0  # cost per unit of |q_t| per stage (0 = off)
+    reversal_penalty_azimuth: float = 1.0  # cost per unit of reversed (astern) q per stage (0 = off)
+    reversal_penalty_bow: float = 0.4  # cost per unit of |q_t| per stage (0 = off); 0.3: bow 0.3-1.0 reversals per 10 s
+    # issue 19: an azimuth running ahead in steady tracking at 0.3-0.8 m/s never needs astern thrust, so
+    # its direction is fixed to ahead (sigma = +1: a soft direction constraint, the L1 cost on astern
+    # thrust); the yaw moment differential thrust made now comes from the bow thruster against the
+    # azimuths' angles. False: the 2026-11-22 scheme (sigma follows the commands, hysteresis, release).
+    azimuth_ahead_only: bool = True
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
     reversal_hysteresis_rps: float = 5.0  # direction changes on commands beyond +-this (also for counting)
     # an azimuth running astern for this long counts as "ahead" again, so returning is free: without
@@ -149,10 +170,20 @@ class MPCConfig:
     # step's thrust is the step average of a first-order response from the previous set-point
     # (for stage 0: the modelled achieved speed) to the new one. False: set-points act at once.
     esc_in_prediction: bool = True
+    # issue 19: the prediction uses the estimator's water current (VesselState.current_ne_mps, earth
+    # frame) in the RK4 affine term and the Jacobians (kinetics on the relative velocity); the
+    # disturbance observer then learns only the remainder (wind). An estimate above max_current_mps
+    # or not finite is ignored (zero current).
+    current_in_prediction: bool = True
+    max_current_mps: float = 1.0
 
     def __post_init__(self) -> None:
         if self.horizon < 2:
             raise ValueError(f"MPCConfig.horizon: {self.horizon} must be >= 2")
+        if not 1 <= self.qp_iterations <= 5:
+            raise ValueError(f"MPCConfig.qp_iterations: {self.qp_iterations} must be in 1..5")
+        if self.progress_reference not in ("predicted", "time"):
+            raise ValueError(f"MPCConfig.progress_reference: {self.progress_reference!r} is not predicted or time")
         if not self.dt_s > 0:
             raise ValueError(f"MPCConfig.dt_s: {self.dt_s} must be positive")
         for name in ("reversal_penalty_azimuth", "reversal_penalty_bow", "reversal_quadratic",
@@ -162,9 +193,14 @@ class MPCConfig:
                 raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
 
 
-def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor, Ad, Bd, c):  # type: ignore[no-untyped-def]
+def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor, cn, ce, Ad, Bd, c):  # type: ignore[no-untyped-def]
     """Discrete LTV matrices along the nominal trajectory (numba-compiled; see module docstring)."""
     N = wb.shape[0]
+    m11 = theta[0]
+    m22 = theta[1]
+    m33 = theta[2]
+    mu_az = theta[16]
+    mu_t = theta[17]
     for k in range(N):
         x = (xb[k, 0], xb[k, 1], xb[k, 2], xb[k, 3], xb[k, 4], xb[k, 5])
         q1 = wb[k, 2] * scale[2]
@@ -174,12 +210,30 @@ def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor
         n2 = math.copysign(math.sqrt(abs(q2)), q2)
         nt = math.copysign(math.sqrt(abs(qt)), qt)
         u = (wb[k, 0], wb[k, 1], n1, n2, nt)
-        A, B = _jacobians(x, u, theta, geom)
-        # d/dq = d/dn * dn/dq, dn/dq = 1 / (2|n|); the thrust part is then exactly mu e
-        B[:, 2] = B[:, 2] * scale[2] / (2.0 * max(abs(n1), n_floor))
-        B[:, 3] = B[:, 3] * scale[3] / (2.0 * max(abs(n2), n_floor))
-        B[:, 4] = B[:, 4] * scale[4] / (2.0 * max(abs(nt), n_floor))
-        x1, _k1 = rk4_step(x, u, theta, geom, 0.0, 0.0, dfx, dfy, dfn, dt)
+        A, B = _jacobians_current(x, u, theta, geom, cn, ce)
+        # d/dq: the thrust is exactly linear in q (dT/dq = mu n_max^2, also at n = 0, where the
+        # chain rule d/dn * dn/dq = 2 mu |n| / (2 |n|) is 0/0); only the housing force's kappa n
+        # term goes through dn/dq = 1 / (2|n|), with |n| >= n_floor. (Before 2026-11-23 the whole
+        # column went through the floor, so a propeller at n = 0 had no thrust authority in the
+        # prediction: the bow thruster was never used and an azimuth at zero stayed there.)
+        for j in range(2):
+            n = u[2 + j]
+            a = u[j]
+            fac = 1.0 if (n >= 0.0 or geom[6] == 1.0) else geom[6]
+            lx = geom[2 * j]
+            ly = geom[2 * j + 1]
+            ex = math.cos(a)
+            ey = math.sin(a)
+            en = lx * ey - ly * ex
+            dT_dn = 2.0 * mu_az * abs(n) * fac
+            dT_dq = mu_az * fac * scale[2 + j]
+            g = scale[2 + j] / (2.0 * max(abs(n), n_floor))
+            B[3, 2 + j] = (B[3, 2 + j] - dT_dn * ex / m11) * g + dT_dq * ex / m11
+            B[4, 2 + j] = (B[4, 2 + j] - dT_dn * ey / m22) * g + dT_dq * ey / m22
+            B[5, 2 + j] = (B[5, 2 + j] - dT_dn * en / m33) * g + dT_dq * en / m33
+        B[4, 4] = mu_t * scale[4] / m22  # bow tunnel thruster: F_t = mu_t n|n| = mu_t n_max^2 q
+        B[5, 4] = geom[4] * mu_t * scale[4] / m33
+        x1, _k1 = rk4_step(x, u, theta, geom, cn, ce, dfx, dfy, dfn, dt)
         AA = A @ A
         AB = A @ B
         for i in range(6):
@@ -219,20 +273,21 @@ _path_at = njit(_path_at_py)
 
 
 def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_end,  # type: ignore[no-untyped-def]
-                 scale, theta, geom, dt, dist, n_floor, Qy, stage_w, R, S_rate, w_prev, dw_max,
+                 scale, theta, geom, dt, dist, cur, n_floor, Qy, stage_w, R, S_rate, w_prev, dw_max,
                  q_trim_gain, min_speed_course, ad_i, ad_j, bd_i, bd_j, a_dyn_pos, p_state_pos, iu_i, iu_j,
-                 Ad, Bd, c, Px, Ax, q, l, u, row_bounds, row_rate, ref):
+                 Ad, Bd, c, Px, Ax, q, l, u, row_bounds, row_rate, ref, newton_iters):
     """One step of QP data: predicted progress, reference, LTV model, cost; written in place.
 
-    xb: nominal states (absolute), s_pred: progress guess per stage (refined here, s_pred[0] fixed).
+    xb: nominal states (absolute), s_pred: progress guess per stage (refined here by `newton_iters`
+    foot-point steps, 0 keeps it: the time-parameterised reference; s_pred[0] fixed).
     ref (N, 5) receives the reference (north, east, heading, curvature, speed) of stages 1..N.
     """
     N = wb.shape[0]
     nx = 6
     nw = 5
     buf = np.zeros(5)
-    # --- progress of the nominal positions: two Newton steps of the foot-point equation
-    for it in range(2):
+    # --- progress of the nominal positions: Newton steps of the foot-point equation
+    for it in range(newton_iters):
         for k in range(1, N + 1):
             _path_at(s_pred[k], S, table, dtable, ds, length, cos_end, sin_end, buf)
             dn = xb[k, 0] - buf[0]
@@ -259,7 +314,7 @@ def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_e
     for k in range(N + 1):
         xr[k, 0] -= x[0]
         xr[k, 1] -= x[1]
-    _linearise_horizon(xr, wb, scale, theta, geom, dt, dist[0], dist[1], dist[2], n_floor, Ad, Bd, c)
+    _linearise_horizon(xr, wb, scale, theta, geom, dt, dist[0], dist[1], dist[2], n_floor, cur[0], cur[1], Ad, Bd, c)
     na = ad_i.shape[0]
     nb = bd_i.shape[0]
     for k in range(N):
@@ -331,6 +386,40 @@ def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_e
 
 
 _assemble = njit(_assemble_py)
+
+
+def _esc_lag_block_py(Bd, bi, bj, beta, qa, Ax, a_bq_pos, a_lag_pos, l, u):  # type: ignore[no-untyped-def]
+    """The ESC lag's entries (module docstring): the thrust columns of each stage's dynamics row
+    scaled by beta, the previous stage's set-point by (1 - beta), and for stage 0 the achieved
+    thrust moved into the row's bounds. Written in place (numba-compiled: per step, no allocation)."""
+    N = Bd.shape[0]
+    m = bi.shape[0]
+    for k in range(N):
+        for j in range(m):
+            b = Bd[k, bi[j], bj[j]]
+            Ax[a_bq_pos[k, j]] = -beta * b
+            if k >= 1:
+                Ax[a_lag_pos[k - 1, j]] = -(1.0 - beta) * b
+    for i in range(Bd.shape[1]):
+        off = 0.0
+        for j in range(qa.shape[0]):
+            off += Bd[0, i, 2 + j] * qa[j]
+        l[Bd.shape[1] + i] += (1.0 - beta) * off
+        u[Bd.shape[1] + i] += (1.0 - beta) * off
+
+
+_esc_lag_block = njit(_esc_lag_block_py)
+
+
+def _esc_advance_py(n, command, steps, gain, max_dn):  # type: ignore[no-untyped-def]
+    """The modelled ESC speeds `steps` simulator steps on under a held command (the simulator's actuator model)."""
+    st = (0.0, 0.0, n[0], n[1], n[2])
+    for _ in range(steps):
+        st = actuator_step(st, command, (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, gain, max_dn)
+    return st
+
+
+_esc_advance = njit(_esc_advance_py)
 
 
 def _csc_template(n_rows: int, n_cols: int, entries: list[tuple[int, int]]) -> tuple[sp.csc_matrix, np.ndarray]:
@@ -436,6 +525,7 @@ class MPCController:
         # ESC lag: stage k's dynamics also depend on the previous set-point's thrust columns (k >= 1)
         lag_sel = bj >= 2
         self._lag_sel = lag_sel
+        self._lag_bi, self._lag_bj = bi[lag_sel].copy(), bj[lag_sel].copy()  # Bd entries of the thrust columns
         lag_start = len(a_entries)
         for k in range(1, N):
             r = row + NX * k
@@ -515,8 +605,10 @@ class MPCController:
         self.solver = osqp.OSQP()
         settings: dict[str, Any] = dict(verbose=False, warm_starting=True, polishing=False,
                                         eps_abs=cfg.eps, eps_rel=cfg.eps, max_iter=cfg.max_iter,
-                                        check_termination=cfg.check_termination, adaptive_rho=True,
-                                        scaling=cfg.scaling)
+                                        check_termination=cfg.check_termination, adaptive_rho=cfg.adaptive_rho,
+                                        scaling=cfg.scaling, rho=cfg.rho)
+        if cfg.adaptive_rho_interval > 0:
+            settings["adaptive_rho_interval"] = cfg.adaptive_rho_interval
         if cfg.time_limit_s > 0:
             settings["time_limit"] = cfg.time_limit_s
         self.solver.setup(P, self._q, A, self._l, self._u, **settings)
@@ -544,7 +636,7 @@ class MPCController:
         wb = rng.uniform(-1, 1, (N, NW)) * np.array([0.7, 0.7, 1, 1, 1])
         Ad, Bd, c = np.zeros((N, NX, NX)), np.zeros((N, NX, NW)), np.zeros((N, NX))
         _linearise_horizon(xb, wb, self.scale, self.model.theta, self.model.geom, self.config.dt_s,
-                           0.1, 0.1, 0.1, self.config.n_floor_rps, Ad, Bd, c)
+                           0.1, 0.1, 0.1, self.config.n_floor_rps, 0.1, -0.1, Ad, Bd, c)
         a_mask = np.any(np.abs(Ad) > 0, axis=0) | np.eye(NX, dtype=bool)
         b_mask = np.any(np.abs(Bd) > 0, axis=0)
         ai, aj = np.nonzero(a_mask)
@@ -562,6 +654,7 @@ class MPCController:
         self._plan: np.ndarray | None = None  # last feasible input sequence (scaled)
         self._plan_age = 0
         self._dist = np.zeros(3)  # estimated disturbance force (N, N, N m) in the body frame
+        self._current = np.zeros(2)  # water current in the prediction (VesselState.current_ne_mps)
         self._obs: tuple[np.ndarray, tuple[float, ...]] | None = None
         self._done = False
         self._direction = np.zeros(NREV)  # last commanded direction beyond the hysteresis (0: none yet)
@@ -592,11 +685,9 @@ class MPCController:
         steps = max(1, int(round(self.config.dt_s / h)))
         h = self.config.dt_s / steps
         gain = 1.0 - math.exp(-h / lim.motor_time_constant_s)
-        c = np.array(lim.clip(*cmd))
-        st = (0.0, 0.0, *self._n_achieved)
-        for _ in range(steps):
-            st = actuator_step(st, (0.0, 0.0, c[2], c[3], c[4]), (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, gain,
-                               lim.n_rate_max_rps2 * h)
+        c = lim.clip(*cmd)
+        st = _esc_advance(self._n_achieved, (0.0, 0.0, float(c[2]), float(c[3]), float(c[4])), steps, gain,
+                          lim.n_rate_max_rps2 * h)
         self._n_achieved = np.array(st[2:])
 
     def _update_direction(self, cmd: tuple[float, ...]) -> None:
@@ -611,6 +702,8 @@ class MPCController:
                 if self._direction[j] == -d:
                     self.reversals += 1
                 self._direction[j] = d
+        if cfg.azimuth_ahead_only:
+            return  # sigma stays +1 (set in _reset_state)
         sigma = self._sigma.copy()
         for j in range(2):
             if self._direction[j] < 0.0:
@@ -632,6 +725,23 @@ class MPCController:
     def done(self) -> bool:
         return self._done
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) everything a step runs, with a few steps on a short
+        straight path in a light current; then back to the state before `reset`. The live stack
+        calls it at start: a first compile takes ~0.3 s, which the control loop must not pay at AUTO."""
+        s = np.arange(0.0, 5.0, 0.01)
+        zero = np.zeros_like(s)
+        self.reset(SimpleNamespace(north_m=s, east_m=zero, heading_rad=zero, curvature_1pm=zero,
+                                   speed_mps=np.full_like(s, 0.5), s_m=s))
+        state = VesselState(stamp_s=0.0, north_m=0.0, east_m=0.1, heading_rad=0.0, u_mps=0.3, v_mps=0.0,
+                            r_radps=0.0, current_ne_mps=(0.05, 0.0))
+        for k in range(3):
+            self.update(0.1 * k, state)
+        self.path = None
+        self.failures = 0
+        self.solve_times_ms = []
+        self._reset_state()
+
     def q_trim(self, speed: np.ndarray) -> np.ndarray:
         """Scaled thrust q of each azimuth for a steady surge speed (seed eq. 22 at v = r = 0)."""
         p = self.model.params
@@ -647,12 +757,22 @@ class MPCController:
         n = np.array(cmd[2:])
         return np.array([cmd[0], cmd[1], *(n * np.abs(n) / self.scale[2:])])
 
+    def _current_estimate(self, state: VesselState) -> np.ndarray:
+        """The estimator's water current (earth frame, m/s; zero when unknown or switched off)."""
+        if not self.config.current_in_prediction:
+            return np.zeros(2)
+        cur = np.array(getattr(state, "current_ne_mps", (0.0, 0.0)), dtype=float)
+        if cur.shape != (2,) or not np.all(np.isfinite(cur)) or float(np.hypot(*cur)) > self.config.max_current_mps:
+            return np.zeros(2)
+        return cur
+
     def _update_disturbance(self, x: np.ndarray) -> None:
         """Observer: d += g * M * (measured - predicted velocity) / dt (one-step prediction error)."""
         cfg = self.config
         if self._obs is not None and cfg.disturbance_gain > 0:
             x_prev, cmd = self._obs
-            xp, _ = rk4_step(tuple(x_prev), tuple(cmd), self.model.theta, self.model.geom, 0.0, 0.0,
+            xp, _ = rk4_step(tuple(x_prev), tuple(cmd), self.model.theta, self.model.geom,
+                             float(self._current[0]), float(self._current[1]),
                              float(self._dist[0]), float(self._dist[1]), float(self._dist[2]), cfg.dt_s)
             p = self.model.params
             err = (x[3:6] - np.array(xp[3:6])) / cfg.dt_s * np.array([p.m11, p.m22, p.m33])
@@ -670,7 +790,8 @@ class MPCController:
             wb = np.tile(self._w_prev, (N, 1))
             cmd = self.w_to_command(self._w_prev)
             for k in range(N):
-                x1, _ = rk4_step(tuple(xb[k]), cmd, self.model.theta, self.model.geom, 0.0, 0.0,
+                x1, _ = rk4_step(tuple(xb[k]), cmd, self.model.theta, self.model.geom,
+                                 float(self._current[0]), float(self._current[1]),
                                  float(self._dist[0]), float(self._dist[1]), float(self._dist[2]),
                                  self.config.dt_s)
                 xb[k + 1] = x1
@@ -690,6 +811,7 @@ class MPCController:
             return self._failure(t, state, "state not finite", t0, 0.0, 0.0, 0.0, 0.0)
         cfg, N = self.config, self.N
         x = np.array(state.as_array_tuple(), dtype=float)
+        self._current = self._current_estimate(state)
         self._update_disturbance(x)
         s0, cte, hdg = self.path.project(x[0], x[1], self._s)
         self._s = s0
@@ -699,7 +821,7 @@ class MPCController:
         xb, wb = self._xb, self._wb
         assert xb is not None
         # progress guess: the previous prediction shifted (or the reference speed), refined in _assemble
-        if self._s_pred is None:
+        if self._s_pred is None or cfg.progress_reference == "time":
             v0 = float(self.path.sample(np.array([s0]))[4][0])
             s_pred = s0 + np.arange(N + 1) * v0 * cfg.dt_s
         else:
@@ -707,55 +829,54 @@ class MPCController:
             s_pred[0] = s0
             np.maximum(s_pred, s0, out=s_pred)
         pr = self.path
-        # ESC lag: the linearisation runs on the effective (step-average) thrust of each stage
         beta = self._esc_beta
         qa = self._q_achieved()
-        ub = wb.copy()
-        if beta < 1.0:
-            ub[0, 2:] = beta * wb[0, 2:] + (1.0 - beta) * qa
-            ub[1:, 2:] = beta * wb[1:, 2:] + (1.0 - beta) * wb[:-1, 2:]
-        _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
-                  pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,
-                  cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev, self._dw_max,
-                  self._q_trim_gain, cfg.min_speed_course_mps, self._ad_idx[0], self._ad_idx[1],
-                  self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos, self._iu[0],
-                  self._iu[1], self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q, self._l, self._u,
-                  self._row_bounds, self._row_rate, self._ref)
-        if beta < 1.0:
-            bi, bj = self._bd_idx
-            sel = self._lag_sel
-            Bq = self._Bd[:, bi[sel], bj[sel]]
-            self._Ax[self._a_bq_pos] = -beta * Bq
-            self._Ax[self._a_lag_pos] = -(1.0 - beta) * Bq[1:]
-            off0 = (1.0 - beta) * (self._Bd[0, :, 2:] @ qa)  # stage 0: from the achieved thrust
-            self._l[NX:2 * NX] += off0
-            self._u[NX:2 * NX] += off0
-        self._s_pred = s_pred
-        pv = self._ref[:, 4]
-        if not (np.isfinite(self._Ax).all() and np.isfinite(self._l).all() and np.isfinite(self._q).all()):
-            return self._failure(t, state, "QP data not finite", t0, cte, hdg, s0, float(pv[0]))
-        q, l, u = self._q, self._l, self._u
         origin = x[:2].copy()
-        xr = xb.copy()
-        xr[:, 0] -= origin[0]
-        xr[:, 1] -= origin[1]
-        self.solver.update(q=q, l=l, u=u, Px=self._Px, Ax=self._Ax)
-        if cfg.warm_start_shifted:
-            tb = np.abs(wb[:, 2:])
-            tb[:, :2] = np.maximum(0.0, -self._sigma * wb[:, 2:4])
-            tb = tb.ravel()
-            self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel(), tb]))
-        res = self.solver.solve(raise_error=False)
-        z = None if res.x is None else np.array(res.x, dtype=float)
-        ok = res.info.status_val in _SOLVED and z is not None and z.shape == (self.nz,) and bool(np.all(np.isfinite(z)))
-        if not ok:
-            return self._failure(t, state, f"solver: {res.info.status}", t0, cte, hdg, s0, float(pv[0]))
-        assert z is not None
-        xs = z[:NX * (N + 1)].reshape(N + 1, NX).copy()
-        ws = z[NX * (N + 1):NX * (N + 1) + NW * N].reshape(N, NW).copy()
-        ws = np.clip(ws, -self._w_max, self._w_max)
-        xs[:, 0] += origin[0]
-        xs[:, 1] += origin[1]
+        newton = 2 if cfg.progress_reference == "predicted" else 0
+        # real-time iteration: one QP on the shifted plan's linearisation; with qp_iterations > 1 the
+        # model is re-linearised along the new solution and the QP solved again (warm-started)
+        for iteration in range(cfg.qp_iterations):
+            # ESC lag: the linearisation runs on the effective (step-average) thrust of each stage
+            ub = wb.copy()
+            if beta < 1.0:
+                ub[0, 2:] = beta * wb[0, 2:] + (1.0 - beta) * qa
+                ub[1:, 2:] = beta * wb[1:, 2:] + (1.0 - beta) * wb[:-1, 2:]
+            _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
+                      pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,
+                      self._current, cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev,
+                      self._dw_max, self._q_trim_gain, cfg.min_speed_course_mps, self._ad_idx[0],
+                      self._ad_idx[1], self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos,
+                      self._iu[0], self._iu[1], self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q,
+                      self._l, self._u, self._row_bounds, self._row_rate, self._ref, newton)
+            if beta < 1.0:
+                _esc_lag_block(self._Bd, self._lag_bi, self._lag_bj, beta, qa, self._Ax, self._a_bq_pos,
+                               self._a_lag_pos, self._l, self._u)
+            self._s_pred = s_pred
+            pv = self._ref[:, 4]
+            if not (np.isfinite(self._Ax).all() and np.isfinite(self._l).all() and np.isfinite(self._q).all()):
+                return self._failure(t, state, "QP data not finite", t0, cte, hdg, s0, float(pv[0]))
+            self.solver.update(q=self._q, l=self._l, u=self._u, Px=self._Px, Ax=self._Ax)
+            if cfg.warm_start_shifted and iteration == 0:
+                xr = xb.copy()
+                xr[:, 0] -= origin[0]
+                xr[:, 1] -= origin[1]
+                tb = np.abs(wb[:, 2:])
+                tb[:, :2] = np.maximum(0.0, -self._sigma * wb[:, 2:4])
+                tb = tb.ravel()
+                self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel(), tb]))
+            res = self.solver.solve(raise_error=False)
+            z = None if res.x is None else np.array(res.x, dtype=float)
+            ok = (res.info.status_val in _SOLVED and z is not None and z.shape == (self.nz,)
+                  and bool(np.all(np.isfinite(z))))
+            if not ok:
+                return self._failure(t, state, f"solver: {res.info.status}", t0, cte, hdg, s0, float(pv[0]))
+            assert z is not None
+            xs = z[:NX * (N + 1)].reshape(N + 1, NX).copy()
+            ws = z[NX * (N + 1):NX * (N + 1) + NW * N].reshape(N, NW).copy()
+            ws = np.clip(ws, -self._w_max, self._w_max)
+            xs[:, 0] += origin[0]
+            xs[:, 1] += origin[1]
+            xb, wb = xs, ws
         self._xb, self._wb = xs, ws
         self._plan = ws.copy()
         self._plan_age = 0

@@ -63,7 +63,7 @@ from lotsen.fusion.magcal import MagCalibration
 from lotsen.messages import (
     ActuatorState, EstimatorHealth, GnssFix, ImuSample, MagSample, RpmSample, ThrustCommand, VesselState,
 )
-from lotsen.model.dynamics import VesselModel, _jacobians, rk4_step
+from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
 
 IN, IE, IPSI, IU, IV, IR, IBG = range(7)
 IBAX, IBAY = 7, 8  # when accel_bias_states (the default)
@@ -198,23 +198,17 @@ class ModelAidedEKF:
         [u_c, v_c] = R(psi)^T [c_N, c_E], the chain rule adds the heading and current columns.
         """
         xl = x.tolist()
-        psi, uu, vv, r = xl[2], xl[3], xl[4], xl[5]
+        psi, r = xl[2], xl[5]
         c, s = math.cos(psi), math.sin(psi)
         cn, ce = (xl[self.i_cur], xl[self.i_cur + 1]) if self.i_cur is not None else (0.0, 0.0)
-        uc, vc = cn * c + ce * s, -cn * s + ce * c
-        A, _ = _jacobians((xl[0], xl[1], psi, uu - uc, vv - vc, r), u, self._theta, self._geom)
+        # the six vessel states: the model's Jacobian with the current (heading and r columns included)
+        uf = tuple(float(v) for v in u)  # canonical types: the signature VesselModel.warm_up compiled
+        A, _ = _jacobians_current((xl[0], xl[1], psi, xl[3], xl[4], r), uf, self._theta, self._geom, cn, ce)
         J = np.zeros((6, self.n))
-        J[0, 2], J[0, 3], J[0, 4] = -uu * s - vv * c, c, -s
-        J[1, 2], J[1, 3], J[1, 4] = uu * c - vv * s, s, c
-        J[2, 5] = 1.0
-        J[3:6, 3:6] = A[3:6, 3:6]
-        J[3, 5] += vc
-        J[4, 5] -= uc
+        J[:, :6] = A
         if self.i_cur is not None:
             (g00, g01, _), (g10, g11, _), (g20, g21, _) = A[3:6, 3:6].tolist()
             ic = self.i_cur
-            J[3, 2], J[4, 2] = -g00 * vc + g01 * uc - r * uc, -g10 * vc + g11 * uc - r * vc
-            J[5, 2] = -g20 * vc + g21 * uc
             J[3, ic], J[4, ic], J[5, ic] = -g00 * c + g01 * s - r * s, -g10 * c + g11 * s - r * c, -g20 * c + g21 * s
             J[3, ic + 1], J[4, ic + 1], J[5, ic + 1] = (-g00 * s - g01 * c + r * c, -g10 * s - g11 * c - r * s,
                                                         -g20 * s - g21 * c)

@@ -276,6 +276,38 @@ def _jacobians_py(x, inp, theta, geom):  # type: ignore[no-untyped-def]
 _jacobians = njit(_jacobians_py)
 
 
+def _jacobians_current_py(x, inp, theta, geom, current_n, current_e):  # type: ignore[no-untyped-def]
+    """A = df/dx, B = df/du of `_rhs` with a constant earth-frame current (current_n, current_e), analytic.
+
+    The kinetics act on nu_r = nu - nu_c(psi) with u_c = c_N cos psi + c_E sin psi,
+    v_c = -c_N sin psi + c_E cos psi (so du_c/dpsi = v_c, dv_c/dpsi = -u_c), plus r [v_c, -u_c];
+    the kinematics on the ground velocity. With zero current this is `_jacobians`.
+    """
+    psi = x[2]
+    u = x[3]
+    v = x[4]
+    r = x[5]
+    c = cos(psi)
+    s = sin(psi)
+    uc = current_n * c + current_e * s
+    vc = -current_n * s + current_e * c
+    A, B = _jacobians((x[0], x[1], psi, u - uc, v - vc, r), inp, theta, geom)
+    # kinematics on the ground velocity (the calm Jacobian above saw the relative one)
+    A[0, 2] = -u * s - v * c
+    A[1, 2] = u * c - v * s
+    # d/dpsi through nu_c(psi) and the r [v_c, -u_c] terms; d/dr of r [v_c, -u_c]
+    for i in range(3, 6):
+        A[i, 2] = -A[i, 3] * vc + A[i, 4] * uc
+    A[3, 2] += -r * uc
+    A[4, 2] += -r * vc
+    A[3, 5] += vc
+    A[4, 5] += -uc
+    return A, B
+
+
+_jacobians_current = njit(_jacobians_current_py)
+
+
 def _as_floats(seq: Sequence[float], n: int) -> tuple[float, ...]:
     t = tuple(float(s) for s in seq)
     if len(t) != n:
@@ -299,9 +331,14 @@ def thruster_forces(nu: Sequence[float], inp: Sequence[float], theta: Sequence[f
 
 
 def jacobians(x: Sequence[float], inp: Sequence[float], theta: Sequence[float],
-              geom: VesselGeometry = DEFAULT_GEOMETRY) -> tuple[np.ndarray, np.ndarray]:
-    """A = df/dx (6x6) and B = df/du (6x5) in calm water, analytic (MPC, EKF, identification)."""
-    return _jacobians(_as_floats(x, NX), _as_floats(inp, NU), _as_floats(theta, 18), geometry_tuple(geom))
+              geom: VesselGeometry = DEFAULT_GEOMETRY,
+              current_ne: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A = df/dx (6x6) and B = df/du (6x5), analytic (MPC, EKF, identification); in calm water, or
+    with a constant earth-frame current `current_ne` (north, east, m/s)."""
+    xs, us, th, g = _as_floats(x, NX), _as_floats(inp, NU), _as_floats(theta, 18), geometry_tuple(geom)
+    if current_ne is None:
+        return _jacobians(xs, us, th, g)
+    return _jacobians_current(xs, us, th, g, float(current_ne[0]), float(current_ne[1]))
 
 
 def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
@@ -345,8 +382,12 @@ class VesselModel:
     def tau(self, nu: Sequence[float], u: Sequence[float]) -> np.ndarray:
         return np.array(thruster_forces(nu, u, self.theta, self.geometry))
 
-    def jacobians(self, x: Sequence[float], u: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-        return _jacobians(_as_floats(x, NX), _as_floats(u, NU), self.theta, self.geom)
+    def jacobians(self, x: Sequence[float], u: Sequence[float],
+                  current_ne: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        if current_ne is None:
+            return _jacobians(_as_floats(x, NX), _as_floats(u, NU), self.theta, self.geom)
+        return _jacobians_current(_as_floats(x, NX), _as_floats(u, NU), self.theta, self.geom,
+                                  float(current_ne[0]), float(current_ne[1]))
 
     def step(self, x: Sequence[float], u: Sequence[float], dt: float,
              current_ne: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
@@ -362,6 +403,7 @@ class VesselModel:
         self.f(0.0, x, u)
         self.tau(x[3:], u)
         self.jacobians(x, u)
+        self.jacobians(x, u, current_ne=(0.1, 0.1))
         self.step(x, u, 0.1)
 
     def kinetic_energy(self, nu: Sequence[float]) -> float:

@@ -201,3 +201,22 @@ def test_ekf_thrust_command_used_without_actuator_state() -> None:
     ekf.on_command(ActuatorState(stamp_s=0.1, alpha1_rad=0, alpha2_rad=0, n1_rps=0, n2_rps=0, nt_rps=0))
     ekf.on_command(ThrustCommand(stamp_s=0.2, n1_rps=60.0, n2_rps=60.0))  # ignored: achieved values are fresh
     assert ekf.u_act[2] == 0.0
+
+
+def test_ekf_process_jacobian_matches_finite_differences(calibration: MagCalibration) -> None:
+    """The EKF's df/dx with the current states (the model's `_jacobians_current` plus the current
+    columns) is the derivative of its own process model."""
+    sim = Simulator(config=SimConfig(seed=3))
+    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim)))
+    assert ekf.i_cur is not None
+    x = np.zeros(ekf.n)
+    x[:6] = [1.0, -2.0, 0.7, 0.45, -0.06, 0.12]
+    x[ekf.i_cur:ekf.i_cur + 2] = [0.12, -0.2]
+    u = (0.2, -0.1, 40.0, 35.0, 10.0)
+    J = ekf._dynamics_jacobian(x, u)
+    h = 1e-6
+    for j in range(ekf.n):
+        dx = np.zeros(ekf.n)
+        dx[j] = h
+        fd = (np.array(ekf._rhs(x + dx, u)) - np.array(ekf._rhs(x - dx, u))) / (2 * h)
+        assert np.allclose(J[:, j], fd, atol=1e-6, rtol=1e-5), (j, J[:, j], fd)
