@@ -13,10 +13,14 @@ force), model-based gains, then the constrained thrust allocation:
 The integral is kept in the earth frame for position (a current's force does not rotate with
 the hull) and rotated into the body frame at every step. Anti-windup: integral clamped.
 
-Weathervaning (`weathervane`, opt-in; issue 19): the target heading is a preference; the heading
+Weathervaning (`weathervane`, issue 19): "on" makes the target heading a preference; the heading
 reference is `lotsen.control.weathervane.weathervane_heading` for the estimated current in
 `VesselState.current_ne_mps` (re-chosen every `vane_period_s`, slewed at `vane_slew_radps`). With no
-estimate it stays at the target heading (unless `vane_from_integral`).
+estimate it stays at the target heading (unless `vane_from_integral`). "auto" (default) holds the target
+heading while its steady load is within the actuators (`hold_load_ratio` below `engage_load_ratio`) and
+vanes only beyond (back below `release_load_ratio`): in light current the ~120 deg turn costs more
+than it saves. "off" never vanes. Feedforward: the steady thrust against the estimated current (and
+known wind, estimated disturbance) at the present heading is added to the PID (`current_feedforward`).
 """
 
 from __future__ import annotations
@@ -29,7 +33,10 @@ import numpy as np
 
 from lotsen.control.allocation import AllocationConfig, ThrustAllocator, rate_limit
 from lotsen.control.base import HoldTarget, make_status, state_is_finite, wrap_angle
-from lotsen.control.weathervane import WeathervaneConfig, equivalent_current, weathervane_heading
+from lotsen.control.weathervane import (
+    WeathervaneConfig, equivalent_current, hold_load_ratio, steady_hold_thrust, weathervane_heading,
+)
+from lotsen.errors import ConfigError
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model.dynamics import VesselModel
 from lotsen.model.environment import Environment
@@ -47,7 +54,7 @@ class StationKeepingConfig:
     integral_limit_Nm: float = 1.0
     max_position_error_m: float = 2.0  # error clamp: far away it drives at bounded force
     # weathervaning (issue 19): the hold heading becomes a preference; the keeper points into the load
-    weathervane: bool = False  # opt-in: at the end of a route in light current the turn costs more than it saves
+    weathervane: str = "auto"  # "off" | "auto" (only when the target heading cannot be held) | "on"
     vane: WeathervaneConfig = WeathervaneConfig()
     vane_period_s: float = 1.0  # how often the heading is re-chosen
     vane_slew_radps: float = math.radians(15.0)  # the heading reference turns at most this fast
@@ -58,6 +65,21 @@ class StationKeepingConfig:
     known_wind: Environment | None = None  # wind from an anemometer / forecast, if any
     # bow-into-current is yaw-unstable (Munk moment, m22 > m11): a stiffer heading loop when vaning
     vane_heading_natural_freq_radps: float = 1.5
+    # feed the steady thrust against the estimated current (VesselState.current_ne_mps), the known wind
+    # and the estimated disturbance forward (issue 19): the integral then learns only what is left, and
+    # a hold taken over from AUTO in a current does not drift while the integral builds up
+    current_feedforward: bool = True
+    integral_max_speed_mps: float = 0.05  # with an estimate fed forward, the integral pauses above this speed
+
+    def __post_init__(self) -> None:
+        if isinstance(self.weathervane, bool):  # older configs said true / false
+            object.__setattr__(self, "weathervane", "on" if self.weathervane else "off")
+        if self.weathervane not in WEATHERVANE_MODES:
+            raise ConfigError(f"station_keeping.weathervane: {self.weathervane!r} is not one of "
+                              f"{', '.join(WEATHERVANE_MODES)}")
+
+
+WEATHERVANE_MODES = ("off", "auto", "on")
 
 
 class StationKeepingController:
@@ -74,14 +96,17 @@ class StationKeepingController:
         self.allocator = ThrustAllocator(self.model, limits, allocation)
         p, c = self.model.params, config
         w, wp, z = c.position_natural_freq_radps, c.heading_natural_freq_radps, c.damping
-        if c.weathervane:
-            wp = max(wp, c.vane_heading_natural_freq_radps)
         m = np.array([p.m11, p.m22, p.m33])
         lin = np.array([p.X_u, p.Y_v, p.N_r])
-        om = np.array([w, w, wp])
-        self.kp = m * om ** 2
-        self.kd = np.maximum(2.0 * z * om * m - lin, 0.1 * m * om)
-        self.ki = self.kp * om / c.integral_ratio
+
+        def gains(w_heading: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            om = np.array([w, w, w_heading])
+            kp = m * om ** 2
+            return kp, np.maximum(2.0 * z * om * m - lin, 0.1 * m * om), kp * om / c.integral_ratio
+
+        self._gains_fixed = gains(wp)
+        self._gains_vane = gains(max(wp, c.vane_heading_natural_freq_radps))
+        self.kp, self.kd, self.ki = self._gains_vane if c.weathervane == "on" else self._gains_fixed
         self._vane_integral = dataclasses.replace(config.vane, hysteresis_abs=0.0)
         self.failures = 0
         self.reset()
@@ -93,7 +118,13 @@ class StationKeepingController:
         self._vane_choice: float | None = None  # heading chosen by weathervane_heading
         self._vane_ref: float | None = None  # slewed heading reference
         self._vane_next_t = -math.inf
+        self._vane_engaged = self.config.weathervane == "on"
         self.allocator.reset()
+
+    @property
+    def vaning(self) -> bool:
+        """True while the heading is chosen by the load (always with "on"; "auto" when engaged)."""
+        return self._vane_engaged
 
     @property
     def hold_heading_rad(self) -> float | None:
@@ -122,13 +153,34 @@ class StationKeepingController:
                 vane = self._vane_integral  # the integral is smooth: only the relative margin
             else:
                 vane = c.vane
-            self._vane_choice = weathervane_heading(
-                target.heading_rad, self._vane_choice, cur, self.model.params, vane, c.known_wind,
-                tau_b)  # type: ignore[arg-type]
+            if c.weathervane == "auto":
+                load = hold_load_ratio(target.heading_rad, cur, self.model.params, c.vane, c.known_wind,
+                                       tau_b)  # type: ignore[arg-type]
+                if load > c.vane.engage_load_ratio and not self._vane_engaged:
+                    self._vane_engaged, self._vane_choice = True, None
+                elif load < c.vane.release_load_ratio:
+                    self._vane_engaged = False
+                self.kp, self.kd, self.ki = self._gains_vane if self._vane_engaged else self._gains_fixed
+            if self._vane_engaged:
+                self._vane_choice = weathervane_heading(
+                    target.heading_rad, self._vane_choice, cur, self.model.params, vane, c.known_wind,
+                    tau_b)  # type: ignore[arg-type]
+            else:
+                self._vane_choice = target.heading_rad
         d = wrap_angle(self._vane_choice - self._vane_ref) if self._vane_choice is not None else 0.0
         step = c.vane_slew_radps * c.dt_s
         self._vane_ref = wrap_angle(self._vane_ref + min(max(d, -step), step))
         return self._vane_ref
+
+    def _feedforward(self, state: VesselState) -> np.ndarray:
+        """Steady hold thrust at the present heading for the estimated current and disturbance and the
+        known wind (`steady_hold_thrust`: seed eq. (22) at zero ground velocity); zero without estimates."""
+        cur = tuple(float(x) for x in state.current_ne_mps)
+        tau_b = tuple(float(x) for x in state.disturbance_tau)
+        if not any(cur) and not any(tau_b) and self.config.known_wind is None:
+            return np.zeros(3)
+        ff = steady_hold_thrust(state.heading_rad, cur, self.model.params, self.config.known_wind, tau_b)  # type: ignore[arg-type]
+        return ff if bool(np.all(np.isfinite(ff))) else np.zeros(3)
 
     def update(self, t: float, state: VesselState, target: HoldTarget) -> tuple[ThrustCommand, ControllerStatus]:
         c = self.config
@@ -143,11 +195,17 @@ class StationKeepingController:
         dist = math.hypot(dn, de)
         if dist > c.max_position_error_m:
             dn, de = dn * c.max_position_error_m / dist, de * c.max_position_error_m / dist
-        heading_ref = self._heading_reference(t, state, target) if c.weathervane else target.heading_rad
+        heading_ref = self._heading_reference(t, state, target) if c.weathervane != "off" else target.heading_rad
+        ff = self._feedforward(state) if c.current_feedforward else np.zeros(3)
+        estimated = bool(np.any(ff != 0.0))
         e_psi = wrap_angle(heading_ref - psi)
         cp, sp = math.cos(psi), math.sin(psi)
-        # integral in the earth frame (a current's force does not turn with the hull)
-        self._int_ne += c.dt_s * np.array([dn, de]) * self.ki[:2].mean()
+        # integral in the earth frame (a current's force does not turn with the hull). With a current or
+        # disturbance estimate fed forward it trims only a residual, so it pauses while the boat moves
+        # (anti-windup: an overshoot when a hold takes over a moving boat is transient, not a load, and
+        # integrating it brought a second, slow excursion); without one it must learn the whole load
+        if not (estimated and math.hypot(u, v) > c.integral_max_speed_mps):
+            self._int_ne += c.dt_s * np.array([dn, de]) * self.ki[:2].mean()
         lim = c.integral_limit_N
         norm = float(np.hypot(*self._int_ne))
         if norm > lim:
@@ -160,6 +218,7 @@ class StationKeepingController:
         tau = np.array([self.kp[0] * ex + ix - self.kd[0] * u,
                         self.kp[1] * ey + iy - self.kd[1] * v,
                         self.kp[2] * e_psi + self._int_psi - self.kd[2] * r])
+        tau += ff
         res = self.allocator.allocate(tau, nu=(u, v, r))
         cmd = rate_limit(self._cmd_prev, res.command, c.dt_s, self.limits)
         self._cmd_prev = cmd

@@ -56,6 +56,11 @@ class WeathervaneConfig:
     min_change_rad: float = math.radians(10.0)
     min_load_N: float = 0.3  # below this steady thrust (N) the heading is not re-chosen ...
     release_load_N: float = 0.1  # ... and below this one it goes back to the preferred heading
+    # automatic mode (StationKeepingConfig.weathervane = "auto"): vane only when the preferred heading's
+    # steady load needs more than `engage_load_ratio` of the capacity on some axis, back to the preferred
+    # heading below `release_load_ratio` (hysteresis)
+    engage_load_ratio: float = 0.7
+    release_load_ratio: float = 0.4
 
     def __post_init__(self) -> None:
         where = "station_keeping.vane"
@@ -67,6 +72,9 @@ class WeathervaneConfig:
             raise ConfigError(f"{where}.hysteresis must be in [0, 1) and hysteresis_abs >= 0")
         if not 0.0 <= self.release_load_N <= self.min_load_N:
             raise ConfigError(f"{where}: need 0 <= release_load_N <= min_load_N")
+        if not 0.0 < self.release_load_ratio <= self.engage_load_ratio:
+            raise ConfigError(f"{where}: need 0 < release_load_ratio <= engage_load_ratio, got "
+                              f"{self.release_load_ratio} and {self.engage_load_ratio}")
 
 
 def steady_hold_thrust(heading_rad: np.ndarray | float, current_ne_mps: tuple[float, float],
@@ -95,6 +103,18 @@ def steady_hold_thrust(heading_rad: np.ndarray | float, current_ne_mps: tuple[fl
         w = np.array([wind_force(float(h), 0.0, 0.0, wind) for h in psi.ravel()]).T.reshape((3,) + psi.shape)
         tX, tY, tN = tX - w[0], tY - w[1], tN - w[2]
     return np.stack([tX, tY, tN])
+
+
+def hold_load_ratio(heading_rad: float, current_ne_mps: tuple[float, float], params: VesselParameters,
+                    config: WeathervaneConfig = WeathervaneConfig(), wind: Environment | None = None,
+                    tau_body: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                    force_ne_N: tuple[float, float] = (0.0, 0.0)) -> float:
+    """The largest per-axis fraction of the actuators' capacity that holding at `heading_rad` needs:
+    max(|tau_X| / F_X, |tau_Y| / F_Y, |tau_N| / M_N) of `steady_hold_thrust`. Above 1 the heading
+    cannot be held; the automatic weathervane engages above `config.engage_load_ratio`."""
+    t = steady_hold_thrust(float(heading_rad), current_ne_mps, params, wind, tau_body, force_ne_N)
+    return float(max(abs(t[0]) / config.capacity_X_N, abs(t[1]) / config.capacity_Y_N,
+                     abs(t[2]) / config.capacity_N_Nm))
 
 
 def _solve_drag(a: float, b: float, t: float) -> float:

@@ -63,6 +63,8 @@ class PlannerConfig:
     refine: str = "zoom"                # refinement of the best grid candidate: "zoom" (vectorised
                                         # pattern search), "nelder-mead" (scipy, bounded) or "none"
     detour: bool = True                 # insert nodes around obstacles instead of failing
+    stop_at_end: bool = True            # the path comes to rest at the last node, where the boat holds
+                                        # after AUTO (brakes within a_long_max); false keeps its speed
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -492,7 +494,7 @@ def _assemble(pieces: list[_Piece], water: _Water, cfg: PlannerConfig) -> Path:
     kappa = np.concatenate(kap)
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(P, axis=0).T))])
     v = speed_profile(s, kappa, np.array(node_s), np.array(node_v), cfg.a_lat_max_mps2,
-                      cfg.a_long_max_mps2, cfg.speed_max_mps)
+                      cfg.a_long_max_mps2, cfg.speed_max_mps, rest_at_end=cfg.stop_at_end)
     metrics = []
     for pc, p, length, s_start, max_k in metrics_raw:
         step = max(1, int(round(0.05 / cfg.spacing_m)))            # clearance on a 5 cm subset

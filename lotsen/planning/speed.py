@@ -36,13 +36,15 @@ def speed_profile(
     a_lat_max_mps2: float,
     a_long_max_mps2: float,
     speed_max_mps: float,
+    rest_at_end: bool = False,
 ) -> np.ndarray:
     """Speed at each path point.
 
     1. Linear interpolation between node speeds in arc length, leg by leg (seed eq. 42: with
        evenly spaced points, v(n) = (N - n)/N v_k + n/N v_{k+1} is linear in s); a leg that
        starts or ends at a zero-speed node runs at its other node's speed (see `leg_speeds`).
-    2. v = 0 at the zero-speed nodes (start from rest, stops).
+    2. v = 0 at the zero-speed nodes (start from rest, stops), and at the last point with
+       `rest_at_end` (the boat holds there after the route; the last leg keeps its node speeds).
     3. v <= sqrt(a_lat_max / |kappa|) in tight curves, and v <= speed_max.
     4. |dv/dt| <= a_long_max: v^2 may grow or shrink by at most 2 a ds between points; a forward
        pass (acceleration) and a backward pass (braking), both vectorised with a running minimum:
@@ -61,6 +63,8 @@ def speed_profile(
         v = v_start[k] + frac * (v_end[k] - v_start[k])                 # seed eq. (42), per leg
         for s_rest in node_s[node_v <= 0.0]:                            # at rest at these nodes
             v[int(np.argmin(np.abs(s_m - s_rest)))] = 0.0
+    if rest_at_end and len(v):
+        v[-1] = 0.0
     with np.errstate(divide="ignore"):
         v_lat = np.sqrt(a_lat_max_mps2 / np.abs(curvature_1pm))
     v = np.minimum(np.minimum(v, v_lat), speed_max_mps)

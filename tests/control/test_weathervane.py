@@ -120,3 +120,28 @@ def test_noisy_current_estimate_does_not_make_the_heading_hunt():
     assert changes_raw > 20  # the raw minimiser follows the noise
     assert changes <= 6
     assert rms(errs[-300:]) <= 0.05
+
+
+def test_current_feedforward_holds_without_waiting_for_the_integral():
+    """With the current estimate fed forward the hold does not drift while the integral learns the load."""
+    env = Environment(current_speed_mps=0.15, current_to_deg=60.0)
+    errs_ff, _, _ = _hold(env, weathervane="off", duration_s=20.0)
+    errs_pid, _, _ = _hold(env, weathervane="off", duration_s=20.0, current_feedforward=False)
+    assert errs_ff.max() < 0.02 and errs_pid.max() > 0.1  # measured 0.9 cm vs 21 cm
+
+
+def test_automatic_weathervaning_engages_only_when_the_target_heading_cannot_be_held():
+    beam_errs, _, beam = _hold(BEAM, weathervane="auto", duration_s=60.0)
+    assert abs(beam.x[2] + math.pi / 2) < math.radians(5.0) and rms(beam_errs[-300:]) <= 0.05
+    light = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
+    light_errs, _, sim = _hold(light, weathervane="auto", duration_s=30.0)
+    assert abs(sim.x[2]) < math.radians(3.0) and rms(light_errs[-100:]) <= 0.05  # the target heading kept
+
+
+def test_weathervane_mode_is_validated_and_booleans_still_work():
+    assert StationKeepingConfig(weathervane=True).weathervane == "on"
+    assert StationKeepingConfig(weathervane=False).weathervane == "off"
+    with pytest.raises(ConfigError, match="station_keeping.weathervane"):
+        StationKeepingConfig(weathervane="sometimes")
+    with pytest.raises(ConfigError, match="release_load_ratio"):
+        WeathervaneConfig(engage_load_ratio=0.3, release_load_ratio=0.5)

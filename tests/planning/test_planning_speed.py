@@ -56,5 +56,20 @@ def test_planned_route_leaves_the_harbour_at_the_node_speed():
                              "area": [[-10.0, -10.0], [110.0, -10.0], [110.0, 10.0], [-10.0, 10.0]]})
     path = plan_route(route, PlannerConfig())
     assert path.speed_mps[0] == 0.0
-    assert np.all(path.speed_mps[path.s_m > 1.0] > 0.49)
+    assert np.all(path.speed_mps[(path.s_m > 1.0) & (path.s_m < path.s_m[-1] - 1.0)] > 0.49)
     assert _travel_time(path.s_m, path.speed_mps) < 205.0
+
+
+def test_the_path_comes_to_rest_at_the_last_node_unless_told_otherwise():
+    route = route_from_dict({"harbour": {"north": 0.0, "east": 0.0, "heading_deg": 0.0},
+                             "nodes": [{"north": 30.0, "east": 0.0, "heading_deg": 0.0, "speed_mps": 0.5}],
+                             "area": [[-10.0, -10.0], [40.0, -10.0], [40.0, 10.0], [-10.0, 10.0]]})
+    a = 0.2
+    path = plan_route(route, PlannerConfig(a_long_max_mps2=a))
+    to_go = path.s_m[-1] - path.s_m
+    assert path.speed_mps[-1] == 0.0
+    # braking within the longitudinal limit: v <= sqrt(2 a s_to_go), and at cruise speed until then
+    assert np.all(path.speed_mps <= np.sqrt(2.0 * a * to_go) + 1e-9)
+    assert np.all(path.speed_mps[(to_go > 0.7) & (path.s_m > 1.0)] > 0.49)
+    keep = plan_route(route, PlannerConfig(a_long_max_mps2=a, stop_at_end=False))
+    assert abs(keep.speed_mps[-1] - 0.5) < 1e-6
