@@ -16,11 +16,11 @@ penalty and ESC lag (the issue-5 design) on the same seeds.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 import statistics
 import sys
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path as FilePath
 
 import numpy as np

@@ -100,7 +100,7 @@ from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model._jit import njit
 from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-from lotsen.sim.actuators import actuator_step
+from lotsen.sim.actuators import advance_motors
 
 NX, NW, NY = 6, 5, 5
 NREV = 3  # propellers with a direction: azimuth 1, azimuth 2, bow
@@ -411,17 +411,6 @@ def _esc_lag_block_py(Bd, bi, bj, beta, qa, Ax, a_bq_pos, a_lag_pos, l, u):  # t
 _esc_lag_block = njit(_esc_lag_block_py)
 
 
-def _esc_advance_py(n, command, steps, gain, max_dn):  # type: ignore[no-untyped-def]
-    """The modelled ESC speeds `steps` simulator steps on under a held command (the simulator's actuator model)."""
-    st = (0.0, 0.0, n[0], n[1], n[2])
-    for _ in range(steps):
-        st = actuator_step(st, command, (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, gain, max_dn)
-    return st
-
-
-_esc_advance = njit(_esc_advance_py)
-
-
 def _csc_template(n_rows: int, n_cols: int, entries: list[tuple[int, int]]) -> tuple[sp.csc_matrix, np.ndarray]:
     """CSC matrix with a fixed pattern; returns it and `pos` with data[pos[i]] = value of entry i."""
     rows = np.array([e[0] for e in entries])
@@ -524,12 +513,11 @@ class MPCController:
         dyn_count = len(a_entries) - dyn_entries_start
         # ESC lag: stage k's dynamics also depend on the previous set-point's thrust columns (k >= 1)
         lag_sel = bj >= 2
-        self._lag_sel = lag_sel
         self._lag_bi, self._lag_bj = bi[lag_sel].copy(), bj[lag_sel].copy()  # Bd entries of the thrust columns
         lag_start = len(a_entries)
         for k in range(1, N):
             r = row + NX * k
-            a_entries += [(r + i, self._wi(k - 1) + j) for i, j in zip(bi[lag_sel], bj[lag_sel])]
+            a_entries += [(r + i, self._wi(k - 1) + j) for i, j in zip(self._lag_bi, self._lag_bj)]
             a_vals += [0.0] * int(lag_sel.sum())
         lag_count = len(a_entries) - lag_start
         for k in range(N):
@@ -679,16 +667,10 @@ class MPCController:
         return (cmd[0], cmd[1], float(n[0]), float(n[1]), float(n[2]))
 
     def _advance_esc(self, cmd: tuple[float, ...]) -> None:
-        """The modelled ESC speeds one control period on under cmd (the simulator's actuator model)."""
+        """The modelled ESC speeds one control period on under cmd (the simulator's motor model, 10 ms steps)."""
         lim = self.limits
-        h = 0.01
-        steps = max(1, int(round(self.config.dt_s / h)))
-        h = self.config.dt_s / steps
-        gain = 1.0 - math.exp(-h / lim.motor_time_constant_s)
-        c = lim.clip(*cmd)
-        st = _esc_advance(self._n_achieved, (0.0, 0.0, float(c[2]), float(c[3]), float(c[4])), steps, gain,
-                          lim.n_rate_max_rps2 * h)
-        self._n_achieved = np.array(st[2:])
+        steps = max(1, int(round(self.config.dt_s / 0.01)))
+        self._n_achieved = np.array(advance_motors(self._n_achieved, lim.clip(*cmd)[2:], self.config.dt_s, lim, steps))
 
     def _update_direction(self, cmd: tuple[float, ...]) -> None:
         """Count reversals of the commanded speeds (|n| within the hysteresis keeps the direction) and

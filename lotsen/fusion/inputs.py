@@ -34,6 +34,7 @@ import math
 from dataclasses import dataclass
 
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
+from lotsen.sim.actuators import advance_motors
 
 NEUTRAL = (0.0, 0.0, 0.0, 0.0, 0.0)
 
@@ -147,16 +148,14 @@ class ActuatorInputFilter:
             da = lim.alpha_rate_max_radps * dt
             for i in range(2):
                 self.alpha[i] += min(max(cmd[i] - self.alpha[i], -da), da)  # servo slew limit
-        gain = 1.0 - math.exp(-dt / lim.motor_time_constant_s)
-        dn_max = lim.n_rate_max_rps2 * dt
+        if not self.armed:
+            targets = [0.0, 0.0, 0.0]
+        elif fresh_cmd:
+            targets = list(cmd[2:5])
+        else:
+            targets = list(self.n_model)
+        self.n_model = list(advance_motors(self.n_model, targets, dt, lim))
         for i in range(3):
-            if not self.armed:
-                target = 0.0
-            elif fresh_cmd:
-                target = cmd[2 + i]
-            else:
-                target = self.n_model[i]
-            self.n_model[i] += min(max(gain * (target - self.n_model[i]), -dn_max), dn_max)
             self.p[i] += c.offset_walk_rps_sqrt_s ** 2 * dt
             if t - self.t_meas > c.speed_timeout_s:
                 self.d[i] *= math.exp(-dt / c.offset_decay_s)

@@ -38,6 +38,28 @@ def _actuator_step_py(state, command, active, max_dalpha, motor_gain, max_dn):  
 actuator_step = njit(_actuator_step_py)
 
 
+def _motor_steps_py(n1, n2, nt, c1, c2, ct, steps, motor_gain, max_dn):  # type: ignore[no-untyped-def]
+    st = (0.0, 0.0, n1, n2, nt)
+    for _ in range(steps):
+        st = actuator_step(st, (0.0, 0.0, c1, c2, ct), (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, motor_gain, max_dn)
+    return st[2], st[3], st[4]
+
+
+_motor_steps = njit(_motor_steps_py)
+
+
+def advance_motors(n: tuple[float, ...] | list[float] | np.ndarray, command_n: tuple[float, ...] | list[float] | np.ndarray,
+                   dt_s: float, limits: ActuatorLimits = DEFAULT_LIMITS, steps: int = 1) -> tuple[float, float, float]:
+    """Propeller speeds (n1, n2, nt; rev/s) `dt_s` after `n` under the held set-points `command_n`:
+    the motor model of `ActuatorDynamics` (first-order response, ramp limit) in `steps` equal steps.
+    The one place the controllers, monitors and estimators model what the ESCs did with the commands;
+    scalar arguments, so one compiled signature serves every caller."""
+    h = dt_s / steps
+    return _motor_steps(float(n[0]), float(n[1]), float(n[2]), float(command_n[0]), float(command_n[1]),
+                        float(command_n[2]), int(steps), 1.0 - math.exp(-h / limits.motor_time_constant_s),
+                        limits.n_rate_max_rps2 * h)
+
+
 @dataclass
 class ActuatorFaults:
     failed_units: set[int] = field(default_factory=set)  # 0 = azimuth 1, 1 = azimuth 2, 2 = bow

@@ -16,6 +16,7 @@ from typing import Any, Callable
 from lotsen.messages import Topic
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Executor, RealtimeExecutor, SimExecutor
+from lotsen.sim.actuators import advance_motors
 from lotsen.stack.parts import add_recorder, add_state, add_supervisor, add_web, add_zenoh
 from lotsen.stack.sim_boat import SimulatedBoatNode
 from lotsen.model import VesselModel
@@ -68,6 +69,7 @@ def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | N
                   origin=resolve_origin(config))
     if realtime:
         stack.model.warm_up()  # numba compiles now, not when the operator presses AUTO
+        advance_motors((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1)  # the thruster monitor's and the EKF's motor model
     add_boat(stack, h.simulator, h.truth_rate_hz)
     for name, adder in PARTS.items():
         if parts is None or name in parts:

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from lotsen.messages import ActuatorState, GnssFixType, RpmSample, ThrustCommand
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-from lotsen.sim.actuators import actuator_step
+from lotsen.sim.actuators import advance_motors
 
 if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read them
     from lotsen.supervisor.node import SupervisorInputs
@@ -275,11 +275,7 @@ class ThrusterMonitor(Monitor):
         dt = t - self._t
         if dt <= 0.0:
             return
-        gain = 1.0 - math.exp(-dt / self.limits.motor_time_constant_s)
-        state = (0.0, 0.0, *self.model_n)
-        out = actuator_step(state, (0.0, 0.0, *self._cmd), (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, gain,
-                            self.limits.n_rate_max_rps2 * dt)
-        self.model_n = [out[2], out[3], out[4]]
+        self.model_n = list(advance_motors(self.model_n, self._cmd, dt, self.limits))
         self._t = t
         self._history.append((t, self.model_n))
         while len(self._history) > 1 and self._history[1][0] <= t - self.latency_s:

@@ -158,3 +158,18 @@ def test_advance_equals_stepping():
     b.command([0.0, 0.0, 30, 30, 0])
     assert _flatten(a.step()) == _flatten(b.advance(0.01))
     assert a.x == b.x
+
+
+def test_advance_motors_is_the_simulators_motor_model():
+    """The controllers', monitors' and estimators' model of the ESCs (`advance_motors`) is the
+    simulated boat's: 10 steps of 10 ms give the propeller speeds ActuatorDynamics reaches."""
+    from lotsen.sim.actuators import ActuatorDynamics, advance_motors
+
+    act = ActuatorDynamics(dt_s=0.01)
+    act.state = (0.0, 0.0, 20.0, -30.0, 5.0)
+    act.set_command(0.0, 0.0, 90.0, 10.0, -60.0)
+    for _ in range(10):
+        act.step()
+    n = advance_motors((20.0, -30.0, 5.0), (90.0, 10.0, -60.0), 0.1, act.limits, steps=10)
+    assert n == pytest.approx(act.state[2:], abs=1e-12)
+    assert n != pytest.approx(advance_motors((20.0, -30.0, 5.0), (90.0, 10.0, -60.0), 0.1, act.limits), abs=1e-3)
