@@ -101,12 +101,14 @@ def timing_rows(quick: bool) -> list[dict]:
             sim.command(cmd)
             sim.advance(0.1)
         t = np.array(c.solve_times_ms[5:])  # after warm-up (JIT load, first factorisation)
+        # issue 5 asks for one horizon >= 20 within 1 ms, issue 19 for N = 40; N = 30 is shown for scale
+        target = {20: f"median <= {TARGET_STEP_MS} ms at N >= 20 (issue 5)",
+                  40: f"median <= {TARGET_STEP_MS} ms at N = 40 (issue 19)"}.get(N, "(info)")
         rows.append({"table": "mpc step time", "horizon": N, "steps": len(t),
                      "median_ms": round(float(np.median(t)), 3), "p95_ms": round(float(np.percentile(t, 95)), 3),
                      "max_ms": round(float(t.max()), 3), "failures": c.failures,
-                     # the target asks for one horizon >= 20; longer horizons are shown for scale
-                     "target": f"median <= {TARGET_STEP_MS} ms at N >= 20" if N == 20 else "(longer horizon, info)",
-                     "pass": bool(np.median(t) <= TARGET_STEP_MS) if N == 20 else None})
+                     "qp_per_step": round(c.qp_solves / steps, 3),
+                     "target": target, "pass": bool(np.median(t) <= TARGET_STEP_MS) if N in (20, 40) else None})
     rows.append(_step_time_vs_issue5(path, 300 if quick else 900))
     return rows
 
@@ -147,6 +149,9 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     x = m.set_variable("_x", "x", shape=(6, 1))
     wp = m.set_variable("_x", "wp", shape=(5, 1))  # previous input (rate bounds)
     w = m.set_variable("_u", "w", shape=(5, 1))
+    penalised = cfg.reversal_penalty_azimuth > 0.0 or cfg.reversal_penalty_bow > 0.0
+    if penalised:  # the reversal slacks of our QP: t >= astern part of each azimuth (ahead only), t >= |q_t|
+        t = m.set_variable("_u", "t", shape=(3, 1))
     ref = m.set_variable("_tvp", "ref", shape=(7, 1))  # pn, pe, ph, pv, pk, U, q_trim
     f = symbolic_rhs(ca)
     theta = list(model.theta)
@@ -175,6 +180,9 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     wref = [0, 0, qt, qt, 0]
     # the OSQP QP minimises 1/2 z'Pz + q'z with P = C'QC: the same objective up to the factor 1/2
     inp = sum(R[i] * (w[i] - wref[i]) ** 2 for i in range(5))
+    if penalised:  # OSQP's lambda' t + mu/2 t't, times 2 like the quadratic terms above
+        lam = [cfg.reversal_penalty_azimuth, cfg.reversal_penalty_azimuth, cfg.reversal_penalty_bow]
+        inp += sum(2.0 * lam[j] * t[j] + cfg.reversal_quadratic * t[j] ** 2 for j in range(3))
     mpc = do_mpc.controller.MPC(m)
     mpc.set_param(n_horizon=N, t_step=dt, store_full_solution=False,
                   nlpsol_opts={"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"})
@@ -188,6 +196,9 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
                   + [min(1.0, 2 * dn / limits.n_bow_max_rps)])
     mpc.set_nl_cons("rate_up", w - wp, ub=dw)
     mpc.set_nl_cons("rate_down", wp - w, ub=dw)
+    if penalised:
+        mpc.bounds["lower", "_u", "t"] = np.zeros(3)
+        mpc.set_nl_cons("astern", ca.vertcat(-(t[0] + w[2]), -(t[1] + w[3]), w[4] - t[2], -w[4] - t[2]), ub=np.zeros(4))
     tvp = mpc.get_tvp_template()
     holder: dict = {"ref": np.zeros((N + 1, 7))}
 
@@ -201,8 +212,10 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     return mpc, holder
 
 
-def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> float:
-    """Realised closed-loop cost with the OCP's weights (true projection on the path)."""
+def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> np.ndarray:
+    """Realised closed-loop cost with the OCP's weights (true projection on the path): [the OCP's
+    stage cost with the reversal penalties (its L1 terms, scaled like do-mpc's objective), the
+    same without them (tracking and input effort only)]."""
     s, cte, hdg = ref.project(x[0], x[1], s)
     _, _, _, k, v = ref.sample(np.array([s]))
     he = (x[2] - hdg + math.pi) % (2 * math.pi) - math.pi
@@ -212,54 +225,35 @@ def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> 
     R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow])
     S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
     wref = np.array([0, 0, q_trim, q_trim, 0])
-    return float(sum(Q[i] * float(y[i]) ** 2 for i in range(5)) + R @ (w - wref) ** 2 + S @ (w - w_prev) ** 2)
+    t = np.array([max(0.0, -w[2]), max(0.0, -w[3]), abs(w[4])])  # astern azimuth thrust, |bow thrust|
+    lam = np.array([cfg.reversal_penalty_azimuth, cfg.reversal_penalty_azimuth, cfg.reversal_penalty_bow])
+    tracking = float(sum(Q[i] * float(y[i]) ** 2 for i in range(5)) + R @ (w - wref) ** 2 + S @ (w - w_prev) ** 2)
+    return np.array([tracking + 2.0 * lam @ t + cfg.reversal_quadratic * float(t @ t) * float(lam.any()), tracking])
 
 
-# (progress_reference, qp_iterations) of our MPC beside do-mpc: the default, the same OCP as do-mpc,
-# and the same OCP with a second QP per step
-DOMPC_VARIANTS = (("predicted", 1), ("time", 1), ("time", 2))
+# The OCPs of the comparison (calm water, 30 cm start offset; observer and ESC lag off in ours, because
+# do-mpc has neither; nor the servo slew): "ahead" = our default design (the azimuths' astern thrust and the bow thrust
+# L1-costed, issue 19); "reversible" = the issue-5 OCP without those costs. Our variants per OCP:
+# (progress_reference, qp_iterations). "time" is the OCP do-mpc solves; "predicted" is our default
+# reference (progress of the predicted positions); qp_iterations = 1 is plain RTI (the default), 2 adds
+# a second QP in transients (`reiterate_dw`).
+_DEFAULT = MPCConfig()
+DOMPC_CASES = (
+    ("ahead", (("predicted", _DEFAULT.qp_iterations), ("time", _DEFAULT.qp_iterations), ("time", 2))),
+    ("reversible", (("time", _DEFAULT.qp_iterations), ("time", 2))),
+)
 
 
-def dompc_rows(quick: bool) -> list[dict]:
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            import do_mpc  # noqa: F401
-    except Exception as exc:  # pragma: no cover
-        return [{"table": "do-mpc peer", "note": f"do-mpc not available: {exc}"}]
-    path = _path("figure_eight")
-    # calm water, no observer, no reversal penalty, no ESC lag in the prediction: exactly the OCP do-mpc solves
-    cfg = MPCConfig(disturbance_gain=0.0, reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0,
-                    esc_in_prediction=False)
-    model = VesselModel()
+def _dompc_closed_loop(cfg: MPCConfig, path, x0, steps: int, ours: MPCController) -> tuple[np.ndarray, float, int]:
+    """do-mpc (IPOPT on the nonlinear multiple-shooting NLP) in closed loop: costs (`_stage_cost`),
+    median ms, failures."""
     from lotsen.model import DEFAULT_LIMITS
 
-    steps = 40 if quick else 100
-    x0 = [path.north_m[0], path.east_m[0] + 0.3, path.heading_rad[0], 0.3, 0, 0]  # 30 cm off, moving
-    results = {}
-    # --- lotsen MPC (OSQP, LTV real-time iteration): our path-following reference (progress of the
-    # predicted positions), the time-parameterised one do-mpc is given (the same OCP), and that one
-    # with a second QP per step re-linearised along the first one's solution
-    for variant in DOMPC_VARIANTS:
-        progress, iterations = variant
-        ours = MPCController(model, DEFAULT_LIMITS, replace(cfg, progress_reference=progress,
-                                                            qp_iterations=iterations))
-        ours.reset(path)
-        sim = Simulator(model, DEFAULT_LIMITS, SimConfig(sensors=False), x0)
-        ref = PathReference(path, cfg.min_speed_ref_mps)
-        J, s, w_prev = 0.0, 0.0, np.zeros(5)
-        for _ in range(steps):
-            cmd, st = ours.update(sim.t, sim.truth())
-            w = ours.command_to_w(cmd.as_tuple())
-            J += _stage_cost(cfg, ref, sim.x, st.progress_m, w, w_prev, float(ours.q_trim(np.array(st.speed_ref_mps))))
-            w_prev = w
-            sim.command(cmd)
-            sim.advance(cfg.dt_s)
-        results[variant] = (J, np.median(ours.solve_times_ms[2:]), ours.failures)
-    # --- do-mpc (IPOPT on the nonlinear multiple-shooting NLP)
+    model = VesselModel()
     mpc, holder = _build_dompc(cfg, model, DEFAULT_LIMITS)
+    ref = PathReference(path, cfg.min_speed_ref_mps)
     sim = Simulator(model, DEFAULT_LIMITS, SimConfig(sensors=False), x0)
-    J, s, w_prev = 0.0, 0.0, np.zeros(5)
+    J, s, w_prev = np.zeros(2), 0.0, np.zeros(5)
     times = []
     N = cfg.horizon
     fails = 0
@@ -275,10 +269,10 @@ def dompc_rows(quick: bool) -> list[dict]:
         xa = np.concatenate([x, w_prev])
         if i == 0:
             mpc.x0 = xa
-            mpc.u0 = w_prev
+            mpc.u0 = np.concatenate([w_prev, np.zeros(mpc.model.n_u - 5)])  # (and the reversal slacks)
             mpc.set_initial_guess()
         t0 = time.perf_counter()
-        w = np.asarray(mpc.make_step(xa)).ravel()
+        w = np.asarray(mpc.make_step(xa)).ravel()[:5]
         times.append((time.perf_counter() - t0) * 1e3)
         if not mpc.solver_stats.get("success", True):
             fails += 1
@@ -286,28 +280,69 @@ def dompc_rows(quick: bool) -> list[dict]:
         w_prev = w
         sim.command(ours.w_to_command(w))
         sim.advance(cfg.dt_s)
-    results["do-mpc"] = (J, statistics.median(times[2:]), fails)
-    J_peer, t_peer, f_peer = results["do-mpc"]
+    return J, statistics.median(times[2:]), fails
+
+
+def dompc_rows(quick: bool) -> list[dict]:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            import do_mpc  # noqa: F401
+    except Exception as exc:  # pragma: no cover
+        return [{"table": "do-mpc peer", "note": f"do-mpc not available: {exc}"}]
+    from lotsen.model import DEFAULT_LIMITS
+
+    path = _path("figure_eight")
+    model = VesselModel()
+    steps = 40 if quick else 100
+    x0 = [path.north_m[0], path.east_m[0] + 0.3, path.heading_rad[0], 0.3, 0, 0]  # 30 cm off, moving
     rows = []
-    for variant in DOMPC_VARIANTS:
-        progress, iterations = variant
-        J_ours, t_ours, f_ours = results[variant]
-        speedup = t_peer / t_ours
-        gap = 100.0 * (J_ours - J_peer) / J_peer
-        same = progress == "time"
-        rows.append({
-            "table": "do-mpc peer (same OCP, figure eight, 30 cm start offset, calm)",
-            "progress_reference": progress + (" (the OCP do-mpc solves)" if same else " (default; do-mpc: time)"),
-            "qp_iterations": iterations,
-            "horizon": cfg.horizon, "closed_loop_steps": steps,
-            "lotsen_median_ms": round(float(t_ours), 3), "dompc_median_ms": round(float(t_peer), 2),
-            "speedup": round(float(speedup), 1),
-            "lotsen_closed_loop_cost": round(J_ours, 3), "dompc_closed_loop_cost": round(J_peer, 3),
-            "cost_gap_pct": round(gap, 2),
-            "failures_lotsen": f_ours, "failures_dompc": f_peer,
-            "target": f">= {TARGET_SPEEDUP:.0f}x faster" + ("; cost gap <= 3 % (issue 19)" if same else ""),
-            "pass": bool(speedup >= TARGET_SPEEDUP and (gap <= 3.0 or not same)),
-        })
+    for ocp, variants in DOMPC_CASES:
+        cfg = MPCConfig(disturbance_gain=0.0, esc_in_prediction=False, servo_in_prediction=False)
+        if ocp == "reversible":
+            cfg = replace(cfg, reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0)
+        ref = PathReference(path, cfg.min_speed_ref_mps)
+        results = {}
+        for progress, iterations in variants:
+            ours = MPCController(model, DEFAULT_LIMITS, replace(cfg, progress_reference=progress,
+                                                                qp_iterations=iterations))
+            ours.reset(path)
+            sim = Simulator(model, DEFAULT_LIMITS, SimConfig(sensors=False), x0)
+            J, w_prev = np.zeros(2), np.zeros(5)
+            for _ in range(steps):
+                cmd, st = ours.update(sim.t, sim.truth())
+                w = ours.command_to_w(cmd.as_tuple())
+                J += _stage_cost(cfg, ref, sim.x, st.progress_m, w, w_prev,
+                                 float(ours.q_trim(np.array(st.speed_ref_mps))))
+                w_prev = w
+                sim.command(cmd)
+                sim.advance(cfg.dt_s)
+            results[(progress, iterations)] = (J, np.median(ours.solve_times_ms[2:]), ours.failures)
+        J_peer, t_peer, f_peer = _dompc_closed_loop(cfg, path, x0, steps, ours)
+        for progress, iterations in variants:
+            J_ours, t_ours, f_ours = results[(progress, iterations)]
+            speedup = t_peer / t_ours
+            gap, gap_tracking = 100.0 * (J_ours - J_peer) / J_peer
+            same = progress == "time"
+            rows.append({
+                "table": "do-mpc peer (same OCP, figure eight, 30 cm start offset, calm)",
+                "ocp": ocp + (" (default design)" if ocp == "ahead" else " (issue-5 OCP)"),
+                "progress_reference": progress + (" (the OCP do-mpc solves)" if same else " (default; do-mpc: time)"),
+                "qp_iterations": iterations,
+                "horizon": cfg.horizon, "closed_loop_steps": steps,
+                "lotsen_median_ms": round(float(t_ours), 3), "dompc_median_ms": round(float(t_peer), 2),
+                "speedup": round(float(speedup), 1),
+                "lotsen_closed_loop_cost": round(float(J_ours[0]), 3), "dompc_closed_loop_cost": round(float(J_peer[0]), 3),
+                "cost_gap_pct": round(float(gap), 2),
+                # the same without the reversal penalties: where the L1 terms differ, how each tracks
+                "tracking_cost_gap_pct": round(float(gap_tracking), 2),
+                "failures_lotsen": f_ours, "failures_dompc": f_peer,
+                "target": f">= {TARGET_SPEEDUP:.0f}x faster" + ("; cost gap <= 3 % (issue 19, whole objective)"
+                                                                 if same and ocp == "ahead"
+                                                                 and iterations == _DEFAULT.qp_iterations else ""),
+                "pass": bool(speedup >= TARGET_SPEEDUP and (gap <= 3.0 or not same or ocp != "ahead"
+                                                            or iterations != _DEFAULT.qp_iterations)),
+            })
     return rows
 
 
@@ -315,7 +350,8 @@ SOAK_RUNS, SOAK_S = 10, 600.0
 SOAK_QUICK_RUNS, SOAK_QUICK_S = 2, 120.0
 MAX_REVERSALS_PER_10S = 1.0
 UNPENALISED = MPCConfig(reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0, esc_in_prediction=False,
-                        azimuth_ahead_only=False, current_in_prediction=False)
+                        servo_in_prediction=False, azimuth_ahead_only=False, current_in_prediction=False,
+                        qp_iterations=1)
 
 
 def _looped_figure_eight(min_length_m: float):
@@ -379,6 +415,7 @@ def soak_rows(quick: bool) -> list[dict]:
             row[f"{name}reversals_per_10s"] = round(rev, 2)
             row[f"{name}cross_track_rms_cm"] = round(m["cross_track_rms_m"] * 100, 2)
             row[f"{name}solve_median_ms"] = m["solve_time_median_ms"]
+            row[f"{name}qp_per_step"] = round(follower.qp_solves / max(len(follower.solve_times_ms), 1), 3)
             # OSQP's wall-clock time limit (20 ms) makes these load-dependent: on a loaded machine a burst
             # of overruns can trip the controller failsafe (that is not a thruster failsafe)
             row[f"{name}solver_failures"] = m["failures"]
@@ -401,7 +438,8 @@ def soak_rows(quick: bool) -> list[dict]:
 # (reversal penalty 0.2 on either direction, bow 1.0 / 0.5, no current in the prediction), the station
 # keeper without the current feedforward and weathervaning, and the path arriving at cruise speed
 ISSUE14_MPC = MPCConfig(reversal_penalty_azimuth=0.2, reversal_penalty_bow=1.0, r_thrust_bow=0.5,
-                        azimuth_ahead_only=False, current_in_prediction=False)
+                        azimuth_ahead_only=False, current_in_prediction=False, servo_in_prediction=False,
+                        qp_iterations=1)
 
 
 def mission_rows(quick: bool) -> list[dict]:

@@ -10,7 +10,12 @@ including the thruster housing force, linearised at every step along the *nomina
     Ad_k = I + dt A_k + dt^2/2 A_k^2,   Bd_k = dt B_k + dt^2/2 A_k B_k,   (A_k, B_k) = jacobians(xb_k, ub_k)
 
 f_d is one RK4 step of the nonlinear model (with the estimated disturbance force, below). One QP
-per step (real-time iteration): the nominal of the next step is this step's solution.
+per step (real-time iteration): the nominal of the next step is this step's solution. With
+`qp_iterations = 2` a second QP, re-linearised along the first one's solution, runs while the first
+moved an input by more than `reiterate_dw` from its nominal (a transient; in steady tracking on ~1 %
+of the steps). The cold-start nominal runs the azimuths at the trim thrust of the reference speed:
+at q = 0 the angles would have no authority in the linearisation (the side force T sin(alpha) is
+bilinear).
 
 Inputs (decision variables, scaled): w = [alpha_1, alpha_2, q_1, q_2, q_t], q = n|n| / n_max^2.
 The thrust is linear in q (T = mu n_max^2 q), so the bow thruster keeps its authority at n = 0
@@ -31,7 +36,8 @@ QP (seed eq. 43-44):
          + sum_k lambda' t_k + mu ||t_k||^2                                (reversal penalty)
     s.t. x_0 = x_measured
          x_{k+1} - Ad_k x_k - Bd_k u_k = c_k                               (linearised dynamics)
-         u_k = w_k with the thrust part beta q_k + (1 - beta) q_{k-1}      (ESC lag, q_{-1} = achieved)
+         u_k = beta_k w_k + (1 - beta_k) w_{k-1} per input                 (servo and ESC lags; w_{-1} =
+                                                                             servo angles, achieved thrust)
          t_k >= 0, t_k + sigma q_k >= 0 (azimuths);  t_k >= +-q_t (bow)
          w_min <= w_k <= w_max                                             (44: input bounds)
          -dw_max <= w_k - w_{k-1} <= dw_max,  w_{-1} = previous command    (44: rate bounds)
@@ -66,6 +72,9 @@ average of a first-order response (motor time constant T_m) from the previous se
 one, beta = 1 - T_m/dt (1 - exp(-dt/T_m)); stage 0 starts from the modelled achieved speed (the
 simulator's actuator model run on the commands sent). The previous set-point stands for the
 achieved speed at the start of later stages (an approximation: 71 % reached after one step).
+Servo slew (issue 19): the angle over a step is the average of a ramp at the rate limit from the
+previous set-point, beta_k = 1 - |dalpha_k| / (2 rate dt) with dalpha_k from the nominal plan (exact
+for the simulator's servo at the nominal; the rate bound makes every set-point reachable in a step).
 
 Issue 19 (2026-11-23): the thrust part of each propeller's q-column is exact also at n = 0 (before,
 a propeller at rest had no authority in the prediction); by default the azimuths' direction is fixed
@@ -136,7 +145,15 @@ class MPCConfig:
     # "time" = s0 + k U dt from the measured progress (trajectory tracking along the path; the OCP
     # the do-mpc peer in bench_control solves, so its cost gap measures the one QP per step only)
     progress_reference: str = "predicted"
-    qp_iterations: int = 1  # QPs per step, each re-linearised along the previous one's solution (RTI: 1)
+    # QPs per step at most, each re-linearised along the previous one's solution (RTI: 1). A further
+    # QP runs only while the last one moved an input by more than `reiterate_dw` (scaled units: rad,
+    # q) from the nominal it was linearised on: in a transient, not in steady tracking, where one QP
+    # per step has converged along the trajectory (the median step stays that of one QP). 2 halves
+    # the do-mpc tracking gap of a start 30 cm off the path (docs/control.md), but in the fault suite's
+    # 0.3 m/s beam current it settled bow-downstream at 0.1 m/s where one QP turns into the current
+    # and follows: the default stays one until a start procedure for strong currents exists.
+    qp_iterations: int = 1
+    reiterate_dw: float = 0.2
     n_floor_rps: float = 5.0  # |n| floor in d(kappa n)/dq
     disturbance_gain: float = 0.15  # observer gain per step (0 switches it off)
     disturbance_max_N: float = 5.0
@@ -170,6 +187,9 @@ class MPCConfig:
     # step's thrust is the step average of a first-order response from the previous set-point
     # (for stage 0: the modelled achieved speed) to the new one. False: set-points act at once.
     esc_in_prediction: bool = True
+    # servo slew in the prediction (issue 19): each step's angle is the step average of a ramp at the
+    # servo's rate limit from the previous set-point (`_servo_beta`). False: set-points act at once.
+    servo_in_prediction: bool = True
     # issue 19: the prediction uses the estimator's water current (VesselState.current_ne_mps, earth
     # frame) in the RK4 affine term and the Jacobians (kinetics on the relative velocity); the
     # disturbance observer then learns only the remainder (wind). An estimate above max_current_mps
@@ -182,6 +202,8 @@ class MPCConfig:
             raise ValueError(f"MPCConfig.horizon: {self.horizon} must be >= 2")
         if not 1 <= self.qp_iterations <= 5:
             raise ValueError(f"MPCConfig.qp_iterations: {self.qp_iterations} must be in 1..5")
+        if not (math.isfinite(self.reiterate_dw) and self.reiterate_dw >= 0.0):
+            raise ValueError(f"MPCConfig.reiterate_dw: {self.reiterate_dw} must be a finite number >= 0")
         if self.progress_reference not in ("predicted", "time"):
             raise ValueError(f"MPCConfig.progress_reference: {self.progress_reference!r} is not predicted or time")
         if not self.dt_s > 0:
@@ -388,27 +410,29 @@ def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_e
 _assemble = njit(_assemble_py)
 
 
-def _esc_lag_block_py(Bd, bi, bj, beta, qa, Ax, a_bq_pos, a_lag_pos, l, u):  # type: ignore[no-untyped-def]
-    """The ESC lag's entries (module docstring): the thrust columns of each stage's dynamics row
-    scaled by beta, the previous stage's set-point by (1 - beta), and for stage 0 the achieved
-    thrust moved into the row's bounds. Written in place (numba-compiled: per step, no allocation)."""
+def _input_lag_block_py(Bd, bi, bj, beta, w_before, Ax, a_b_pos, a_lag_pos, l, u):  # type: ignore[no-untyped-def]
+    """The actuator lags' entries (module docstring): input column j of stage k's dynamics row scaled
+    by beta[k, j], the previous stage's set-point by (1 - beta[k, j]), and for stage 0 the actuator
+    state before the step (`w_before`: the servo angles, the achieved ESC thrust) moved into the row's
+    bounds. Written in place (numba-compiled: per step, no allocation)."""
     N = Bd.shape[0]
     m = bi.shape[0]
     for k in range(N):
         for j in range(m):
             b = Bd[k, bi[j], bj[j]]
-            Ax[a_bq_pos[k, j]] = -beta * b
+            g = beta[k, bj[j]]
+            Ax[a_b_pos[k, j]] = -g * b
             if k >= 1:
-                Ax[a_lag_pos[k - 1, j]] = -(1.0 - beta) * b
+                Ax[a_lag_pos[k - 1, j]] = -(1.0 - g) * b
     for i in range(Bd.shape[1]):
         off = 0.0
-        for j in range(qa.shape[0]):
-            off += Bd[0, i, 2 + j] * qa[j]
-        l[Bd.shape[1] + i] += (1.0 - beta) * off
-        u[Bd.shape[1] + i] += (1.0 - beta) * off
+        for j in range(w_before.shape[0]):
+            off += Bd[0, i, j] * (1.0 - beta[0, j]) * w_before[j]
+        l[Bd.shape[1] + i] += off
+        u[Bd.shape[1] + i] += off
 
 
-_esc_lag_block = njit(_esc_lag_block_py)
+_input_lag_block = njit(_input_lag_block_py)
 
 
 def _csc_template(n_rows: int, n_cols: int, entries: list[tuple[int, int]]) -> tuple[sp.csc_matrix, np.ndarray]:
@@ -511,14 +535,12 @@ class MPCController:
             a_entries += [(r + i, self._wi(k) + j) for i, j in zip(bi, bj)]
             a_vals += [0.0] * (len(ai) + len(bi))
         dyn_count = len(a_entries) - dyn_entries_start
-        # ESC lag: stage k's dynamics also depend on the previous set-point's thrust columns (k >= 1)
-        lag_sel = bj >= 2
-        self._lag_bi, self._lag_bj = bi[lag_sel].copy(), bj[lag_sel].copy()  # Bd entries of the thrust columns
+        # actuator lags (ESC, servo): stage k's dynamics also depend on the previous set-point (k >= 1)
         lag_start = len(a_entries)
         for k in range(1, N):
             r = row + NX * k
-            a_entries += [(r + i, self._wi(k - 1) + j) for i, j in zip(self._lag_bi, self._lag_bj)]
-            a_vals += [0.0] * int(lag_sel.sum())
+            a_entries += [(r + i, self._wi(k - 1) + j) for i, j in zip(bi, bj)]
+            a_vals += [0.0] * len(bi)
         lag_count = len(a_entries) - lag_start
         for k in range(N):
             for i in range(NX):
@@ -564,11 +586,13 @@ class MPCController:
         self._Ax[a_pos] = a_vals
         # per stage k: the Ad entries of the pattern, then the Bd entries
         self._a_dyn_pos = a_pos[dyn_entries_start:dyn_entries_start + dyn_count].reshape(N, len(ai) + len(bi))
-        self._a_lag_pos = a_pos[lag_start:lag_start + lag_count].reshape(N - 1, int(lag_sel.sum()))
-        self._a_bq_pos = self._a_dyn_pos[:, len(ai):][:, lag_sel]  # Bd entries of the thrust columns
+        self._a_lag_pos = a_pos[lag_start:lag_start + lag_count].reshape(N - 1, len(bi))
+        self._a_b_pos = self._a_dyn_pos[:, len(ai):].copy()  # per stage: the Bd entries of the pattern
         T_m = lim.motor_time_constant_s
         # weight of the new set-point in the step-average thrust of a first-order response
         self._esc_beta = 1.0 - T_m / cfg.dt_s * (1.0 - math.exp(-cfg.dt_s / T_m)) if cfg.esc_in_prediction else 1.0
+        self._beta = np.ones((N, NW))  # per stage and input: weight of the new set-point (the lags)
+        self._beta[:, 2:] = self._esc_beta
         # bounds
         self._l = np.zeros(self.m)
         self._u = np.zeros(self.m)
@@ -657,14 +681,28 @@ class MPCController:
         n = self._n_achieved
         return n * np.abs(n) / self.scale[2:]
 
-    def _effective_command(self, cmd: tuple[float, ...]) -> tuple[float, ...]:
-        """The step-average thrust of the ESC response to cmd, as propeller speeds (the prediction's input)."""
+    def _servo_beta(self, delta_rad: np.ndarray) -> np.ndarray:
+        """Weight of the new angle in the step-average angle of a servo slewing at its rate limit from
+        the previous set-point: the ramp takes |delta| / rate of the step, so the average lags the new
+        set-point by delta |delta| / (2 rate dt) (exact for the simulator's servo; the rate bound keeps
+        every set-point reachable within a step)."""
+        da = self.limits.alpha_rate_max_radps * self.config.dt_s
+        return 1.0 - np.minimum(np.abs(delta_rad) / (2.0 * da), 0.5)
+
+    def _effective_command(self, cmd: tuple[float, ...], previous: tuple[float, ...]) -> tuple[float, ...]:
+        """The step-average input of the servo and ESC responses to cmd after `previous` (the
+        prediction's input), as angles and propeller speeds."""
+        a = np.array(cmd[:2])
+        if self.config.servo_in_prediction:
+            a0 = np.array(previous[:2])
+            b = self._servo_beta(a - a0)
+            a = b * a + (1.0 - b) * a0
+        q = self.command_to_w(cmd)[2:]
         b = self._esc_beta
-        if b >= 1.0:
-            return tuple(cmd)
-        q = b * self.command_to_w(cmd)[2:] + (1.0 - b) * self._q_achieved()
+        if b < 1.0:
+            q = b * q + (1.0 - b) * self._q_achieved()
         n = np.sign(q) * np.sqrt(np.abs(q) * self.scale[2:])
-        return (cmd[0], cmd[1], float(n[0]), float(n[1]), float(n[2]))
+        return (float(a[0]), float(a[1]), float(n[0]), float(n[1]), float(n[2]))
 
     def _advance_esc(self, cmd: tuple[float, ...]) -> None:
         """The modelled ESC speeds one control period on under cmd (the simulator's motor model, 10 ms steps)."""
@@ -701,6 +739,7 @@ class MPCController:
         self.path = PathReference(path, self.config.min_speed_ref_mps)
         self.failures = 0
         self.solve_times_ms = []
+        self.qp_solves = 0  # QPs solved since reset (more than the steps only in transients: reiterate_dw)
         self._reset_state()
 
     @property
@@ -722,6 +761,7 @@ class MPCController:
         self.path = None
         self.failures = 0
         self.solve_times_ms = []
+        self.qp_solves = 0
         self._reset_state()
 
     def q_trim(self, speed: np.ndarray) -> np.ndarray:
@@ -766,11 +806,20 @@ class MPCController:
         """Shift the previous solution; the first state is the measurement."""
         N = self.N
         if self._xb is None:
-            # cold start: hold the previous input and integrate the model
+            # cold start: the azimuths at the trim thrust of the reference speed (or the previous
+            # input, if it pushes harder), angles and bow as before, integrated with the model. At
+            # q = 0 the angles have no authority in the linearisation (the side force T sin(alpha)
+            # is bilinear), so a nominal at rest hides crabbing from the first QPs (issue 19, the
+            # bench's start 30 cm off the path: tracking gap to do-mpc 5.6 -> 4.7 % with one QP per
+            # step, 6.8 -> 1.3 % with two).
             xb = np.empty((N + 1, NX))
             xb[0] = x
-            wb = np.tile(self._w_prev, (N, 1))
-            cmd = self.w_to_command(self._w_prev)
+            w0 = self._w_prev.copy()
+            v0 = float(self.path.sample(np.array([self._s]))[4][0])
+            q_trim = float(self.q_trim(np.array(v0)))
+            w0[2:4] = np.where(np.abs(w0[2:4]) > q_trim, w0[2:4], q_trim)
+            wb = np.tile(w0, (N, 1))
+            cmd = self.w_to_command(w0)
             for k in range(N):
                 x1, _ = rk4_step(tuple(xb[k]), cmd, self.model.theta, self.model.geom,
                                  float(self._current[0]), float(self._current[1]),
@@ -811,18 +860,18 @@ class MPCController:
             s_pred[0] = s0
             np.maximum(s_pred, s0, out=s_pred)
         pr = self.path
-        beta = self._esc_beta
         qa = self._q_achieved()
         origin = x[:2].copy()
         newton = 2 if cfg.progress_reference == "predicted" else 0
         # real-time iteration: one QP on the shifted plan's linearisation; with qp_iterations > 1 the
         # model is re-linearised along the new solution and the QP solved again (warm-started)
-        for iteration in range(cfg.qp_iterations):
-            # ESC lag: the linearisation runs on the effective (step-average) thrust of each stage
-            ub = wb.copy()
-            if beta < 1.0:
-                ub[0, 2:] = beta * wb[0, 2:] + (1.0 - beta) * qa
-                ub[1:, 2:] = beta * wb[1:, 2:] + (1.0 - beta) * wb[:-1, 2:]
+        w_before = np.concatenate([self._w_prev[:2], qa])  # servo angles and ESC thrust before the step
+        for _iteration in range(cfg.qp_iterations):
+            # actuator lags: the linearisation runs on the step-average input of each stage
+            prev = np.concatenate([w_before[None, :], wb[:-1]])
+            if cfg.servo_in_prediction:
+                self._beta[:, :2] = self._servo_beta(wb[:, :2] - prev[:, :2])
+            ub = self._beta * wb + (1.0 - self._beta) * prev
             _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
                       pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,
                       self._current, cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev,
@@ -830,15 +879,14 @@ class MPCController:
                       self._ad_idx[1], self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos,
                       self._iu[0], self._iu[1], self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q,
                       self._l, self._u, self._row_bounds, self._row_rate, self._ref, newton)
-            if beta < 1.0:
-                _esc_lag_block(self._Bd, self._lag_bi, self._lag_bj, beta, qa, self._Ax, self._a_bq_pos,
-                               self._a_lag_pos, self._l, self._u)
+            _input_lag_block(self._Bd, self._bd_idx[0], self._bd_idx[1], self._beta, w_before, self._Ax,
+                             self._a_b_pos, self._a_lag_pos, self._l, self._u)
             self._s_pred = s_pred
             pv = self._ref[:, 4]
             if not (np.isfinite(self._Ax).all() and np.isfinite(self._l).all() and np.isfinite(self._q).all()):
                 return self._failure(t, state, "QP data not finite", t0, cte, hdg, s0, float(pv[0]))
             self.solver.update(q=self._q, l=self._l, u=self._u, Px=self._Px, Ax=self._Ax)
-            if cfg.warm_start_shifted and iteration == 0:
+            if cfg.warm_start_shifted and _iteration == 0:
                 xr = xb.copy()
                 xr[:, 0] -= origin[0]
                 xr[:, 1] -= origin[1]
@@ -847,6 +895,7 @@ class MPCController:
                 tb = tb.ravel()
                 self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel(), tb]))
             res = self.solver.solve(raise_error=False)
+            self.qp_solves += 1
             z = None if res.x is None else np.array(res.x, dtype=float)
             ok = (res.info.status_val in _SOLVED and z is not None and z.shape == (self.nz,)
                   and bool(np.all(np.isfinite(z))))
@@ -858,7 +907,10 @@ class MPCController:
             ws = np.clip(ws, -self._w_max, self._w_max)
             xs[:, 0] += origin[0]
             xs[:, 1] += origin[1]
+            moved = float(np.max(np.abs(ws - wb)))
             xb, wb = xs, ws
+            if moved <= cfg.reiterate_dw:
+                break
         self._xb, self._wb = xs, ws
         self._plan = ws.copy()
         self._plan_age = 0
@@ -877,11 +929,12 @@ class MPCController:
 
     def _commit(self, cmd: tuple[float, ...]) -> None:
         """cmd goes to the actuators: remember it, count reversals, step the ESC model (the
-        observer's input is the step-average thrust from the achieved speed before the step)."""
+        observer's input is the step-average angle and thrust from the actuators before the step)."""
+        previous = self._cmd_prev if self._cmd_prev is not None else cmd  # first command: servo angle unknown
         self._cmd_prev = cmd
         self._w_prev = self.command_to_w(cmd)
         self._update_direction(cmd)
-        self._cmd_effective = self._effective_command(cmd)
+        self._cmd_effective = self._effective_command(cmd, previous)
         self._advance_esc(cmd)
 
     def _failure(self, t: float, state: VesselState, why: str, t0: float, cte: float, hdg: float,
