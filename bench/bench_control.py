@@ -231,9 +231,10 @@ def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> 
     return np.array([tracking + 2.0 * lam @ t + cfg.reversal_quadratic * float(t @ t) * float(lam.any()), tracking])
 
 
-# The OCPs of the comparison (calm water, 30 cm start offset; observer and ESC lag off in ours, because
-# do-mpc has neither; nor the servo slew): "ahead" = our default design (the azimuths' astern thrust and the bow thrust
-# L1-costed, issue 19); "reversible" = the issue-5 OCP without those costs. Our variants per OCP:
+# The OCPs of the comparison (calm water, 30 cm start offset; observer, ESC lag and servo slew off in
+# ours, because do-mpc models none of them): "ahead" = our default design (the azimuths' astern thrust
+# and the bow thrust L1-costed, issue 19); "reversible" = the issue-5 OCP without those costs. Our
+# variants per OCP:
 # (progress_reference, qp_iterations). "time" is the OCP do-mpc solves; "predicted" is our default
 # reference (progress of the predicted positions); qp_iterations = 1 is plain RTI (the default), 2 adds
 # a second QP in transients (`reiterate_dw`).
@@ -332,7 +333,8 @@ def dompc_rows(quick: bool) -> list[dict]:
                 "horizon": cfg.horizon, "closed_loop_steps": steps,
                 "lotsen_median_ms": round(float(t_ours), 3), "dompc_median_ms": round(float(t_peer), 2),
                 "speedup": round(float(speedup), 1),
-                "lotsen_closed_loop_cost": round(float(J_ours[0]), 3), "dompc_closed_loop_cost": round(float(J_peer[0]), 3),
+                "lotsen_closed_loop_cost": round(float(J_ours[0]), 3),
+                "dompc_closed_loop_cost": round(float(J_peer[0]), 3),
                 "cost_gap_pct": round(float(gap), 2),
                 # the same without the reversal penalties: where the L1 terms differ, how each tracks
                 "tracking_cost_gap_pct": round(float(gap_tracking), 2),
