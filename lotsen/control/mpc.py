@@ -188,7 +188,7 @@ class MPCConfig:
     # (for stage 0: the modelled achieved speed) to the new one. False: set-points act at once.
     esc_in_prediction: bool = True
     # servo slew in the prediction (issue 19): each step's angle is the step average of a ramp at the
-    # servo's rate limit from the previous set-point (`_servo_beta`). False: set-points act at once.
+    # servo's rate limit from the previous set-point (`_lag_weights`). False: set-points act at once.
     servo_in_prediction: bool = True
     # issue 19: the prediction uses the estimator's water current (VesselState.current_ne_mps, earth
     # frame) in the RK4 affine term and the Jacobians (kinetics on the relative velocity); the
@@ -591,8 +591,7 @@ class MPCController:
         T_m = lim.motor_time_constant_s
         # weight of the new set-point in the step-average thrust of a first-order response
         self._esc_beta = 1.0 - T_m / cfg.dt_s * (1.0 - math.exp(-cfg.dt_s / T_m)) if cfg.esc_in_prediction else 1.0
-        self._beta = np.ones((N, NW))  # per stage and input: weight of the new set-point (the lags)
-        self._beta[:, 2:] = self._esc_beta
+        self._beta = np.ones((N, NW))  # per stage and input: weight of the new set-point (`_lag_weights`)
         # bounds
         self._l = np.zeros(self.m)
         self._u = np.zeros(self.m)
@@ -681,28 +680,27 @@ class MPCController:
         n = self._n_achieved
         return n * np.abs(n) / self.scale[2:]
 
-    def _servo_beta(self, delta_rad: np.ndarray) -> np.ndarray:
-        """Weight of the new angle in the step-average angle of a servo slewing at its rate limit from
-        the previous set-point: the ramp takes |delta| / rate of the step, so the average lags the new
-        set-point by delta |delta| / (2 rate dt) (exact for the simulator's servo; the rate bound keeps
-        every set-point reachable within a step)."""
-        da = self.limits.alpha_rate_max_radps * self.config.dt_s
-        return 1.0 - np.minimum(np.abs(delta_rad) / (2.0 * da), 0.5)
+    def _lag_weights(self, w: np.ndarray, before: np.ndarray, beta: np.ndarray) -> np.ndarray:
+        """Weight of the new set-point w in each input's step average after `before` (rows: stages),
+        written into beta: the ESC's first-order response (`_esc_beta`) and the servo slewing at its
+        rate limit, whose ramp takes |delta| / rate of the step, so that the average lags the new
+        angle by delta |delta| / (2 rate dt) (exact for the simulator's servo; the rate bound keeps
+        every set-point reachable within a step). The step average is beta w + (1 - beta) before."""
+        beta[..., 2:] = self._esc_beta
+        if self.config.servo_in_prediction:
+            da = self.limits.alpha_rate_max_radps * self.config.dt_s
+            beta[..., :2] = 1.0 - np.minimum(np.abs(w[..., :2] - before[..., :2]) / (2.0 * da), 0.5)
+        else:
+            beta[..., :2] = 1.0
+        return beta
 
     def _effective_command(self, cmd: tuple[float, ...], previous: tuple[float, ...]) -> tuple[float, ...]:
         """The step-average input of the servo and ESC responses to cmd after `previous` (the
         prediction's input), as angles and propeller speeds."""
-        a = np.array(cmd[:2])
-        if self.config.servo_in_prediction:
-            a0 = np.array(previous[:2])
-            b = self._servo_beta(a - a0)
-            a = b * a + (1.0 - b) * a0
-        q = self.command_to_w(cmd)[2:]
-        b = self._esc_beta
-        if b < 1.0:
-            q = b * q + (1.0 - b) * self._q_achieved()
-        n = np.sign(q) * np.sqrt(np.abs(q) * self.scale[2:])
-        return (float(a[0]), float(a[1]), float(n[0]), float(n[1]), float(n[2]))
+        w = self.command_to_w(cmd)
+        before = np.concatenate([previous[:2], self._q_achieved()])
+        b = self._lag_weights(w, before, np.empty(NW))
+        return self.w_to_command(b * w + (1.0 - b) * before)
 
     def _advance_esc(self, cmd: tuple[float, ...]) -> None:
         """The modelled ESC speeds one control period on under cmd (the simulator's motor model, 10 ms steps)."""
@@ -869,8 +867,7 @@ class MPCController:
         for _iteration in range(cfg.qp_iterations):
             # actuator lags: the linearisation runs on the step-average input of each stage
             prev = np.concatenate([w_before[None, :], wb[:-1]])
-            if cfg.servo_in_prediction:
-                self._beta[:, :2] = self._servo_beta(wb[:, :2] - prev[:, :2])
+            self._lag_weights(wb, prev, self._beta)
             ub = self._beta * wb + (1.0 - self._beta) * prev
             _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
                       pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,

@@ -90,6 +90,14 @@ def _tau_py(u, v, r, inp, theta, geom):  # type: ignore[no-untyped-def]
 _tau = njit(_tau_py)
 
 
+def _current_body_py(cos_psi, sin_psi, current_n, current_e):  # type: ignore[no-untyped-def]
+    """The earth-frame current (north, east) in the body frame at heading psi: (u_c, v_c) = R(psi)^T c."""
+    return current_n * cos_psi + current_e * sin_psi, -current_n * sin_psi + current_e * cos_psi
+
+
+_current_body = njit(_current_body_py)
+
+
 def _rhs_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n):  # type: ignore[no-untyped-def]
     """x_dot = f(x, u; theta): seed eq. (7-8) and (22).
 
@@ -117,8 +125,7 @@ def _rhs_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n):  # 
     r = x[5]
     cpsi = cos(psi)
     spsi = sin(psi)
-    uc = current_n * cpsi + current_e * spsi
-    vc = -current_n * spsi + current_e * cpsi
+    uc, vc = _current_body(cpsi, spsi, current_n, current_e)
     ur = u - uc
     vr = v - vc
     tX, tY, tN = _tau(ur, vr, r, inp, theta, geom)
@@ -289,8 +296,7 @@ def _jacobians_current_py(x, inp, theta, geom, current_n, current_e):  # type: i
     r = x[5]
     c = cos(psi)
     s = sin(psi)
-    uc = current_n * c + current_e * s
-    vc = -current_n * s + current_e * c
+    uc, vc = _current_body(c, s, current_n, current_e)
     A, B = _jacobians((x[0], x[1], psi, u - uc, v - vc, r), inp, theta, geom)
     # kinematics on the ground velocity (the calm Jacobian above saw the relative one)
     A[0, 2] = -u * s - v * c
@@ -344,14 +350,15 @@ def jacobians(x: Sequence[float], inp: Sequence[float], theta: Sequence[float],
 def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
     """The same equations on CasADi symbols: f(x, u, theta, geom_tuple) -> list of 6 expressions.
 
-    Re-binds the code objects of `_rhs`, `_tau`, `_azimuth_force` to CasADi's cos/sin/sqrt/fabs,
+    Re-binds the code objects of `_rhs`, `_tau`, `_azimuth_force`, `_current_body` to CasADi's cos/sin/sqrt/fabs,
     so identification differentiates exactly the model that the simulator integrates.
     `x`, `u`, `theta` are sequences of scalar CasADi expressions (e.g. `casadi.vertsplit(X)`).
     """
     ca = casadi_module
     ns = dict(globals())
     ns.update(cos=ca.cos, sin=ca.sin, sqrt=ca.sqrt, fabs=ca.fabs, _sign=ca.sign)
-    for name, fn in (("_azimuth_force", _azimuth_force_py), ("_tau", _tau_py), ("_rhs", _rhs_py)):
+    for name, fn in (("_azimuth_force", _azimuth_force_py), ("_tau", _tau_py), ("_current_body", _current_body_py),
+                     ("_rhs", _rhs_py)):
         ns[name] = types.FunctionType(py_func(fn).__code__, ns, name)
     rhs = ns["_rhs"]
 
