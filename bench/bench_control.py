@@ -33,7 +33,7 @@ from lotsen.control import ControlConfig, MPCConfig, MPCController, PathReferenc
 from lotsen.model import Environment, VesselModel, symbolic_rhs  # noqa: E402
 from lotsen.planning import plan_route  # noqa: E402
 from lotsen.planning.io import load_route  # noqa: E402
-from lotsen.stack.mission import MissionConfig, run_mission  # noqa: E402
+from lotsen.harness.mission import MissionConfig, run_mission  # noqa: E402
 from lotsen.sim import SimConfig, Simulator  # noqa: E402
 
 ROUTES = ("figure_eight", "harbour_approach")
@@ -393,7 +393,7 @@ def _reversals_per_10s(u: np.ndarray, t: np.ndarray, threshold_rps: float = 5.0)
 def soak_rows(quick: bool) -> list[dict]:
     """AUTO on the looped figure eight in current + wind with the EKF and the failsafes: zero
     failsafes over runs x minutes (issue 14 item 3), reversals per 10 s (issue 19)."""
-    from lotsen.stack.mission import make_sim_ekf
+    from lotsen.harness.mission import make_sim_ekf
 
     runs, dur = (SOAK_QUICK_RUNS, SOAK_QUICK_S) if quick else (SOAK_RUNS, SOAK_S)
     path = _looped_figure_eight(0.5 * dur + 20.0)  # still following the route when the time is up
@@ -450,7 +450,7 @@ def mission_rows(quick: bool) -> list[dict]:
     issue-14 design on the same seeds; reversals per 10 s while following."""
     from lotsen.control import StationKeepingConfig, make_station_keeper
     from lotsen.planning import PlannerConfig
-    from lotsen.stack.mission import make_sim_ekf
+    from lotsen.harness.mission import make_sim_ekf
 
     route = load_route(ROOT / "examples" / "routes" / "figure_eight.yaml")
     designs = {

@@ -10,7 +10,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from lotsen.stack.fault_injection import FaultRun, load_scenarios
+from lotsen.harness.fault_injection import FaultRun, load_scenarios
 
 # the table and its pass criteria live with the tests, not beside the code they judge
 SCENARIOS = load_scenarios(Path(__file__).resolve().parents[1] / "tests" / "stack" / "failsafe_scenarios.yaml")

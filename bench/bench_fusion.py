@@ -10,7 +10,7 @@ in the issue; 1 m is used as the "usable" bound. (Since issue 19 the EKF estimat
 
 Further rows: the EKF with and without its current states in 0.1 m/s current and 3 m/s wind
 (issue 19: outage drift <= 0.25 m after 10 s), and the integrity table (issue 14): every fault
-case of `lotsen.fusion.evaluation.FAULT_CASES`, its detection time against its deadline.
+case of `lotsen.harness.estimator.FAULT_CASES`, its detection time against its deadline.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def _rows(label: str, res: dict, cfg) -> list[dict]:  # type: ignore[no-untyped-
 
 def run(quick: bool = False) -> list[dict]:
     from lotsen.fusion.ekf import EkfConfig
-    from lotsen.fusion.evaluation import EvaluationConfig, evaluate
+    from lotsen.harness.estimator import EvaluationConfig, evaluate
 
     base = EvaluationConfig()
     if quick:
@@ -99,7 +99,7 @@ CURRENT_OUTAGE_TARGET_M = 0.25  # issue 19: GNSS-outage drift after 10 s in 0.1 
 def _current_rows(quick: bool) -> list[dict]:
     """Issue 19: the EKF with and without its current states in 0.1 m/s current and 3 m/s wind."""
     from lotsen.fusion.ekf import EkfConfig
-    from lotsen.fusion.evaluation import EvaluationConfig, evaluate
+    from lotsen.harness.estimator import EvaluationConfig, evaluate
     from lotsen.model import Environment
 
     env = Environment(current_speed_mps=0.1, current_to_deg=60.0, wind_speed_mps=3.0, wind_from_deg=200.0)
@@ -125,10 +125,10 @@ def _current_rows(quick: bool) -> list[dict]:
 
 
 def integrity_rows(quick: bool = False) -> list[dict]:
-    """Issue 14: every fault case of lotsen.fusion.evaluation.FAULT_CASES on the EKF (open-loop
+    """Issue 14: every fault case of lotsen.harness.estimator.FAULT_CASES on the EKF (open-loop
     manoeuvre, 0.1 m/s current, 3 m/s wind): detection time against the documented deadline,
     false alarms before the fault, how long the fault stays declared after it ended, errors."""
-    from lotsen.fusion.evaluation import FAULT_CASES, run_fault_case
+    from lotsen.harness.estimator import FAULT_CASES, run_fault_case
 
     rows = []
     for name, case in FAULT_CASES.items():

@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.model import Environment, VesselModel
     from lotsen.planning import plan_route
     from lotsen.planning.io import load_route
-    from lotsen.stack.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")

@@ -109,7 +109,7 @@ from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model._jit import njit
 from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-from lotsen.sim.actuators import advance_motors
+from lotsen.model.actuators import advance_motors
 
 NX, NW, NY = 6, 5, 5
 NREV = 3  # propellers with a direction: azimuth 1, azimuth 2, bow

@@ -34,7 +34,7 @@ import math
 from dataclasses import dataclass
 
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-from lotsen.sim.actuators import advance_motors
+from lotsen.model.actuators import advance_motors, slew_servos
 
 NEUTRAL = (0.0, 0.0, 0.0, 0.0, 0.0)
 
@@ -145,9 +145,7 @@ class ActuatorInputFilter:
         if self.act_alpha is not None and t - self.t_act <= c.actuator_timeout_s:
             self.alpha = list(self.act_alpha)
         elif fresh_cmd:
-            da = lim.alpha_rate_max_radps * dt
-            for i in range(2):
-                self.alpha[i] += min(max(cmd[i] - self.alpha[i], -da), da)  # servo slew limit
+            self.alpha = list(slew_servos(self.alpha, cmd[:2], dt, lim))
         if not self.armed:
             targets = [0.0, 0.0, 0.0]
         elif fresh_cmd:

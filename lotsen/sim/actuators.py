@@ -13,51 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lotsen.model._jit import njit
+from lotsen.model.actuators import actuator_step, step_gains
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-
-
-def _actuator_step_py(state, command, active, max_dalpha, motor_gain, max_dn):  # type: ignore[no-untyped-def]
-    """One step of servo slew (rate limit) and first-order motor response (exact for a held set-point).
-
-    `active` = (servo1, servo2, motor1, motor2, motor_bow) as 1.0/0.0: a stuck servo keeps its
-    angle, a failed motor spins down to zero.
-    """
-    a1 = state[0]
-    a2 = state[1]
-    if active[0] > 0.0:
-        a1 += min(max(command[0] - a1, -max_dalpha), max_dalpha)
-    if active[1] > 0.0:
-        a2 += min(max(command[1] - a2, -max_dalpha), max_dalpha)
-    n1 = state[2] + min(max(motor_gain * (command[2] * active[2] - state[2]), -max_dn), max_dn)
-    n2 = state[3] + min(max(motor_gain * (command[3] * active[3] - state[3]), -max_dn), max_dn)
-    nt = state[4] + min(max(motor_gain * (command[4] * active[4] - state[4]), -max_dn), max_dn)
-    return (a1, a2, n1, n2, nt)
-
-
-actuator_step = njit(_actuator_step_py)
-
-
-def _motor_steps_py(n1, n2, nt, c1, c2, ct, steps, motor_gain, max_dn):  # type: ignore[no-untyped-def]
-    st = (0.0, 0.0, n1, n2, nt)
-    for _ in range(steps):
-        st = actuator_step(st, (0.0, 0.0, c1, c2, ct), (0.0, 0.0, 1.0, 1.0, 1.0), 0.0, motor_gain, max_dn)
-    return st[2], st[3], st[4]
-
-
-_motor_steps = njit(_motor_steps_py)
-
-
-def advance_motors(n: tuple[float, ...] | list[float] | np.ndarray, command_n: tuple[float, ...] | list[float] | np.ndarray,
-                   dt_s: float, limits: ActuatorLimits = DEFAULT_LIMITS, steps: int = 1) -> tuple[float, float, float]:
-    """Propeller speeds (n1, n2, nt; rev/s) `dt_s` after `n` under the held set-points `command_n`:
-    the motor model of `ActuatorDynamics` (first-order response, ramp limit) in `steps` equal steps.
-    The one place the controllers, monitors and estimators model what the ESCs did with the commands;
-    scalar arguments, so one compiled signature serves every caller."""
-    h = dt_s / steps
-    return _motor_steps(float(n[0]), float(n[1]), float(n[2]), float(command_n[0]), float(command_n[1]),
-                        float(command_n[2]), int(steps), 1.0 - math.exp(-h / limits.motor_time_constant_s),
-                        limits.n_rate_max_rps2 * h)
 
 
 @dataclass
@@ -79,9 +36,7 @@ class ActuatorDynamics:
         # the same two vectors as float arrays, for the simulator's compiled step
         self.command_array = np.zeros(5)
         self.active_array = np.ones(5)
-        self._motor_gain = 1.0 - math.exp(-dt_s / limits.motor_time_constant_s)
-        self._max_dalpha = limits.alpha_rate_max_radps * dt_s
-        self._max_dn = limits.n_rate_max_rps2 * dt_s
+        self._max_dalpha, self._motor_gain, self._max_dn = step_gains(limits, dt_s)
 
     def set_command(self, alpha1: float, alpha2: float, n1: float, n2: float, nt: float) -> None:
         """Store a set-point; non-finite values are replaced by neutral (the driver would do the same)."""

@@ -16,7 +16,7 @@ from typing import Any, Callable
 from lotsen.messages import Topic
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Executor, RealtimeExecutor, SimExecutor
-from lotsen.sim.actuators import advance_motors
+from lotsen.model.actuators import advance_motors
 from lotsen.stack.parts import add_recorder, add_state, add_supervisor, add_web, add_zenoh
 from lotsen.stack.sim_boat import SimulatedBoatNode
 from lotsen.model import VesselModel

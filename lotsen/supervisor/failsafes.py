@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from lotsen.messages import ActuatorState, GnssFixType, RpmSample, ThrustCommand
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-from lotsen.sim.actuators import advance_motors
+from lotsen.model.actuators import advance_motors
 
 if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read them
     from lotsen.supervisor.node import SupervisorInputs

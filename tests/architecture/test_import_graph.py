@@ -20,8 +20,9 @@ LAYERS: dict[str, int] = {
     "runtime": 4,
     "supervisor": 5, "drivers": 5, "logs": 5, "transport": 5, "web": 5,
     "stack": 6,
-    "cli": 7,
-    "__main__": 8,
+    "harness": 7,
+    "cli": 8,
+    "__main__": 9,
 }
 # Same-layer arrows that are part of the design (each must stay acyclic).
 SIDEWAYS: set[tuple[str, str]] = {
@@ -113,3 +114,14 @@ def test_the_checker_sees_hidden_and_relative_imports(tmp_path):
     module = pkg / "runtime" / "bus.py"
     module.write_text("def f():\n    from lotsen.web import server\n\nfrom ..stack import launch\nfrom . import clock\n")
     assert imported_units(module, pkg) == {"web", "stack", "runtime"}
+
+
+# What the algorithms share with the simulated boat is the model, never the simulator itself:
+# a controller or an estimator that imported lotsen.sim could quietly use the boat's truth.
+ALGORITHMS_WITHOUT_SIM = ("model", "planning", "fusion", "control", "sysid", "supervisor", "runtime")
+
+
+def test_no_algorithm_imports_the_simulator():
+    graph = package_graph()
+    bad = sorted(u for u in ALGORITHMS_WITHOUT_SIM if "sim" in graph.get(u, set()))
+    assert not bad, f"these packages import lotsen.sim (share the model instead): {bad}"

@@ -1,4 +1,4 @@
-"""The closed-loop mission harness (lotsen.stack.mission) and the `lotsen mission` command."""
+"""The closed-loop mission harness (lotsen.harness.mission) and the `lotsen mission` command."""
 
 import argparse
 import json
@@ -12,7 +12,7 @@ from lotsen.errors import ConfigError, LotsenError
 from lotsen.model import Environment
 from lotsen.planning import plan_route
 from lotsen.planning.io import load_route
-from lotsen.stack.mission import MissionConfig, make_sim_ekf, run_mission
+from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 
 from .conftest import straight_path
 

@@ -260,7 +260,7 @@ def test_no_propeller_reversals_in_steady_tracking_on_the_ekf():
     reverse, all three propellers together <= 1 reversal per 10 s, and the tracking stays close."""
     from lotsen.planning import plan_route
     from lotsen.planning.io import load_route
-    from lotsen.stack.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 
     from pathlib import Path
 
@@ -315,7 +315,7 @@ def test_warm_up_compiles_every_signature_the_control_loop_uses():
     from lotsen.model import VesselModel, dynamics
     from lotsen.planning import plan_route
     from lotsen.planning.io import load_route
-    from lotsen.stack.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 
     model = VesselModel()
     model.warm_up()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from lotsen.fusion.evaluation import EvaluationConfig, evaluate
+from lotsen.harness.estimator import EvaluationConfig, evaluate
 
 
 def test_short_evaluation_meets_targets() -> None:

@@ -13,7 +13,7 @@ from lotsen.fusion import (
     EkfConfig, MagCalibration, ModelAidedEKF, SeedFilters, SeedFiltersConfig, YawKalmanFilter, wrap_angle,
 )
 from lotsen.fusion.common import feed
-from lotsen.fusion.evaluation import calibrate_from_turn, simulate_calibration_turn
+from lotsen.harness.estimator import calibrate_from_turn, simulate_calibration_turn
 from lotsen.messages import ActuatorState, GnssFix, ImuSample, MagSample, ThrustCommand, VesselState
 from lotsen.sim import SimConfig, Simulator
 

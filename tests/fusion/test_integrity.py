@@ -1,4 +1,4 @@
-"""Estimator integrity (issue 14): each fault of lotsen.fusion.evaluation.FAULT_CASES injected
+"""Estimator integrity (issue 14): each fault of lotsen.harness.estimator.FAULT_CASES injected
 into the messages the EKF sees, shortened (fault at 12 s) to keep the suite fast. The full-length
 cases and their detection times are in bench/bench_fusion.py and docs/fusion.md."""
 
@@ -9,7 +9,7 @@ import math
 import pytest
 
 from lotsen.fusion import EkfConfig, ModelAidedEKF
-from lotsen.fusion.evaluation import FAULT_CASES, run_fault_case
+from lotsen.harness.estimator import FAULT_CASES, run_fault_case
 from lotsen.fusion.integrity import IntegrityConfig, IntegrityMonitor
 from lotsen.messages import GnssFix, GnssFixType, VesselState
 

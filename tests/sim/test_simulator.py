@@ -163,7 +163,8 @@ def test_advance_equals_stepping():
 def test_advance_motors_is_the_simulators_motor_model():
     """The controllers', monitors' and estimators' model of the ESCs (`advance_motors`) is the
     simulated boat's: 10 steps of 10 ms give the propeller speeds ActuatorDynamics reaches."""
-    from lotsen.sim.actuators import ActuatorDynamics, advance_motors
+    from lotsen.model.actuators import advance_motors
+    from lotsen.sim.actuators import ActuatorDynamics
 
     act = ActuatorDynamics(dt_s=0.01)
     act.state = (0.0, 0.0, 20.0, -30.0, 5.0)

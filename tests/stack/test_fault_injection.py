@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from lotsen.stack.fault_injection import FaultRun, load_scenarios
+from lotsen.harness.fault_injection import FaultRun, load_scenarios
 
 SCENARIOS = load_scenarios(Path(__file__).with_name("failsafe_scenarios.yaml"))
 

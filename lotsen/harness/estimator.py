@@ -22,11 +22,12 @@ from typing import Any, Callable
 import numpy as np
 
 from lotsen.fusion.common import feed, wrap_angle
-from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
+from lotsen.fusion.ekf import IPSI, EkfConfig, ModelAidedEKF
 from lotsen.fusion.magcal import MagCalibration, fit_mag_calibration
 from lotsen.fusion.seed_filters import SeedFilters, SeedFiltersConfig, YawFilterConfig
-from lotsen.messages import ImuSample, MagSample, VesselState
+from lotsen.messages import GnssFix, ImuSample, MagSample, VesselState
 from lotsen.model import DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
+from lotsen.sim import SimConfig, Simulator
 
 DEG = math.pi / 180.0
 
@@ -81,7 +82,6 @@ def perturbed_parameters(rel: float, params: VesselParameters = DEFAULT_PARAMETE
 
 def simulate_calibration_turn(seed: int, duration_s: float = 45.0) -> list[MagSample]:
     """Raw magnetometer samples of a turn on the spot (default: 1.2 turns)."""
-    from lotsen.sim import SimConfig, Simulator
 
     sim = Simulator(config=SimConfig(seed=seed + 1000))
     sim.command([-0.6, -0.6, 15.0, 15.0, 60.0])
@@ -157,7 +157,6 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
     `clock` (e.g. time.perf_counter) is only used to report CPU time per message; the
     algorithms never read it.
     """
-    from lotsen.sim import SimConfig, Simulator
 
     cal_samples = simulate_calibration_turn(config.seed, config.calibration_turn_s)
     cal = calibrate_from_turn(cal_samples)
@@ -311,9 +310,6 @@ def run_fault_case(name: str, seed: int = 1, ekf_config: EkfConfig | None = None
     never declared), the time the fault stayed declared after it ended, the largest position
     and heading errors from the fault's start to `after_s` after its end, the fault codes seen
     before the fault (false alarms) and the codes seen while it lasted."""
-    from lotsen.fusion.ekf import IPSI
-    from lotsen.messages import GnssFix
-    from lotsen.sim import SimConfig, Simulator
 
     case = FAULT_CASES[name]
     case = replace(case, start_s=case.start_s if start_s is None else start_s,
