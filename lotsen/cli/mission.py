@@ -1,9 +1,13 @@
 """`lotsen mission ROUTE.yaml --sim [--controller mpc|pursuit|los|lq] [--current SPEED,DIR_DEG]
-[--wind SPEED,DIR_DEG] [--seed N] --report report.json [--plot mission.png]`
+[--wind SPEED,DIR_DEG] [--seed N] [--boat BOAT.json|ideal] [--params PARAMS.json] --report report.json
+[--plot mission.png]`
 
 Plans the route (lotsen.planning), runs the closed loop on the simulated boat (controller at
 10 Hz on the simulator's 100 Hz steps), holds the last point with the station keeper, and writes
-a JSON report (tracking errors, solve times, completion) and optionally a plot.
+a JSON report (tracking errors, propeller reversals, solve times, completion, which boat and which
+model) and optionally a plot. The simulated boat (`--boat`, default the lake boat) and the model
+the estimator and controllers use (`--params`, default the default coefficients) are separate:
+a boat is never its model unless `--boat ideal` says so.
 Exit code 0 when the mission completed, 1 when it did not (the report is written either way).
 """
 
@@ -32,6 +36,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--estimator", default="ekf", choices=("truth", "ekf"),
                    help="state for the controller: lotsen.fusion's EKF on the simulated sensors (default) "
                         "or the simulator's truth (errors are always measured on the truth)")
+    p.add_argument("--boat", metavar="BOAT.json|ideal",
+                   help="the simulated boat's coefficients (a params JSON as `lotsen identify --out` writes it; "
+                        "the lake boat's unmodelled effects stay), or 'ideal': the boat equals the model in use. "
+                        "Default: the lake boat (docs/simulator.md)")
+    p.add_argument("--params", metavar="PARAMS.json",
+                   help="the model the estimator and the controllers use (default: the default coefficients)")
     p.add_argument("--hold", type=float, default=10.0, help="seconds of station keeping at the end")
     p.add_argument("--horizon", type=int, help="MPC horizon in steps (default 20)")
     p.add_argument("--report", required=True, help="write the JSON report here")
@@ -65,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.planning import plan_route
     from lotsen.planning.io import load_route
     from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
+    from lotsen.stack.stack import load_parameters
 
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")
@@ -77,21 +89,29 @@ def run(args: argparse.Namespace) -> int:
         if args.horizon < 2:
             raise ConfigError(f"--horizon {args.horizon}: must be at least 2")
         control = replace(control, mpc=replace(MPCConfig(), horizon=args.horizon))
-    model = VesselModel()
+    model = VesselModel(load_parameters(args.params))
+    boat = SimulatedBoat.ideal_for(model) if args.boat == "ideal" else (
+        DEFAULT_BOAT.with_parameters(load_parameters(args.boat), name=f"lake boat with {args.boat}")
+        if args.boat else DEFAULT_BOAT)
     cfg = MissionConfig(control_rate_hz=1.0 / control.dt_s, environment=env, seed=args.seed, hold_s=args.hold,
                         sensors=args.estimator != "truth")
-    estimator = make_sim_ekf(cfg, path, model) if args.estimator == "ekf" else None
-    result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator)
+    estimator = make_sim_ekf(cfg, path, model, boat=boat) if args.estimator == "ekf" else None
+    result = run_mission(path, make_path_follower(control, model), cfg, model=model, boat=boat, estimator=estimator)
     report = dict(result.metrics)
+    report.update(model=args.params or "default coefficients", boat=boat.describe(model.params),
+                  ideal_model=boat.ideal)
     report.update(route=str(args.route), environment={"current_mps": cur[0], "current_to_deg": cur[1],
                                                        "wind_mps": wind[0], "wind_from_deg": wind[1]},
                   seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz)
     _write(args.report, lambda p: p.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8"))
     m = result.metrics
+    print(f"boat: {report['boat']}; model: {report['model']}" + (" [ideal model]" if boat.ideal else ""))
     print(f"{m['controller']}: {'completed' if m['completed'] else 'NOT completed (' + m['reason'] + ')'} in "
           f"{m['duration_s']:.1f} s; cross-track RMS {m['cross_track_rms_m'] * 100:.1f} cm, max "
           f"{m['cross_track_max_m'] * 100:.1f} cm; heading RMS {m['heading_error_rms_deg']:.1f} deg; speed RMS "
-          f"{m['speed_error_rms_mps']:.3f} m/s" + (f"; solve median {m['solve_time_median_ms']:.2f} ms, max "
+          f"{m['speed_error_rms_mps']:.3f} m/s"
+          + (f"; {m['reversals_per_s']:.2f} propeller reversals/s" if "reversals_per_s" in m else "")
+          + (f"; solve median {m['solve_time_median_ms']:.2f} ms, max "
                                                   f"{m['solve_time_max_ms']:.1f} ms" if m['solve_time_median_ms'] else ""))
     print(f"wrote {args.report}")
     if args.plot:

@@ -13,11 +13,13 @@ import secrets
 import signal
 import threading
 from dataclasses import replace
+from pathlib import Path
 
-from lotsen.runtime.config import LaunchConfig, load_config
+from lotsen.runtime.config import BoatSection, LaunchConfig, load_config
 from lotsen.stack.launch import build_stack, summary
 from lotsen.stack.logs import add_foxglove_server, recover_unclosed_logs
 from lotsen.stack.processes import Launcher, freeze_heap, validate
+from lotsen.stack.stack import simulated_boat, vessel_model
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,6 +36,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also stream every topic to Foxglove (WebSocket, default port 8765)")
     p.add_argument("--tls", action="store_true",
                    help="serve the operator page over HTTPS with a self-signed certificate (its fingerprint is printed)")
+    p.add_argument("--boat", metavar="BOAT.json|ideal",
+                   help="with the simulated boat: its coefficients (a params JSON as `lotsen identify --out` writes "
+                        "it, over the config's sim.boat), or 'ideal' for a boat equal to the model in use")
+    p.add_argument("--params", metavar="PARAMS.json",
+                   help="the model the estimator and the controllers use (over the config's vessel.parameters_file)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
     p.set_defaults(func=run)
 
@@ -51,8 +58,22 @@ def launch_config(args: argparse.Namespace) -> tuple[LaunchConfig, bool]:
     if generated:
         web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
+    config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
     validate(config, tls=bool(getattr(args, "tls", False)))
     return config, generated
+
+
+def with_model_and_boat(config: LaunchConfig, params: str | None, boat: str | None) -> LaunchConfig:
+    """`--params FILE` sets the model in use; `--boat FILE|ideal` the simulated boat (its file's
+    coefficients replace the config's `sim.boat.parameters`; its unmodelled effects stay)."""
+    if params:
+        config = replace(config, vessel=replace(config.vessel, parameters_file=str(Path(params).resolve())))
+    if boat == "ideal":
+        config = replace(config, sim=replace(config.sim, boat=BoatSection(ideal=True)))
+    elif boat:
+        config = replace(config, sim=replace(config.sim, boat=replace(
+            config.sim.boat, ideal=False, parameters=None, parameters_file=str(Path(boat).resolve()))))
+    return config
 
 
 def run(args: argparse.Namespace) -> int:
@@ -71,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
+    if config.mode == "sim":
+        print(f"simulated boat: {simulated_boat(config).describe(vessel_model(config).params)}; model: "
+              f"{config.vessel.parameters_file or 'default coefficients'}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:
         launcher.start()

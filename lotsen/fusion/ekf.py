@@ -91,6 +91,9 @@ class EkfConfig:
     # step in the second before it means the estimate diverged (e.g. a wrong model): the gate re-opens.
     gnss_step_m: float = 0.5
     gnss_noise: GnssNoise = field(default_factory=GnssNoise)
+    # where the GNSS antenna sits on the hull (body x forward, y starboard, m from the model's
+    # origin): the receiver locates the antenna, which swings around the origin as the boat turns
+    gnss_antenna_m: tuple[float, float] = (0.0, 0.0)
     use_gnss_velocity: bool = True
     use_accel: bool = True
     accel_bias_states: bool = True
@@ -589,9 +592,12 @@ class ModelAidedEKF:
         noise = self.config.gnss_noise
         s = noise.position_sigma_m(fix)
         self._gnss_self_check(fix.stamp_s, n, e, fix, s)
+        ax, ay = self.config.gnss_antenna_m
+        c, sn = math.cos(self.x[IPSI]), math.sin(self.x[IPSI])
         H = np.zeros((2, self.n))
         H[0, IN] = H[1, IE] = 1.0
-        y = np.array([n - self.x[IN], e - self.x[IE]])
+        H[0, IPSI], H[1, IPSI] = -sn * ax - c * ay, c * ax - sn * ay  # the lever arm turns with psi
+        y = np.array([n - (self.x[IN] + c * ax - sn * ay), e - (self.x[IE] + sn * ax + c * ay)])
         self._update("gnss", y, H, np.eye(2) * s * s, reopen=(IN, IE))
         if not (self.config.use_gnss_velocity and finite(fix.vel_n_mps, fix.vel_e_mps)):
             return
@@ -600,12 +606,13 @@ class ModelAidedEKF:
             # (same receiver, same message) is not trusted either until the position agrees again
             self.counters.count("skipped", "gnss_vel")
         else:
-            psi, u, v = self.x[IPSI], self.x[IU], self.x[IV]
+            psi, r = self.x[IPSI], self.x[IR]
+            u, v = self.x[IU] - r * ay, self.x[IV] + r * ax  # the antenna's body velocity
             c, sn = math.cos(psi), math.sin(psi)
             h = np.array([c * u - sn * v, sn * u + c * v])
             Hv = np.zeros((2, self.n))
-            Hv[0, IPSI], Hv[0, IU], Hv[0, IV] = -sn * u - c * v, c, -sn
-            Hv[1, IPSI], Hv[1, IU], Hv[1, IV] = c * u - sn * v, sn, c
+            Hv[0, IPSI], Hv[0, IU], Hv[0, IV], Hv[0, IR] = -sn * u - c * v, c, -sn, -c * ay - sn * ax
+            Hv[1, IPSI], Hv[1, IU], Hv[1, IV], Hv[1, IR] = c * u - sn * v, sn, c, -sn * ay + c * ax
             sv = noise.velocity_floor_mps * noise.inflation.get(fix.fix_type, 3.0)
             self._update("gnss_vel", np.array([fix.vel_n_mps, fix.vel_e_mps]) - h, Hv, np.eye(2) * sv * sv,
                          reopen=(IU, IV))

@@ -32,7 +32,7 @@ from lotsen.messages import ControllerStatus, OperatorCommand, SupervisorStatus,
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
 from lotsen.runtime.executor import Node, NodeContext
-from lotsen.sim import SimConfig, Simulator
+from lotsen.sim import DEFAULT_BOAT, SimConfig, SimulatedBoat, Simulator
 from lotsen.stack.launch import Harness, build_stack
 
 
@@ -126,12 +126,15 @@ class _TickRecorder(Node):
 
 def run_mission(path: Any, follower: PathFollower | None = None, config: MissionConfig = MissionConfig(),
                 *, station_keeper: StationKeeper | None = None, model: VesselModel | None = None,
-                sim_model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
-                estimator: Any = None, sim_config: SimConfig | None = None) -> MissionResult:
+                boat: SimulatedBoat | None = None, sim_model: VesselModel | None = None,
+                limits: ActuatorLimits = DEFAULT_LIMITS, estimator: Any = None,
+                sim_config: SimConfig | None = None) -> MissionResult:
     """Run one mission in simulation on the stack's closed loop: the simulated boat node (with
     its actuator guard), the estimator node (or the truth), and the supervisor with its
-    failsafes, armed and sent to AUTO at the start. `model` is the controllers' model,
-    `sim_model` the simulated boat (default: the same; pass another for model-mismatch runs)."""
+    failsafes, armed and sent to AUTO at the start. `model` is the controllers' and the
+    estimator's model (default: the default model); `boat` the simulated boat (default: the lake
+    boat, which is not the default model). `sim_model`: a boat exactly equal to that model
+    (no unmodelled effects; `SimulatedBoat.ideal_for`)."""
     model = model or VesselModel()
     follower = follower or make_path_follower(ControlConfig(), model, limits)
     keeper = station_keeper or make_station_keeper(ControlConfig(), model, limits)
@@ -142,7 +145,9 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
     x0 = [float(path.north_m[0]) + along * math.cos(h0) - cross * math.sin(h0),
           float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
           h0 + config.start_heading_offset_rad, 0.0, 0.0, 0.0]
-    sim = Simulator(sim_model or model, limits, sim_cfg, x0)
+    if boat is None:
+        boat = SimulatedBoat.ideal_for(sim_model, limits) if sim_model is not None else DEFAULT_BOAT
+    sim = Simulator(boat, config=sim_cfg, x0=x0)
     launch = LaunchConfig(seed=config.seed, nodes=NodesSection(fusion="truth" if estimator is None else "ekf",
                                                                control_rate_hz=config.control_rate_hz),
                           sim=SimSection(dt_s=sim_cfg.dt_s, esc_arm_time_s=0.0), web=WebSection(enabled=False))
@@ -238,9 +243,10 @@ def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> 
 
 
 def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = None,
-                 sim_config: SimConfig | None = None) -> ModelAidedEKF:
+                 sim_config: SimConfig | None = None, boat: SimulatedBoat = DEFAULT_BOAT) -> ModelAidedEKF:
     """lotsen.fusion's model-aided EKF set up for the simulated boat: GNSS origin of the simulator,
-    the magnetometer calibration its distortion implies (what `lotsen calibrate` would find), and
+    the boat's GNSS antenna position (measured on the hull, as `vessel.gnss_antenna_m`), the
+    magnetometer calibration its distortion implies (what `lotsen calibrate` would find), and
     the start pose of the mission."""
     sc = sim_config or SimConfig()
     imu, gnss = sc.imu, sc.gnss
@@ -253,6 +259,7 @@ def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = N
     x0 = VesselState(stamp_s=0.0, north_m=float(path.north_m[0]) + along * math.cos(h0) - cross * math.sin(h0),
                      east_m=float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
                      heading_rad=h0 + config.start_heading_offset_rad, u_mps=0.0, v_mps=0.0, r_radps=0.0)
-    cfg = EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m))
+    cfg = EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m),
+                    gnss_antenna_m=boat.gnss_antenna_m)
     return ModelAidedEKF(model or VesselModel(), cal, cfg, initial=x0,
                          initial_std=(0.5, 0.5, 0.2, 0.1, 0.1, 0.1, 0.02, 0.2, 0.2))

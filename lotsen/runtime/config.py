@@ -130,6 +130,34 @@ class EnvironmentConfig:
 
 
 @dataclass(frozen=True)
+class BoatSection:
+    """`sim.boat`: the simulated hull, configured apart from the model in use (`vessel`).
+    Keys left out keep the lake boat's values (docs/simulator.md); `ideal: true` makes the
+    simulated boat exactly the model in use (figures from it are labelled "ideal model")."""
+
+    name: str | None = None
+    ideal: bool = False
+    parameters_file: str | None = None  # a params JSON as `lotsen identify --out` writes it
+    parameters: dict[str, float] | None = None  # coefficients over the file's (or the lake boat's)
+    reverse_thrust_ratio: float | None = field(default=None, metadata=_r(0.1, 1.0))
+    thrust_dead_band_rps: float | None = field(default=None, metadata=_r(0.0, 30.0))
+    command_latency_s: float | None = field(default=None, metadata=_r(0.0, 0.5))
+    motor_time_constant_s: float | None = field(default=None, metadata=_r(0.005, 2.0))
+    alpha_rate_max_deg_s: float | None = field(default=None, metadata=_r(10.0, 2000.0))
+    gnss_antenna_m: tuple[float, float] | None = None  # body x, y of the antenna
+
+    def __post_init__(self) -> None:
+        if self.gnss_antenna_m is not None and max(abs(v) for v in self.gnss_antenna_m) > 2.0:
+            raise ConfigError(f"sim.boat.gnss_antenna_m: {list(self.gnss_antenna_m)} is more than 2 m "
+                              "from the hull's origin")
+        if self.ideal:
+            given = [f.name for f in dataclasses.fields(self)
+                     if f.name not in ("ideal", "name") and getattr(self, f.name) is not None]
+            if given:
+                raise ConfigError(f"sim.boat: 'ideal: true' makes the boat the model in use; remove {', '.join(given)}")
+
+
+@dataclass(frozen=True)
 class SimSection:
     dt_s: float = field(default=0.01, metadata=_r(0.001, 0.05))
     imu_rate_hz: float = field(default=100.0, metadata=_r(1.0, 100.0))
@@ -138,12 +166,18 @@ class SimSection:
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     # the simulated ESCs arm after this long at neutral (the real ones after their arming beeps)
     esc_arm_time_s: float = field(default=1.0, metadata=_r(0.0, 30.0))
+    boat: BoatSection = field(default_factory=BoatSection)
 
 
 @dataclass(frozen=True)
 class VesselSection:
     parameters_file: str | None = None  # params.json from `lotsen identify`; defaults if absent
     reverse_thrust_ratio: float = field(default=1.0, metadata=_r(0.1, 1.0))
+    gnss_antenna_m: tuple[float, float] = (0.0, 0.0)  # measured on the hull: body x, y from the model's origin
+
+    def __post_init__(self) -> None:
+        if max(abs(v) for v in self.gnss_antenna_m) > 2.0:
+            raise ConfigError(f"vessel.gnss_antenna_m: {list(self.gnss_antenna_m)} is more than 2 m from the hull's origin")
 
 
 @dataclass(frozen=True)
@@ -223,5 +257,7 @@ def resolve_paths(config: LaunchConfig, base: Path) -> LaunchConfig:
     return dataclasses.replace(
         config, route=absolute(config.route),
         vessel=dataclasses.replace(config.vessel, parameters_file=absolute(config.vessel.parameters_file)),
+        sim=dataclasses.replace(config.sim, boat=dataclasses.replace(
+            config.sim.boat, parameters_file=absolute(config.sim.boat.parameters_file))),
         nodes=dataclasses.replace(config.nodes, mag_calibration_file=absolute(config.nodes.mag_calibration_file)),
         logging=dataclasses.replace(config.logging, directory=absolute(config.logging.directory) or "logs"))

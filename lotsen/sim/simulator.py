@@ -13,6 +13,7 @@ The simulator is pure: no clock, no threads; time advances only by `step()`.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -23,10 +24,23 @@ from lotsen.model._jit import njit
 from lotsen.model.dynamics import VesselModel, rk4_step
 from lotsen.model.environment import Environment, WindCoefficients, wind_force
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
-from lotsen.sim.actuators import ActuatorDynamics, actuator_step
+from lotsen.model.actuators import actuator_step
+from lotsen.sim.actuators import ActuatorDynamics
+from lotsen.sim.boat import DEFAULT_BOAT, SimulatedBoat
 from lotsen.sim.sensors import (
     GnssConfig, GnssModel, ImuConfig, ImuModel, MagnetometerModel, TachometerConfig, TachometerModel,
 )
+
+
+def _thrusting_py(act, dead_band_rps):  # type: ignore[no-untyped-def]
+    """The actuators as the water sees them: a propeller below the dead band makes no thrust."""
+    n1 = act[2] if abs(act[2]) >= dead_band_rps else 0.0
+    n2 = act[3] if abs(act[3]) >= dead_band_rps else 0.0
+    nt = act[4] if abs(act[4]) >= dead_band_rps else 0.0
+    return (act[0], act[1], n1, n2, nt)
+
+
+_thrusting = njit(_thrusting_py)
 
 
 def _plant_step_py(buf, command, active, theta, geom, c):  # type: ignore[no-untyped-def]
@@ -34,7 +48,7 @@ def _plant_step_py(buf, command, active, theta, geom, c):  # type: ignore[no-unt
 
     One compiled call per step: passing tuples into numba costs more than the arithmetic, so
     the step's inputs travel as float arrays. c = [max_dalpha, motor_gain, max_dn, dt,
-    current_n, current_e, tau_x, tau_y, tau_n].
+    current_n, current_e, tau_x, tau_y, tau_n, thrust dead band].
     """
     act = actuator_step((buf[6], buf[7], buf[8], buf[9], buf[10]),
                         (command[0], command[1], command[2], command[3], command[4]),
@@ -42,7 +56,7 @@ def _plant_step_py(buf, command, active, theta, geom, c):  # type: ignore[no-unt
     th = (theta[0], theta[1], theta[2], theta[3], theta[4], theta[5], theta[6], theta[7], theta[8],
           theta[9], theta[10], theta[11], theta[12], theta[13], theta[14], theta[15], theta[16], theta[17])
     gm = (geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6])
-    x1, k1 = rk4_step((buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]), act, th, gm,
+    x1, k1 = rk4_step((buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]), _thrusting(act, c[9]), th, gm,
                       c[4], c[5], c[6], c[7], c[8], c[3])
     for i in range(6):
         buf[i] = x1[i]
@@ -68,7 +82,7 @@ def _plant_steps_py(x0, act0, command, active, theta, geom, c, xs, ks, acts):  #
         xs[0, i] = x[i]
     for k in range(ks.shape[0]):
         act = actuator_step(act, cmd, act_on, c[0], c[1], c[2])
-        x, k1 = rk4_step(x, act, th, gm, c[4], c[5], c[6], c[7], c[8], c[3])
+        x, k1 = rk4_step(x, _thrusting(act, c[9]), th, gm, c[4], c[5], c[6], c[7], c[8], c[3])
         for i in range(6):
             xs[k + 1, i] = x[i]
             ks[k, i] = k1[i]
@@ -119,13 +133,26 @@ class _Schedule:
 
 class Simulator:
     """Simulated boat. `command()` sets actuator set-points; `step()` advances dt_s and returns the
-    sensor messages measured during the step (ImuSample, MagSample, GnssFix, RpmSample, BatteryStatus)."""
+    sensor messages measured during the step (ImuSample, MagSample, GnssFix, RpmSample, BatteryStatus).
 
-    def __init__(self, model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
+    `boat`: a `SimulatedBoat` (default: the lake boat, which is not the default model), or a
+    `VesselModel` (with `limits`) for a boat equal to that model ("ideal model")."""
+
+    def __init__(self, boat: SimulatedBoat | VesselModel | None = None, limits: ActuatorLimits | None = None,
                  config: SimConfig = SimConfig(), x0: Sequence[float] | None = None) -> None:
-        self.model = model or VesselModel()
+        if boat is None:
+            boat = DEFAULT_BOAT
+        elif isinstance(boat, VesselModel):
+            boat = SimulatedBoat.ideal_for(boat, limits or DEFAULT_LIMITS)
+        elif limits is not None and limits != boat.limits:
+            raise ValueError("a SimulatedBoat carries its own actuator limits; do not pass `limits` too")
+        self.boat = boat
+        self.model = boat.model()  # the boat's own equations, not the controllers' model
+        limits = boat.limits
         self.limits = limits
         self.config = config
+        self._latency = boat.command_latency_s
+        self._pending: deque[tuple[float, tuple[float, ...]]] = deque()  # set-points on their way
         self.t = 0.0
         self._k = 0  # step counter; t = k dt keeps time exact over long runs
         self.x: tuple[float, ...] = tuple(float(v) for v in (x0 if x0 is not None else (0.0,) * 6))
@@ -153,13 +180,21 @@ class Simulator:
         self._theta = np.array(self.model.theta)
         self._geom = np.array(self.model.geom)
         a = self.actuators
-        self._consts = np.array([a._max_dalpha, a._motor_gain, a._max_dn, config.dt_s, 0.0, 0.0, 0.0, 0.0, 0.0])
+        self._consts = np.array([a._max_dalpha, a._motor_gain, a._max_dn, config.dt_s, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                 boat.thrust_dead_band_rps])
 
     # -- inputs -------------------------------------------------------------------------------
     def command(self, u: Sequence[float] | ThrustCommand) -> None:
         """Actuator set-points [alpha1, alpha2, n1, n2, nt]; clipped to the limits, NaN -> neutral."""
         values = u.as_tuple() if isinstance(u, ThrustCommand) else tuple(u)
-        self.actuators.set_command(*values)
+        if self._latency > 0.0:
+            self._pending.append((self.t + self._latency, values))
+        else:
+            self.actuators.set_command(*values)
+
+    def _apply_due_commands(self) -> None:
+        while self._pending and self._pending[0][0] <= self.t + 1e-9:
+            self.actuators.set_command(*self._pending.popleft()[1])
 
     def set_environment(self, env: Environment) -> None:
         self.environment = env
@@ -184,6 +219,8 @@ class Simulator:
         return tau[0], tau[1], tau[2]
 
     def step(self) -> list[Any]:
+        if self._pending:
+            self._apply_due_commands()
         c = self._consts
         c[4], c[5] = self._current_ne
         if self.environment.wind_speed_mps or self.environment.wave_force_std_N:
@@ -227,7 +264,14 @@ class Simulator:
         s = self._sched_gnss
         if k >= s.next_k:
             s.next_k += s.period_steps
-            fix = self.gnss.sample(t, x[0], x[1], xd[0], xd[1], t - s.last_t)
+            ax, ay = self.boat.gnss_antenna_m
+            if ax or ay:  # the antenna, not the model's origin, is what the receiver locates
+                cp, sp, r = math.cos(x[2]), math.sin(x[2]), x[5]
+                fix = self.gnss.sample(t, x[0] + cp * ax - sp * ay, x[1] + sp * ax + cp * ay,
+                                       xd[0] - r * (sp * ax + cp * ay), xd[1] + r * (cp * ax - sp * ay),
+                                       t - s.last_t)
+            else:
+                fix = self.gnss.sample(t, x[0], x[1], xd[0], xd[1], t - s.last_t)
             s.last_t = t
             if fix is not None:
                 out.append(fix)
@@ -258,7 +302,8 @@ class Simulator:
         only the sensors run per step."""
         n = int(round(duration_s / self.config.dt_s))
         env = self.environment
-        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N:  # forces that depend on each step's state
+        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N or self._pending:
+            # forces that depend on each step's state, or set-points still on their way
             out: list[Any] = []
             for _ in range(n):
                 out.extend(self.step())
@@ -306,10 +351,10 @@ class Simulator:
 def simulate_inputs(inputs: np.ndarray, dt_s: float, model: VesselModel | None = None,
                     x0: Sequence[float] | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
                     config: SimConfig | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Open-loop run: `inputs` (K x 5 set-points, one row per dt_s). Returns t (K+1), x (K+1 x 6),
+    """Open-loop run of a model (default: the default model): `inputs` (K x 5 set-points, one row per dt_s). Returns t (K+1), x (K+1 x 6),
     achieved actuator values (K x 5). Truth only (no sensors)."""
     cfg = config or SimConfig(dt_s=dt_s, sensors=False)
-    sim = Simulator(model, limits, cfg, x0)
+    sim = Simulator(model or VesselModel(), limits, cfg, x0)  # the model's own response (no boat effects)
     K = len(inputs)
     xs = np.empty((K + 1, 6))
     acts = np.empty((K, 5))

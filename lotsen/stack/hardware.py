@@ -53,7 +53,7 @@ def _warm_up(sim: Any) -> None:
 
     from lotsen.sim import Simulator
 
-    Simulator(sim.model, sim.limits, replace(sim.config, sensors=False), sim.x).step()
+    Simulator(sim.boat, config=replace(sim.config, sensors=False), x0=sim.x).step()
 
 
 def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None = None) -> HardwareBoat:

@@ -58,7 +58,8 @@ def add_state(stack: Stack, estimator: Any = None) -> None:
     o = stack.origin
     origin = (o.lat_deg, o.lon_deg, o.height_m) if o is not None else None
     if cfg.fusion == "ekf":
-        estimator: Any = ModelAidedEKF(stack.model, calibration, EkfConfig(origin=origin))
+        estimator: Any = ModelAidedEKF(stack.model, calibration, EkfConfig(
+            origin=origin, gnss_antenna_m=stack.config.vessel.gnss_antenna_m))
     else:
         estimator = SeedFilters(calibration, SeedFiltersConfig(origin=origin))
     stack.add(FusionNode(estimator, calibration))

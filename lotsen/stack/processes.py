@@ -41,7 +41,7 @@ from lotsen.drivers import hardware_config_from_launch
 from lotsen.stack.launch import build_stack, summary
 from lotsen.stack.logs import add_foxglove_server, add_recorder, recorder_config
 from lotsen.stack.planner_worker import PlannerWorker
-from lotsen.stack.stack import Stack, failsafe_config, load_parameters, planner_config, resolve_origin, vessel_model
+from lotsen.stack.stack import Stack, failsafe_config, load_parameters, planner_config, resolve_origin, simulated_boat, vessel_model
 from lotsen.stack.web import add_web, tls_certificate
 from lotsen.stack.zenoh import bridge_config
 from lotsen.transport import codec
@@ -563,6 +563,8 @@ def validate(config: LaunchConfig, tls: bool = False) -> None:
     planning_budget(config)
     planner_config(config)
     load_parameters(config.vessel.parameters_file)
+    if config.mode == "sim":
+        simulated_boat(config)  # sim.boat and its parameter file
     failsafe = failsafe_config(config)
     recorder_config(config, resolve_origin(config))
     web = WebOptions.from_config(config, failsafe.link_timeout_s)

@@ -3,7 +3,8 @@ the vessel model from the config, the simulator from the config, and the one ori
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from lotsen.planning import GeoOrigin, PlannerConfig
 from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig, from_mapping
 from lotsen.runtime.executor import Executor, Node
-from lotsen.sim import GnssConfig, ImuConfig, SimConfig, Simulator
+from lotsen.sim import DEFAULT_BOAT, GnssConfig, ImuConfig, SimConfig, SimulatedBoat, Simulator
 from lotsen.supervisor.failsafes import FailsafeConfig
 
 #: the repository's examples (demonstration routes for `make run` and the harnesses)
@@ -53,8 +54,41 @@ def sim_config(config: LaunchConfig) -> SimConfig:
     return SimConfig(dt_s=s.dt_s, seed=config.seed, imu=ImuConfig(rate_hz=s.imu_rate_hz), gnss=gnss, environment=env)
 
 
+def simulated_boat(config: LaunchConfig, model: VesselModel | None = None) -> SimulatedBoat:
+    """The simulated boat of `sim.boat`: the lake boat with the section's changes, or the model
+    in use itself (`ideal: true`)."""
+    b = config.sim.boat
+    model = model or vessel_model(config)
+    if b.ideal:
+        return SimulatedBoat.ideal_for(model)
+    boat = DEFAULT_BOAT
+    if b.parameters_file:
+        boat = boat.with_parameters(load_parameters(b.parameters_file))
+    if b.parameters:
+        boat = boat.with_parameters(VesselParameters.from_dict({**boat.parameters.to_dict(), **b.parameters},
+                                                               source="sim.boat.parameters"))
+    changes: dict[str, Any] = {}
+    if b.name is not None:
+        changes["name"] = b.name
+    if b.thrust_dead_band_rps is not None:
+        changes["thrust_dead_band_rps"] = b.thrust_dead_band_rps
+    if b.command_latency_s is not None:
+        changes["command_latency_s"] = b.command_latency_s
+    if b.gnss_antenna_m is not None:
+        changes["gnss_antenna_m"] = b.gnss_antenna_m
+    if b.reverse_thrust_ratio is not None:
+        changes["geometry"] = replace(boat.geometry, reverse_thrust_ratio=b.reverse_thrust_ratio)
+    limits = boat.limits
+    if b.motor_time_constant_s is not None:
+        limits = replace(limits, motor_time_constant_s=b.motor_time_constant_s)
+    if b.alpha_rate_max_deg_s is not None:
+        limits = replace(limits, alpha_rate_max_radps=math.radians(b.alpha_rate_max_deg_s))
+    return replace(boat, limits=limits, **changes)
+
+
 def simulator_from_config(config: LaunchConfig, model: VesselModel | None = None) -> Simulator:
-    return Simulator(model or vessel_model(config), config=sim_config(config), x0=config.sim.initial_state)
+    """The simulated boat of the config (never the model object the controllers use)."""
+    return Simulator(simulated_boat(config, model), config=sim_config(config), x0=config.sim.initial_state)
 
 
 def resolve_origin(config: LaunchConfig) -> GeoOrigin | None:

