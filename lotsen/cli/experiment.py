@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,19 +41,22 @@ class SimulatedRun:
     gyro_bias_estimate_radps: float
 
 
-def run_on_simulator(experiment: Experiment, model: VesselModel | None = None, seed: int = 0,
+def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
                      psi_noise_rad: float = 0.01, environment: Any = None, preroll_s: float = 2.0,
                      keep_truth: bool = False) -> SimulatedRun:
-    """Run `experiment` on the simulated boat with sensors; returns the measured record."""
+    """Run `experiment` on the simulated boat with sensors; returns the measured record. `model`: the
+    simulated boat (a `SimulatedBoat`, or a `VesselModel` for a boat exactly that model; default the
+    default model)."""
     import pymap3d
 
     from lotsen.messages import GnssFix, ImuSample
-    from lotsen.sim import SimConfig, Simulator
+    from lotsen.sim import SimConfig, SimulatedBoat, Simulator
 
     cfg = SimConfig(seed=seed, sensors=True) if environment is None else SimConfig(
         seed=seed, sensors=True, environment=environment)
-    sim = Simulator(model or VesselModel(), DEFAULT_LIMITS, cfg, x0=(0.0, 0.0, experiment.start_heading_rad,
-                                                                     0.0, 0.0, 0.0))
+    boat = model if model is not None else VesselModel()  # a VesselModel: a boat exactly that model
+    sim = Simulator(boat, None if isinstance(boat, SimulatedBoat) else DEFAULT_LIMITS, cfg,
+                    x0=(0.0, 0.0, experiment.start_heading_rad, 0.0, 0.0, 0.0))
     g = cfg.gnss
     rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
     # gyro bias calibration at rest before the run
@@ -148,6 +152,26 @@ def run_on_stack(experiment: Experiment, config: Any, realtime: bool) -> Any:
     return node
 
 
+def record_on_simulated_stack(experiment: Experiment, out: Path, config: Any) -> Any:
+    """Run `experiment` on the stack with the simulated boat of `config` (its `sim.boat`), on
+    simulated time, recording every topic as the boat's recorder does; the MCAP lands at `out`
+    (what `lotsen identify RUN.mcap` reads). Returns the ExperimentNode."""
+    import tempfile
+    from dataclasses import replace
+
+    from lotsen.runtime.config import LoggingSection, WebSection
+
+    with tempfile.TemporaryDirectory(prefix="lotsen-experiment-") as tmp:
+        config = replace(config, mode="sim", logging=LoggingSection(enabled=True, directory=tmp),
+                         web=WebSection(enabled=False))
+        node = run_on_stack(experiment, config, realtime=False)
+        logs = sorted(Path(tmp).glob("*.mcap"))
+        if not logs:
+            raise LotsenError("the experiment ran but the recorder wrote no log")
+        shutil.move(str(logs[-1]), out)
+    return node
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
     if not args.sim and not args.hardware:
@@ -155,6 +179,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     model = VesselModel(load_params(args.params))
     check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
                      margin_m=args.margin)
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise ConfigError(f"--out {args.out}: directory {out.parent} does not exist")
+    if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
+        from dataclasses import replace
+
+        from lotsen.runtime.config import load_config
+        from lotsen.cli.run import with_model_and_boat
+        from lotsen.stack.stack import simulated_boat
+
+        config = with_model_and_boat(replace(load_config(args.config), seed=args.seed), args.params, args.boat)
+        node = record_on_simulated_stack(exp, out, config)
+        print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {simulated_boat(config).describe(model.params)}"
+              + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        return 1 if node.aborted else 0
     if args.hardware:
         from dataclasses import replace
 
@@ -170,7 +209,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"{args.out}: {len(record.t)} rows, {record.t[-1] if len(record.t) else 0:.1f} s of '{exp.name}' "
               f"on {where}" + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
         return 1 if node.aborted else 0
-    run = run_on_simulator(exp, model, seed=args.seed, psi_noise_rad=args.psi_noise)
+    from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
+    from lotsen.stack.stack import load_parameters
+
+    boat = (SimulatedBoat.ideal_for(model) if args.boat == "ideal" else
+            DEFAULT_BOAT.with_parameters(load_parameters(args.boat)) if args.boat else DEFAULT_BOAT)
+    run = run_on_simulator(exp, boat, seed=args.seed, psi_noise_rad=args.psi_noise)
     save_csv(run.record, args.out)
     print(f"{args.out}: {len(run.record.t)} rows, {exp.duration_s:.1f} s of '{exp.name}' on the simulator "
           f"(gyro bias estimate {run.gyro_bias_estimate_radps:+.4f} rad/s)", file=sys.stderr)
@@ -219,9 +263,16 @@ def register(subparsers: Any) -> None:
     r.add_argument("--hardware", action="store_true",
                    help="run on the boat through its drivers (with the state estimate and the recorder)")
     r.add_argument("--emulated", action="store_true", help="with --hardware: the drivers' emulated twins")
-    r.add_argument("--config", help="launch config YAML for --hardware (extra.hardware: devices and pins)")
-    r.add_argument("--out", required=True, help="output CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r)")
-    r.add_argument("--params", help="vessel parameters JSON of the simulated boat (default: the defaults)")
+    r.add_argument("--config", help="launch config YAML: for --hardware its devices and pins (extra.hardware); "
+                                    "for --sim with an .mcap output its sim.boat and vessel sections")
+    r.add_argument("--out", required=True,
+                   help="RUN.mcap: with --sim, the stack with its recorder (the log `lotsen identify` reads); "
+                        "or a CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r) straight from the simulator")
+    r.add_argument("--boat", metavar="BOAT.json|ideal",
+                   help="with --sim: the simulated boat's coefficients (default: the lake boat), or 'ideal' "
+                        "(the boat equals --params)")
+    r.add_argument("--params", help="the model in use: the area check's prediction and, on the stack, the "
+                                    "estimator (default: the default coefficients)")
     r.add_argument("--model-params", help="parameters of the model used for the area check (default: --params)")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--psi-noise", type=float, default=0.01, help="heading noise std, rad (default 0.01)")
