@@ -1,6 +1,6 @@
 """An independent data generator for identification tests (not lotsen's simulator).
 
-The vessel equations are written here again, straight from ../shared/design/vessel-model.md, on
+The vessel equations are written here again, straight from docs/model.md, on
 plain floats, and integrated with scipy's adaptive DOP853 (rtol 1e-9), so a test that identifies
 these data checks lotsen's estimator against the model document, not lotsen's simulator against
 itself.
