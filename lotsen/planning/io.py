@@ -169,10 +169,6 @@ def load_route(path: str | FilePath) -> Route:
     return _prefixed(path, route_from_dict, parse_yaml(text, path, ConfigError))
 
 
-#: name used in docs/api-for-helpers.md; the same loader (YAML or GeoJSON by suffix)
-load_route_yaml = load_route
-
-
 def _prefixed(path: FilePath, fn, data):
     try:
         return fn(data)
