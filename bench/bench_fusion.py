@@ -48,6 +48,8 @@ def _rows(label: str, res: dict, cfg) -> list[dict]:  # type: ignore[no-untyped-
         row["cpu_us_per_msg"] = round(r["cpu_us_per_msg"], 1)
         row["duration_s"] = cfg.duration_s
         row["pass"] = row.pop("pass_")
+        if name != "ekf":  # the seed's filters and imufusion's AHRS: peers beside the EKF, not judged
+            row["role"] = "peer"
         rows.append(row)
     return rows
 
@@ -120,6 +122,7 @@ def _current_rows(quick: bool) -> list[dict]:
             "current_err_end_mps": round(r["current_err_end_mps"], 4) if states else None,
             "duration_s": base.duration_s,
             "pass": r["outage_position_err_max_m"] <= CURRENT_OUTAGE_TARGET_M,
+            **({} if states else {"role": "peer"}),
         })
     return rows
 

@@ -21,25 +21,64 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 
 
-def markdown_table(rows: list[dict]) -> str:
+def _fmt(v: object) -> str:
+    if isinstance(v, bool):
+        return "yes" if v else "NO"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return "" if v is None else str(v)
+
+
+def markdown_table(rows: list[dict], skip: tuple[str, ...] = ()) -> str:
+    """One table of `rows`: the columns any row has (in first-seen order), without `skip` and
+    without columns that are empty in every row."""
     if not rows:
         return "(no rows)\n"
     cols: list[str] = []
     for r in rows:
         for k in r:
-            if k not in cols:
+            if k not in cols and k not in skip and any(_fmt(x.get(k)) != "" for x in rows):
                 cols.append(k)
-
-    def fmt(v: object) -> str:
-        if isinstance(v, float):
-            return f"{v:.4g}"
-        if isinstance(v, bool):
-            return "yes" if v else "NO"
-        return "" if v is None else str(v)
-
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    lines += ["| " + " | ".join(fmt(r.get(c)) for c in cols) + " |" for r in rows]
+    lines += ["| " + " | ".join(_fmt(r.get(c)).replace("|", "/") for c in cols) + " |" for r in rows]
     return "\n".join(lines) + "\n"
+
+
+def grouped(rows: list[dict]) -> list[tuple[str, list[dict]]]:
+    """Rows by the question they answer (their `table` key), in first-seen order."""
+    groups: dict[str, list[dict]] = {}
+    for r in rows:
+        groups.setdefault(str(r.get("table", "results")), []).append(r)
+    return list(groups.items())
+
+
+def verdict(rows: list[dict]) -> str:
+    """'pass' when every judged row passed, 'FAIL (k of n)' otherwise, 'info' without verdicts. A
+    peer's row (`role: peer`, e.g. the design it is compared with) is shown but not judged."""
+    judged = [r["pass"] for r in rows if isinstance(r.get("pass"), bool) and r.get("role") != "peer"]
+    if not judged:
+        return "info"
+    failed = judged.count(False)
+    return "pass" if not failed else f"FAIL ({failed} of {len(judged)})"
+
+
+def targets(rows: list[dict]) -> str:
+    seen: list[str] = []
+    for r in rows:
+        t = r.get("target")
+        if t and not str(t).startswith("(info") and str(t) not in seen:
+            seen.append(str(t))
+    return "; ".join(seen)
+
+
+def tables_markdown(rows: list[dict]) -> str:
+    """One small table per question: its title, its target(s), its verdict, then the rows."""
+    out = []
+    for title, group in grouped(rows):
+        t = targets(group)
+        out.append(f"### {title}\n\n" + (f"Target: {t}. " if t else "") + f"Verdict: **{verdict(group)}**.\n\n"
+                   + markdown_table(group, skip=("table",)))
+    return "\n".join(out)
 
 
 def load(path: Path):  # type: ignore[no-untyped-def]
@@ -54,8 +93,11 @@ def load(path: Path):  # type: ignore[no-untyped-def]
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="shorter runs (smoke test of the benchmarks)")
+    ap.add_argument("--render", action="store_true", help="only rewrite the .md tables from the stored .json")
     ap.add_argument("names", nargs="*", help="benchmark names (e.g. sim control); default all")
     args = ap.parse_args()
+    if args.render:
+        return render_only()
     sys.path.insert(0, str(HERE.parent))
     RESULTS.mkdir(parents=True, exist_ok=True)
     files = sorted(HERE.glob("bench_*.py"))
@@ -80,18 +122,25 @@ def main() -> int:
         result = {"benchmark": name, "quick": args.quick, "elapsed_s": round(elapsed, 1), "machine": machine,
                   "rows": rows, "error": error}
         (RESULTS / f"{name}.json").write_text(json.dumps(result, indent=2, default=str) + "\n")
-        table = markdown_table(rows) if error is None else f"```\n{error}\n```\n"
-        (RESULTS / f"{name}.md").write_text(f"# {name}\n\n{doc}\n\n{table}\n(run took {elapsed:.1f} s)\n")
-        print(table, flush=True)
+        (RESULTS / f"{name}.md").write_text(result_markdown(result, doc))
+        print(tables_markdown(rows) if error is None else error, flush=True)
     (RESULTS / "README.md").write_text(index_page())
     return 1 if failed else 0
 
 
+def result_markdown(result: dict, doc: str) -> str:
+    m = result.get("machine", {})
+    body = tables_markdown(result.get("rows", [])) if not result.get("error") else f"```\n{result['error']}\n```\n"
+    return (f"# {result.get('benchmark')}\n\n{doc}\n\nMeasured {m.get('date', '?')} on {m.get('machine', '?')}, "
+            f"Python {m.get('python', '?')}{' (quick mode)' if result.get('quick') else ''}; the run took "
+            f"{result.get('elapsed_s', '?')} s.\n\n{body}")
+
+
 def index_page() -> str:
-    """bench/results/README.md from every result present, so running one benchmark updates its
-    entry and keeps the others (each with the machine and date it was measured on)."""
-    lines = ["# Benchmark results", "", "Written by `make bench` (bench/run.py); each entry says when and where "
-             "it was measured.", ""]
+    """bench/results/README.md from every result present (running one benchmark updates its entry
+    and keeps the others): a summary of every question and its verdict on top, then the tables."""
+    summary = ["| benchmark | question | target | verdict | measured |", "|---|---|---|---|---|"]
+    sections = []
     for path in sorted(RESULTS.glob("*.json")):
         try:
             result = json.loads(path.read_text())
@@ -99,14 +148,34 @@ def index_page() -> str:
             continue
         name = result.get("benchmark", path.stem)
         m = result.get("machine", {})
-        md = RESULTS / f"{name}.md"
-        parts = md.read_text().split("\n\n") if md.exists() else []
-        doc_lines = parts[1].strip().splitlines() if len(parts) > 1 else []
-        doc = doc_lines[0] if doc_lines and not doc_lines[0].startswith("|") else ""
-        table = markdown_table(result.get("rows", [])) if not result.get("error") else "(failed: see the .md)\n"
-        lines += [f"## {name}", "", doc, "", f"Measured {m.get('date', '?')} on {m.get('machine', '?')}, Python "
-                  f"{m.get('python', '?')}{' (quick mode)' if result.get('quick') else ''}.", "", table]
-    return "\n".join(lines) + "\n"
+        when = f"{m.get('date', '?')}{' (quick)' if result.get('quick') else ''}"
+        if result.get("error"):
+            summary.append(f"| {name} | (the benchmark failed: see {name}.md) |  | FAIL | {when} |")
+            continue
+        for title, group in grouped(result.get("rows", [])):
+            summary.append(f"| [{name}]({name}.md) | {title} | {targets(group).replace('|', '/')} | "
+                           f"{verdict(group)} | {when} |")
+        sections.append(f"## {name}\n\nMeasured {when} on {m.get('machine', '?')}, Python {m.get('python', '?')}."
+                        f" Details and method: [{name}.md]({name}.md).\n\n" + tables_markdown(result.get("rows", [])))
+    head = ["# Benchmark results", "", "Written by `make bench` (bench/run.py). One table per question, with its "
+            "target, the peer measured in the same run where there is one, and its verdict.", "", "## Summary", ""]
+    return "\n".join(head + summary) + "\n\n" + "\n".join(sections)
+
+
+def render_only() -> int:
+    """Rewrite every .md and the index from the stored .json (no benchmark runs)."""
+    for path in sorted(RESULTS.glob("*.json")):
+        result = json.loads(path.read_text())
+        name = result.get("benchmark", path.stem)
+        bench = HERE / f"bench_{name}.py"
+        doc = ""
+        if bench.exists():
+            import ast
+
+            doc = (ast.get_docstring(ast.parse(bench.read_text())) or "").strip()
+        (RESULTS / f"{name}.md").write_text(result_markdown(result, doc))
+    (RESULTS / "README.md").write_text(index_page())
+    return 0
 
 
 if __name__ == "__main__":
