@@ -340,7 +340,8 @@ def fix_type_of(fix_type: int, carr_soln: int, gnss_fix_ok: int) -> GnssFixType:
 
 def decode_nav_pvt(frame: bytes, stamp_s: float = math.nan) -> NavPvt | None:
     """A NAV-PVT frame (sync to checksum) -> NavPvt; None for any other or undecodable frame."""
-    if len(frame) < 8 or frame[2] != 0x01 or frame[3] != 0x07:
+    # NAV-PVT's payload is 92 bytes: pyubx2 would fill a shorter one with defaults (a silent "no fix")
+    if len(frame) != 8 + 92 or frame[2] != 0x01 or frame[3] != 0x07:
         return None
     from pyubx2 import UBXReader
 

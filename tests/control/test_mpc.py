@@ -6,6 +6,7 @@ import osqp
 import pytest
 
 from lotsen.control import MPCConfig, MPCController, PathFollower
+from lotsen.messages import VesselState
 from lotsen.model import Environment
 
 from .conftest import circle_path, straight_path
@@ -22,8 +23,16 @@ def mpc() -> MPCController:
     return MPCController(config=NO_TIME_LIMIT)
 
 
-def test_is_a_path_follower(mpc):
+def test_follows_the_path_follower_protocol(mpc):
+    """The supervisor drives every follower alike: reset(path), update(t, state) -> (command, status), done."""
     assert isinstance(mpc, PathFollower)
+    path = straight_path(10.0)
+    mpc.reset(path)
+    assert not mpc.done
+    cmd, status = mpc.update(0.0, VesselState(stamp_s=0.0, north_m=0.0, east_m=0.1, heading_rad=0.0,
+                                              u_mps=0.0, v_mps=0.0, r_radps=0.0))
+    assert cmd.n1_rps > 0.0 and cmd.n2_rps > 0.0  # at rest at the start: it drives ahead
+    assert status.cross_track_error_m == pytest.approx(0.1, abs=1e-6) and status.status == "ok"
 
 
 def test_straight_line_converges_from_an_offset(mpc):

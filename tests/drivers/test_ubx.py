@@ -105,10 +105,14 @@ def test_framer_never_raises_and_finds_frames_separated_from_garbage(parts, chun
 @settings(max_examples=200, deadline=None)
 @given(st.binary(max_size=120))
 def test_nav_pvt_decoder_never_raises(payload):
+    """Any bytes: the decoder returns None or a fix (never raises); a fix only from a whole NAV-PVT
+    frame of the right length, never from bare bytes."""
     from lotsen.drivers.ubx import ubx_frame
 
-    assert decode_nav_pvt(payload) is None or True
+    assert decode_nav_pvt(payload) is None  # not a frame at all
     pvt = decode_nav_pvt(ubx_frame(0x01, 0x07, payload))
+    if len(payload) != 92:  # NAV-PVT's payload is 92 bytes: anything else is refused
+        assert pvt is None
     if pvt is not None:
         assert isinstance(pvt.fix.fix_type, GnssFixType)
 

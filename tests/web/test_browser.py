@@ -32,16 +32,6 @@ LAUNCH_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking
                "--no-first-run", "--disable-sync"]
 
 
-def _supervisor_available() -> bool:
-    try:
-        import lotsen.stack.parts  # noqa: F401  (registers the supervisor part)
-        import lotsen.supervisor.node  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-needs_supervisor = pytest.mark.xfail(not _supervisor_available(), strict=False, reason="needs supervisor")
 
 
 @pytest.fixture(scope="module")
@@ -53,10 +43,9 @@ def tile_server():
 
 @pytest.fixture(scope="module")
 def stack(tile_server, tmp_path_factory):
-    parts = None if _supervisor_available() else ()
     logs = tmp_path_factory.mktemp("logs")
     (logs / "2026-11-23_lake.mcap").write_bytes(b"\x89MCAP0\r\n" + b"x" * 1000)
-    rs = start_stack(parts=parts, log_dir=str(logs),
+    rs = start_stack(parts=None, log_dir=str(logs),
                      extra_web={"tile_dir": str(tmp_path_factory.mktemp("tiles")), "tile_url": tile_server.url,
                                 "battery_capacity_ah": 5.0})
     yield rs
@@ -433,7 +422,6 @@ def test_logs_are_listed_and_downloaded(page):
     page.click("[data-tab=plan]")
 
 
-@needs_supervisor
 def test_use_the_route_and_run_a_simulated_mission(page, stack):
     take_controls(page)
     page.click("#btn-use")
@@ -468,7 +456,6 @@ def test_use_the_route_and_run_a_simulated_mission(page, stack):
     wait_js(page, "window.lotsen.telemetry.sup.mode === 'HOLD'")
 
 
-@needs_supervisor
 def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
     take_controls(page)
     arm(page)
@@ -505,7 +492,6 @@ def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
     assert page.errors == []
 
 
-@needs_supervisor
 def test_a_refusal_is_a_visible_dismissable_alert(page, stack):
     """The page offers only what the supervisor allows; a request it refuses anyway (sent by a
     second page, or racing a mode change) comes back as an error alert, not as a 'sent' toast."""
