@@ -91,7 +91,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         open_batt_bus = _smbus_opener(hw.battery.bus)
         open_pi = pigpio_opener(hw.actuators.pigpio_host, hw.actuators.pigpio_port)
         sleep = time.sleep
-    limits = stack.simulator.limits if stack.simulator is not None else DEFAULT_LIMITS
+    limits = DEFAULT_LIMITS  # the boat's configured limits, also with emulated devices (the twin has its own)
     if hw.actuators.enabled:
         boat.drivers["actuators"] = ActuatorNode(hw.actuators, open_pi, limits, command_deadline_s=deadline)
     if hw.imu.enabled:

@@ -77,7 +77,8 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
     """The supervisor with the configured controllers (or the given ones: harnesses), holding
     the launch config's route planned here once, before the control loop starts."""
     cfg = stack.config
-    sup = SupervisorNode(stack.model, stack.simulator.limits if stack.simulator else DEFAULT_LIMITS,
+    # the controllers' actuator limits are the model's, never the simulated boat's
+    sup = SupervisorNode(stack.model, DEFAULT_LIMITS,
                          SupervisorConfig(control_rate_hz=cfg.nodes.control_rate_hz,
                                           controller=cfg.nodes.controller,
                                           failsafes=failsafe_config(cfg), planner=planner_config(cfg)),

@@ -12,6 +12,11 @@
   our own vessel name, or carrying our origin id; and a message the bridge injected is never
   forwarded again (bus delivery is synchronous, so while the bridge publishes (topic, message) it
   recognises that very object coming back; what nodes publish in reaction still goes out).
+* Latched topics (`latched`, by default the planned path, the route read-back and the planned
+  route): state a late joiner needs. They are published with a cache of their last sample
+  (Zenoh's advanced publisher: what rmw_zenoh does for ROS 2's transient-local durability), and
+  every subscriber asks the publishers it detects, also those that appear later, for that sample.
+  A recorder, a page or a shore station that starts after the route was set still gets it.
 * Discovery: multicast and gossip scouting are OFF unless enabled explicitly; the session listens
   and connects only on the endpoints given (the library default would listen on every interface
   and scout by multicast).
@@ -31,6 +36,10 @@ from lotsen.runtime.executor import Node, NodeContext
 from lotsen.transport import codec
 
 
+#: topics a late joiner needs: the last sample is kept and handed to every new subscriber
+LATCHED_TOPICS: tuple[str, ...] = ("planning/path", "planning/active_route", "planning/route")
+
+
 @dataclass(frozen=True)
 class BridgeConfig:
     vessel: str = "boat"  # our name in the key expressions lotsen/<vessel>/<topic>
@@ -46,6 +55,7 @@ class BridgeConfig:
     gossip_scouting: bool = False
     queue_maxlen: int = 2000
     drain_period_s: float = 0.005  # how often the node moves received messages onto the bus
+    latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
 
 
 def zenoh_config(cfg: BridgeConfig) -> Any:
@@ -63,6 +73,8 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     c.insert_json5("scouting/gossip/enabled", json.dumps(bool(cfg.gossip_scouting)))
     c.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
     c.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    # the latched topics' cache orders its samples by timestamp
+    c.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return c
 
 
@@ -102,10 +114,16 @@ class ZenohBridge(Node):
         self._unsubscribe: Any = None
         self.session = zenoh.open(zenoh_config(config))
         self._subs = []
+        from zenoh import ext
+
         for pattern in config.subscribe:
             key = f"{config.key_prefix}/{pattern.strip('/')}"
-            self._subs.append(self.session.declare_subscriber(key, self._on_sample,
-                                                              allowed_origin=zenoh.Locality.REMOTE))
+            # an advanced subscriber: live samples, plus the cached last sample of every latched
+            # publisher it detects (now or when that publisher appears)
+            self._subs.append(ext.declare_advanced_subscriber(
+                self.session, key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE,
+                history=ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
+                recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None)))
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
         self._sender.start()
 
@@ -113,6 +131,10 @@ class ZenohBridge(Node):
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
         self._unsubscribe = ctx.bus.subscribe_all(self._on_local)
+        for topic in self.config.latched:  # published before this node started: latch it now
+            msg = ctx.bus.latest.get(topic)
+            if msg is not None:
+                self._on_local(topic, msg)
         ctx.add_timer(self.config.drain_period_s, self.drain)
 
     def _on_local(self, topic: str, msg: Any) -> None:
@@ -159,10 +181,29 @@ class ZenohBridge(Node):
                     continue
                 pub = self._publishers.get(topic)
                 if pub is None:
-                    pub = self._publishers[topic] = self.session.declare_publisher(self._key(topic), congestion_control=cc)
+                    pub = self._publishers[topic] = self._declare_publisher(topic, cc)
                 pub.put(data)
                 self.stats.sent += 1
             self.stats.dropped_out = self._out.dropped
+
+    def _declare_publisher(self, topic: str, cc: Any) -> Any:
+        if topic in self.config.latched:
+            from zenoh import ext
+
+            try:
+                # the late joiner's copy is sent blocking and ahead of the stream: one rare sample
+                # that must not be dropped behind the 1.5 k msg/s of telemetry on the same link
+                replies = ext.RepliesConfig(congestion_control=self._z.CongestionControl.BLOCK,
+                                            priority=self._z.Priority.DATA_HIGH)
+                # a heartbeat (the last sequence number, 1/s) lets a subscriber that joined while this
+                # sample was on its way notice the miss and fetch it from the cache
+                return ext.declare_advanced_publisher(
+                    self.session, self._key(topic), congestion_control=cc, publisher_detection=True,
+                    cache=ext.CacheConfig(max_samples=1, replies_config=replies),
+                    sample_miss_detection=ext.MissDetectionConfig(heartbeat=1.0, sporadic_heartbeat=None))
+            except Exception as exc:  # noqa: BLE001 - still publish it live; say why it is not latched
+                self.stats.last_error = f"{topic}: not latched: {exc}"
+        return self.session.declare_publisher(self._key(topic), congestion_control=cc)
 
     def _on_sample(self, sample: Any) -> None:
         self.stats.received += 1

@@ -99,3 +99,24 @@ def test_a_ros2_node_without_lotsen_reads_the_boat_and_arms_it(tmp_path):
     texts = [m.text for _, m in read_log(live.log_path(), [Topic.LOG])]
     assert any("armed (requested by ros2:shore_tool)" in t for t in texts), texts[-20:]
     assert any("ROS 2 command refused" in t and "wrong pilot token" in t for t in texts)
+
+
+def test_a_short_recorded_run_holds_the_planned_path(tmp_path):
+    """The route of the config is planned and published once, before the recorder process has
+    connected: the path is latched (transient-local), so even an 8 s run's log holds it."""
+    import subprocess
+    import sys
+
+    from lotsen.logs.reader import LogReader
+
+    text = CONFIG.read_text()
+    examples = CONFIG.parents[1] / "examples"
+    (tmp_path / "c.yaml").write_text(text.replace("../examples", str(examples)).replace("../logs", "logs")
+                                     .replace("port: 8080", "port: 0"))
+    run = subprocess.run([sys.executable, "-m", "lotsen", "run", "c.yaml", "--duration", "8"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    logs = sorted((tmp_path / "logs").glob("*.mcap"))
+    assert logs, run.stdout[-2000:]
+    topics = {rec.topic for rec in LogReader(logs[-1]).read(raw=True)}
+    assert {"planning/path", "planning/active_route"} <= topics, sorted(topics)

@@ -226,3 +226,30 @@ def test_two_processes_round_trip_and_shore_recording(tmp_path, same):
     assert [t for t, _ in got] == ["boat/" + t for t, _ in sent]  # every message, in order
     assert all(_close(a, b) for (_, a), (_, b) in zip(got, sent))
     assert isinstance(got[1][1].fix_type, M.GnssFixType)
+
+
+def test_a_late_joiner_gets_the_latched_path_published_before_it_existed():
+    """The planned path is published once, when the route is set; a recorder or a page process
+    that connects afterwards still receives it (transient-local), an ordinary topic it does not."""
+    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ex_a, ex_b = SimExecutor(), SimExecutor()
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",)))
+    b = None
+    try:
+        ex_a.add_node(a)
+        path = next(m for m in SAMPLES if isinstance(m, M.PathMessage))
+        ex_a.bus.publish(M.Topic.PATH, path)
+        ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])
+        assert _pump(ex_a, lambda: a.stats.sent >= 2, 5.0)
+        b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=("a/**",), local_prefix="a/"))
+        ex_b.add_node(b)
+        got_path, got_state = [], []
+        ex_b.bus.subscribe("a/" + M.Topic.PATH, got_path.append)
+        ex_b.bus.subscribe("a/" + M.Topic.STATE, got_state.append)
+        assert _pump(ex_b, lambda: bool(got_path), 10.0), "the late joiner never got the latched path"
+        assert got_path[0] == path
+        assert not got_state  # published once, before b existed, not latched: gone
+    finally:
+        a.close()
+        if b is not None:
+            b.close()
