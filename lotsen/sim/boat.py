@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+
+import numpy as np
 from lotsen.model.dynamics import VesselModel
 from lotsen.model.parameters import (
     DEFAULT_GEOMETRY, DEFAULT_LIMITS, DEFAULT_PARAMETERS, ActuatorLimits, VesselGeometry, VesselParameters,
@@ -70,6 +72,18 @@ class SimulatedBoat:
 
 
 DEFAULT_BOAT = SimulatedBoat()
+
+
+def randomised_parameters(rng: np.random.Generator, low: float, high: float,
+                          reference: VesselParameters = DEFAULT_PARAMETERS) -> VesselParameters:
+    """Coefficients each `low`..`high` (relative, random sign) away from `reference`: a hull as far
+    from a prior as real ones are. Signs of the coefficients are kept (damping stays dissipative)."""
+    ref = reference.to_dict()
+    values = {}
+    for name, v in ref.items():
+        rel = rng.uniform(low, high) * rng.choice((-1.0, 1.0))
+        values[name] = v * (1.0 + rel)
+    return VesselParameters.from_dict(values, source="randomised boat")
 
 
 def parameter_mismatch(boat: VesselParameters, model: VesselParameters) -> dict[str, float]:
