@@ -18,6 +18,7 @@ __all__ = [
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
     "OPERATOR_ACTIONS", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
+    "ModelInfo",
 ]
 
 
@@ -50,6 +51,7 @@ class Topic:
     BATTERY = "battery"  # BatteryStatus
     LOG = "log"  # LogEvent
     ESTIMATOR_HEALTH = "fusion/health"  # EstimatorHealth: integrity of the state estimate (docs/fusion.md)
+    MODEL = "model/in_use"  # ModelInfo: the model the estimator and controllers use, and its origin
 
 
 @dataclass(slots=True, kw_only=True)
@@ -445,3 +447,17 @@ class EstimatorHealth:
     current_std_mps: tuple[float, float] = (float("nan"), float("nan"))
     event_count: int = 0  # increases with every informational event (re-anchoring, time jump, ...)
     events: tuple[str, ...] = ()  # the most recent events, newest last
+
+
+@dataclass(slots=True, kw_only=True)
+class ModelInfo:
+    """The model the estimator, planner and controllers use, and where it came from. Published
+    once at start and latched, so every log and every page says which model was in use."""
+
+    stamp_s: float
+    source: str  # "default coefficients" or the parameter file
+    file_modified_utc: str = ""  # when the parameter file was written (ISO 8601)
+    parameters: dict = field(default_factory=dict)  # name -> value (SI, docs/model.md)
+    std: dict = field(default_factory=dict)  # name -> 1-sigma, when the file came from identification
+    verdict: str = ""  # identification's verdict, when the file carries one
+    boat: str = ""  # in simulation: the simulated boat (which is not this model)

@@ -11,14 +11,15 @@ from typing import Any
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF, SeedFilters, SeedFiltersConfig, fit_mag_calibration
-from lotsen.messages import MagCalibrationResult
+from lotsen.messages import MagCalibrationResult, ModelInfo, Topic
 from lotsen.model import DEFAULT_LIMITS
 from lotsen.planning import plan_route
 from lotsen.planning.exchange import path_from_message, planned_route_message
 from lotsen.planning.io import load_route
 from lotsen.stack.fusion_node import FusionNode, TruthStateNode
 from lotsen.stack.logs import add_recorder as _add_recorder
-from lotsen.stack.stack import Stack, failsafe_config, planner_config
+from lotsen.runtime.executor import Node, NodeContext
+from lotsen.stack.stack import Stack, failsafe_config, model_info, planner_config
 from lotsen.stack.web import add_web as _add_web
 from lotsen.stack.zenoh import add_bridge
 from lotsen.supervisor.node import SupervisorConfig, SupervisorNode
@@ -73,6 +74,19 @@ def mag_calibrator(samples: list[tuple[float, float]]) -> MagCalibrationResult:
                                      f"residual {cal.residual_rms:.3f}")
 
 
+class ModelInfoNode(Node):
+    """Publishes which model is in use (and where it came from) once at start; the bridge latches it."""
+
+    name = "model_info"
+
+    def __init__(self, info: ModelInfo) -> None:
+        self.info = info
+
+    def start(self, ctx: NodeContext) -> None:
+        self.info.stamp_s = ctx.now()
+        ctx.publish(Topic.MODEL, self.info)
+
+
 def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = None) -> SupervisorNode:
     """The supervisor with the configured controllers (or the given ones: harnesses), holding
     the launch config's route planned here once, before the control loop starts."""
@@ -88,6 +102,7 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
         msg = planned_route_message(route, plan_route(route, planner_config(cfg)), source="config")
         sup.set_route(route, path_from_message(msg), msg.route_id, msg.node_s_m)
     stack.add(sup)
+    stack.add(ModelInfoNode(model_info(cfg, stack.model)))
     return sup
 
 

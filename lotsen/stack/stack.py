@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
+from lotsen.messages import ModelInfo
 from lotsen.model import Environment, VesselGeometry, VesselModel, VesselParameters
 from lotsen.planning import GeoOrigin, PlannerConfig
 from lotsen.runtime.bus import Bus
@@ -33,6 +35,22 @@ def load_parameters(path: str | None) -> VesselParameters:
     if not path:
         return VesselParameters()
     return VesselParameters.from_dict(read_json(path, ConfigError), source=str(path))
+
+
+def model_info(config: LaunchConfig, model: VesselModel, stamp_s: float = 0.0) -> ModelInfo:
+    """What the model in use is and where it came from, for the logs and the page."""
+    path = config.vessel.parameters_file
+    std: dict = {}
+    verdict, modified = "", ""
+    if path:
+        data = read_json(path, ConfigError)
+        std = {k: float(v) for k, v in (data.get("std") or {}).items() if isinstance(v, (int, float))}
+        v = data.get("verdict")
+        verdict = str(v.get("verdict", "") if isinstance(v, dict) else v or "")
+        modified = datetime.fromtimestamp(Path(path).stat().st_mtime, tz=timezone.utc).isoformat(timespec="seconds")
+    boat = simulated_boat(config, model).describe(model.params) if config.mode == "sim" else ""
+    return ModelInfo(stamp_s=stamp_s, source=path or "default coefficients", file_modified_utc=modified,
+                     parameters=model.params.to_dict(), std=std, verdict=verdict, boat=boat)
 
 
 def vessel_model(config: LaunchConfig) -> VesselModel:

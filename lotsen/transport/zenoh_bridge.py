@@ -12,8 +12,8 @@
   our own vessel name, or carrying our origin id; and a message the bridge injected is never
   forwarded again (bus delivery is synchronous, so while the bridge publishes (topic, message) it
   recognises that very object coming back; what nodes publish in reaction still goes out).
-* Latched topics (`latched`, by default the planned path, the route read-back and the planned
-  route): state a late joiner needs. They are published with a cache of their last sample
+* Latched topics (`latched`, by default the planned path, the route read-back, the planned
+  route and the model in use): state a late joiner needs. They are published with a cache of their last sample
   (Zenoh's advanced publisher: what rmw_zenoh does for ROS 2's transient-local durability), and
   every subscriber asks the publishers it detects, also those that appear later, for that sample.
   A recorder, a page or a shore station that starts after the route was set still gets it.
@@ -37,7 +37,7 @@ from lotsen.transport import codec
 
 
 #: topics a late joiner needs: the last sample is kept and handed to every new subscriber
-LATCHED_TOPICS: tuple[str, ...] = ("planning/path", "planning/active_route", "planning/route")
+LATCHED_TOPICS: tuple[str, ...] = ("planning/path", "planning/active_route", "planning/route", "model/in_use")
 
 
 @dataclass(frozen=True)

@@ -63,3 +63,27 @@ def test_experiment_on_the_simulated_stack_records_an_mcap_that_identify_reads(t
     assert code in (0, 1, 2)  # the verdict is identify's (tests/sysid); the file path is what is tested here
     if (tmp_path / "params.json").exists():
         assert "m22" in json.loads((tmp_path / "params.json").read_text())
+
+
+def test_the_stack_says_which_model_it_uses_and_where_it_came_from(tmp_path):
+    """The core publishes (and the bridge latches, and the recorder logs) the model in use: the
+    parameter file, when it was written, its intervals and verdict, and the simulated boat."""
+    from dataclasses import replace
+
+    from lotsen.messages import Topic
+    from lotsen.stack.launch import build_stack
+
+    params = tmp_path / "params.json"
+    params.write_text(json.dumps({**LAKE_BOAT_PARAMETERS.to_dict(), "std": {"m22": 0.2, "N_r": 0.01}}))
+    config = load_config(ROOT / "config" / "sim.yaml")
+    config = replace(with_model_and_boat(config, str(params), None), route=None)
+    stack = build_stack(config, realtime=False, parts=("state", "supervisor"))
+    stack.executor.run_until(0.1)
+    info = stack.bus.latest[Topic.MODEL]
+    assert info.source == str(params.resolve()) and info.file_modified_utc.endswith("+00:00")
+    assert info.parameters["m22"] == LAKE_BOAT_PARAMETERS.m22 and info.std == {"m22": 0.2, "N_r": 0.01}
+    assert info.boat.startswith("lake boat")
+    default = build_stack(replace(load_config(ROOT / "config" / "sim.yaml"), route=None), realtime=False,
+                          parts=("state", "supervisor"))
+    default.executor.run_until(0.1)
+    assert default.bus.latest[Topic.MODEL].source == "default coefficients"
