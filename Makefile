@@ -29,8 +29,12 @@ browser:
 run: venv
 	$(PY) -m lotsen run config/sim.yaml --sim $(RUN_ARGS)
 
+# Two steps: everything that runs on simulated time (deterministic, two workers), then the `live`
+# tests (lotsen run and the emulated devices at wall-clock pace) one at a time, so they do not
+# compete with the first step for the two cores; a live test that fails is run once more, on its own.
 test: venv-dev browser
-	$(PY) -m pytest -q -n 2 --dist loadfile
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live"
+	$(PY) -m pytest -q -m live || $(PY) -m pytest -q -m live --last-failed
 
 bench: venv-dev
 	$(PY) bench/run.py

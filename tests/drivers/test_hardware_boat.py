@@ -167,6 +167,7 @@ def test_deploy_config_loads_and_typos_are_named():
         hardware_config_from_launch({"hardware": {"gnss": {"baudrat": 9600}}})
 
 
+@pytest.mark.live  # the twins run at wall-clock pace: their rates in a 0.6 s window are the check
 def test_check_command_against_the_twins(capsys):
     assert main(["check", "--emulated", "--duration", "0.6"]) == 0
     out = capsys.readouterr().out
