@@ -6,9 +6,10 @@ ESCs and servos, an offset GNSS antenna) and boats with coefficients randomised 
 the defaults (seeded), with the lake boat's unmodelled effects.
 
 Tracking with three models on the same boat: the defaults (the prior), the boat's exact
-coefficients, and the coefficients `lotsen identify` finds from a designed experiment recorded on
+coefficients, and the coefficients `lotsen identify` finds from designed experiments recorded on
 that boat (the lab loop: `lotsen experiment run --sim --out RUN.mcap`, then `lotsen identify
-RUN.mcap`, the scale fixed by m11 as a lab would from the weighed hull). Missions: the figure
+RUN.mcap`, the scale fixed by m11 as a lab would from the weighed hull) — unless identify refuses
+them (its verdict: the record does not support the model), then the chain has no identified row. Missions: the figure
 eight on the EKF in 0.1 m/s current and 3 m/s wind (`lotsen mission ... --current 0.1,90
 --wind 3,45`), several seeds. Targets (issue 25): the exact model tracks no worse than the
 defaults; the identified model within 20 % of the exact model's cross-track RMS.
@@ -44,7 +45,8 @@ def boats(quick: bool) -> list:
 
 def identify_on(boat, work: Path) -> tuple[object, dict]:
     """The lab loop on `boat`: designed experiments recorded on the simulated stack, identified
-    together; m11 fixed as the weighed hull gives it. Returns (parameters, identify's JSON)."""
+    together; m11 fixed as the weighed hull gives it. Returns (parameters, identify's JSON); the
+    parameters are None when identify refused them (its verdict and reasons are in the JSON)."""
     from dataclasses import replace
 
     from lotsen.cli.experiment import record_on_simulated_stack
@@ -65,9 +67,10 @@ def identify_on(boat, work: Path) -> tuple[object, dict]:
         logs.append(str(out))
     params = work / "identified.json"
     code = main(["identify", *logs, "--out", str(params), "--fix", f"m11={boat.parameters.m11}"])
-    if code != 0 or not params.exists():
-        raise RuntimeError(f"identify refused the lab records (exit {code})")
-    return load_parameters(str(params)), json.loads(params.read_text())
+    if not params.exists():
+        raise RuntimeError(f"identify wrote nothing (exit {code})")
+    data = json.loads(params.read_text())
+    return (load_parameters(str(params)) if code == 0 else None), data
 
 
 def mission(boat, params, seed: int) -> dict:
@@ -86,18 +89,22 @@ def mission(boat, params, seed: int) -> dict:
 
 
 def tracking_rows(quick: bool = False) -> list[dict]:
-    from lotsen.model import DEFAULT_PARAMETERS
+    from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
     from lotsen.sim import parameter_mismatch
 
     seeds = (0,) if quick else (0, 1, 2)
     rows: list[dict] = []
     for boat in boats(quick):
         with tempfile.TemporaryDirectory(prefix="lotsen-chain-") as tmp:
-            identified, _ = identify_on(boat, Path(tmp))
-        models = {"defaults": DEFAULT_PARAMETERS, "exact": boat.parameters, "identified": identified}
+            identified, ident = identify_on(boat, Path(tmp))
+        models = {"defaults": DEFAULT_PARAMETERS, "exact": boat.parameters}
+        if identified is not None:
+            models["identified"] = identified
         mismatch = parameter_mismatch(boat.parameters, DEFAULT_PARAMETERS)
-        id_err = parameter_mismatch(identified, boat.parameters)
+        raw = VesselParameters(**{k: float(ident[k]) for k in DEFAULT_PARAMETERS.to_dict()})  # even if refused
+        id_err = parameter_mismatch(raw, boat.parameters)
         cte: dict[str, list[float]] = {k: [] for k in models}
+        cte.setdefault("identified", [])
         for seed in seeds:
             for name, params in models.items():
                 m = mission(boat, params, seed)
@@ -111,15 +118,19 @@ def tracking_rows(quick: bool = False) -> list[dict]:
                              "reversals_per_s": m.get("reversals_per_s"),
                              "failsafes": ",".join(m.get("failsafes_triggered", [])) or "none"})
         exact = statistics.mean(cte["exact"])
+        ident_cm = statistics.mean(cte["identified"]) if cte.get("identified") else None
         rows.append({"table": "the chain's verdict per boat (mean over seeds)", "boat": boat.name,
                      "boat_vs_defaults_pct": f"{min(abs(v) for v in mismatch.values()) * 100:.0f}-"
                                              f"{max(abs(v) for v in mismatch.values()) * 100:.0f}",
+                     "identify_verdict": ident.get("verdict"),
+                     "identify_reasons": "; ".join(r.split(":")[0] for r in ident.get("identification", {})
+                                                   .get("reasons", [])),
                      "identified_error_max_pct": round(max(abs(v) for v in id_err.values()) * 100, 1),
                      "defaults_cm": round(statistics.mean(cte["defaults"]), 2), "exact_cm": round(exact, 2),
-                     "identified_cm": round(statistics.mean(cte["identified"]), 2),
+                     "identified_cm": None if ident_cm is None else round(ident_cm, 2),
                      "target": "exact <= defaults; identified <= 1.2 x exact",
                      "pass": exact <= statistics.mean(cte["defaults"]) * 1.0001
-                     and statistics.mean(cte["identified"]) <= 1.2 * exact})
+                     and ident_cm is not None and ident_cm <= 1.2 * exact})
     return rows
 
 

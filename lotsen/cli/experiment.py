@@ -108,15 +108,9 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
 
 
 def load_params(path: str | None) -> VesselParameters:
-    if not path:
-        return DEFAULT_PARAMETERS
-    try:
-        data = json.loads(Path(path).read_text())
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from exc
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{path}: invalid JSON: {exc}") from exc
-    return VesselParameters.from_dict(data, source=str(path))
+    from lotsen.stack.stack import load_parameters  # the one loader (refuses a refused verdict)
+
+    return load_parameters(path) if path else DEFAULT_PARAMETERS
 
 
 def parse_area(text: str) -> tuple[float, float]:

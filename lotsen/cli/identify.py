@@ -12,7 +12,10 @@ Every other parameter is estimated unless fixed.
 
 Refused with a clear error (exit 2, nothing written): unreadable or non-finite data, time going
 backwards, no excitation (all inputs zero, a boat that did not move), and data that leave a
-parameter direction unidentifiable (fix those parameters with --fix).
+parameter direction unidentifiable (fix those parameters with --fix). Refused with a verdict
+(exit 1, the file written and marked "verdict": "refused", which every loader refuses): no
+convergence, a coefficient at its physical bound, a track the model does not explain (residuals
+correlated over 1 s), more than four weakly determined coefficients (lotsen.sysid.verdict).
 
 Validation: files given with --validate; otherwise the last `--holdout` fraction (default 0.2) of
 every file is held out (not used for estimation). --holdout 0 uses all data for estimation and
@@ -150,7 +153,16 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(lo_hi))
         print(msg, file=sys.stderr)
         warnings.append(msg)
-    Path(args.out).write_text(json.dumps(res.to_json_dict(), indent=2) + "\n")
+    from lotsen.sysid.verdict import judge
+
+    rel_sigma = {n: res.std[n] / abs(getattr(res.params, n)) if getattr(res.params, n) else math.inf
+                 for n in res.free_names}
+    verdict = judge(res.converged, res.iterations, [b.split(" = ")[0] for b in lo_hi], rel_sigma,
+                    getattr(res.details, "residual_autocorr", None))
+    out = res.to_json_dict()
+    v = verdict.to_json_dict()
+    out.update(verdict=v.pop("verdict"), identification=v)  # non-numbers: the loaders skip them
+    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
           f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
     for n in res.free_names:
@@ -159,6 +171,16 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if args.report:
         _write_report(args, res, est_records, val_records, warnings, theta0)
+    if verdict.verdict == "refused":
+        print(f"REFUSED: these coefficients must not be used ({args.out} is marked refused and the loaders "
+              "refuse it):", file=sys.stderr)
+        for r in verdict.reasons:
+            print(f"  - {r}", file=sys.stderr)
+        return 1
+    if verdict.weakly_determined:
+        print(f"verdict: weak — usable, but weakly determined: {', '.join(verdict.weakly_determined)}", file=sys.stderr)
+    else:
+        print("verdict: ok", file=sys.stderr)
     return 0
 
 

@@ -70,7 +70,8 @@ class VesselParameters:
         """Build from a mapping (a params.json, a config): the boundary where values are checked.
         Unknown keys, non-numbers and values outside the physical range of the field metadata
         are ConfigErrors naming parameter, value and range; missing keys take the defaults.
-        A `std` entry (written by identification) is ignored. (The constructor checks only
+        Entries that are not numbers (identification's `std`, `verdict`, `verdict_reasons`, ...)
+        are ignored; an unknown key with a number is an error (a misspelt coefficient). (The constructor checks only
         finiteness, so identification may evaluate vectors outside the ranges.)
         """
         if not isinstance(data, Mapping):
@@ -78,8 +79,8 @@ class VesselParameters:
         known = set(cls.names())
         values: dict[str, float] = {}
         for key, value in data.items():
-            if key == "std":
-                continue
+            if key not in known and (key == "std" or isinstance(value, (dict, list, str)) or value is None):
+                continue  # identification's extras (std, verdict, reasons, ...): not coefficients
             if key not in known:
                 raise ConfigError(f"{source}: unknown parameter {key!r} (known: {', '.join(cls.names())})")
             if isinstance(value, bool) or not isinstance(value, (int, float)):

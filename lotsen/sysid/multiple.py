@@ -410,6 +410,8 @@ class MultipleShootingResult:
     n_nodes: int
     n_steps: int
     passes: int
+    # per output: the normalised autocorrelation of its residuals at lags 1..K measurements
+    residual_autocorr: dict[str, np.ndarray] | None = None
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
@@ -539,8 +541,24 @@ def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, 
                                converged, ident, "multiple", [], history)
     res.details = MultipleShootingResult(nodes, g.node_time, dict(prob.noise),
                                          float(np.max(np.abs(lin.c))) * 1.0 if lin.c.size else 0.0,
-                                         g.n_nodes, g.n_steps, passes)
+                                         g.n_nodes, g.n_steps, passes, residual_autocorr(lin.e, prob.mask, prob.names))
     return res
+
+
+def residual_autocorr(e: np.ndarray, mask: np.ndarray, names: Sequence[str], max_lag: int = 40) -> dict[str, np.ndarray]:
+    """Autocorrelation of each output's residual series (its measured rows in time order) at lags
+    1..max_lag: near zero for white residuals (the model explains the motion up to sensor noise);
+    large and slowly decaying when something the model lacks (current, wind, an actuator effect)
+    drives the motion."""
+    out: dict[str, np.ndarray] = {}
+    for j, n in enumerate(names):
+        r = e[mask[:, j], j]
+        r = r - r.mean() if r.size else r
+        denom = float(r @ r)
+        lags = min(max_lag, max(r.size - 1, 0))
+        out[n] = (np.array([float(r[:-k] @ r[k:]) / denom for k in range(1, lags + 1)])
+                  if denom > 0 and lags else np.zeros(0))
+    return out
 
 
 def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray,

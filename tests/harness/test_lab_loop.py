@@ -54,15 +54,28 @@ def test_run_takes_the_boat_and_the_model_from_the_command_line(tmp_path):
     assert ideal.ideal and ideal.parameters.m22 == 30.0
 
 
-def test_experiment_on_the_simulated_stack_records_an_mcap_that_identify_reads(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)  # an operator's own folder, not the repository
-    exp = ROOT / "examples" / "experiments" / "designed_12s.yaml"
-    assert main(["experiment", "run", str(exp), "--sim", "--out", "run.mcap"]) == 0
-    assert (tmp_path / "run.mcap").stat().st_size > 10_000
-    code = main(["identify", "run.mcap", "--out", "params.json"])
-    assert code in (0, 1, 2)  # the verdict is identify's (tests/sysid); the file path is what is tested here
-    if (tmp_path / "params.json").exists():
-        assert "m22" in json.loads((tmp_path / "params.json").read_text())
+def test_the_lab_loop_refuses_a_model_the_record_does_not_support_and_accepts_one_it_does(tmp_path, monkeypatch,
+                                                                                            capsys):
+    """experiment run -> RUN.mcap -> identify -> mission --params, from an operator's own folder.
+    On the lake boat (astern thrust 0.8, an offset antenna: effects the identified model lacks)
+    identify must not hand out a confident wrong model: it refuses (exit 1, the file marked
+    refused) and the mission refuses the file with the reason. On a boat equal to the model the
+    same experiment gives a usable model that the mission loads."""
+    monkeypatch.chdir(tmp_path)
+    exp = ROOT / "examples" / "experiments" / "prbs_multisine.yaml"
+    assert main(["experiment", "run", str(exp), "--sim", "--out", "lake.mcap"]) == 0
+    assert main(["experiment", "run", str(exp), "--sim", "--boat", "ideal", "--out", "ideal.mcap"]) == 0
+    assert main(["identify", "lake.mcap", "--fix", f"m11={DEFAULT_BOAT.parameters.m11}", "--out", "lake.json"]) == 1
+    lake = json.loads((tmp_path / "lake.json").read_text())
+    assert lake["verdict"] == "refused" and lake["identification"]["reasons"]  # here: N_vv pulled to its bound
+    assert "REFUSED" in capsys.readouterr().err
+    assert main(["mission", ROUTE, "--sim", "--params", "lake.json", "--report", "r.json"]) == 2
+    assert "identification refused these coefficients" in capsys.readouterr().err
+    assert main(["identify", "ideal.mcap", "--out", "ideal.json"]) == 0
+    ideal = json.loads((tmp_path / "ideal.json").read_text())
+    assert ideal["verdict"] in ("ok", "weak") and ideal["identification"]["track_autocorr_1s"] < 0.5
+    assert main(["mission", ROUTE, "--sim", "--estimator", "truth", "--hold", "0", "--params", "ideal.json",
+                 "--report", "r.json"]) == 0
 
 
 def test_the_stack_says_which_model_it_uses_and_where_it_came_from(tmp_path):

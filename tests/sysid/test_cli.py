@@ -22,7 +22,8 @@ def test_identify_writes_params_and_report(run_csv, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "WARNING" in err and "m11 = 14.0" in err  # default scale announced loudly
     data = json.loads(out.read_text())
-    assert set(data) == set(NAMES) | {"std"}
+    assert set(data) == set(NAMES) | {"std", "verdict", "identification"}
+    assert data["verdict"] in ("ok", "weak") and data["identification"]["reasons"] == []
     assert data["m11"] == 14.0 and data["kappa"] == 0.02
     assert set(data["std"]) == set(NAMES) - {"m11", "kappa", "Y_rv", "N_vv"}
     html = rep.read_text()
