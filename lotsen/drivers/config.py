@@ -1,6 +1,6 @@
 """Hardware configuration: pin map, ports, buses, calibrations and gains of the real boat.
 
-Defaults follow the seed's pin map (SPEC-EN.md section 1, Table 2). Load it from the launch
+Defaults follow the seed's pin map (section 1, Table 2 of the design specification). Load it from the launch
 config's ``extra["hardware"]`` mapping with the project's strict loader::
 
     from lotsen.runtime.config import from_mapping
@@ -15,9 +15,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Literal
 
-
-def _r(lo: float, hi: float) -> dict:
-    return {"range": (lo, hi)}
+from lotsen.settings import value_range as _r
 
 
 @dataclass(frozen=True)

@@ -30,14 +30,11 @@ from lotsen.errors import ConfigError
 from lotsen.logs import foxglove_views
 from lotsen.runtime.bus import BoundedQueue, Bus
 from lotsen.transport import codec
+from lotsen.settings import value_range as _r
 
 LOG_FORMAT_VERSION = "1"
 PROFILE = ""  # no MCAP profile: JSON and protobuf channels
 _RUN_RE = re.compile(r"_run(\d+)(?:\.recovered)?\.mcap$")  # recovered runs keep their number
-
-
-def _r(lo: float, hi: float) -> dict:
-    return {"range": (lo, hi)}
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,7 @@ from dataclasses import dataclass, field
 
 from lotsen.errors import PlanningError
 from lotsen.planning.route import Route
-
-
-def _r(lo: float, hi: float) -> dict:
-    return {"range": (lo, hi)}
+from lotsen.settings import value_range as _r
 
 
 @dataclass(frozen=True)

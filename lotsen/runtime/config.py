@@ -20,6 +20,7 @@ from typing import Any, Literal, Mapping
 
 from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
+from lotsen.settings import value_range as _r
 
 
 def _type_name(tp: Any) -> str:
@@ -114,10 +115,6 @@ def from_mapping(cls: Any, data: Any, where: str = "") -> Any:
         raise
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{where or 'config'}: {exc}") from None
-
-
-def _r(lo: float, hi: float) -> dict:
-    return {"range": (lo, hi)}
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,7 @@ from lotsen.transport import codec
 from lotsen.transport.ros2_bridge import Ros2Bridge, Ros2BridgeConfig
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge, zenoh_config
 from lotsen.web.options import WebOptions
+from lotsen.settings import value_range as _r
 
 #: what the core accepts from the web process (nothing else from the edge reaches the helm)
 OPERATOR_TOPICS = (Topic.OPERATOR, Topic.MANUAL, Topic.LINK, Topic.ROUTE)
@@ -58,10 +59,6 @@ ROLES = ("core", "recorder", "web", "foxglove", "ros2")
 ROS2_DEFAULT_PUBLISH = (Topic.IMU_RAW, Topic.IMU_MAG, Topic.GNSS, Topic.RPM, Topic.STATE, Topic.SENS_FUS,
                         Topic.PATH, Topic.SHIP_COMMAND, Topic.VELOCITY_COMMAND, Topic.ANGLE_COMMAND,
                         Topic.SUPERVISOR, Topic.BATTERY, Topic.ALERT, Topic.PROGRESS)
-
-
-def _r(lo: float, hi: float) -> dict:
-    return {"range": (lo, hi)}
 
 
 @dataclass(frozen=True)

@@ -20,15 +20,12 @@ from typing import TYPE_CHECKING, Any, Literal
 from lotsen.messages import ActuatorState, GnssFixType, RpmSample, ThrustCommand
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.model.actuators import advance_motors
+from lotsen.settings import value_range as _r
 
 if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read them
     from lotsen.supervisor.node import SupervisorInputs
 
 Action = Literal["continue", "hold", "stop", "return", "fallback", "neutral"]
-
-
-def _r(lo: float, hi: float) -> dict:
-    return {"range": (lo, hi)}
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2] / "lotsen"
 
 # Layer of each top-level unit; an import may only go to a lower layer, or sideways where listed in SIDEWAYS.
 LAYERS: dict[str, int] = {
-    "errors": 0, "messages": 0, "files": 0,
+    "errors": 0, "messages": 0, "files": 0, "settings": 0,
     "model": 1,
     "sim": 2, "planning": 2,
     "fusion": 3, "control": 3, "sysid": 3,
