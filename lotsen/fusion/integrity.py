@@ -48,6 +48,8 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+from lotsen.model.angles import wrap_angle
+
 SENSORS = ("gyro", "accel", "mag", "gnss", "gnss_vel")
 
 
@@ -273,7 +275,7 @@ class IntegrityMonitor:
             self._frozen_buckets.clear()
             return
         dt = t - prev[0]
-        dpsi = (psi - prev[1] + math.pi) % (2.0 * math.pi) - math.pi
+        dpsi = wrap_angle(psi - prev[1])
         b = int(math.floor(t / c.frozen_bucket_s))
         fb = self._frozen_buckets
         K = max(1, int(round(c.frozen_window_s / c.frozen_bucket_s)))
