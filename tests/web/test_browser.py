@@ -492,6 +492,33 @@ def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
     assert page.errors == []
 
 
+def test_esc_in_a_text_field_cancels_the_edit_and_does_not_stop_the_boat(page, stack):
+    """Esc inside a field is "cancel this edit": the old value comes back and the boat keeps its
+    mode. Esc with the focus elsewhere is still the emergency stop."""
+    take_controls(page)
+    arm(page)
+    page.click("[data-action=manual]")
+    wait_js(page, "window.lotsen.telemetry.sup.mode === 'MANUAL'")
+    page.click("[data-tab=plan]")
+    field = page.locator("#default-speed")
+    before = field.input_value()
+    sent_before = len(stack.messages(Topic.OPERATOR))
+    field.click()
+    field.fill("0.9")
+    page.keyboard.press("Escape")
+    assert field.input_value() == before
+    time.sleep(1.0)
+    assert page.evaluate("window.lotsen.telemetry.sup.mode") == "MANUAL"
+    assert not any(m.action == "estop" for m in stack.messages(Topic.OPERATOR)[sent_before:])
+    page.locator("#map").focus()
+    page.keyboard.press("Escape")
+    wait_js(page, "window.lotsen.telemetry.sup.mode === 'ESTOP'")
+    page.click("[data-tab=operate]")
+    page.click("[data-action=reset_estop]")
+    wait_js(page, "window.lotsen.telemetry.sup.mode === 'MANUAL'")
+    assert page.errors == []
+
+
 def test_a_refusal_is_a_visible_dismissable_alert(page, stack):
     """The page offers only what the supervisor allows; a request it refuses anyway (sent by a
     second page, or racing a mode change) comes back as an error alert, not as a 'sent' toast."""

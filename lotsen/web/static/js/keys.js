@@ -11,22 +11,27 @@ export const PERIOD_MS = 100;
 
 export class KeyboardDriver {
   // send(cmd) transmits {surge, sway, yaw}; enabled() says whether driving is allowed now;
-  // onChange(keys, cmd) updates the indicator; onEstop() is the Esc key.
+  // onChange(keys, cmd) updates the indicator; onEstop() is the Esc key outside a text field
+  // (inside one, Esc cancels the edit).
   constructor({ send, enabled, gain, onChange, onEstop }) {
     this.send = send; this.enabled = enabled; this.gain = gain; this.onChange = onChange; this.onEstop = onEstop;
     this.held = new Set();
     this.spaceFlash = false;
     this.timer = null;
+    this.editStart = new WeakMap();  // a field's value when it got the focus: what Esc restores
+    document.addEventListener("focusin", ev => { if (this.field(ev.target)) this.editStart.set(ev.target, ev.target.value); });
     window.addEventListener("keydown", ev => this.keydown(ev));
     window.addEventListener("keyup", ev => this.keyup(ev));
     window.addEventListener("blur", () => this.stop());
     document.addEventListener("visibilitychange", () => { if (document.hidden) this.stop(); });
   }
 
-  typing(ev) {
-    const t = ev.target;
-    return t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" || t.isContentEditable) && t.type !== "range";
+  field(t) {
+    return !!t && (t.tagName === "INPUT" || t.tagName === "TEXTAREA" || t.tagName === "SELECT" || t.isContentEditable)
+      && t.type !== "range" && t.type !== "checkbox" && t.type !== "button";
   }
+
+  typing(ev) { return this.field(ev.target); }
 
   command() {
     const c = { surge: 0, sway: 0, yaw: 0 };
@@ -43,7 +48,21 @@ export class KeyboardDriver {
   }
 
   keydown(ev) {
-    if (ev.code === "Escape") { ev.preventDefault(); this.stop(); this.onEstop(); return; }
+    if (ev.code === "Escape") {
+      ev.preventDefault();
+      this.stop();
+      if (this.typing(ev)) {  // the habit "Esc cancels this edit": restore the field, never stop the boat
+        const t = ev.target;
+        if (this.editStart.has(t) && t.value !== this.editStart.get(t)) {
+          t.value = this.editStart.get(t);
+          t.dispatchEvent(new Event("input", { bubbles: true }));
+        }
+        t.blur();
+        return;
+      }
+      this.onEstop();
+      return;
+    }
     if (this.typing(ev)) return;
     if (ev.code === "Space") {
       ev.preventDefault();
