@@ -18,7 +18,7 @@ __all__ = [
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
     "OPERATOR_ACTIONS", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
-    "ModelInfo",
+    "ModelInfo", "LATCHED_TOPICS",
 ]
 
 
@@ -52,6 +52,11 @@ class Topic:
     LOG = "log"  # LogEvent
     ESTIMATOR_HEALTH = "fusion/health"  # EstimatorHealth: integrity of the state estimate (docs/fusion.md)
     MODEL = "model/in_use"  # ModelInfo: the model the estimator and controllers use, and its origin
+
+
+#: state a late joiner needs (a recorder, a page, a ROS 2 node started after it was published):
+#: kept and handed to every new subscriber (ROS 2: transient-local durability, keep last 1)
+LATCHED_TOPICS: tuple[str, ...] = (Topic.PATH, Topic.ACTIVE_ROUTE, Topic.ROUTE, Topic.MODEL)
 
 
 @dataclass(slots=True, kw_only=True)

@@ -32,10 +32,12 @@ from pathlib import Path
 
 from lotsen.errors import DataError
 from lotsen.logs.reader import LogReader
+from lotsen.messages import LATCHED_TOPICS
 from lotsen.transport import ros2_map, ros2_types
 from lotsen.transport.rmw_zenoh import fully_qualified
 
 ROSBAG2_VERSION = 8  # rosbag2 metadata version read by Jazzy and later
+ROS_DISTRO = "jazzy"  # the distribution the bags and the live ROS 2 mode target (rmw_zenoh binaries)
 
 
 @dataclass
@@ -84,9 +86,30 @@ def export_ros2(src_mcap: str | os.PathLike, out_dir: str | os.PathLike, namespa
             ros_topic = fully_qualified(namespace, rec.topic)
             conn = connections.get((ros_topic, rtype))
             if conn is None:
-                conn = connections[(ros_topic, rtype)] = writer.add_connection(ros_topic, rtype, typestore=store)
+                conn = connections[(ros_topic, rtype)] = writer.add_connection(
+                    ros_topic, rtype, typestore=store, offered_qos_profiles=[offered_qos(rec.topic)])
             writer.write(conn, rec.log_time_ns, data)
             _, n = result.topics.get(ros_topic, (rtype, 0))
             result.topics[ros_topic] = (rtype, n + 1)
             result.messages += 1
+    _name_the_distribution(out / "metadata.yaml")
     return result
+
+
+def offered_qos(topic: str) -> object:
+    """The QoS a ROS 2 publisher of `topic` offers (as the live ROS 2 mode does): transient local,
+    keep last 1 for the latched state a late joiner needs; reliable, volatile, keep last 10 else."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    latched = topic in LATCHED_TOPICS
+    never = QosTime(sec=0x7FFFFFFF, nsec=0xFFFFFFFF)  # rosbag2's "infinite" duration
+    return Qos(history=QosHistory.KEEP_LAST, depth=1 if latched else 10, reliability=QosReliability.RELIABLE,
+               durability=QosDurability.TRANSIENT_LOCAL if latched else QosDurability.VOLATILE,
+               deadline=never, lifespan=never, liveliness=QosLiveliness.AUTOMATIC,
+               liveliness_lease_duration=never, avoid_ros_namespace_conventions=False)
+
+
+def _name_the_distribution(metadata: Path) -> None:
+    """rosbags writes `ros_distro: rosbags`; `ros2 bag info` shows the distribution the bag targets."""
+    text = metadata.read_text(encoding="utf-8")
+    metadata.write_text(text.replace("ros_distro: rosbags", f"ros_distro: {ROS_DISTRO}"), encoding="utf-8")

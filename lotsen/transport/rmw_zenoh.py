@@ -80,6 +80,7 @@ class Qos:
 
 SENSOR_QOS = Qos(reliability=2, depth=5)  # rclcpp's SensorDataQoS
 DEFAULT_QOS = Qos()  # rclcpp's default: reliable, volatile, keep last 10
+LATCHED_QOS = Qos(durability=1, depth=1)  # a latched topic: reliable, transient local, keep last 1
 
 
 def node_token(domain_id: int, session_id: str, node_id: int, namespace: str, node: str, enclave: str = "/") -> str:

@@ -209,6 +209,8 @@ class Ros2Bridge(Node):
         return W.fully_qualified(self.namespace, topic)
 
     def _qos(self, topic: str) -> W.Qos:
+        if topic in M.LATCHED_TOPICS:
+            return W.LATCHED_QOS
         return W.SENSOR_QOS if topic in self.config.best_effort_topics else W.DEFAULT_QOS
 
     def _declare_token(self, key: str) -> None:
@@ -277,9 +279,18 @@ class Ros2Bridge(Node):
                 z = self._z
                 token = W.entity_token(self.config.domain_id, self.session_id, 0, next(self._ids), "MP",
                                        self.namespace, self.config.node_name, fq, ros_type, qos)
-                zpub = self.session.declare_publisher(
-                    W.topic_key(self.config.domain_id, fq, ros_type), congestion_control=z.CongestionControl.DROP,
-                    reliability=z.Reliability.BEST_EFFORT if qos.reliability == 2 else z.Reliability.RELIABLE)
+                key = W.topic_key(self.config.domain_id, fq, ros_type)
+                if qos.durability == 1:  # transient local: as rmw_zenoh, an advanced publisher with a cache
+                    from zenoh import ext
+
+                    zpub = ext.declare_advanced_publisher(
+                        self.session, key, congestion_control=z.CongestionControl.DROP, publisher_detection=True,
+                        cache=ext.CacheConfig(max_samples=qos.depth, replies_config=ext.RepliesConfig(
+                            congestion_control=z.CongestionControl.BLOCK, priority=z.Priority.DATA_HIGH)))
+                else:
+                    zpub = self.session.declare_publisher(
+                        key, congestion_control=z.CongestionControl.DROP,
+                        reliability=z.Reliability.BEST_EFFORT if qos.reliability == 2 else z.Reliability.RELIABLE)
                 self._declare_token(token)
                 pub = self._publishers[(topic, ros_type)] = (zpub, W.gid_for(token), itertools.count(1))
             return pub

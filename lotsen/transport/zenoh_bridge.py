@@ -31,13 +31,10 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from lotsen.errors import ConfigError
+from lotsen.messages import LATCHED_TOPICS
 from lotsen.runtime.bus import BoundedQueue
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.transport import codec
-
-
-#: topics a late joiner needs: the last sample is kept and handed to every new subscriber
-LATCHED_TOPICS: tuple[str, ...] = ("planning/path", "planning/active_route", "planning/route", "model/in_use")
 
 
 @dataclass(frozen=True)

@@ -149,3 +149,19 @@ def test_the_export_command_writes_the_bag(bag, tmp_path, capsys):
     assert "/boat/imu/data_raw" in out and "sensor_msgs/msg/Imu" in out
     with Reader(tmp_path / "bag") as reader:
         assert reader.message_count > 0 and "/boat/imu/data_raw" in {c.topic for c in reader.connections}
+
+
+def test_the_bag_offers_the_path_transient_local_and_names_its_distribution(bag):
+    """A late joiner's state (the planned path) is offered transient-local, keep last 1, as the live
+    ROS 2 mode publishes it; other topics reliable and volatile; metadata names ROS 2 Jazzy."""
+    import yaml
+
+    _, result = bag
+    meta = yaml.safe_load((result.bag_dir / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["ros_distro"] == "jazzy"
+    qos = {t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
+           for t in meta["topics_with_message_count"]}
+    path_qos = yaml.safe_load(qos["/boat/planning/path"])[0]
+    state_qos = yaml.safe_load(qos["/boat/state/estimate"])[0]
+    assert path_qos["durability"] == 1 and path_qos["depth"] == 1  # rmw: 1 = transient local
+    assert state_qos["durability"] == 2 and state_qos["reliability"] == 1  # volatile, reliable
