@@ -178,7 +178,7 @@ class MPCConfig:
     # the present direction carries no such price. For reversal_dwell_s after a propeller changed
     # direction the crossing cost is reversal_dwell_factor times higher (no chattering back).
     reversal_cost_azimuth_per_N: float = 0.1  # per N of astern (against sigma) thrust per stage (0 = off)
-    reversal_cost_bow_per_N: float = 0.1  # per N of bow thrust against its direction per stage (0 = off)
+    reversal_cost_bow_per_N: float = 0.2  # per N of bow thrust against its direction per stage (0 = off)
     reversal_band_rps: float = 3.0  # |n| below this is free in either direction
     reversal_dwell_s: float = 2.0
     reversal_dwell_factor: float = 5.0

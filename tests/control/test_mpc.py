@@ -7,7 +7,7 @@ import pytest
 
 from lotsen.control import MPCConfig, MPCController, PathFollower
 from lotsen.messages import VesselState
-from lotsen.model import Environment
+from lotsen.model import Environment, VesselModel
 
 from .conftest import circle_path, straight_path
 from .helpers import assert_commands_within_limits, closed_loop, rms
@@ -176,10 +176,12 @@ def test_stabilises_the_open_loop_unstable_yaw_at_high_speed(mpc):
 
 
 def test_reversal_settings_are_validated():
-    with pytest.raises(ValueError, match="reversal_penalty_azimuth"):
-        MPCConfig(reversal_penalty_azimuth=-1.0)
-    with pytest.raises(ValueError, match="reversal_release_s"):
-        MPCConfig(reversal_release_s=math.nan)
+    with pytest.raises(ValueError, match="reversal_cost_azimuth_per_N"):
+        MPCConfig(reversal_cost_azimuth_per_N=-1.0)
+    with pytest.raises(ValueError, match="reversal_dwell_s"):
+        MPCConfig(reversal_dwell_s=math.nan)
+    with pytest.raises(ValueError, match="reversal_band_rps"):
+        MPCConfig(reversal_band_rps=6.0, reversal_hysteresis_rps=5.0)
 
 
 def test_modelled_esc_speed_follows_the_simulated_propellers():
@@ -201,7 +203,7 @@ def test_modelled_esc_speed_follows_the_simulated_propellers():
 
 def test_reversal_penalty_switches_off():
     """lambda = 0 and no ESC lag is the issue-5 QP: same decision vector length minus the slacks' effect."""
-    off = MPCController(config=MPCConfig(reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0,
+    off = MPCController(config=MPCConfig(reversal_cost_azimuth_per_N=0.0, reversal_cost_bow_per_N=0.0,
                                          esc_in_prediction=False, time_limit_s=0.0))
     assert off._esc_beta == 1.0
     on = MPCController(config=NO_TIME_LIMIT)
@@ -394,3 +396,42 @@ def test_adaptive_second_qp_runs_in_transients_not_in_steady_tracking():
     assert steps + 5 <= qps < 1.2 * steps  # second QPs in the approach, few once tracking
     assert solves[1][0] == solves[1][1]
     assert costs[2] < 0.9 * costs[1]
+
+
+def test_thrust_prices_are_in_newtons_whatever_the_model():
+    """The input weights and the reversal guard's crossing cost are physical: a model that says a
+    unit of q makes fewer newtons gets a proportionally smaller price per unit of q (the same
+    price per newton), so a model with weaker thrusters does not make them dearer to use."""
+    from dataclasses import replace as dc_replace
+
+    strong = MPCController(config=NO_TIME_LIMIT)
+    p = strong.model.params
+    weak = MPCController(VesselModel(dc_replace(p, mu_az=0.75 * p.mu_az, mu_t=0.75 * p.mu_t)), config=NO_TIME_LIMIT)
+    assert weak._R[2:] == pytest.approx(0.75 ** 2 * strong._R[2:])
+    assert weak._crossing_cost_q == pytest.approx(0.75 * strong._crossing_cost_q)
+
+
+def test_reversal_guard_holds_a_direction_and_prices_only_the_crossing():
+    """The guard is a sign constraint: with no direction yet the bow thruster is free both ways; once
+    it runs one way, thrust the other way beyond the band costs (more during the dwell), thrust its
+    own way costs nothing extra."""
+    c = MPCController(config=NO_TIME_LIMIT)
+    c.reset(circle_path())
+    assert c._sigma[2] == 0.0  # bow: no direction yet -> no constraint
+    c._n_achieved = np.array([40.0, 40.0, -30.0])
+    c._update_direction()
+    assert list(c._sigma) == [1.0, 1.0, -1.0]
+    assert c.reversals == 0
+    c._n_achieved = np.array([40.0, 40.0, 30.0])
+    c._update_direction()
+    assert c.reversals == 1 and c._sigma[2] == 1.0
+    c._crossing_costs()
+    lam = c._q[c._ti(0):c._ti(0) + 3]
+    assert lam[2] == pytest.approx(c.config.reversal_dwell_factor * c._crossing_cost_q[2])  # just reversed
+    for _ in range(int(c.config.reversal_dwell_s / c.config.dt_s) + 1):
+        c._update_direction()
+    c._crossing_costs()
+    assert c._q[c._ti(0) + 2] == pytest.approx(c._crossing_cost_q[2])
+    c._n_achieved = np.array([40.0, 40.0, 2.0])  # within the hysteresis: the direction is kept
+    c._update_direction()
+    assert c._sigma[2] == 1.0 and c.reversals == 1
