@@ -126,21 +126,13 @@ def tracking_rows(quick: bool = False) -> list[dict]:
 MODEL_ERRORS = (0.0, 0.05, 0.10, 0.15, 0.25)
 
 
-def scaled_parameters(params, error: float, rng: np.random.Generator):
-    """`params` with every coefficient scaled by (1 + error * sign), a random sign per coefficient."""
-    from lotsen.model.parameters import VesselParameters
-
-    d = params.to_dict()
-    return VesselParameters.from_dict({k: v * (1.0 + error * rng.choice((-1.0, 1.0))) for k, v in d.items()},
-                                      source=f"model {error * 100:.0f} % off")
-
-
 def model_quality_rows(quick: bool = False) -> list[dict]:
     """Issue 25 item 3: tracking against model error on the lake boat. The controller's and the EKF's
     model is the boat's coefficients each scaled by (1 +- e), random signs per seed; e = 0 is the exact
     model. Targets: tracking no better as e grows (mean over seeds, within the seeds' spread), with 25 %
     within 1.5x the exact model's; <= 0.7 cm and <= 0.1 reversals/s with the exact model."""
     from lotsen.sim import DEFAULT_BOAT
+    from lotsen.sim.boat import scaled_parameters
 
     boat = DEFAULT_BOAT
     seeds = (0, 1) if quick else (0, 1, 2)

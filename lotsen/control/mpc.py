@@ -33,12 +33,12 @@ Decision vector (OSQP variable z), horizon N, n_x = 6, n_w = 5:
 QP (seed eq. 43-44):
 
     min  sum_{k=1..N} rho_k ||C_k x_k + d_k||^2_Q  +  sum_k ||w_k - w_ref,k||^2_R  +  sum_k ||w_k - w_{k-1}||^2_S
-         + sum_k lambda' t_k + mu ||t_k||^2                                (reversal penalty)
+         + sum_k lambda' t_k + mu ||t_k||^2                                (reversal guard)
     s.t. x_0 = x_measured
          x_{k+1} - Ad_k x_k - Bd_k u_k = c_k                               (linearised dynamics)
          u_k = beta_k w_k + (1 - beta_k) w_{k-1} per input                 (servo and ESC lags; w_{-1} =
                                                                              servo angles, achieved thrust)
-         t_k >= 0, t_k + sigma q_k >= 0 (azimuths);  t_k >= +-q_t (bow)
+         t_k >= 0, t_k + sigma q_k >= -q_band                              (per propeller)
          w_min <= w_k <= w_max                                             (44: input bounds)
          -dw_max <= w_k - w_{k-1} <= dw_max,  w_{-1} = previous command    (44: rate bounds)
 
@@ -63,11 +63,15 @@ warm-started from its previous primal-dual solution (measured: fewer iterations 
 warm start with the shifted plan, `MPCConfig.warm_start_shifted`); Ruiz scaling is off
 (`scaling=0`) because re-scaling on every matrix update cost more than it saved here.
 
-Propeller reversals (issue 14 item 3, issue 19): t_k is the thrust of each azimuth against its
-present direction sigma (+-1, from the commands with a hysteresis; an azimuth astern for
-`reversal_release_s` counts as ahead again, else it would lock astern), and |q_t| for the bow
-thruster; the L1 cost makes a reversal worth lambda per unit of reversed thrust and stage. sigma
-lives in fixed entries of A, rewritten when it changes. ESC lag: the thrust over a step is the
+Propeller reversals: a reversal is a sign change of a propeller's speed. Each propeller has a
+direction state sigma (+-1, 0 = none yet) that follows its modelled achieved speed with a
+hysteresis (+-reversal_hysteresis_rps). In every stage the soft sign constraint
+sigma q_k >= -q_band (speeds within +-reversal_band_rps are free either way) has the slack t_k,
+priced per newton of thrust against the present direction (reversal_cost_*_per_N, converted with
+the model's thrust per unit q); thrust in the present direction carries no price. For
+reversal_dwell_s after a change of direction the price is reversal_dwell_factor times higher, so a
+propeller does not chatter back. sigma lives in fixed entries of A, rewritten when it changes.
+ESC lag: the thrust over a step is the
 average of a first-order response (motor time constant T_m) from the previous set-point to the new
 one, beta = 1 - T_m/dt (1 - exp(-dt/T_m)); stage 0 starts from the modelled achieved speed (the
 simulator's actuator model run on the commands sent). The previous set-point stands for the
@@ -76,11 +80,8 @@ Servo slew (issue 19): the angle over a step is the average of a ramp at the rat
 previous set-point, beta_k = 1 - |dalpha_k| / (2 rate dt) with dalpha_k from the nominal plan (exact
 for the simulator's servo at the nominal; the rate bound makes every set-point reachable in a step).
 
-Issue 19 (2026-11-23): the thrust part of each propeller's q-column is exact also at n = 0 (before,
-a propeller at rest had no authority in the prediction); by default the azimuths' direction is fixed
-ahead (`azimuth_ahead_only`: L1 cost on astern thrust), the yaw couple comes from the bow thruster
-against the angles; the estimator's water current (`VesselState.current_ne_mps`) enters the RK4 term,
-the Jacobians and the observer's prediction (docs/control.md, "Issue 19").
+The estimator's water current (`VesselState.current_ne_mps`) enters the RK4 term, the Jacobians
+and the observer's prediction.
 
 Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
 from the one-step prediction error of the model (with the ESC lag's effective thrust) and adds it to f_d.
@@ -125,7 +126,10 @@ class MPCConfig:
     q_cross_track: float = 60.0  # per m^2
     q_course: float = 6.0  # per rad^2
     q_heading: float = 0.3  # per rad^2
-    q_speed: float = 20.0  # per (m/s)^2
+    # per (m/s)^2. 1 cm of cross-track weighs as much as 3.5 mm/s of speed error: in a turn at the
+    # limit of the yaw authority the boat gives up a little speed rather than the path (at 20 a
+    # model with its masses 25 % off lost the turn of the figure eight by 10-20 cm)
+    q_speed: float = 5.0
     q_yaw_rate: float = 1.0  # per (rad/s)^2
     terminal_factor: float = 3.0
     r_alpha: float = 0.05  # per rad^2
@@ -177,14 +181,15 @@ class MPCConfig:
     # reversal_cost_*_per_N per newton of thrust against the present direction per stage. Thrust in
     # the present direction carries no such price. For reversal_dwell_s after a propeller changed
     # direction the crossing cost is reversal_dwell_factor times higher (no chattering back).
-    reversal_cost_azimuth_per_N: float = 0.1  # per N of astern (against sigma) thrust per stage (0 = off)
+    reversal_cost_azimuth_per_N: float = 0.01  # per N of astern (against sigma) thrust per stage (0 = off)
     reversal_cost_bow_per_N: float = 0.2  # per N of bow thrust against its direction per stage (0 = off)
     reversal_band_rps: float = 3.0  # |n| below this is free in either direction
     reversal_dwell_s: float = 2.0
     reversal_dwell_factor: float = 5.0
-    # an azimuth running ahead in steady tracking at 0.3-0.8 m/s never needs astern thrust, so its
-    # direction is fixed ahead (sigma = +1); False: it follows the achieved speed like the bow's.
-    azimuth_ahead_only: bool = True
+    # True: the azimuths' direction is fixed ahead (sigma = +1) instead of following the achieved
+    # speed. False (default): in a turn at the limit of the yaw authority (bow thruster saturated)
+    # one azimuth astern is the yaw couple that keeps the boat on the path.
+    azimuth_ahead_only: bool = False
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
     reversal_hysteresis_rps: float = 5.0  # direction changes on achieved speeds beyond +-this (also the count)
     # ESC + motor lag in the prediction (first order, motor_time_constant_s of the limits): each
