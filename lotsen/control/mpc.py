@@ -694,8 +694,10 @@ class MPCController:
         self._done = False
         self._direction = np.zeros(NREV)  # achieved direction beyond the hysteresis (0: none yet)
         self.reversals = 0  # reversals of the modelled achieved speeds since reset (all three propellers)
-        # present direction of each propeller in the sign constraint (0: none yet, no constraint)
-        self._sigma = np.array([1.0, 1.0, 0.0]) if self.config.azimuth_ahead_only else np.zeros(NREV)
+        # present direction of each propeller in the sign constraint: the azimuths start ahead (a
+        # route starts ahead: free astern thrust at the start backed the boat away from its path in
+        # a beam current), the bow thruster with none (0: no constraint)
+        self._sigma = np.array([1.0, 1.0, 0.0])
         self._since_flip_s = np.full(NREV, np.inf)  # time since each propeller changed direction
         self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
@@ -747,7 +749,7 @@ class MPCController:
                     self.reversals += 1
                     self._since_flip_s[j] = 0.0
                 self._direction[j] = d
-        sigma = self._direction.copy()
+        sigma = np.where(self._direction != 0.0, self._direction, self._sigma)
         if cfg.azimuth_ahead_only:
             sigma[:2] = 1.0
         if np.any(sigma != self._sigma):
