@@ -281,7 +281,7 @@ def _dompc_closed_loop(cfg: MPCConfig, path, x0, steps: int, ours: MPCController
         times.append((time.perf_counter() - t0) * 1e3)
         if not mpc.solver_stats.get("success", True):
             fails += 1
-        J += _stage_cost(cfg, ref, sim.x, s, w, w_prev, float(ours.q_trim(np.array(pv[0]))))
+        J += _stage_cost(cfg, ref, sim.x, s, w, w_prev, float(ours.q_trim(np.array(pv[0]))), ours)
         w_prev = w
         sim.command(ours.w_to_command(w))
         sim.advance(cfg.dt_s)
