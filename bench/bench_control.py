@@ -149,9 +149,13 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     x = m.set_variable("_x", "x", shape=(6, 1))
     wp = m.set_variable("_x", "wp", shape=(5, 1))  # previous input (rate bounds)
     w = m.set_variable("_u", "w", shape=(5, 1))
-    penalised = cfg.reversal_penalty_azimuth > 0.0 or cfg.reversal_penalty_bow > 0.0
-    if penalised:  # the reversal slacks of our QP: t >= astern part of each azimuth (ahead only), t >= |q_t|
-        t = m.set_variable("_u", "t", shape=(3, 1))
+    weights = MPCController(model, limits, cfg)  # our QP's input weights and crossing costs in q units
+    lam = [float(v) for v in weights._crossing_cost_q]
+    band = [cfg.reversal_band_rps ** 2 / s for s in (limits.n_az_max_rps ** 2,) * 2]
+    penalised = cfg.azimuth_ahead_only and lam[0] > 0.0
+    if penalised:  # the azimuths' sign constraint of our QP: t >= astern part beyond the band (the bow's
+        # direction state starts at "none" and changes at run time: not part of this fixed OCP)
+        t = m.set_variable("_u", "t", shape=(2, 1))
     ref = m.set_variable("_tvp", "ref", shape=(7, 1))  # pn, pe, ph, pv, pk, U, q_trim
     f = symbolic_rhs(ca)
     theta = list(model.theta)
@@ -176,13 +180,12 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     y = [e, x[2] + x[4] / U - ph, x[2] - ph, x[3] - pv, x[5] - pv * pk]
     Q = [cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate]
     stage = sum(Q[i] * y[i] ** 2 for i in range(5))
-    R = [cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow]
+    R = [float(v) for v in weights._R]
     wref = [0, 0, qt, qt, 0]
     # the OSQP QP minimises 1/2 z'Pz + q'z with P = C'QC: the same objective up to the factor 1/2
     inp = sum(R[i] * (w[i] - wref[i]) ** 2 for i in range(5))
     if penalised:  # OSQP's lambda' t + mu/2 t't, times 2 like the quadratic terms above
-        lam = [cfg.reversal_penalty_azimuth, cfg.reversal_penalty_azimuth, cfg.reversal_penalty_bow]
-        inp += sum(2.0 * lam[j] * t[j] + cfg.reversal_quadratic * t[j] ** 2 for j in range(3))
+        inp += sum(2.0 * lam[j] * t[j] + cfg.reversal_quadratic * t[j] ** 2 for j in range(2))
     mpc = do_mpc.controller.MPC(m)
     mpc.set_param(n_horizon=N, t_step=dt, store_full_solution=False,
                   nlpsol_opts={"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"})
@@ -197,8 +200,8 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     mpc.set_nl_cons("rate_up", w - wp, ub=dw)
     mpc.set_nl_cons("rate_down", wp - w, ub=dw)
     if penalised:
-        mpc.bounds["lower", "_u", "t"] = np.zeros(3)
-        mpc.set_nl_cons("astern", ca.vertcat(-(t[0] + w[2]), -(t[1] + w[3]), w[4] - t[2], -w[4] - t[2]), ub=np.zeros(4))
+        mpc.bounds["lower", "_u", "t"] = np.zeros(2)
+        mpc.set_nl_cons("astern", ca.vertcat(-(t[0] + w[2]) - band[0], -(t[1] + w[3]) - band[1]), ub=np.zeros(2))
     tvp = mpc.get_tvp_template()
     holder: dict = {"ref": np.zeros((N + 1, 7))}
 
@@ -212,7 +215,7 @@ def _build_dompc(cfg: MPCConfig, model: VesselModel, limits):
     return mpc, holder
 
 
-def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> np.ndarray:
+def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim, ours) -> np.ndarray:
     """Realised closed-loop cost with the OCP's weights (true projection on the path): [the OCP's
     stage cost with the reversal penalties (its L1 terms, scaled like do-mpc's objective), the
     same without them (tracking and input effort only)]."""
@@ -222,11 +225,12 @@ def _stage_cost(cfg: MPCConfig, ref: PathReference, x, s, w, w_prev, q_trim) -> 
     U = max(float(v[0]), cfg.min_speed_course_mps)
     y = [cte, he + x[4] / U, he, x[3] - v[0], x[5] - v[0] * k[0]]
     Q = [cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate]
-    R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow])
+    R = ours._R
     S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
     wref = np.array([0, 0, q_trim, q_trim, 0])
-    t = np.array([max(0.0, -w[2]), max(0.0, -w[3]), abs(w[4])])  # astern azimuth thrust, |bow thrust|
-    lam = np.array([cfg.reversal_penalty_azimuth, cfg.reversal_penalty_azimuth, cfg.reversal_penalty_bow])
+    band = cfg.reversal_band_rps ** 2 / ours.scale[2:4]
+    t = np.maximum(0.0, -w[2:4] - band) if cfg.azimuth_ahead_only else np.zeros(2)  # astern beyond the band
+    lam = ours._crossing_cost_q[:2]
     tracking = float(sum(Q[i] * float(y[i]) ** 2 for i in range(5)) + R @ (w - wref) ** 2 + S @ (w - w_prev) ** 2)
     return np.array([tracking + 2.0 * lam @ t + cfg.reversal_quadratic * float(t @ t) * float(lam.any()), tracking])
 
@@ -277,7 +281,7 @@ def _dompc_closed_loop(cfg: MPCConfig, path, x0, steps: int, ours: MPCController
         times.append((time.perf_counter() - t0) * 1e3)
         if not mpc.solver_stats.get("success", True):
             fails += 1
-        J += _stage_cost(cfg, ref, sim.x, s, w, w_prev, float(ours.q_trim(np.array(pv[0]))))
+        J += _stage_cost(cfg, ref, sim.x, s, w, w_prev, float(ours.q_trim(np.array(pv[0]))), ours)
         w_prev = w
         sim.command(ours.w_to_command(w))
         sim.advance(cfg.dt_s)
@@ -301,7 +305,7 @@ def dompc_rows(quick: bool) -> list[dict]:
     for ocp, variants in DOMPC_CASES:
         cfg = MPCConfig(disturbance_gain=0.0, esc_in_prediction=False, servo_in_prediction=False)
         if ocp == "reversible":
-            cfg = replace(cfg, reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0)
+            cfg = replace(cfg, reversal_cost_azimuth_per_N=0.0, reversal_cost_bow_per_N=0.0)
         ref = PathReference(path, cfg.min_speed_ref_mps)
         results = {}
         for progress, iterations in variants:
@@ -314,7 +318,7 @@ def dompc_rows(quick: bool) -> list[dict]:
                 cmd, st = ours.update(sim.t, sim.truth())
                 w = ours.command_to_w(cmd.as_tuple())
                 J += _stage_cost(cfg, ref, sim.x, st.progress_m, w, w_prev,
-                                 float(ours.q_trim(np.array(st.speed_ref_mps))))
+                                 float(ours.q_trim(np.array(st.speed_ref_mps))), ours)
                 w_prev = w
                 sim.command(cmd)
                 sim.advance(cfg.dt_s)
@@ -351,7 +355,7 @@ def dompc_rows(quick: bool) -> list[dict]:
 SOAK_RUNS, SOAK_S = 10, 600.0
 SOAK_QUICK_RUNS, SOAK_QUICK_S = 2, 120.0
 MAX_REVERSALS_PER_10S = 1.0
-UNPENALISED = MPCConfig(reversal_penalty_azimuth=0.0, reversal_penalty_bow=0.0, esc_in_prediction=False,
+UNPENALISED = MPCConfig(reversal_cost_azimuth_per_N=0.0, reversal_cost_bow_per_N=0.0, esc_in_prediction=False,
                         servo_in_prediction=False, azimuth_ahead_only=False, current_in_prediction=False,
                         qp_iterations=1)
 
@@ -439,7 +443,9 @@ def soak_rows(quick: bool) -> list[dict]:
 # the issue-14 design, for issue 19's "beside the current design": the MPC before the issue-19 changes
 # (reversal penalty 0.2 on either direction, bow 1.0 / 0.5, no current in the prediction), the station
 # keeper without the current feedforward and weathervaning, and the path arriving at cruise speed
-ISSUE14_MPC = MPCConfig(reversal_penalty_azimuth=0.2, reversal_penalty_bow=1.0, r_thrust_bow=0.5,
+# (in today's terms: the azimuths' crossing cost 0.2 per unit q = 0.018 per N; its bow price on use
+# in both directions has no equivalent any more, the bow gets its use-price's quadratic 0.5 / (2.56 N)^2)
+ISSUE14_MPC = MPCConfig(reversal_cost_azimuth_per_N=0.018, reversal_cost_bow_per_N=0.4, r_thrust_bow_per_N2=0.076,
                         azimuth_ahead_only=False, current_in_prediction=False, servo_in_prediction=False,
                         qp_iterations=1)
 

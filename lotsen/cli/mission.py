@@ -110,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
           f"{m['duration_s']:.1f} s; cross-track RMS {m['cross_track_rms_m'] * 100:.1f} cm, max "
           f"{m['cross_track_max_m'] * 100:.1f} cm; heading RMS {m['heading_error_rms_deg']:.1f} deg; speed RMS "
           f"{m['speed_error_rms_mps']:.3f} m/s"
-          + (f"; {m['reversals_per_s']:.2f} propeller reversals/s" if "reversals_per_s" in m else "")
+          + (f"; {m['reversals_per_s']:.2f} propeller reversals/s (on the {m['reversals_counted_on']})"
+             if "reversals_per_s" in m else "")
           + (f"; solve median {m['solve_time_median_ms']:.2f} ms, max "
                                                   f"{m['solve_time_max_ms']:.1f} ms" if m['solve_time_median_ms'] else ""))
     print(f"wrote {args.report}")

@@ -33,12 +33,12 @@ Decision vector (OSQP variable z), horizon N, n_x = 6, n_w = 5:
 QP (seed eq. 43-44):
 
     min  sum_{k=1..N} rho_k ||C_k x_k + d_k||^2_Q  +  sum_k ||w_k - w_ref,k||^2_R  +  sum_k ||w_k - w_{k-1}||^2_S
-         + sum_k lambda' t_k + mu ||t_k||^2                                (reversal penalty)
+         + sum_k lambda' t_k + mu ||t_k||^2                                (reversal guard)
     s.t. x_0 = x_measured
          x_{k+1} - Ad_k x_k - Bd_k u_k = c_k                               (linearised dynamics)
          u_k = beta_k w_k + (1 - beta_k) w_{k-1} per input                 (servo and ESC lags; w_{-1} =
                                                                              servo angles, achieved thrust)
-         t_k >= 0, t_k + sigma q_k >= 0 (azimuths);  t_k >= +-q_t (bow)
+         t_k >= 0, t_k + sigma q_k >= -q_band                              (per propeller)
          w_min <= w_k <= w_max                                             (44: input bounds)
          -dw_max <= w_k - w_{k-1} <= dw_max,  w_{-1} = previous command    (44: rate bounds)
 
@@ -63,11 +63,15 @@ warm-started from its previous primal-dual solution (measured: fewer iterations 
 warm start with the shifted plan, `MPCConfig.warm_start_shifted`); Ruiz scaling is off
 (`scaling=0`) because re-scaling on every matrix update cost more than it saved here.
 
-Propeller reversals (issue 14 item 3, issue 19): t_k is the thrust of each azimuth against its
-present direction sigma (+-1, from the commands with a hysteresis; an azimuth astern for
-`reversal_release_s` counts as ahead again, else it would lock astern), and |q_t| for the bow
-thruster; the L1 cost makes a reversal worth lambda per unit of reversed thrust and stage. sigma
-lives in fixed entries of A, rewritten when it changes. ESC lag: the thrust over a step is the
+Propeller reversals: a reversal is a sign change of a propeller's speed. Each propeller has a
+direction state sigma (+-1, 0 = none yet) that follows its modelled achieved speed with a
+hysteresis (+-reversal_hysteresis_rps). In every stage the soft sign constraint
+sigma q_k >= -q_band (speeds within +-reversal_band_rps are free either way) has the slack t_k,
+priced per newton of thrust against the present direction (reversal_cost_*_per_N, converted with
+the model's thrust per unit q); thrust in the present direction carries no price. For
+reversal_dwell_s after a change of direction the price is reversal_dwell_factor times higher, so a
+propeller does not chatter back. sigma lives in fixed entries of A, rewritten when it changes.
+ESC lag: the thrust over a step is the
 average of a first-order response (motor time constant T_m) from the previous set-point to the new
 one, beta = 1 - T_m/dt (1 - exp(-dt/T_m)); stage 0 starts from the modelled achieved speed (the
 simulator's actuator model run on the commands sent). The previous set-point stands for the
@@ -76,11 +80,8 @@ Servo slew (issue 19): the angle over a step is the average of a ramp at the rat
 previous set-point, beta_k = 1 - |dalpha_k| / (2 rate dt) with dalpha_k from the nominal plan (exact
 for the simulator's servo at the nominal; the rate bound makes every set-point reachable in a step).
 
-Issue 19 (2026-11-23): the thrust part of each propeller's q-column is exact also at n = 0 (before,
-a propeller at rest had no authority in the prediction); by default the azimuths' direction is fixed
-ahead (`azimuth_ahead_only`: L1 cost on astern thrust), the yaw couple comes from the bow thruster
-against the angles; the estimator's water current (`VesselState.current_ne_mps`) enters the RK4 term,
-the Jacobians and the observer's prediction (docs/control.md, "Issue 19").
+The estimator's water current (`VesselState.current_ne_mps`) enters the RK4 term, the Jacobians
+and the observer's prediction.
 
 Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
 from the one-step prediction error of the model (with the ESC lag's effective thrust) and adds it to f_d.
@@ -125,12 +126,18 @@ class MPCConfig:
     q_cross_track: float = 60.0  # per m^2
     q_course: float = 6.0  # per rad^2
     q_heading: float = 0.3  # per rad^2
-    q_speed: float = 20.0  # per (m/s)^2
+    # per (m/s)^2. 1 cm of cross-track weighs as much as 3.5 mm/s of speed error: in a turn at the
+    # limit of the yaw authority the boat gives up a little speed rather than the path (at 20 a
+    # model with its masses 25 % off lost the turn of the figure eight by 10-20 cm)
+    q_speed: float = 5.0
     q_yaw_rate: float = 1.0  # per (rad/s)^2
     terminal_factor: float = 3.0
     r_alpha: float = 0.05  # per rad^2
-    r_thrust_azimuth: float = 0.05  # per q^2 (q = n|n|/n_max^2)
-    r_thrust_bow: float = 0.2  # was 0.5; the bow thruster now makes the yaw moment couple (issue 19)
+    # Input costs in newtons (converted with the model's thrust per unit q, mu n_max^2): the same
+    # physical price whatever the model says a unit of q makes. Small, so that the deviations from
+    # path, heading and speed dominate (seed eq. 43) and the inputs are used within their limits.
+    r_thrust_azimuth_per_N2: float = 4e-4  # per N^2 of azimuth thrust away from the trim thrust
+    r_thrust_bow_per_N2: float = 0.01  # per N^2 of bow thrust
     # Rate penalties. On the EKF estimate 0.3 / 0.5 let the noise through to the servos (rms step
     # change 5 deg per 0.1 s on the figure eight); s_alpha = 10 cuts that to 1.2 deg at no cost in
     # tracking. A thrust rate penalty above ~1 makes the MPC too slow against current and wind
@@ -167,22 +174,24 @@ class MPCConfig:
     adaptive_rho: bool = True
     adaptive_rho_interval: int = 0  # 0: OSQP's own choice
     warm_start_shifted: bool = False  # warm-start with the shifted plan (else OSQP's last solution)
-    # Propeller reversals (issue 14 item 3, issue 19): exact L1 penalties per stage on each azimuth's
-    # thrust against its present direction (max(0, -sigma q)) and on the bow thruster's |q|. Without
-    # them the MPC flips the azimuths on estimator noise (~1.4 reversals/s on the EKF figure eight).
-    reversal_penalty_azimuth: float = 1.0  # cost per unit of reversed (astern) q per stage (0 = off)
-    reversal_penalty_bow: float = 0.4  # cost per unit of |q_t| per stage (0 = off); 0.3: bow 0.3-1.0 reversals per 10 s
-    # issue 19: an azimuth running ahead in steady tracking at 0.3-0.8 m/s never needs astern thrust, so
-    # its direction is fixed to ahead (sigma = +1: a soft direction constraint, the L1 cost on astern
-    # thrust); the yaw moment differential thrust made now comes from the bow thruster against the
-    # azimuths' angles. False: the 2026-11-22 scheme (sigma follows the commands, hysteresis, release).
-    azimuth_ahead_only: bool = True
+    # Propeller reversals: a reversal is a sign change of a propeller's speed, guarded by a direction
+    # state per propeller (sigma = +-1, set by the modelled achieved speed leaving +-reversal_hysteresis_rps;
+    # 0 = no direction yet) and, in every stage of the horizon, the soft sign constraint
+    # sigma q >= -q_band (commands within +-reversal_band_rps are free either way) whose slack costs
+    # reversal_cost_*_per_N per newton of thrust against the present direction per stage. Thrust in
+    # the present direction carries no such price. For reversal_dwell_s after a propeller changed
+    # direction the crossing cost is reversal_dwell_factor times higher (no chattering back).
+    reversal_cost_azimuth_per_N: float = 0.01  # per N of astern (against sigma) thrust per stage (0 = off)
+    reversal_cost_bow_per_N: float = 0.2  # per N of bow thrust against its direction per stage (0 = off)
+    reversal_band_rps: float = 3.0  # |n| below this is free in either direction
+    reversal_dwell_s: float = 2.0
+    reversal_dwell_factor: float = 5.0
+    # True: the azimuths' direction is fixed ahead (sigma = +1) instead of following the achieved
+    # speed. False (default): in a turn at the limit of the yaw authority (bow thruster saturated)
+    # one azimuth astern is the yaw couple that keeps the boat on the path.
+    azimuth_ahead_only: bool = False
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
-    reversal_hysteresis_rps: float = 5.0  # direction changes on commands beyond +-this (also for counting)
-    # an azimuth running astern for this long counts as "ahead" again, so returning is free: without
-    # this release a propeller reversed during a large correction stays locked astern (the boat then
-    # drifts on one propeller, because going ahead again costs the penalty on every stage)
-    reversal_release_s: float = 3.0
+    reversal_hysteresis_rps: float = 5.0  # direction changes on achieved speeds beyond +-this (also the count)
     # ESC + motor lag in the prediction (first order, motor_time_constant_s of the limits): each
     # step's thrust is the step average of a first-order response from the previous set-point
     # (for stage 0: the modelled achieved speed) to the new one. False: set-points act at once.
@@ -204,12 +213,16 @@ class MPCConfig:
             raise ValueError(f"MPCConfig.qp_iterations: {self.qp_iterations} must be in 1..5")
         if not (math.isfinite(self.reiterate_dw) and self.reiterate_dw >= 0.0):
             raise ValueError(f"MPCConfig.reiterate_dw: {self.reiterate_dw} must be a finite number >= 0")
+        if not self.reversal_band_rps < self.reversal_hysteresis_rps:
+            raise ValueError(f"MPCConfig.reversal_band_rps: {self.reversal_band_rps} must be below "
+                             f"reversal_hysteresis_rps ({self.reversal_hysteresis_rps})")
         if self.progress_reference not in ("predicted", "time"):
             raise ValueError(f"MPCConfig.progress_reference: {self.progress_reference!r} is not predicted or time")
         if not self.dt_s > 0:
             raise ValueError(f"MPCConfig.dt_s: {self.dt_s} must be positive")
-        for name in ("reversal_penalty_azimuth", "reversal_penalty_bow", "reversal_quadratic",
-                     "reversal_hysteresis_rps", "reversal_release_s"):
+        for name in ("r_thrust_azimuth_per_N2", "r_thrust_bow_per_N2", "reversal_cost_azimuth_per_N",
+                     "reversal_cost_bow_per_N", "reversal_band_rps", "reversal_dwell_s", "reversal_dwell_factor",
+                     "reversal_quadratic", "reversal_hysteresis_rps"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
@@ -495,7 +508,12 @@ class MPCController:
             b = self._xi(k)
             p_entries += [(b + i, b + j) for i, j in zip(iu[0], iu[1])]
         n_state_p = len(p_entries)
-        R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth, cfg.r_thrust_azimuth, cfg.r_thrust_bow])
+        # thrust of one unit of q in newtons (the model's), to price thrust in physical terms
+        p = self.model.params
+        self.thrust_per_q = np.array([p.mu_az * self.scale[2], p.mu_az * self.scale[3], p.mu_t * self.scale[4]])
+        tq = self.thrust_per_q
+        R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth_per_N2 * tq[0] ** 2,
+                      cfg.r_thrust_azimuth_per_N2 * tq[1] ** 2, cfg.r_thrust_bow_per_N2 * tq[2] ** 2])
         S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
         self._R, self._S = R, S
         p_in_vals: list[float] = []
@@ -562,26 +580,23 @@ class MPCController:
                     a_entries.append((row + NW * k + j, self._wi(k - 1) + j))
                     a_vals.append(-1.0)
         row += NW * N
-        # penalty slacks: azimuths t >= 0, t + sigma q >= 0 (t >= reversed part; sigma = present
-        # direction, written at run time); bow t - q >= 0, t + q >= 0 (t >= |q|)
+        # reversal slacks per propeller: t >= 0, t + sigma q >= -q_band (t >= the thrust against the
+        # present direction sigma beyond the free band; sigma written at run time, 0 = no constraint)
         self._row_rev = row
         sigma_start = len(a_entries)
         for k in range(N):
-            for j in range(2):
+            for j in range(NREV):
                 a_entries.append((row + 2 * NREV * k + NREV + j, self._wi(k) + 2 + j))
                 a_vals.append(1.0)
         for k in range(N):
             for j in range(NREV):
-                r1, r2, tj, qj = row + 2 * NREV * k + j, row + 2 * NREV * k + NREV + j, self._ti(k) + j, self._wi(k) + 2 + j
+                r1, r2, tj = row + 2 * NREV * k + j, row + 2 * NREV * k + NREV + j, self._ti(k) + j
                 a_entries += [(r1, tj), (r2, tj)]
                 a_vals += [1.0, 1.0]
-                if j == 2:
-                    a_entries += [(r1, qj), (r2, qj)]
-                    a_vals += [-1.0, 1.0]
         row += 2 * NREV * N
         self.m = row
         A, a_pos = _csc_template(self.m, self.nz, a_entries)
-        self._a_sigma_pos = a_pos[sigma_start:sigma_start + 2 * N]  # per stage: azimuth 1, azimuth 2
+        self._a_sigma_pos = a_pos[sigma_start:sigma_start + NREV * N]  # per stage: azimuth 1, 2, bow
         self._Ax = np.zeros(A.nnz)
         self._Ax[a_pos] = a_vals
         # per stage k: the Ad entries of the pattern, then the Bd entries
@@ -608,9 +623,18 @@ class MPCController:
         self._u[self._row_rate:self._row_rev] = np.tile(self._dw_max, N)
         self._l[self._row_rev:] = 0.0
         self._u[self._row_rev:] = np.inf
+        band = cfg.reversal_band_rps ** 2 / self.scale[2:]
+        for k in range(N):
+            r2 = self._row_rev + 2 * NREV * k + NREV
+            self._l[r2:r2 + NREV] = -band
         self._q = np.zeros(self.nz)
-        lam = np.array([cfg.reversal_penalty_azimuth, cfg.reversal_penalty_azimuth, cfg.reversal_penalty_bow])
-        self._q[self._ti(0):] = np.tile(lam, N)
+        # crossing cost per unit of q: newtons against the direction (astern thrust is weaker by the
+        # model's reverse ratio, so an azimuth's astern q makes fewer newtons)
+        rev = float(self.model.geometry.reverse_thrust_ratio)
+        self._crossing_cost_q = np.array([cfg.reversal_cost_azimuth_per_N * tq[0] * rev,
+                                          cfg.reversal_cost_azimuth_per_N * tq[1] * rev,
+                                          cfg.reversal_cost_bow_per_N * tq[2]])
+        self._q[self._ti(0):] = np.tile(self._crossing_cost_q, N)
         P.data[:] = self._Px
         A.data[:] = self._Ax
         self.solver = osqp.OSQP()
@@ -668,10 +692,13 @@ class MPCController:
         self._current = np.zeros(2)  # water current in the prediction (VesselState.current_ne_mps)
         self._obs: tuple[np.ndarray, tuple[float, ...]] | None = None
         self._done = False
-        self._direction = np.zeros(NREV)  # last commanded direction beyond the hysteresis (0: none yet)
-        self.reversals = 0  # propeller reversals commanded since reset (all three propellers)
-        self._sigma = np.ones(2)  # present direction of the azimuths in the penalty (+1 ahead)
-        self._astern_s = np.zeros(2)  # time each azimuth has run astern (for the release)
+        self._direction = np.zeros(NREV)  # achieved direction beyond the hysteresis (0: none yet)
+        self.reversals = 0  # reversals of the modelled achieved speeds since reset (all three propellers)
+        # present direction of each propeller in the sign constraint: the azimuths start ahead (a
+        # route starts ahead: free astern thrust at the start backed the boat away from its path in
+        # a beam current), the bow thruster with none (0: no constraint)
+        self._sigma = np.array([1.0, 1.0, 0.0])
+        self._since_flip_s = np.full(NREV, np.inf)  # time since each propeller changed direction
         self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
@@ -708,30 +735,33 @@ class MPCController:
         steps = max(1, int(round(self.config.dt_s / 0.01)))
         self._n_achieved = np.array(advance_motors(self._n_achieved, lim.clip(*cmd)[2:], self.config.dt_s, lim, steps))
 
-    def _update_direction(self, cmd: tuple[float, ...]) -> None:
-        """Count reversals of the commanded speeds (|n| within the hysteresis keeps the direction) and
-        set each azimuth's present direction sigma for the penalty, with the release to ahead."""
+    def _update_direction(self) -> None:
+        """Direction state per propeller from the modelled achieved speed (|n| within the hysteresis
+        keeps the direction): count reversals, set sigma for the sign constraint, time the dwell."""
         cfg = self.config
         h = cfg.reversal_hysteresis_rps
+        self._since_flip_s += cfg.dt_s
         for j in range(NREV):
-            n = cmd[2 + j]
+            n = self._n_achieved[j]
             d = 1.0 if n > h else (-1.0 if n < -h else 0.0)
             if d != 0.0:
                 if self._direction[j] == -d:
                     self.reversals += 1
+                    self._since_flip_s[j] = 0.0
                 self._direction[j] = d
+        sigma = np.where(self._direction != 0.0, self._direction, self._sigma)
         if cfg.azimuth_ahead_only:
-            return  # sigma stays +1 (set in _reset_state)
-        sigma = self._sigma.copy()
-        for j in range(2):
-            if self._direction[j] < 0.0:
-                self._astern_s[j] += cfg.dt_s
-            else:
-                self._astern_s[j] = 0.0
-            sigma[j] = -1.0 if 0.0 < self._astern_s[j] < cfg.reversal_release_s else 1.0
+            sigma[:2] = 1.0
         if np.any(sigma != self._sigma):
             self._sigma = sigma
             self._Ax[self._a_sigma_pos] = np.tile(sigma, self.N)
+
+    def _crossing_costs(self) -> None:
+        """The slacks' cost per stage: the crossing cost, times the dwell factor for a propeller that
+        changed direction less than reversal_dwell_s ago."""
+        cfg = self.config
+        lam = self._crossing_cost_q * np.where(self._since_flip_s < cfg.reversal_dwell_s, cfg.reversal_dwell_factor, 1.0)
+        self._q[self._ti(0):] = np.tile(lam, self.N)
 
     def reset(self, path: Any) -> None:
         self.path = PathReference(path, self.config.min_speed_ref_mps)
@@ -864,6 +894,7 @@ class MPCController:
         # real-time iteration: one QP on the shifted plan's linearisation; with qp_iterations > 1 the
         # model is re-linearised along the new solution and the QP solved again (warm-started)
         w_before = np.concatenate([self._w_prev[:2], qa])  # servo angles and ESC thrust before the step
+        self._crossing_costs()
         for _iteration in range(cfg.qp_iterations):
             # actuator lags: the linearisation runs on the step-average input of each stage
             prev = np.concatenate([w_before[None, :], wb[:-1]])
@@ -887,8 +918,7 @@ class MPCController:
                 xr = xb.copy()
                 xr[:, 0] -= origin[0]
                 xr[:, 1] -= origin[1]
-                tb = np.abs(wb[:, 2:])
-                tb[:, :2] = np.maximum(0.0, -self._sigma * wb[:, 2:4])
+                tb = np.maximum(0.0, -self._sigma * wb[:, 2:] + self._l[self._row_rev + NREV:self._row_rev + 2 * NREV])
                 tb = tb.ravel()
                 self.solver.warm_start(x=np.concatenate([xr.ravel(), wb.ravel(), tb]))
             res = self.solver.solve(raise_error=False)
@@ -930,9 +960,9 @@ class MPCController:
         previous = self._cmd_prev if self._cmd_prev is not None else cmd  # first command: servo angle unknown
         self._cmd_prev = cmd
         self._w_prev = self.command_to_w(cmd)
-        self._update_direction(cmd)
         self._cmd_effective = self._effective_command(cmd, previous)
         self._advance_esc(cmd)
+        self._update_direction()
 
     def _failure(self, t: float, state: VesselState, why: str, t0: float, cte: float, hdg: float,
                  s0: float, v_ref: float) -> tuple[ThrustCommand, ControllerStatus]:

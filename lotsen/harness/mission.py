@@ -28,12 +28,16 @@ from lotsen.control import (
     ControlConfig, PathFollower, PathReference, StationKeeper, make_path_follower, make_station_keeper,
 )
 from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF
-from lotsen.messages import ControllerStatus, OperatorCommand, SupervisorStatus, ThrustCommand, Topic, VesselState
+from lotsen.messages import ActuatorState, ControllerStatus, OperatorCommand, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.sim import DEFAULT_BOAT, SimConfig, SimulatedBoat, Simulator
 from lotsen.stack.launch import Harness, build_stack
+
+
+#: a propeller's speed must leave +-this band on the other side to count as a reversal
+REVERSAL_BAND_RPS = 5.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,7 @@ class MissionResult:
     path: Any
     cross_track_estimated_m: np.ndarray | None = None  # the controller's view when an estimator ran
     failsafes: tuple[str, ...] = ()  # failsafes active at the end
+    n_achieved: np.ndarray | None = None  # achieved propeller speeds (K x 3, rev/s) when the boat reports them
 
 
 def planned_duration_s(path: Any, min_speed_mps: float = 0.15) -> float:
@@ -96,12 +101,18 @@ class _TickRecorder(Node):
         self.aborted = ""
         self._cmd: ThrustCommand | None = None
         self._sup: SupervisorStatus | None = None
+        self._act: ActuatorState | None = None
+        self.n_achieved: list[tuple[float, float, float]] = []
 
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
         ctx.subscribe(Topic.SHIP_COMMAND, self._on_command)
         ctx.subscribe(Topic.CONTROL_STATUS, self._on_status)
         ctx.subscribe(Topic.SUPERVISOR, self._on_supervisor)
+        ctx.subscribe(Topic.ACTUATORS, self._on_actuators)
+
+    def _on_actuators(self, a: ActuatorState) -> None:
+        self._act = a
 
     def _on_command(self, cmd: ThrustCommand) -> None:
         self._cmd = cmd
@@ -119,6 +130,8 @@ class _TickRecorder(Node):
         self.rows.append((self.ctx.now(), truth.as_array_tuple(), state.as_array_tuple(), cmd.as_tuple(),
                           status.cross_track_error_m, status.heading_error_rad, status.speed_mps,
                           status.speed_ref_mps, status.progress_m, status.solve_time_ms, mode))
+        act = self._act
+        self.n_achieved.append((act.n1_rps, act.n2_rps, act.nt_rps) if act is not None else (math.nan,) * 3)
         if mode == "follow" and abs(status.cross_track_error_m) > self.abort_cross_track_m and not self.aborted:
             self.aborted = (f"aborted: cross-track error {status.cross_track_error_m:.2f} m "
                             f"at t = {self.ctx.now():.1f} s")
@@ -190,6 +203,9 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
         x_used=arr(2).reshape(-1, 6), u=arr(3).reshape(-1, 5), cross_track_m=arr(4), heading_error_rad=arr(5),
         speed_mps=arr(6), speed_ref_mps=arr(7), progress_m=arr(8), solve_time_ms=arr(9), mode=modes,
         statuses=trace.statuses, path=path, failsafes=tuple(sup.failsafes.active))
+    n_ach = np.array(trace.n_achieved, dtype=float).reshape(-1, 3)
+    if n_ach.size and np.all(np.isfinite(n_ach)):
+        res.n_achieved = n_ach
     if estimator is not None and res.t.size:
         # the controller saw the estimate: measure the true errors against the path
         ref = PathReference(path)
@@ -202,6 +218,17 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
     res.metrics = mission_metrics(res, follower, t_done[0] if t_done else None)
     res.metrics["failsafes_triggered"] = sorted({e.split(":")[0] for e in sup.failsafe_history})
     return res
+
+
+def propeller_reversals(speeds_rps: np.ndarray, band_rps: float = REVERSAL_BAND_RPS) -> list[int]:
+    """Reversals per propeller (columns of `speeds_rps`, rows in time): sign changes of the speed
+    beyond +-band_rps (a speed within the band keeps the last direction)."""
+    out = []
+    for col in np.asarray(speeds_rps, dtype=float).reshape(len(speeds_rps), -1).T:
+        d = np.sign(col) * (np.abs(col) > band_rps)
+        d = d[d != 0]
+        out.append(int(np.count_nonzero(d[1:] != d[:-1])))
+    return out
 
 
 def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> dict[str, Any]:
@@ -228,6 +255,12 @@ def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> 
         "solve_time_max_ms": round(float(np.max(st)), 4) if st.size else None,
         "failures": failures,
     }
+    # propeller reversals during path following: the achieved speeds if the boat reports them
+    n = res.n_achieved[f] if res.n_achieved is not None else res.u[f, 2:5]
+    t_f = res.t[f]
+    if t_f.size > 1:
+        out["reversals_per_s"] = round(sum(propeller_reversals(n)) / float(t_f[-1] - t_f[0]), 4)
+        out["reversals_counted_on"] = "achieved speeds" if res.n_achieved is not None else "commands"
     if np.any(h):
         xh = res.x[h]
         end_n, end_e = float(res.path.north_m[-1]), float(res.path.east_m[-1])

@@ -90,3 +90,10 @@ def parameter_mismatch(boat: VesselParameters, model: VesselParameters) -> dict[
     """Relative difference (boat - model) / |model| per coefficient."""
     b, m = boat.to_dict(), model.to_dict()
     return {k: (b[k] - m[k]) / abs(m[k]) if m[k] else 0.0 for k in m}
+
+
+def scaled_parameters(parameters: VesselParameters, error: float, rng: np.random.Generator) -> VesselParameters:
+    """A model `error` (relative) away from `parameters` on every coefficient: each scaled by
+    (1 + error * sign) with a random sign per coefficient (the model-quality sweep of the control bench)."""
+    values = {k: v * (1.0 + error * rng.choice((-1.0, 1.0))) for k, v in parameters.to_dict().items()}
+    return VesselParameters.from_dict(values, source=f"model {error * 100:.0f} % off")
