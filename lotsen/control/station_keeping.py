@@ -43,6 +43,14 @@ from lotsen.model.environment import Environment
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 
 
+# A hold must brake: when saturated (turning into a current), the surge force may not give way before
+# sway as it does for path following. With surge 100x cheaper to miss, a hull whose reverse thrust is
+# weaker than the model's (a real propeller: 60-80 %) was driven ahead by full differential thrust
+# while turning, and in a 0.2 m/s beam current drifted 9-15 m off its hold point; with equal prices
+# it brakes, turns and reaches the point for astern/ahead ratios 0.6-1.0 (tests/control/test_weathervane.py).
+HOLD_ALLOCATION = AllocationConfig(weight_slack=(1.0e6, 1.0e6, 1.0e7))
+
+
 @dataclass(frozen=True)
 class StationKeepingConfig:
     dt_s: float = 0.1
@@ -89,7 +97,7 @@ class StationKeepingController:
 
     def __init__(self, model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
                  config: StationKeepingConfig = StationKeepingConfig(),
-                 allocation: AllocationConfig = AllocationConfig()) -> None:
+                 allocation: AllocationConfig = HOLD_ALLOCATION) -> None:
         self.model = model or VesselModel()
         self.limits = limits
         self.config = config

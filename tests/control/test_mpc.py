@@ -270,8 +270,6 @@ def test_the_estimated_current_enters_the_prediction():
     assert cte_by[True] < 0.01 and cte_by[True] < cte_by[False]
 
 
-@pytest.mark.xfail(strict=True, reason="lake boat: 4 bow-thruster reversals in 40 s (1.003 per 10 s, just over "
-                   "the bar) with the reversal guard priced in normalised thrust")
 def test_no_propeller_reversals_in_steady_tracking_on_the_ekf():
     """Figure eight in 0.1 m/s current + 3 m/s wind on the EKF, 60 s, on the lake boat: the reversal
     guard keeps the achieved propeller speeds to <= 0.1 sign changes per second (all three
