@@ -137,20 +137,15 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     for d in res.identifiability.directions:
         print(f"identifiability: {d}", file=sys.stderr)
     check_identifiable(res)  # refuses (exit 2) rather than writing numbers the data do not determine
-    if not res.converged:
-        msg = (f"WARNING: the estimation did not converge in {res.iterations} iterations (--max-iter); the values "
-               "are the last iterate")
-        print(msg, file=sys.stderr)
-        warnings.append(msg)
     if res.identifiability.poorly_determined:
         warnings.append("poorly determined (95 % relative error above 5 %): "
                         + ", ".join(res.identifiability.poorly_determined))
-    lo_hi = _at_bounds(res)
-    if lo_hi:
-        msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(lo_hi))
-        print(msg, file=sys.stderr)
-        warnings.append(msg)
-    Path(args.out).write_text(json.dumps(res.to_json_dict(), indent=2) + "\n")
+    verdict, reasons, weak = identification_verdict(res, _at_bounds(res))
+    for r in reasons:
+        warnings.append(("REFUSED: " if verdict == "refused" else "WARNING: ") + r)
+    out = res.to_json_dict()
+    out.update(verdict=verdict, reasons=reasons, weak=weak)
+    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
           f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
     for n in res.free_names:
@@ -159,7 +154,62 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if args.report:
         _write_report(args, res, est_records, val_records, warnings, theta0)
+    if verdict == "refused":
+        raise IdentificationRefused(
+            f"the data cannot support an answer: {'; '.join(reasons)}. {args.out} is marked \"verdict\": "
+            "\"refused\" and every parameter loader refuses it; record a longer or richer experiment (all five "
+            "inputs, the bow thruster included) and identify again")
+    print(f"verdict: {verdict}" + (f" ({'; '.join(reasons)})" if reasons else ""), file=sys.stderr)
     return 0
+
+
+class IdentificationRefused(LotsenError):
+    """The estimate exists but the data do not support it (verdict "refused")."""
+
+
+# Relative 1-sigma above which a parameter counts as weakly determined, and how many weak ones
+# (outside the core eight) a usable estimate may have.
+WEAK_RELATIVE_SIGMA = 0.07
+MAX_WEAK = 4
+
+
+def identification_verdict(res, at_bounds: list[str]) -> tuple[str, list[str], list[str]]:  # type: ignore[no-untyped-def]
+    """("ok" | "weak" | "refused", reasons in operator language, weakly determined parameters).
+
+    Refused: not converged, a parameter at a physical bound, a core parameter (the eight a
+    controller leans on: m22, m33, X_u, X_uu, Y_v, N_r, mu_az, mu_t) weakly determined, or more
+    than MAX_WEAK weak ones. Weak: 1..MAX_WEAK other parameters with relative sigma above 7 %."""
+    from lotsen.cli.experiment import CORE_PARAMETERS
+
+    reasons: list[str] = []
+    refused = False
+    if not res.converged:
+        refused = True
+        reasons.append(f"the estimation did not converge in {res.iterations} iterations")
+    if at_bounds:
+        refused = True
+        reasons.append("parameter(s) ended at a physical bound, so the data pull them somewhere the model cannot "
+                       "follow: " + ", ".join(at_bounds))
+    weak = []
+    for n in res.free_names:
+        v = getattr(res.params, n)
+        rel = res.std[n] / abs(v) if v else math.inf
+        if not rel <= WEAK_RELATIVE_SIGMA:
+            weak.append(n)
+    weak_core = [n for n in weak if n in CORE_PARAMETERS]
+    if weak_core:
+        refused = True
+        reasons.append("core parameter(s) weakly determined (relative 1-sigma above "
+                       f"{100 * WEAK_RELATIVE_SIGMA:.0f} %): " + ", ".join(
+                           f"{n} +-{100 * res.std[n] / max(abs(getattr(res.params, n)), 1e-300):.0f} %" for n in weak_core))
+    if len(weak) > MAX_WEAK:
+        refused = True
+        reasons.append(f"{len(weak)} parameters weakly determined (at most {MAX_WEAK} allowed): " + ", ".join(weak))
+    elif weak and not weak_core:
+        reasons.append("weakly determined (relative 1-sigma above "
+                       f"{100 * WEAK_RELATIVE_SIGMA:.0f} %; use their values with care): " + ", ".join(weak))
+    verdict = "refused" if refused else ("weak" if weak else "ok")
+    return verdict, reasons, weak
 
 
 def _at_bounds(res) -> list[str]:  # type: ignore[no-untyped-def]

@@ -70,16 +70,24 @@ class VesselParameters:
         """Build from a mapping (a params.json, a config): the boundary where values are checked.
         Unknown keys, non-numbers and values outside the physical range of the field metadata
         are ConfigErrors naming parameter, value and range; missing keys take the defaults.
-        A `std` entry (written by identification) is ignored. (The constructor checks only
-        finiteness, so identification may evaluate vectors outside the ranges.)
+        The extra keys identification writes (`std`, `verdict`, `reasons`, `weak`, `environment`, ...:
+        anything whose value is not a number) are ignored, but a file whose `verdict` is "refused"
+        (the data could not support an answer) is refused here, with its reasons. (The constructor
+        checks only finiteness, so identification may evaluate vectors outside the ranges.)
         """
         if not isinstance(data, Mapping):
             raise ConfigError(f"{source}: expected a mapping of parameter names to numbers")
+        verdict = data.get("verdict")
+        if verdict is not None and verdict not in ("ok", "weak"):
+            reasons = data.get("reasons") or []
+            why = "; ".join(str(r) for r in reasons) if isinstance(reasons, list) else str(reasons)
+            raise ConfigError(f"{source}: identification verdict {verdict!r}: these parameters must not be used"
+                              + (f" ({why})" if why else "") + "; record a better experiment and identify again")
         known = set(cls.names())
         values: dict[str, float] = {}
         for key, value in data.items():
-            if key == "std":
-                continue
+            if key not in known and (isinstance(value, (str, list, dict)) or value is None):
+                continue  # identification's extra keys (std, verdict, reasons, ...)
             if key not in known:
                 raise ConfigError(f"{source}: unknown parameter {key!r} (known: {', '.join(cls.names())})")
             if isinstance(value, bool) or not isinstance(value, (int, float)):
