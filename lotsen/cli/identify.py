@@ -131,7 +131,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         else:
             res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
                                              node_s=args.node, max_iterations=args.max_iter,
-                                             estimate_noise=not args.fixed_noise, progress=progress)
+                                             estimate_noise=not args.fixed_noise, progress=progress,
+                                             lake=args.lake, gust_std=args.gust_std)
     finally:
         bar.close()
     for d in res.identifiability.directions:
@@ -145,6 +146,17 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         warnings.append(("REFUSED: " if verdict == "refused" else "WARNING: ") + r)
     out = res.to_json_dict()
     out.update(verdict=verdict, reasons=reasons, weak=weak)
+    env = getattr(res.details, "environment", None)
+    if env is not None:
+        out["environment"] = {"values": env.values, "std": env.std,
+                              "gust_factor_mean": float(env.gust_factor.mean()),
+                              "gust_factor_std": float(env.gust_factor.std()),
+                              "autocorrelation_factor": env.autocorrelation_factor}
+        cn, ce = env.current_ne
+        wn, we = env.wind_ne
+        print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
+              f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
+              f"covariance inflated x{env.autocorrelation_factor:.1f} for autocorrelated residuals", file=sys.stderr)
     Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
           f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
@@ -293,6 +305,11 @@ def register(subparsers: Any) -> None:
                    help="single shooting and validation: simulation window length, s (default 10)")
     p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
     p.add_argument("--max-iter", type=int, default=60)
+    p.add_argument("--lake", action="store_true",
+                   help="estimate a constant current, the wind (air velocity and drag coefficients) and a gust "
+                        "factor per shooting interval with the parameters (records taken outside calm water)")
+    p.add_argument("--gust-std", type=float, default=0.3,
+                   help="with --lake: prior spread of the per-interval gust factor on the wind speed (default 0.3)")
     p.add_argument("--no-default-scale", action="store_true",
                    help="refuse instead of fixing m11 when no scale parameter is fixed")
     p.set_defaults(func=_cmd_identify)

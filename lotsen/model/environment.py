@@ -62,13 +62,28 @@ def wind_force(psi: float, u: float, v: float, env: Environment,
     if W == 0.0:
         return (0.0, 0.0, 0.0)
     beta = math.radians(env.wind_from_deg if from_deg is None else from_deg)
-    # wind velocity (moving TO beta + pi) expressed in the body frame
-    uw = -W * math.cos(beta - psi)
-    vw = -W * math.sin(beta - psi)
-    urw, vrw = u - uw, v - vw
-    V2 = urw * urw + vrw * vrw
-    gamma = math.atan2(vrw, urw)  # where the relative wind comes from; 0 = straight ahead
-    q = 0.5 * coeff.rho_air * V2
-    return (-coeff.C_X * math.cos(gamma) * coeff.frontal_area_m2 * q,
-            -coeff.C_Y * math.sin(gamma) * coeff.lateral_area_m2 * q,
-            -coeff.C_N * math.sin(2.0 * gamma) * coeff.lateral_area_m2 * coeff.length_m * q)
+    # the air's velocity in the earth frame: it moves TO beta + pi
+    return apparent_wind_force(psi, u, v, -W * math.cos(beta), -W * math.sin(beta), *wind_drag_coefficients(coeff))
+
+
+def wind_drag_coefficients(coeff: WindCoefficients = WindCoefficients()) -> tuple[float, float, float]:
+    """(k_X, k_Y, k_N) = 1/2 rho_air (C_X A_F, C_Y A_L, C_N A_L L) of `apparent_wind_force`."""
+    q = 0.5 * coeff.rho_air
+    return (q * coeff.C_X * coeff.frontal_area_m2, q * coeff.C_Y * coeff.lateral_area_m2,
+            q * coeff.C_N * coeff.lateral_area_m2 * coeff.length_m)
+
+
+def apparent_wind_force(psi, u, v, wind_n, wind_e, k_x, k_y, k_n, cos=math.cos, sin=math.sin,  # type: ignore[no-untyped-def]
+                        sqrt=math.sqrt):
+    """The wind model above without angles: with the apparent wind (u_rw, v_rw) = (u, v) - R(psi)^T w,
+    V cos(gamma) = u_rw, V sin(gamma) = v_rw, V^2 sin(2 gamma) = 2 u_rw v_rw, so
+
+        tau = -[k_X V u_rw, k_Y V v_rw, 2 k_N u_rw v_rw],   V = |(u_rw, v_rw)|
+
+    (w = earth-frame velocity of the air, k = `wind_drag_coefficients`). Smooth, so that
+    identification can differentiate it: `cos`, `sin`, `sqrt` may be CasADi's."""
+    c, s = cos(psi), sin(psi)
+    urw = u - (wind_n * c + wind_e * s)
+    vrw = v - (-wind_n * s + wind_e * c)
+    V = sqrt(urw * urw + vrw * vrw + 1e-12)
+    return (-k_x * V * urw, -k_y * V * vrw, -2.0 * k_n * urw * vrw)
