@@ -87,7 +87,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from lotsen.logs.export import sysid_record
     from lotsen.sysid.data import load_record, register_loader
     from lotsen.sysid.estimate import estimate
-    from lotsen.sysid.multiple import check_identifiable, estimate_multiple_shooting
+    from lotsen.sysid.multiple import check_identifiable, estimate_lake, estimate_multiple_shooting
 
     register_loader(".mcap", sysid_record)  # the project's own run logs (the same path as `lotsen export`)
 
@@ -128,11 +128,14 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         if args.method == "single":
             res = estimate(est_records, theta0, fixed, window_s=args.window, gap_s=args.gap, noise_std=noise,
                            max_iterations=args.max_iter, progress=progress)
+        elif args.lake:
+            res = estimate_lake(est_records, theta0, fixed, gust_std=args.gust_std, gap_s=args.gap, noise_std=noise,
+                                node_s=args.node, max_iterations=args.max_iter, estimate_noise=not args.fixed_noise,
+                                progress=progress)
         else:
             res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
                                              node_s=args.node, max_iterations=args.max_iter,
-                                             estimate_noise=not args.fixed_noise, progress=progress,
-                                             lake=args.lake, gust_std=args.gust_std)
+                                             estimate_noise=not args.fixed_noise, progress=progress)
     finally:
         bar.close()
     for d in res.identifiability.directions:
