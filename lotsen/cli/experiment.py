@@ -244,6 +244,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_lake(args: argparse.Namespace) -> int:
+    lake = lake_run(args.seed, args.duration, args.current, args.wind)
+    save_csv(lake.run.record, args.out)
+    env = lake.environment
+    if args.boat:
+        Path(args.boat).write_text(json.dumps(lake.boat.to_dict(), indent=2) + "\n")
+    print(f"{args.out}: {len(lake.run.record.t)} rows, {args.duration:.0f} s lake record (seed {args.seed}): current "
+          f"{env.current_speed_mps:.3f} m/s towards {env.current_to_deg:.0f} deg, wind {env.wind_speed_mps:.1f} m/s "
+          f"from {env.wind_from_deg:.0f} deg, gusts {env.wind_gust_std_mps:.2f} m/s over "
+          f"{env.wind_gust_time_constant_s:.1f} s" + (f"; the boat's true parameters: {args.boat}" if args.boat else ""),
+          file=sys.stderr)
+    return 0
+
+
 def _cmd_check(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
     pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin)
@@ -294,6 +308,15 @@ def register(subparsers: Any) -> None:
     r.add_argument("--psi-noise", type=float, default=0.01, help="heading noise std, rad (default 0.01)")
     r.add_argument("--margin", type=float, default=1.0, help="area safety margin in metres (default 1)")
     r.set_defaults(func=_cmd_run)
+    lk = sub.add_parser("lake", help="a simulated lake record: a 10-min PRBS on a boat that is not the default "
+                                     "model, in current and gusty wind (for identify --lake)")
+    lk.add_argument("--out", required=True, help="identification CSV to write")
+    lk.add_argument("--boat", help="also write the boat's true parameters (a params JSON)")
+    lk.add_argument("--seed", type=int, default=0)
+    lk.add_argument("--duration", type=float, default=600.0, help="s (default 600)")
+    lk.add_argument("--current", type=float, default=None, help="m/s (default: random up to 0.1)")
+    lk.add_argument("--wind", type=float, default=None, help="mean wind, m/s (default: random up to 5)")
+    lk.set_defaults(func=_cmd_lake)
     c = sub.add_parser("check", help="check limits and the predicted area of an experiment")
     c.add_argument("experiment")
     c.add_argument("--params", help="vessel parameters JSON for the prediction")
