@@ -769,11 +769,18 @@ def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAUL
                   fixed: Mapping[str, float] | None = None, gust_std: float = 0.3,
                   wind_coefficient_spread: float = 0.01, max_iterations: int = 25,
                   progress: Callable[[int, float], None] | None = None, **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
-    """The lake model in two stages (a homotopy): first with the gust factors held at 1 (steady wind,
-    current, parameters), then from there with the gust factors free. Started with the gusts free,
-    the first iterations, far from the parameters, explain the model error by wild gusts."""
+    """The lake model in stages (a homotopy): the current and a steady wind with the parameters held
+    at `theta0`; then the parameters too (gust factors held at 1); then from there with the gust
+    factors free. Started with everything free, the first iterations, far from the parameters,
+    explain the model error by wild gusts or a wrong wind and never recover."""
+    all_fixed = {**theta0.to_dict(), **(fixed or {})}
+    zero = estimate_multiple_shooting(records, theta0, all_fixed, lake=True, gust_std=1e-3,
+                                      max_iterations=max_iterations, wind_coefficient_spread=wind_coefficient_spread,
+                                      progress=progress, **kwargs)
+    env = zero.details.environment
     first = estimate_multiple_shooting(records, theta0, fixed, lake=True, gust_std=1e-3, max_iterations=max_iterations,
-                                       wind_coefficient_spread=wind_coefficient_spread, progress=progress, **kwargs)
+                                       wind_coefficient_spread=wind_coefficient_spread, progress=progress,
+                                       env0=list(env.values.values()), nodes0=zero.details.nodes, **kwargs)
     env = first.details.environment
     return estimate_multiple_shooting(records, first.params, fixed, lake=True, gust_std=gust_std,
                                       max_iterations=max_iterations, env0=list(env.values.values()),
