@@ -17,6 +17,7 @@ drivers (or their emulated twins): lotsen.stack.experiment documents what it rec
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import shutil
@@ -105,6 +106,72 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
     U = np.array(rows_u) / np.array(rows_n)[:, None]
     rec = IdRecord(np.array(rows_t), U, np.array(rows_y), source=f"sim:{experiment.name}")
     return SimulatedRun(rec, np.array(truth_t), np.array(truth_x).reshape(-1, 6), bias)
+
+
+# the parameters a real hull is least sure of differ most from the textbook prior
+CORE_PARAMETERS = ("m22", "m33", "X_u", "X_uu", "Y_v", "N_r", "mu_az", "mu_t")
+
+LAKE_EXPERIMENT = {
+    "name": "lake_prbs", "area": {"size_m": [400, 400]},
+    "pieces": [
+        {"type": "prbs", "duration_s": 600, "bit_s": 1.5, "seed": 3, "base": {"n_rps": 55},
+         "amplitude": {"alpha_deg": 25, "nt_rps": 60, "n1_rps": 25, "n2_rps": 25}},
+    ],
+}
+
+
+@dataclass
+class LakeRun:
+    """A designed experiment on a boat that is not its model, in current and gusty wind."""
+
+    run: SimulatedRun
+    boat: VesselParameters  # the simulated boat's true parameters
+    environment: Any  # lotsen.model.Environment of the run (current, mean wind, gusts)
+
+
+def lake_boat(seed: int, core_range: tuple[float, float] = (0.05, 0.25), other_max: float = 0.40,
+              keep: tuple[str, ...] = ("m11",)) -> VesselParameters:
+    """A random boat around the defaults: the core eight off by 5-25 % (random sign), the rest by up
+    to 40 %, `keep` (the scale anchor m11) at its default. Seeded, pure."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 2501]))
+    values = DEFAULT_PARAMETERS.to_dict()
+    for name in DEFAULT_PARAMETERS.names():
+        if name in keep:
+            continue
+        if name in CORE_PARAMETERS:
+            f = rng.uniform(*core_range) * rng.choice((-1.0, 1.0))
+        else:
+            f = rng.uniform(-other_max, other_max)
+        values[name] *= 1.0 + f
+    return VesselParameters(**values)
+
+
+def lake_run(seed: int, duration_s: float = 600.0, current_mps: float | None = None,
+             wind_mps: float | None = None, boat: VesselParameters | None = None,
+             experiment: Experiment | None = None) -> LakeRun:
+    """A lake record: `experiment` (default a 10-min PRBS on all five inputs, bow thruster included)
+    on the boat `boat` (default `lake_boat(seed)`) in a constant earth-frame current (`current_mps`,
+    default random up to 0.1 m/s, random direction) and gusty wind (`wind_mps` mean, default random
+    up to 5 m/s; gusts 15-30 % of the mean with a 3-10 s time constant, direction wandering by 10 deg),
+    with the simulator's noisy asynchronous sensors (run_on_simulator). Seeded, pure."""
+    from lotsen.model import Environment
+    from lotsen.sysid.experiment import parse_experiment
+
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 2502]))
+    c = float(rng.uniform(0.0, 0.1)) if current_mps is None else float(current_mps)
+    w = float(rng.uniform(0.0, 5.0)) if wind_mps is None else float(wind_mps)
+    env = Environment(current_speed_mps=c, current_to_deg=float(rng.uniform(0, 360)), wind_speed_mps=w,
+                      wind_from_deg=float(rng.uniform(0, 360)), wind_gust_std_mps=w * float(rng.uniform(0.15, 0.3)),
+                      wind_gust_time_constant_s=float(rng.uniform(3.0, 10.0)), wind_direction_std_deg=10.0 if w else 0.0)
+    if experiment is None:
+        spec = dict(LAKE_EXPERIMENT)
+        spec["pieces"] = [dict(LAKE_EXPERIMENT["pieces"][0], duration_s=duration_s, seed=seed)]
+        experiment = parse_experiment(spec, "lake")
+    boat = boat if boat is not None else lake_boat(seed)
+    run = run_on_simulator(experiment, VesselModel(boat), seed=seed, environment=env)
+    # the rows carry interval means of the achieved actuator values (run_on_simulator)
+    run.record = dataclasses.replace(run.record, input_kind="mean")
+    return LakeRun(run, boat, env)
 
 
 def load_params(path: str | None) -> VesselParameters:
@@ -215,6 +282,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_lake(args: argparse.Namespace) -> int:
+    lake = lake_run(args.seed, args.duration, args.current, args.wind)
+    save_csv(lake.run.record, args.out)
+    env = lake.environment
+    if args.boat:
+        Path(args.boat).write_text(json.dumps(lake.boat.to_dict(), indent=2) + "\n")
+    print(f"{args.out}: {len(lake.run.record.t)} rows, {args.duration:.0f} s lake record (seed {args.seed}): current "
+          f"{env.current_speed_mps:.3f} m/s towards {env.current_to_deg:.0f} deg, wind {env.wind_speed_mps:.1f} m/s "
+          f"from {env.wind_from_deg:.0f} deg, gusts {env.wind_gust_std_mps:.2f} m/s over "
+          f"{env.wind_gust_time_constant_s:.1f} s" + (f"; the boat's true parameters: {args.boat}" if args.boat else ""),
+          file=sys.stderr)
+    return 0
+
+
 def _cmd_check(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
     pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin)
@@ -272,6 +353,15 @@ def register(subparsers: Any) -> None:
     r.add_argument("--psi-noise", type=float, default=0.01, help="heading noise std, rad (default 0.01)")
     r.add_argument("--margin", type=float, default=1.0, help="area safety margin in metres (default 1)")
     r.set_defaults(func=_cmd_run)
+    lk = sub.add_parser("lake", help="a simulated lake record: a 10-min PRBS on a boat that is not the default "
+                                     "model, in current and gusty wind (for identify --lake)")
+    lk.add_argument("--out", required=True, help="identification CSV to write")
+    lk.add_argument("--boat", help="also write the boat's true parameters (a params JSON)")
+    lk.add_argument("--seed", type=int, default=0)
+    lk.add_argument("--duration", type=float, default=600.0, help="s (default 600)")
+    lk.add_argument("--current", type=float, default=None, help="m/s (default: random up to 0.1)")
+    lk.add_argument("--wind", type=float, default=None, help="mean wind, m/s (default: random up to 5)")
+    lk.set_defaults(func=_cmd_lake)
     c = sub.add_parser("check", help="check limits and the predicted area of an experiment")
     c.add_argument("experiment")
     c.add_argument("--params", help="vessel parameters JSON for the prediction")

@@ -34,6 +34,7 @@ from typing import Any
 
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.model import DEFAULT_PARAMETERS
+from lotsen.sysid.verdict import Verdict, judge
 
 SCALE_DEFAULT = ("m11", 14.0)
 # Parameters that anchor the scale well when known (a fixed damping term such as Y_rv formally
@@ -90,7 +91,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from lotsen.logs.export import sysid_record
     from lotsen.sysid.data import load_record, register_loader
     from lotsen.sysid.estimate import estimate
-    from lotsen.sysid.multiple import check_identifiable, estimate_multiple_shooting
+    from lotsen.sysid.multiple import check_identifiable, estimate_lake, estimate_multiple_shooting
 
     register_loader(".mcap", sysid_record)  # the project's own run logs (the same path as `lotsen export`)
 
@@ -131,6 +132,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         if args.method == "single":
             res = estimate(est_records, theta0, fixed, window_s=args.window, gap_s=args.gap, noise_std=noise,
                            max_iterations=args.max_iter, progress=progress)
+        elif args.lake:
+            res = estimate_lake(est_records, theta0, fixed, gust_std=args.gust_std, gap_s=args.gap, noise_std=noise,
+                                node_s=args.node, max_iterations=args.max_iter, estimate_noise=not args.fixed_noise,
+                                progress=progress)
         else:
             res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
                                              node_s=args.node, max_iterations=args.max_iter,
@@ -140,11 +145,6 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     for d in res.identifiability.directions:
         print(f"identifiability: {d}", file=sys.stderr)
     check_identifiable(res)  # refuses (exit 2) rather than writing numbers the data do not determine
-    if not res.converged:
-        msg = (f"WARNING: the estimation did not converge in {res.iterations} iterations (--max-iter); the values "
-               "are the last iterate")
-        print(msg, file=sys.stderr)
-        warnings.append(msg)
     if res.identifiability.poorly_determined:
         warnings.append("poorly determined (95 % relative error above 5 %): "
                         + ", ".join(res.identifiability.poorly_determined))
@@ -153,15 +153,21 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(lo_hi))
         print(msg, file=sys.stderr)
         warnings.append(msg)
-    from lotsen.sysid.verdict import judge
-
-    rel_sigma = {n: res.std[n] / abs(getattr(res.params, n)) if getattr(res.params, n) else math.inf
-                 for n in res.free_names}
-    verdict = judge(res.converged, res.iterations, [b.split(" = ")[0] for b in lo_hi], rel_sigma,
-                    getattr(res.details, "residual_autocorr", None))
+    verdict = identification_verdict(res, lo_hi)
     out = res.to_json_dict()
     v = verdict.to_json_dict()
     out.update(verdict=v.pop("verdict"), identification=v)  # non-numbers: the loaders skip them
+    env = getattr(res.details, "environment", None)
+    if env is not None:
+        out["environment"] = {"values": env.values, "std": env.std,
+                              "gust_factor_mean": float(env.gust_factor.mean()),
+                              "gust_factor_std": float(env.gust_factor.std()),
+                              "autocorrelation_factor": env.autocorrelation_factor}
+        cn, ce = env.current_ne
+        wn, we = env.wind_ne
+        print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
+              f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
+              f"covariance inflated x{env.autocorrelation_factor:.1f} for autocorrelated residuals", file=sys.stderr)
     Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
           f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
@@ -182,6 +188,17 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     else:
         print("verdict: ok", file=sys.stderr)
     return 0
+
+
+def identification_verdict(res, at_bounds: list[str]) -> Verdict:  # type: ignore[no-untyped-def]
+    """The verdict on an identification result (lotsen.sysid.verdict.judge); the core coefficients
+    a controller leans on may not be weakly determined."""
+    from lotsen.cli.experiment import CORE_PARAMETERS
+
+    rel_sigma = {n: res.std[n] / abs(getattr(res.params, n)) if getattr(res.params, n) else math.inf
+                 for n in res.free_names}
+    return judge(res.converged, res.iterations, [b.split(" = ")[0] for b in at_bounds], rel_sigma,
+                 getattr(res.details, "residual_autocorr", None), core=CORE_PARAMETERS)
 
 
 def _at_bounds(res) -> list[str]:  # type: ignore[no-untyped-def]
@@ -265,6 +282,11 @@ def register(subparsers: Any) -> None:
                    help="single shooting and validation: simulation window length, s (default 10)")
     p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
     p.add_argument("--max-iter", type=int, default=60)
+    p.add_argument("--lake", action="store_true",
+                   help="estimate a constant current, the wind (air velocity and drag coefficients) and a gust "
+                        "factor per shooting interval with the parameters (records taken outside calm water)")
+    p.add_argument("--gust-std", type=float, default=0.3,
+                   help="with --lake: prior spread of the per-interval gust factor on the wind speed (default 0.3)")
     p.add_argument("--no-default-scale", action="store_true",
                    help="refuse instead of fixing m11 when no scale parameter is fixed")
     p.set_defaults(func=_cmd_identify)

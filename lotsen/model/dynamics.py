@@ -363,8 +363,8 @@ def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
     rhs = ns["_rhs"]
 
     def f(x: Sequence[Any], u: Sequence[Any], theta: Sequence[Any], geom: tuple[float, ...],
-          current_ne: tuple[float, float] = (0.0, 0.0)) -> list[Any]:
-        return list(rhs(x, u, theta, geom, current_ne[0], current_ne[1], 0.0, 0.0, 0.0))
+          current_ne: tuple[Any, Any] = (0.0, 0.0), tau_ext: tuple[Any, Any, Any] = (0.0, 0.0, 0.0)) -> list[Any]:
+        return list(rhs(x, u, theta, geom, current_ne[0], current_ne[1], tau_ext[0], tau_ext[1], tau_ext[2]))
 
     return f
 

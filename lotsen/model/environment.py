@@ -4,6 +4,10 @@ Wind follows Fossen (2021, sec. 10.1) with constant coefficients for a small hul
     tau_wind = -1/2 rho_air V_rw^2 [C_X cos(g) A_F, C_Y sin(g) A_L, C_N sin(2 g) A_L L]
 with g = gamma_rw the direction the relative wind comes from (0 = from ahead, +90 deg = from
 starboard), so wind from starboard pushes the boat to port.
+
+Gusts (made in the simulator, seeded): the wind speed is W + w(t), w a first-order Gauss-Markov
+(Ornstein-Uhlenbeck) process with standard deviation `wind_gust_std_mps` and time constant
+`wind_gust_time_constant_s`; the direction wanders the same way by `wind_direction_std_deg`.
 """
 
 from __future__ import annotations
@@ -23,6 +27,13 @@ class Environment:
     wind_from_deg: float = 0.0
     wave_force_std_N: float = 0.0  # band-limited wave disturbance (made in the simulator)
     wave_period_s: float = 1.5
+    wind_gust_std_mps: float = 0.0  # gusts on the wind speed (0: steady wind)
+    wind_gust_time_constant_s: float = 8.0
+    wind_direction_std_deg: float = 0.0  # slow wander of the wind direction (same time constant x 4)
+
+    @property
+    def gusty(self) -> bool:
+        return bool(self.wind_gust_std_mps or self.wind_direction_std_deg)
 
     @property
     def current_ne(self) -> tuple[float, float]:
@@ -42,18 +53,37 @@ class WindCoefficients:
 
 
 def wind_force(psi: float, u: float, v: float, env: Environment,
-               coeff: WindCoefficients = WindCoefficients()) -> tuple[float, float, float]:
-    """Body-frame wind force and moment for the vessel at heading psi and ground velocity (u, v)."""
-    if env.wind_speed_mps == 0.0:
+               coeff: WindCoefficients = WindCoefficients(), speed_mps: float | None = None,
+               from_deg: float | None = None) -> tuple[float, float, float]:
+    """Body-frame wind force and moment for the vessel at heading psi and ground velocity (u, v).
+
+    `speed_mps` / `from_deg` override the environment's mean wind (the simulator's gusts)."""
+    W = env.wind_speed_mps if speed_mps is None else speed_mps
+    if W == 0.0:
         return (0.0, 0.0, 0.0)
-    beta = math.radians(env.wind_from_deg)
-    # wind velocity (moving TO beta + pi) expressed in the body frame
-    uw = -env.wind_speed_mps * math.cos(beta - psi)
-    vw = -env.wind_speed_mps * math.sin(beta - psi)
-    urw, vrw = u - uw, v - vw
-    V2 = urw * urw + vrw * vrw
-    gamma = math.atan2(vrw, urw)  # where the relative wind comes from; 0 = straight ahead
-    q = 0.5 * coeff.rho_air * V2
-    return (-coeff.C_X * math.cos(gamma) * coeff.frontal_area_m2 * q,
-            -coeff.C_Y * math.sin(gamma) * coeff.lateral_area_m2 * q,
-            -coeff.C_N * math.sin(2.0 * gamma) * coeff.lateral_area_m2 * coeff.length_m * q)
+    beta = math.radians(env.wind_from_deg if from_deg is None else from_deg)
+    # the air's velocity in the earth frame: it moves TO beta + pi
+    return apparent_wind_force(psi, u, v, -W * math.cos(beta), -W * math.sin(beta), *wind_drag_coefficients(coeff))
+
+
+def wind_drag_coefficients(coeff: WindCoefficients = WindCoefficients()) -> tuple[float, float, float]:
+    """(k_X, k_Y, k_N) = 1/2 rho_air (C_X A_F, C_Y A_L, C_N A_L L) of `apparent_wind_force`."""
+    q = 0.5 * coeff.rho_air
+    return (q * coeff.C_X * coeff.frontal_area_m2, q * coeff.C_Y * coeff.lateral_area_m2,
+            q * coeff.C_N * coeff.lateral_area_m2 * coeff.length_m)
+
+
+def apparent_wind_force(psi, u, v, wind_n, wind_e, k_x, k_y, k_n, cos=math.cos, sin=math.sin,  # type: ignore[no-untyped-def]
+                        sqrt=math.sqrt):
+    """The wind model above without angles: with the apparent wind (u_rw, v_rw) = (u, v) - R(psi)^T w,
+    V cos(gamma) = u_rw, V sin(gamma) = v_rw, V^2 sin(2 gamma) = 2 u_rw v_rw, so
+
+        tau = -[k_X V u_rw, k_Y V v_rw, 2 k_N u_rw v_rw],   V = |(u_rw, v_rw)|
+
+    (w = earth-frame velocity of the air, k = `wind_drag_coefficients`). Smooth, so that
+    identification can differentiate it: `cos`, `sin`, `sqrt` may be CasADi's."""
+    c, s = cos(psi), sin(psi)
+    urw = u - (wind_n * c + wind_e * s)
+    vrw = v - (-wind_n * s + wind_e * c)
+    V = sqrt(urw * urw + vrw * vrw + 1e-12)
+    return (-k_x * V * urw, -k_y * V * vrw, -2.0 * k_n * urw * vrw)

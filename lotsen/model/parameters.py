@@ -70,17 +70,25 @@ class VesselParameters:
         """Build from a mapping (a params.json, a config): the boundary where values are checked.
         Unknown keys, non-numbers and values outside the physical range of the field metadata
         are ConfigErrors naming parameter, value and range; missing keys take the defaults.
-        Entries that are not numbers (identification's `std`, `verdict`, `verdict_reasons`, ...)
-        are ignored; an unknown key with a number is an error (a misspelt coefficient). (The constructor checks only
-        finiteness, so identification may evaluate vectors outside the ranges.)
+        The extra keys identification writes (`std`, `verdict`, `identification`, `environment`, ...:
+        anything whose value is not a number) are ignored, but a file whose `verdict` is "refused"
+        (the data could not support an answer) is refused here, with its reasons. (The constructor
+        checks only finiteness, so identification may evaluate vectors outside the ranges.)
         """
         if not isinstance(data, Mapping):
             raise ConfigError(f"{source}: expected a mapping of parameter names to numbers")
+        verdict = data.get("verdict")
+        if verdict is not None and verdict not in ("ok", "weak"):
+            details = data.get("identification")
+            reasons = details.get("reasons") if isinstance(details, Mapping) else None
+            why = "; ".join(str(r) for r in reasons) if isinstance(reasons, list) else ""
+            raise ConfigError(f"{source}: identification refused these coefficients ({why or 'no reason recorded'}); "
+                              "record a better experiment and identify again, or use another file")
         known = set(cls.names())
         values: dict[str, float] = {}
         for key, value in data.items():
-            if key not in known and (key == "std" or isinstance(value, (dict, list, str)) or value is None):
-                continue  # identification's extras (std, verdict, reasons, ...): not coefficients
+            if key not in known and (isinstance(value, (str, list, dict)) or value is None):
+                continue  # identification's extra keys (std, verdict, reasons, ...)
             if key not in known:
                 raise ConfigError(f"{source}: unknown parameter {key!r} (known: {', '.join(cls.names())})")
             if isinstance(value, bool) or not isinstance(value, (int, float)):

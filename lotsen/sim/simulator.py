@@ -166,6 +166,8 @@ class Simulator:
         self.tachometer = TachometerModel(config.tachometer, rngs[3])
         self._wave_rng = rngs[4]
         self._wave = [0.0, 0.0, 0.0]
+        self._gust_rng = rngs[5]
+        self._gust = [0.0, 0.0]  # wind speed deviation (m/s), direction deviation (deg)
         dt = config.dt_s
         self._sched_imu = _Schedule(config.imu.rate_hz, dt)
         self._sched_mag = _Schedule(config.imu.mag_rate_hz, dt)
@@ -207,7 +209,11 @@ class Simulator:
     def _external_force(self) -> tuple[float, float, float]:
         env, x = self.environment, self.x
         tau = [0.0, 0.0, 0.0]
-        if env.wind_speed_mps:
+        if env.gusty:
+            self._advance_gust(env)
+            tau = list(wind_force(x[2], x[3], x[4], env, self.config.wind,
+                                  max(0.0, env.wind_speed_mps + self._gust[0]), env.wind_from_deg + self._gust[1]))
+        elif env.wind_speed_mps:
             tau = list(wind_force(x[2], x[3], x[4], env, self.config.wind))
         if env.wave_force_std_N:
             # first-order Gauss-Markov force per axis (moment scaled by a quarter length)
@@ -218,12 +224,27 @@ class Simulator:
             tau = [tau[i] + self._wave[i] for i in range(3)]
         return tau[0], tau[1], tau[2]
 
+    def _advance_gust(self, env: Environment) -> None:
+        """One step of the Ornstein-Uhlenbeck gusts: speed with tau = wind_gust_time_constant_s,
+        direction with 4 tau (the direction wanders more slowly than the speed gusts)."""
+        dt, T = self.config.dt_s, max(env.wind_gust_time_constant_s, 1e-3)
+        w = self._gust_rng.standard_normal(2)
+        for i, (tau, std) in enumerate(((T, env.wind_gust_std_mps), (4.0 * T, env.wind_direction_std_deg))):
+            a = math.exp(-dt / tau)
+            self._gust[i] = a * self._gust[i] + math.sqrt(1.0 - a * a) * std * float(w[i])
+
+    @property
+    def wind_now(self) -> tuple[float, float]:
+        """The wind acting now: (speed m/s, from deg), gusts included."""
+        env = self.environment
+        return max(0.0, env.wind_speed_mps + self._gust[0]), env.wind_from_deg + self._gust[1]
+
     def step(self) -> list[Any]:
         if self._pending:
             self._apply_due_commands()
         c = self._consts
         c[4], c[5] = self._current_ne
-        if self.environment.wind_speed_mps or self.environment.wave_force_std_N:
+        if self.environment.wind_speed_mps or self.environment.wave_force_std_N or self.environment.gusty:
             c[6], c[7], c[8] = self._external_force()
         else:
             c[6] = c[7] = c[8] = 0.0
@@ -302,7 +323,7 @@ class Simulator:
         only the sensors run per step."""
         n = int(round(duration_s / self.config.dt_s))
         env = self.environment
-        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N or self._pending:
+        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N or env.gusty or self._pending:
             # forces that depend on each step's state, or set-points still on their way
             out: list[Any] = []
             for _ in range(n):

@@ -36,13 +36,7 @@ def load_parameters(path: str | None) -> VesselParameters:
     is refused here too, with its reasons."""
     if not path:
         return VesselParameters()
-    data = read_json(path, ConfigError)
-    if isinstance(data, dict) and data.get("verdict") == "refused":
-        reasons = "; ".join(str(r) for r in (data.get("identification") or {}).get("reasons") or []) \
-            or "no reason recorded"
-        raise ConfigError(f"{path}: identification refused these coefficients ({reasons}); identify again or "
-                          "use another file")
-    return VesselParameters.from_dict(data, source=str(path))
+    return VesselParameters.from_dict(read_json(path, ConfigError), source=str(path))
 
 
 def model_info(config: LaunchConfig, model: VesselModel, stamp_s: float = 0.0) -> ModelInfo:

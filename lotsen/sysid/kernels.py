@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from lotsen.sysid.sensitivity import NS, NTHETA, _build_step_functions
+from lotsen.sysid.sensitivity import NS, NTHETA, NTHETA_LAKE, NX_LAKE, _build_step_functions
 
 CHUNK = 2048  # steps per call: memory per call ~ CHUNK * 1.3 kB whatever the record length
 _KERNELS: dict[tuple, "StepKernels"] = {}
@@ -83,27 +83,31 @@ def _compile(functions: list[Any], tag: str) -> str | None:
 class StepKernels:
     """`sim` and `sens` over CHUNK steps, on persistent numpy buffers (see module docstring)."""
 
-    def __init__(self, geom: tuple[float, ...], chunk: int = CHUNK) -> None:
+    def __init__(self, geom: tuple[float, ...], chunk: int = CHUNK, lake: bool = False) -> None:
         import casadi as ca
 
         self.chunk = L = chunk
-        step, step_sens = _build_step_functions(geom, False)
-        acc_sim = step.mapaccum("lotsen_ms_sim", L, [0], [0])
-        acc_sens = step_sens.mapaccum("lotsen_ms_sens", L, [0, 1], [0, 1])
-        lib = _compile([acc_sim, acc_sens], "lotsen_ms")
+        self.nx, nth = (NX_LAKE, NTHETA_LAKE) if lake else (6, NTHETA)
+        self.ns = ns = self.nx + nth
+        nx = self.nx
+        step, step_sens = _build_step_functions(geom, False, lake)
+        tag = "lotsen_lake" if lake else "lotsen_ms"
+        acc_sim = step.mapaccum(f"{tag}_sim", L, [0], [0])
+        acc_sens = step_sens.mapaccum(f"{tag}_sens", L, [0, 1], [0, 1])
+        lib = _compile([acc_sim, acc_sens], tag)
         self.compiled = lib is not None
         if lib is not None:
-            acc_sim, acc_sens = ca.external("lotsen_ms_sim", lib), ca.external("lotsen_ms_sens", lib)
+            acc_sim, acc_sens = ca.external(f"{tag}_sim", lib), ca.external(f"{tag}_sens", lib)
         # inputs (column-major CasADi matrices = C-ordered numpy arrays with the dimensions reversed)
-        self.x0 = np.zeros(6)
-        self.S0 = np.zeros((NS, 6))
+        self.x0 = np.zeros(nx)
+        self.S0 = np.zeros((ns, nx))
         self.U = np.zeros((L, 5))
-        self.TH = np.zeros((L, NTHETA))
+        self.TH = np.zeros((L, nth))
         self.H = np.zeros(L)
         self.RS = np.zeros(L)
-        self.XR = np.zeros((L, 6))
-        self.X = np.zeros((L, 6))
-        self.S = np.zeros((L, NS, 6))  # S[k, j, i] = d x_i / d p_j after step k
+        self.XR = np.zeros((L, nx))
+        self.X = np.zeros((L, nx))
+        self.S = np.zeros((L, ns, nx))  # S[k, j, i] = d x_i / d p_j after step k
         self._fs = acc_sim  # keep the functions alive with their buffers
         self._fss = acc_sens
         self.buf_sim, self._ev_sim = acc_sim.buffer()
@@ -123,9 +127,10 @@ class StepKernels:
         self._ev_sens()
 
 
-def step_kernels(geom: tuple[float, ...], chunk: int = CHUNK) -> StepKernels:
-    """The kernels of a geometry (one set per process and geometry; not thread-safe)."""
-    key = (geom, chunk)
+def step_kernels(geom: tuple[float, ...], chunk: int = CHUNK, lake: bool = False) -> StepKernels:
+    """The kernels of a geometry (one set per process, geometry and model; not thread-safe);
+    `lake`: with current, wind and the interval's gust factor (lotsen.sysid.sensitivity.ENV_NAMES)."""
+    key = (geom, chunk, lake)
     if key not in _KERNELS:
-        _KERNELS[key] = StepKernels(geom, chunk)
+        _KERNELS[key] = StepKernels(geom, chunk, lake)
     return _KERNELS[key]

@@ -57,11 +57,25 @@ from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
     identifiability, parameter_bounds, parameter_scale, starting_point,
 )
+from lotsen.model.environment import wind_drag_coefficients
 from lotsen.sysid.kernels import step_kernels
-from lotsen.sysid.sensitivity import NS
+from lotsen.sysid.sensitivity import ENV_NAMES, NTHETA
 
 # node-state scale (noise-like units: the continuity defects are compared with the measurement noise)
 X_SCALE = np.array([0.01, 0.01, 0.01, 0.01, 0.01, 0.003])
+# the lake model (`lake=True`): the gust factor's scale, and the environment's start, scale and prior
+GUST_SCALE = 0.05
+ENV_START = np.array([0.0, 0.0, 0.0, 0.0, *wind_drag_coefficients()])
+ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *wind_drag_coefficients()])
+# priors that keep the problem regular in calm air (no wind: the drag coefficients are undetermined)
+# and break the near-degeneracy of drag coefficient and wind speed (k W^2): coefficients within
+# `wind_coefficient_spread` (relative) of the nominal hull's (WindCoefficients: areas measured on the
+# hull, C_X, C_Y, C_N from the literature), wind and current within 10 and 1 m/s. Measured on a lake
+# record (docs/sysid.md): with a 30 % or 5 % spread the estimate falls into a wrong basin (wind too
+# weak, drag too high, Y_v/Y_vv/N_v absorbing the difference); with 1 % it finds the truth's basin.
+ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *wind_drag_coefficients()])  # x wind_coefficient_spread
+ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0])
+ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0])
 
 
 @dataclass
@@ -160,9 +174,9 @@ class ShootingSimulator:
     """All intervals simulated from their node states, CHUNK steps per compiled call
     (lotsen.sysid.kernels): the memory is bounded whatever the record length."""
 
-    def __init__(self, grid: ShootingGrid, geometry: VesselGeometry = DEFAULT_GEOMETRY) -> None:
+    def __init__(self, grid: ShootingGrid, geometry: VesselGeometry = DEFAULT_GEOMETRY, lake: bool = False) -> None:
         self.g = grid
-        self.k = step_kernels(geometry_tuple(geometry))
+        self.k = step_kernels(geometry_tuple(geometry), lake=lake)
         # steps whose state is needed: measurements and interval ends
         ends = grid.end_step[grid.has_next]
         self.need = np.unique(np.concatenate([grid.meas_step, ends]))
@@ -170,11 +184,11 @@ class ShootingSimulator:
         self._end_pos = np.searchsorted(self.need, ends)
 
     def run(self, theta: np.ndarray, nodes: np.ndarray, sens: bool) -> tuple[np.ndarray, ...]:
-        """(X at measurements, X at interval ends[, S at measurements, S at ends]); S: n x 6 x 24."""
+        """(X at measurements, X at interval ends[, S at measurements, S at ends]); S: n x nx x (nx + ntheta)."""
         g, k = self.g, self.k
         L = k.chunk
-        X_need = np.empty((len(self.need), 6))
-        S_need = np.empty((len(self.need), 6, NS)) if sens else None
+        X_need = np.empty((len(self.need), k.nx))
+        S_need = np.empty((len(self.need), k.nx, k.ns)) if sens else None
         k.x0[:] = 0.0
         k.S0[:] = 0.0
         k.TH[:] = np.asarray(theta, float)[None, :]
@@ -256,14 +270,25 @@ class _Lin:
 
     e: np.ndarray  # weighted measurement residuals, n_meas x ny (0 where not measured)
     c: np.ndarray  # scaled continuity defects, n_con x 6
-    Jx: np.ndarray | None = None  # n_meas x ny x 6
+    Jx: np.ndarray | None = None  # n_meas x ny x nz (nz = 6, or 7 with the gust factor)
     Jp: np.ndarray | None = None  # n_meas x ny x nf
-    Gx: np.ndarray | None = None  # n_con x 6 x 6  d c_i / d sigma_i
+    Gx: np.ndarray | None = None  # n_con x 6 x nz  d c_i / d sigma_i
     Gp: np.ndarray | None = None  # n_con x 6 x nf
+    pg: np.ndarray | None = None  # prior residuals of the gust factors (n_nodes), lake model
+    pt: np.ndarray | None = None  # prior residuals of the free parameters (0 without a prior)
+    jt: np.ndarray | None = None  # their derivatives d pt / d p (scaled)
+
+    @property
+    def measurement_cost(self) -> float:
+        return 0.5 * float(np.sum(self.e * self.e))
 
     @property
     def cost(self) -> float:
-        return 0.5 * float(np.sum(self.e * self.e))
+        c = self.measurement_cost
+        for p in (self.pg, self.pt):
+            if p is not None:
+                c += 0.5 * float(np.sum(p * p))
+        return c
 
     @property
     def l1(self) -> float:
@@ -275,7 +300,8 @@ class MultipleShootingProblem:
 
     def __init__(self, records: Sequence[IdRecord], node_s: float = 2.0, gap_s: float = 1.0,
                  noise_std: Mapping[str, float] | None = None, geometry: VesselGeometry = DEFAULT_GEOMETRY,
-                 h_max: float = 0.0625) -> None:
+                 h_max: float = 0.0625, lake: bool = False, gust_std: float = 0.3,
+                 wind_coefficient_spread: float = 0.01) -> None:
         segs: list[Segment] = []
         for r in records:
             check_record(r)
@@ -287,8 +313,16 @@ class MultipleShootingProblem:
         if any(s.output_names != names for s in segs):
             raise EstimationError("all data files must have the same output columns")
         self.segments = segs
+        self.lake = lake
+        self.gust_std = gust_std
+        self.nz = 7 if lake else 6
+        self.xscale = np.append(X_SCALE, GUST_SCALE) if lake else X_SCALE
+        self.prior_mean = np.concatenate([np.zeros(NTHETA), ENV_START]) if lake else np.zeros(NTHETA)
+        env_std = ENV_PRIOR_STD.copy()
+        env_std[4:] *= wind_coefficient_spread
+        self.prior_std = np.concatenate([np.full(NTHETA, np.inf), env_std]) if lake else np.full(NTHETA, np.inf)
         self.grid = build_grid(segs, node_s, h_max)
-        self.sim = ShootingSimulator(self.grid, geometry)
+        self.sim = ShootingSimulator(self.grid, geometry, lake)
         noise = dict(DEFAULT_NOISE_STD)
         noise.update(noise_std or {})
         self.noise = {n: float(noise[n]) for n in names}
@@ -321,19 +355,26 @@ class MultipleShootingProblem:
         if self.psi_col is not None:
             e[:, self.psi_col] = wrap_angle(e[:, self.psi_col])
         e = np.where(self.mask, e, 0.0) * sw
-        c = (Xe - nodes[self.con + 1]) / X_SCALE
+        c = (Xe[:, :6] - nodes[self.con + 1, :6]) / X_SCALE
         lin = _Lin(e, c)
         if not (np.all(np.isfinite(e)) and np.all(np.isfinite(c))):
             lin.e = np.full_like(e, np.inf)
             return lin
+        jt = tscale[free] / self.prior_std[free]
+        if np.any(jt > 0):
+            lin.pt = (theta[free] - self.prior_mean[free]) / self.prior_std[free]
+            lin.jt = jt
+        if self.lake:
+            lin.pg = (nodes[:, 6] - 1.0) / self.gust_std
         if sens:
+            nz, xs = self.nz, self.xscale
             Sm, Se = out[2], out[3]
             W = (sw[None, :] * self.mask)[:, :, None]
             Sy = Sm[:, self.out_idx, :]
-            lin.Jx = -Sy[:, :, :6] * X_SCALE[None, None, :] * W
-            lin.Jp = -Sy[:, :, 6 + free] * tscale[free][None, None, :] * W
-            lin.Gx = Se[:, :, :6] * X_SCALE[None, None, :] / X_SCALE[None, :, None]
-            lin.Gp = Se[:, :, 6 + free] * tscale[free][None, None, :] / X_SCALE[None, :, None]
+            lin.Jx = -Sy[:, :, :nz] * xs[None, None, :] * W
+            lin.Jp = -Sy[:, :, nz + free] * tscale[free][None, None, :] * W
+            lin.Gx = Se[:, :6, :nz] * xs[None, None, :] / X_SCALE[None, :, None]
+            lin.Gp = Se[:, :6, nz + free] * tscale[free][None, None, :] / X_SCALE[None, :, None]
         return lin
 
     # -- the structured KKT system -------------------------------------------------------------
@@ -346,27 +387,35 @@ class MultipleShootingProblem:
         Hpp = np.einsum("kji,kjl->il", Jp, Jp)
         gs = np.add.reduceat(np.einsum("kji,kj->ki", Jx, e), b, axis=0)
         gp = np.einsum("kji,kj->i", Jp, e)
+        if lin.pg is not None:  # the gust factors' prior: 1 +- gust_std, independent per interval
+            jg = self.xscale[6] / self.gust_std
+            Hss[:, 6, 6] += jg * jg
+            gs[:, 6] += jg * lin.pg
+        if lin.pt is not None:
+            Hpp[np.diag_indices_from(Hpp)] += lin.jt ** 2
+            gp += lin.jt * lin.pt
         return Hss, Hsp, Hpp, gs, gp
 
     def _pattern(self) -> tuple[np.ndarray, np.ndarray]:
         """Row/column indices of A = [[H_ss, C_s^T], [C_s, 0]] (fixed for the problem)."""
         if "A" in self._pattern_cache:
             return self._pattern_cache["A"]
-        N, nc = self.n_nodes, self.n_con
-        ns = 6 * N
+        N, nc, nz = self.n_nodes, self.n_con, self.nz
+        ns = nz * N
         i6 = np.arange(6)
+        iz = np.arange(nz)
         rr, cc = [], []
         # H_ss blocks
-        base = (np.arange(N) * 6)[:, None, None]
-        rr.append((base + i6[None, :, None] + 0 * i6[None, None, :]).ravel())
-        cc.append((base + 0 * i6[None, :, None] + i6[None, None, :]).ravel())
-        # C_s: constraint q (rows ns + 6q ..) -> node con[q] (G_x) and node con[q] + 1 (-I)
+        base = (np.arange(N) * nz)[:, None, None]
+        rr.append((base + iz[None, :, None] + 0 * iz[None, None, :]).ravel())
+        cc.append((base + 0 * iz[None, :, None] + iz[None, None, :]).ravel())
+        # C_s: constraint q (rows ns + 6q ..) -> node con[q] (G_x, 6 x nz) and node con[q] + 1 (-I on its state)
         rq = (ns + np.arange(nc) * 6)[:, None, None]
-        cq = (self.con * 6)[:, None, None]
-        Gr = (rq + i6[None, :, None] + 0 * i6[None, None, :]).ravel()
-        Gc = (cq + 0 * i6[None, :, None] + i6[None, None, :]).ravel()
+        cq = (self.con * nz)[:, None, None]
+        Gr = (rq + i6[None, :, None] + 0 * iz[None, None, :]).ravel()
+        Gc = (cq + 0 * i6[None, :, None] + iz[None, None, :]).ravel()
         Ir = (ns + np.arange(nc)[:, None] * 6 + i6[None, :]).ravel()
-        Ic = ((self.con + 1)[:, None] * 6 + i6[None, :]).ravel()
+        Ic = ((self.con + 1)[:, None] * nz + i6[None, :]).ravel()
         rr += [Gr, Gc, Ir, Ic]
         cc += [Gc, Gr, Ic, Ir]
         self._pattern_cache["A"] = (np.concatenate(rr), np.concatenate(cc))
@@ -375,11 +424,11 @@ class MultipleShootingProblem:
     def factor_A(self, Hss: np.ndarray, Gx: np.ndarray, Ds: np.ndarray, mu: float):  # type: ignore[no-untyped-def]
         rows, cols = self._pattern()
         H = Hss.copy()
-        idx = np.arange(6)
+        idx = np.arange(self.nz)
         H[:, idx, idx] += mu * Ds
         nc = self.n_con
         data = np.concatenate([H.ravel(), Gx.ravel(), Gx.ravel(), -np.ones(6 * nc), -np.ones(6 * nc)])
-        n = 6 * self.n_nodes + 6 * nc
+        n = self.nz * self.n_nodes + 6 * nc
         A = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
         return spla.splu(A, permc_spec="COLAMD", options={"SymmetricMode": False})
 
@@ -387,7 +436,7 @@ class MultipleShootingProblem:
                 rhs_p: np.ndarray | None) -> tuple[np.ndarray, ...]:
         """F = H_pp - B^T A^-1 B and, with right-hand sides, the eliminated rhs and A^-1 (B, r_w)."""
         nf = Hpp.shape[0]
-        B = np.vstack([Hsp.reshape(self.n_nodes * 6, nf), Gp.reshape(self.n_con * 6, nf)])
+        B = np.vstack([Hsp.reshape(self.n_nodes * self.nz, nf), Gp.reshape(self.n_con * 6, nf)])
         R = B if rhs_w is None else np.column_stack([B, rhs_w])
         Z = lu.solve(R)
         AinvB = Z[:, :nf]
@@ -412,6 +461,7 @@ class MultipleShootingResult:
     passes: int
     # per output: the normalised autocorrelation of its residuals at lags 1..K measurements
     residual_autocorr: dict[str, np.ndarray] | None = None
+    environment: "EnvironmentEstimate | None" = None  # the lake model's current, wind and gusts
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
@@ -429,8 +479,8 @@ def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.
     else:
         dp = np.zeros(0)
     w = Ainv_rw - AinvB @ dp
-    ns = 6 * prob.n_nodes
-    ds = w[:ns].reshape(prob.n_nodes, 6)
+    ns = prob.nz * prob.n_nodes
+    ds = w[:ns].reshape(prob.n_nodes, prob.nz)
     lam = w[ns:]
     return ds, dp, lam
 
@@ -452,13 +502,20 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                estimate_noise: bool = True, tol: float = 1e-9,
                                progress: Callable[[int, float], None] | None = None,
                                problem: MultipleShootingProblem | None = None,
-                               nodes0: np.ndarray | None = None) -> IdentificationResult:
+                               nodes0: np.ndarray | None = None, lake: bool = False,
+                               gust_std: float = 0.3, env0: Sequence[float] | None = None,
+                               wind_coefficient_spread: float = 0.01) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
     `estimate_noise` (default) the noise std of each output is re-estimated from its residuals and
     the estimate refined once with those weights; otherwise `noise_std` (or the defaults) is used and
     the covariance is scaled by max(1, s^2). `window_s` is accepted for compatibility and ignored.
+
+    `lake`: estimate with the parameters a constant earth-frame current, the wind (earth-frame air
+    velocity and drag coefficients, lotsen.model.environment.apparent_wind_force) and a gust factor
+    per shooting interval (prior 1 +- `gust_std`); the covariance is then also inflated for the
+    residuals' autocorrelation (`autocorrelation_factor`). Results in `details.environment`.
     """
     fixed = dict(fixed or {})
     unknown = [n for n in fixed if n not in NAMES]
@@ -467,11 +524,19 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     check_scale_fixed(fixed)
     prob = problem
     if prob is None:
-        prob = MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max)
+        prob = MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max, lake, gust_std,
+                                       wind_coefficient_spread)
         check_excitation(prob.segments)
     theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
     nodes = initial_nodes(prob.grid, prob.segments) if nodes0 is None else np.array(nodes0, float)
+    if prob.lake:
+        theta = np.concatenate([theta, ENV_START if env0 is None else np.asarray(env0, float)])
+        free = np.concatenate([free, NTHETA + np.arange(len(ENV_NAMES))])
+        tscale = np.concatenate([tscale, ENV_SCALE])
+        lo, hi = np.concatenate([lo, ENV_LO]), np.concatenate([hi, ENV_HI])
+        if nodes.shape[1] == 6:
+            nodes = np.column_stack([nodes, np.ones(len(nodes))])
     history: list[float] = []
     total_it = 0
     converged = False
@@ -484,7 +549,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
             lin = prob.linearise(theta, nodes, free, tscale, False)
             e2 = np.sum(lin.e ** 2, axis=0)
             m = prob.mask.sum(axis=0)
-            p_eff = len(free) + 6 * len(prob.segments)
+            p_eff = len(free) + 6 * len(prob.segments) + (prob.n_nodes if prob.lake else 0)
             dof = max(1.0 - p_eff / max(prob.n_measurements, 1), 0.05)
             changed = False
             for j, n in enumerate(prob.names):
@@ -498,11 +563,13 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     lin = prob.linearise(theta, nodes, free, tscale, True)
     blocks = prob.normal_blocks(lin)
     F_rel = _fisher_from(prob, lin, blocks)
-    cost = 2.0 * lin.cost  # V = sum of squared weighted residuals
+    cost = 2.0 * lin.measurement_cost  # V = sum of squared weighted residuals
     m = prob.n_measurements
-    p_eff = len(free) + 6 * len(prob.segments)
+    p_eff = len(free) + 6 * len(prob.segments) + (prob.n_nodes if prob.lake else 0)
     s2 = cost / max(m - p_eff, 1)
     factor = s2 if estimate_noise else max(1.0, s2)
+    if prob.lake:
+        factor *= autocorrelation_factor(prob, lin)
     return _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, total_it,
                    converged, history, passes, lin)
 
@@ -517,31 +584,92 @@ def _fisher_from(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple) -> np.
     return F
 
 
+def autocorrelation_factor(prob: MultipleShootingProblem, lin: _Lin, max_lag: int = 200) -> float:
+    """Variance inflation for autocorrelated residuals: the largest over the outputs of the
+    integrated autocorrelation 1 + 2 sum_k rho_k of the output's residual sequence (on its own rows,
+    summed while rho_k stays above 0.05). White residuals give 1; slowly varying unmodelled forces
+    (gusts the per-interval factor does not follow, wind direction wander) give more, and the
+    least-squares covariance, which assumes white noise, is too small by about that factor."""
+    worst = 1.0
+    for j in range(lin.e.shape[1]):
+        r = lin.e[prob.mask[:, j], j]
+        n = len(r)
+        if n < 50:
+            continue
+        r = r - r.mean()
+        v = float(r @ r) / n
+        if v <= 0:
+            continue
+        tau = 1.0
+        for k in range(1, min(max_lag, n // 5)):
+            rho = float(r[:-k] @ r[k:]) / (n * v)
+            if rho < 0.05:
+                break
+            tau += 2.0 * rho
+        worst = max(worst, tau)
+    return worst
+
+
+@dataclass
+class EnvironmentEstimate:
+    """The lake model's environment: values and 1-sigma (ENV_NAMES order), gust factor per interval."""
+
+    values: dict[str, float]
+    std: dict[str, float]
+    gust_factor: np.ndarray
+    autocorrelation_factor: float
+
+    @property
+    def current_ne(self) -> tuple[float, float]:
+        return self.values["current_n"], self.values["current_e"]
+
+    @property
+    def wind_ne(self) -> tuple[float, float]:
+        """Earth-frame velocity of the air (where it blows TO), mean over the record."""
+        g = float(np.mean(self.gust_factor)) if len(self.gust_factor) else 1.0
+        return g * self.values["wind_n"], g * self.values["wind_e"]
+
+
 def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, iterations, converged,
             history, passes, lin) -> IdentificationResult:  # type: ignore[no-untyped-def]
     F_rel = 0.5 * (F_rel + F_rel.T)
     try:
-        cov_rel = np.linalg.inv(F_rel) * factor
-        if not np.all(np.isfinite(cov_rel)):
+        cov_all = np.linalg.inv(F_rel) * factor
+        if not np.all(np.isfinite(cov_all)):
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
-        cov_rel = np.linalg.pinv(F_rel) * factor
-    ts = tscale[free]
-    rel_std = np.sqrt(np.clip(np.diag(cov_rel), 0, None)) * ts / np.maximum(np.abs(theta[free]), 1e-12)
-    ident = identifiability(F_rel / factor if factor > 0 else F_rel, free_names, rel_std)
+        cov_all = np.linalg.pinv(F_rel) * factor
+    nv = len(free_names)
+    cov_rel = cov_all[:nv, :nv]  # the vessel parameters, the environment marginalised
+    ts = tscale[free][:nv]
+    F_m = F_rel  # the information of the vessel parameters (the environment eliminated)
+    if nv < len(free):
+        try:
+            F_m = np.linalg.inv(cov_rel / factor) if nv else np.zeros((0, 0))
+        except np.linalg.LinAlgError:
+            F_m = np.linalg.pinv(cov_rel / factor)
+        F_m = 0.5 * (F_m + F_m.T)
+    th = theta[free][:nv]
+    rel_std = np.sqrt(np.clip(np.diag(cov_rel), 0, None)) * ts / np.maximum(np.abs(th), 1e-12)
+    ident = identifiability(F_m / factor if factor > 0 else F_m, free_names, rel_std)
     D = np.diag(ts)
     cov = D @ cov_rel @ D
     Dinv = np.diag(1.0 / ts)
-    fisher = Dinv @ F_rel @ Dinv
+    fisher = Dinv @ F_m @ Dinv
     std = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(free_names)}
     g = prob.grid
     first = np.array([np.flatnonzero(g.node_seg == s)[0] for s in range(len(prob.segments))])
-    res = IdentificationResult(VesselParameters.from_vector(theta), std, {n: float(v) for n, v in fixed.items()},
-                               free_names, cov, fisher, nodes[first], cost, prob.n_measurements, s2, iterations,
-                               converged, ident, "multiple", [], history)
+    res = IdentificationResult(VesselParameters.from_vector(theta[:NTHETA]), std,
+                               {n: float(v) for n, v in fixed.items()}, free_names, cov, fisher, nodes[first, :6],
+                               cost, prob.n_measurements, s2, iterations, converged, ident, "multiple", [], history)
     res.details = MultipleShootingResult(nodes, g.node_time, dict(prob.noise),
                                          float(np.max(np.abs(lin.c))) * 1.0 if lin.c.size else 0.0,
                                          g.n_nodes, g.n_steps, passes, residual_autocorr(lin.e, prob.mask, prob.names))
+    if prob.lake:
+        sd_env = np.sqrt(np.clip(np.diag(cov_all)[nv:], 0, None)) * tscale[free][nv:]
+        res.details.environment = EnvironmentEstimate(
+            {n: float(v) for n, v in zip(ENV_NAMES, theta[NTHETA:])}, {n: float(v) for n, v in zip(ENV_NAMES, sd_env)},
+            nodes[:, 6].copy(), autocorrelation_factor(prob, lin))
     return res
 
 
@@ -591,7 +719,7 @@ def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.nd
             pred = -(alpha * gd + 0.5 * alpha * alpha * qd) + nu * alpha * lin.l1
             th_new = theta.copy()
             th_new[free] = np.clip(theta[free] + alpha * dp * tscale[free], lo[free], hi[free])
-            nodes_new = nodes + alpha * ds * X_SCALE[None, :]
+            nodes_new = nodes + alpha * ds * prob.xscale[None, :]
             lin_new = prob.linearise(th_new, nodes_new, free, tscale, False)
             merit1 = lin_new.cost + nu * lin_new.l1
             ared = merit0 - merit1
@@ -653,3 +781,26 @@ def check_identifiable(result: IdentificationResult) -> None:
         dirs = "; ".join(d for d in result.identifiability.directions if d.startswith("UNIDENTIFIABLE"))
         raise IdentifiabilityError(f"the data do not determine every parameter ({dirs}); fix those parameters "
                                    "(--fix NAME=VALUE) or record data that excite them")
+
+
+def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
+                  fixed: Mapping[str, float] | None = None, gust_std: float = 0.3,
+                  wind_coefficient_spread: float = 0.01, max_iterations: int = 25,
+                  progress: Callable[[int, float], None] | None = None, **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
+    """The lake model in stages (a homotopy): the current and a steady wind with the parameters held
+    at `theta0`; then the parameters too (gust factors held at 1); then from there with the gust
+    factors free. Started with everything free, the first iterations, far from the parameters,
+    explain the model error by wild gusts or a wrong wind and never recover."""
+    all_fixed = {**theta0.to_dict(), **(fixed or {})}
+    zero = estimate_multiple_shooting(records, theta0, all_fixed, lake=True, gust_std=1e-3,
+                                      max_iterations=max_iterations, wind_coefficient_spread=wind_coefficient_spread,
+                                      progress=progress, **kwargs)
+    env = zero.details.environment
+    first = estimate_multiple_shooting(records, theta0, fixed, lake=True, gust_std=1e-3, max_iterations=max_iterations,
+                                       wind_coefficient_spread=wind_coefficient_spread, progress=progress,
+                                       env0=list(env.values.values()), nodes0=zero.details.nodes, **kwargs)
+    env = first.details.environment
+    return estimate_multiple_shooting(records, first.params, fixed, lake=True, gust_std=gust_std,
+                                      max_iterations=max_iterations, env0=list(env.values.values()),
+                                      nodes0=first.details.nodes, wind_coefficient_spread=wind_coefficient_spread,
+                                      progress=progress, **kwargs)

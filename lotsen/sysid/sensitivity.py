@@ -27,28 +27,44 @@ from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment, step_inputs, step_lim
 
 NTHETA = 18
 NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
+# The lake model (lotsen.sysid.multiple, `lake=True`): the state gets a 7th entry, the gust factor g of
+# the shooting interval (dg/dt = 0), and theta 7 environment entries: the earth-frame current
+# (c_N, c_E), the earth-frame velocity of the air (w_N, w_E; times g in the interval) and the wind
+# drag coefficients (k_X, k_Y, k_N) of lotsen.model.environment.apparent_wind_force.
+ENV_NAMES = ("current_n", "current_e", "wind_n", "wind_e", "k_wind_x", "k_wind_y", "k_wind_n")
+NX_LAKE = 7
+NTHETA_LAKE = NTHETA + len(ENV_NAMES)
 
 _FUNCTION_CACHE: dict[tuple, tuple[Any, Any]] = {}
 
 
-def _build_step_functions(geom: tuple[float, ...], jit: bool) -> tuple[Any, Any]:
+def _build_step_functions(geom: tuple[float, ...], jit: bool, lake: bool = False) -> tuple[Any, Any]:
     import casadi as ca
 
-    key = (geom, jit)
+    from lotsen.model.environment import apparent_wind_force
+
+    key = (geom, jit, lake)
     if key in _FUNCTION_CACHE:
         return _FUNCTION_CACHE[key]
     f = symbolic_rhs(ca)
-    x = ca.SX.sym("x", 6)
+    nx, nth = (NX_LAKE, NTHETA_LAKE) if lake else (6, NTHETA)
+    x = ca.SX.sym("x", nx)
     u = ca.SX.sym("u", 5)
-    th = ca.SX.sym("theta", NTHETA)
+    th = ca.SX.sym("theta", nth)
     h = ca.SX.sym("h")
     rho = ca.SX.sym("reset")
-    xr = ca.SX.sym("xr", 6)
-    S = ca.SX.sym("S", 6, NS)
+    xr = ca.SX.sym("xr", nx)
+    S = ca.SX.sym("S", nx, nx + nth)
     ul, thl = ca.vertsplit(u), ca.vertsplit(th)
 
     def rhs(xx: Any) -> Any:
-        return ca.vertcat(*f(ca.vertsplit(xx), ul, thl, geom))
+        xl = ca.vertsplit(xx)
+        if not lake:
+            return ca.vertcat(*f(xl, ul, thl, geom))
+        g = xl[6]
+        tau = apparent_wind_force(xl[2], xl[3], xl[4], g * thl[20], g * thl[21], thl[22], thl[23], thl[24],
+                                  ca.cos, ca.sin, ca.sqrt)
+        return ca.vertcat(*f(xl[:6], ul, thl[:NTHETA], geom, (thl[18], thl[19]), tau), 0)
 
     k1 = rhs(x)
     k2 = rhs(x + h / 2 * k1)
@@ -58,9 +74,9 @@ def _build_step_functions(geom: tuple[float, ...], jit: bool) -> tuple[Any, Any]
     phi = ca.Function("phi", [x, u, th, h], [xn, ca.jacobian(xn, x), ca.jacobian(xn, th)])
     xs = (1 - rho) * x + rho * xr  # window start: load the initial state
     xn_s, Jx_s, Jt_s = phi(xs, u, th, h)
-    S0 = ca.horzcat(ca.SX.eye(6), ca.SX.zeros(6, NTHETA))
+    S0 = ca.horzcat(ca.SX.eye(nx), ca.SX.zeros(nx, nth))
     Ss = (1 - rho) * S + rho * S0
-    Sn = ca.mtimes(Jx_s, Ss) + ca.horzcat(ca.SX.zeros(6, 6), Jt_s)
+    Sn = ca.mtimes(Jx_s, Ss) + ca.horzcat(ca.SX.zeros(nx, nx), Jt_s)
     xn = xn_s
     opts: dict[str, Any] = {}
     if jit:

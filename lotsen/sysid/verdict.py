@@ -7,7 +7,8 @@ stay correlated over a second or more, which means something the model lacks (a 
 an actuator effect such as weaker astern thrust) drove the boat and the coefficients absorbed
 it. Then the verdict is "refused" and `lotsen identify` exits non-zero; the loaders of parameter
 files refuse such a file. Coefficients whose relative 1-sigma exceeds 7 % are "weakly
-determined": up to four make the verdict "weak" (usable, named); more make it "refused".
+determined": up to four make the verdict "weak" (usable, named); more, or any of the core
+coefficients a controller leans on, make it "refused".
 """
 
 from __future__ import annotations
@@ -39,8 +40,10 @@ class Verdict:
 
 
 def judge(converged: bool, iterations: int, at_bounds: Sequence[str], relative_sigma: Mapping[str, float],
-          residual_autocorr: Mapping[str, np.ndarray] | None, lag_1s: int = 8) -> Verdict:
-    """The verdict on one identification result (`lag_1s`: measurements per second of the track)."""
+          residual_autocorr: Mapping[str, np.ndarray] | None, lag_1s: int = 8,
+          core: Sequence[str] = ()) -> Verdict:
+    """The verdict on one identification result (`lag_1s`: measurements per second of the track;
+    `core`: the coefficients a controller leans on, which may not be weakly determined)."""
     reasons: list[str] = []
     if not converged:
         reasons.append(f"the estimate did not converge in {iterations} iterations: no set of coefficients "
@@ -60,6 +63,11 @@ def judge(converged: bool, iterations: int, at_bounds: Sequence[str], relative_s
                            "coefficients took it up and their intervals are too narrow. Record in calm water, "
                            "give the hull's known geometry, or fix the coefficients you know")
     weak = sorted((n for n, r in relative_sigma.items() if r > WEAK_RELATIVE_SIGMA), key=lambda n: -relative_sigma[n])
+    weak_core = [n for n in weak if n in core]
+    if weak_core:
+        listed = ", ".join(f"{n} +-{relative_sigma[n] * 100:.0f} %" for n in weak_core)
+        reasons.append(f"the controller's core coefficients are weakly determined ({listed}; 1-sigma above "
+                       f"{WEAK_RELATIVE_SIGMA * 100:.0f} %): record longer or richer manoeuvres")
     if len(weak) > MAX_WEAK:
         reasons.append(f"{len(weak)} coefficients are weakly determined (1-sigma above "
                        f"{WEAK_RELATIVE_SIGMA * 100:.0f} %: {', '.join(weak)}): record longer or richer "

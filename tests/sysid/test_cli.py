@@ -122,3 +122,35 @@ def test_pdf_report_on_a_short_record_and_no_progress_spam(short_run, tmp_path, 
     pages = pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages")
     assert pdf.startswith(b"%PDF") and pages == 5  # summary + residuals, validation, track, estimation
     assert "it/s" not in err and "identify (multiple" not in err  # stderr is not a terminal: no progress bar
+
+
+def test_identify_refuses_a_record_too_short_to_support_an_answer(short_run, tmp_path, capsys):
+    """15 s of data with all 17 parameters free: the answer would be a guess; exit != 0, the file is
+    marked refused, and the parameter loaders refuse it."""
+    from lotsen.cli.experiment import load_params
+    from lotsen.errors import ConfigError
+
+    data = tmp_path / "short.csv"
+    save_csv(short_run.record.slice(0.0, 15.0), data)
+    out = tmp_path / "p.json"
+    assert main_standalone(["identify", str(data), "--out", str(out), "--holdout", "0"]) == 1
+    err = capsys.readouterr().err
+    assert "REFUSED" in err and "Traceback" not in err
+    d = json.loads(out.read_text())
+    assert d["verdict"] == "refused" and d["identification"]["reasons"]
+    with pytest.raises(ConfigError, match="refused"):
+        load_params(str(out))
+
+
+def test_loaders_ignore_identification_extras_but_not_typos():
+    from lotsen.errors import ConfigError
+    from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
+
+    d = {**DEFAULT_PARAMETERS.to_dict(), "std": {"m22": 0.1}, "verdict": "weak",
+         "identification": {"reasons": [], "weakly_determined": ["Y_r"], "track_autocorr_1s": 0.1}}
+    assert VesselParameters.from_dict(d) == DEFAULT_PARAMETERS
+    with pytest.raises(ConfigError, match="unknown parameter 'm2'"):
+        VesselParameters.from_dict({"m2": 3.0})
+    with pytest.raises(ConfigError, match="not converge"):
+        VesselParameters.from_dict({**d, "verdict": "refused",
+                                    "identification": {"reasons": ["the estimation did not converge"]}})
