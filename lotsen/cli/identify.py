@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from lotsen.errors import ConfigError, LotsenError
-from lotsen.model import DEFAULT_PARAMETERS
+from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS
 from lotsen.sysid.verdict import Verdict, judge
 
 SCALE_DEFAULT = ("m11", 14.0)
@@ -41,6 +41,26 @@ SCALE_DEFAULT = ("m11", 14.0)
 # fixes it too, but is itself poorly known, so it does not stop the default m11).
 SCALE_ANCHORS = ("m11", "m22", "m33", "mu_az", "mu_t")
 NAMES_INDEX = {n: i for i, n in enumerate(DEFAULT_PARAMETERS.names())}
+
+
+def _ratio(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.1 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"{v:g} is outside 0.1-1 (astern thrust is at most the ahead thrust)")
+    return v
+
+
+def _parse_pair(text: str, flag: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ConfigError(f"{flag} {text!r}: expected two numbers X,Y in metres") from None
+    if not (math.isfinite(x) and math.isfinite(y)) or max(abs(x), abs(y)) > 2.0:
+        raise ConfigError(f"{flag} {text!r}: more than 2 m from the hull's origin")
+    return x, y
 
 
 def _parse_fix(items: list[str]) -> dict[str, float]:
@@ -93,7 +113,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from lotsen.sysid.estimate import estimate
     from lotsen.sysid.multiple import check_identifiable, estimate_lake, estimate_multiple_shooting
 
-    register_loader(".mcap", sysid_record)  # the project's own run logs (the same path as `lotsen export`)
+    antenna = _parse_pair(args.gnss_antenna, "--gnss-antenna") if args.gnss_antenna else (0.0, 0.0)
+    # the project's own run logs (the same path as `lotsen export`), the fixes moved to the hull's origin
+    register_loader(".mcap", lambda path: sysid_record(path, gnss_antenna_m=antenna))
+    geometry = dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio)
 
     fixed = _parse_fix(args.fix or [])
     noise = _parse_noise(args.noise or [])
@@ -131,14 +154,14 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     try:
         if args.method == "single":
             res = estimate(est_records, theta0, fixed, window_s=args.window, gap_s=args.gap, noise_std=noise,
-                           max_iterations=args.max_iter, progress=progress)
+                           geometry=geometry, max_iterations=args.max_iter, progress=progress)
         elif args.lake:
             res = estimate_lake(est_records, theta0, fixed, gust_std=args.gust_std, gap_s=args.gap, noise_std=noise,
-                                node_s=args.node, max_iterations=args.max_iter, estimate_noise=not args.fixed_noise,
+                                geometry=geometry, node_s=args.node, max_iterations=args.max_iter, estimate_noise=not args.fixed_noise,
                                 progress=progress)
         else:
             res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
-                                             node_s=args.node, max_iterations=args.max_iter,
+                                             geometry=geometry, node_s=args.node, max_iterations=args.max_iter,
                                              estimate_noise=not args.fixed_noise, progress=progress)
     finally:
         bar.close()
@@ -287,6 +310,12 @@ def register(subparsers: Any) -> None:
                         "factor per shooting interval with the parameters (records taken outside calm water)")
     p.add_argument("--gust-std", type=float, default=0.3,
                    help="with --lake: prior spread of the per-interval gust factor on the wind speed (default 0.3)")
+    p.add_argument("--reverse-thrust-ratio", type=_ratio, default=1.0, metavar="R",
+                   help="astern thrust / ahead thrust at equal propeller speed, as measured (bollard pull) or "
+                        "configured (vessel.reverse_thrust_ratio; default 1)")
+    p.add_argument("--gnss-antenna", metavar="X,Y",
+                   help="the GNSS antenna's body position from the model's origin, m (vessel.gnss_antenna_m; "
+                        "default 0,0): run logs' fixes are moved to the origin")
     p.add_argument("--no-default-scale", action="store_true",
                    help="refuse instead of fixing m11 when no scale parameter is fixed")
     p.set_defaults(func=_cmd_identify)

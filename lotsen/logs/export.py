@@ -130,7 +130,8 @@ def export_topics(path: str | os.PathLike, out_dir: str | os.PathLike, topics: I
     return files
 
 
-def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "auto") -> IdRecord:
+def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "auto",
+                 gnss_antenna_m: tuple[float, float] = (0.0, 0.0)) -> IdRecord:
     """The identification record of a run log, in the asynchronous form of docs/sysid.md ("Data"):
     every message becomes a row at its own `stamp_s` carrying only what it measured.
 
@@ -143,6 +144,10 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
              the origin only shifts the estimated initial state), r = IMU gyro z minus the gyro
              bias the estimate last published (0 before it), psi from `state/estimate`;
              "estimate" / "truth": north, east, psi, r, u, v of `state/estimate` / `sim/truth`.
+    `gnss_antenna_m`: where the antenna sits on the hull (body x, y from the model's origin, as
+    `vessel.gnss_antenna_m`); raw fixes are moved from the antenna to the origin with the heading
+    last estimated (an uncorrected 5 cm lever arm leaves a heading-dependent track error that the
+    coefficients would otherwise absorb).
     `lotsen export` writes this record as sysid.csv and `lotsen identify RUN.mcap` reads it:
     both go through this function."""
     reader = LogReader(path)
@@ -171,6 +176,8 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
     blank_u, blank_y = (nan,) * 5, (nan,) * ny
     frame = None
     bias = 0.0
+    psi_last = nan
+    ax, ay = (float(v) for v in gnss_antenna_m)
     for topic, msg in reader.messages(need):
         t = float(msg.stamp_s)
         if topic == in_topic:
@@ -181,11 +188,17 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
             if frame is None:
                 frame = LocalFrame(msg.lat_deg, msg.lon_deg, msg.height_m if math.isfinite(msg.height_m) else 0.0)
             n, e = frame.to_ne(msg.lat_deg, msg.lon_deg, msg.height_m)
+            if ax or ay:
+                if not math.isfinite(psi_last):
+                    continue  # no heading yet to carry the lever arm: the fix cannot be placed
+                c, s_ = math.cos(psi_last), math.sin(psi_last)
+                n, e = n - (c * ax - s_ * ay), e - (s_ * ax + c * ay)
             rows.append((t, *blank_u, n, e, nan, nan))
         elif outputs == "raw" and topic == Topic.IMU_RAW:
             rows.append((t, *blank_u, nan, nan, nan, msg.gyro_radps[2] - bias))
         elif outputs == "raw":  # the estimate: heading, and the gyro bias for the following IMU rows
             bias = msg.gyro_bias_radps if math.isfinite(msg.gyro_bias_radps) else bias
+            psi_last = msg.heading_rad if math.isfinite(msg.heading_rad) else psi_last
             rows.append((t, *blank_u, nan, nan, msg.heading_rad, nan))
         else:
             rows.append((t, *blank_u, msg.north_m, msg.east_m, msg.heading_rad, msg.r_radps, msg.u_mps, msg.v_mps))

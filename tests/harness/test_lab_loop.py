@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from lotsen.cli.experiment import CORE_PARAMETERS
 from lotsen.cli.main import main
 from lotsen.model import DEFAULT_PARAMETERS
 from lotsen.runtime.config import load_config
@@ -59,8 +60,9 @@ def test_the_lab_loop_refuses_a_model_the_record_does_not_support_and_accepts_on
     """experiment run -> RUN.mcap -> identify -> mission --params, from an operator's own folder.
     On the lake boat (astern thrust 0.8, an offset antenna: effects the identified model lacks)
     identify must not hand out a confident wrong model: it refuses (exit 1, the file marked
-    refused) and the mission refuses the file with the reason. On a boat equal to the model the
-    same experiment gives a usable model that the mission loads."""
+    refused) and the mission refuses the file with the reason. Given the hull's measured geometry
+    (antenna position, astern thrust) the same record gives a usable model; on a boat equal to the
+    model the same experiment gives a usable model that the mission loads."""
     monkeypatch.chdir(tmp_path)
     exp = ROOT / "examples" / "experiments" / "prbs_multisine.yaml"
     assert main(["experiment", "run", str(exp), "--sim", "--out", "lake.mcap"]) == 0
@@ -71,6 +73,19 @@ def test_the_lab_loop_refuses_a_model_the_record_does_not_support_and_accepts_on
     assert "REFUSED" in capsys.readouterr().err
     assert main(["mission", ROUTE, "--sim", "--params", "lake.json", "--report", "r.json"]) == 2
     assert "identification refused these coefficients" in capsys.readouterr().err
+    # the same record with the geometry a lab measures on the hull (antenna position by tape, astern
+    # thrust by a bollard pull): usable, the core coefficients within 5 % of the boat's
+    ant = DEFAULT_BOAT.gnss_antenna_m
+    assert main(["identify", "lake.mcap", "--fix", f"m11={DEFAULT_BOAT.parameters.m11}", "--gnss-antenna",
+                 f"{ant[0]},{ant[1]}", "--reverse-thrust-ratio", str(DEFAULT_BOAT.geometry.reverse_thrust_ratio),
+                 "--out", "measured.json"]) == 0
+    measured = json.loads((tmp_path / "measured.json").read_text())
+    assert measured["verdict"] in ("ok", "weak") and measured["identification"]["track_autocorr_1s"] < 0.5
+    for n in CORE_PARAMETERS:
+        true = getattr(DEFAULT_BOAT.parameters, n)
+        assert abs(measured[n] - true) <= 0.05 * abs(true), (n, measured[n], true)
+    assert main(["mission", ROUTE, "--sim", "--estimator", "truth", "--hold", "0", "--params", "measured.json",
+                 "--report", "r.json"]) == 0
     assert main(["identify", "ideal.mcap", "--out", "ideal.json"]) == 0
     ideal = json.loads((tmp_path / "ideal.json").read_text())
     assert ideal["verdict"] in ("ok", "weak") and ideal["identification"]["track_autocorr_1s"] < 0.5

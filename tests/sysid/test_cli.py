@@ -39,6 +39,14 @@ def test_cli_errors_are_clean(run_csv, tmp_path, capsys):
     bad.write_text("t,alpha1,alpha2,n1,n2,nt,north,east,psi,r\n0,0,0,0,0,0,0,0,0,x\n")
     assert main_standalone(["identify", str(bad), "--out", str(tmp_path / "p.json")]) == 2
     assert "row 2, column r" in capsys.readouterr().err
+    out = str(tmp_path / "p.json")
+    assert main_standalone(["identify", str(run_csv), "--out", out, "--gnss-antenna", "3,0"]) == 2
+    assert "more than 2 m" in capsys.readouterr().err
+    assert main_standalone(["identify", str(run_csv), "--out", out, "--gnss-antenna", "0.05"]) == 2
+    assert "two numbers" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main_standalone(["identify", str(run_csv), "--out", out, "--reverse-thrust-ratio", "1.5"])
+    assert "outside 0.1-1" in capsys.readouterr().err
 
 
 def test_experiment_run_requires_sim_and_writes_csv(tmp_path, capsys):
