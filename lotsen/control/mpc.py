@@ -76,7 +76,7 @@ average of a first-order response (motor time constant T_m) from the previous se
 one, beta = 1 - T_m/dt (1 - exp(-dt/T_m)); stage 0 starts from the modelled achieved speed (the
 simulator's actuator model run on the commands sent). The previous set-point stands for the
 achieved speed at the start of later stages (an approximation: 71 % reached after one step).
-Servo slew (issue 19): the angle over a step is the average of a ramp at the rate limit from the
+Servo slew: the angle over a step is the average of a ramp at the rate limit from the
 previous set-point, beta_k = 1 - |dalpha_k| / (2 rate dt) with dalpha_k from the nominal plan (exact
 for the simulator's servo at the nominal; the rate bound makes every set-point reachable in a step).
 
@@ -196,10 +196,10 @@ class MPCConfig:
     # step's thrust is the step average of a first-order response from the previous set-point
     # (for stage 0: the modelled achieved speed) to the new one. False: set-points act at once.
     esc_in_prediction: bool = True
-    # servo slew in the prediction (issue 19): each step's angle is the step average of a ramp at the
+    # servo slew in the prediction: each step's angle is the step average of a ramp at the
     # servo's rate limit from the previous set-point (`_lag_weights`). False: set-points act at once.
     servo_in_prediction: bool = True
-    # issue 19: the prediction uses the estimator's water current (VesselState.current_ne_mps, earth
+    # the prediction uses the estimator's water current (VesselState.current_ne_mps, earth
     # frame) in the RK4 affine term and the Jacobians (kinetics on the relative velocity); the
     # disturbance observer then learns only the remainder (wind). An estimate above max_current_mps
     # or not finite is ignored (zero current).
@@ -248,9 +248,9 @@ def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor
         A, B = _jacobians_current(x, u, theta, geom, cn, ce)
         # d/dq: the thrust is exactly linear in q (dT/dq = mu n_max^2, also at n = 0, where the
         # chain rule d/dn * dn/dq = 2 mu |n| / (2 |n|) is 0/0); only the housing force's kappa n
-        # term goes through dn/dq = 1 / (2|n|), with |n| >= n_floor. (Before 2026-11-23 the whole
-        # column went through the floor, so a propeller at n = 0 had no thrust authority in the
-        # prediction: the bow thruster was never used and an azimuth at zero stayed there.)
+        # term goes through dn/dq = 1 / (2|n|), with |n| >= n_floor. (Through the floor, the whole
+        # column would give a propeller at n = 0 no thrust authority in the prediction: the bow
+        # thruster would never be used and an azimuth at zero would stay there.)
         for j in range(2):
             n = u[2 + j]
             a = u[j]
@@ -837,7 +837,7 @@ class MPCController:
             # cold start: the azimuths at the trim thrust of the reference speed (or the previous
             # input, if it pushes harder), angles and bow as before, integrated with the model. At
             # q = 0 the angles have no authority in the linearisation (the side force T sin(alpha)
-            # is bilinear), so a nominal at rest hides crabbing from the first QPs (issue 19, the
+            # is bilinear), so a nominal at rest hides crabbing from the first QPs (the
             # bench's start 30 cm off the path: tracking gap to do-mpc 5.6 -> 4.7 % with one QP per
             # step, 6.8 -> 1.3 % with two).
             xb = np.empty((N + 1, NX))

@@ -13,7 +13,7 @@ force), model-based gains, then the constrained thrust allocation:
 The integral is kept in the earth frame for position (a current's force does not rotate with
 the hull) and rotated into the body frame at every step. Anti-windup: integral clamped.
 
-Weathervaning (`weathervane`, issue 19): "on" makes the target heading a preference; the heading
+Weathervaning (`weathervane`): "on" makes the target heading a preference; the heading
 reference is `lotsen.control.weathervane.weathervane_heading` for the estimated current in
 `VesselState.current_ne_mps` (re-chosen every `vane_period_s`, slewed at `vane_slew_radps`). With no
 estimate it stays at the target heading (unless `vane_from_integral`). "auto" (default) holds the target
@@ -61,7 +61,7 @@ class StationKeepingConfig:
     integral_limit_N: float = 4.0
     integral_limit_Nm: float = 1.0
     max_position_error_m: float = 2.0  # error clamp: far away it drives at bounded force
-    # weathervaning (issue 19): the hold heading becomes a preference; the keeper points into the load
+    # weathervaning: the hold heading becomes a preference; the keeper points into the load
     weathervane: str = "auto"  # "off" | "auto" (only when the target heading cannot be held) | "on"
     vane: WeathervaneConfig = WeathervaneConfig()
     vane_period_s: float = 1.0  # how often the heading is re-chosen
@@ -74,7 +74,7 @@ class StationKeepingConfig:
     # bow-into-current is yaw-unstable (Munk moment, m22 > m11): a stiffer heading loop when vaning
     vane_heading_natural_freq_radps: float = 1.5
     # feed the steady thrust against the estimated current (VesselState.current_ne_mps), the known wind
-    # and the estimated disturbance forward (issue 19): the integral then learns only what is left, and
+    # and the estimated disturbance forward: the integral then learns only what is left, and
     # a hold taken over from AUTO in a current does not drift while the integral builds up
     current_feedforward: bool = True
     integral_max_speed_mps: float = 0.05  # with an estimate fed forward, the integral pauses above this speed

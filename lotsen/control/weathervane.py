@@ -1,6 +1,6 @@
 """Weathervaning: the hold heading that needs the least thrust against the estimated current and wind.
 
-Issue 19 / field notes: a beam current of 0.4 m/s needs ~11 N of sway force, while the bow thruster and
+Field notes: a beam current of 0.4 m/s needs ~11 N of sway force, while the bow thruster and
 the aft azimuths (|alpha| <= 45 deg) give only ~4.6 N of pure sway; bow-on the same current needs 2.4 N
 of surge (capacity 22 N). So in HOLD the heading is a preference, and the vessel points into the load.
 

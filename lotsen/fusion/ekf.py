@@ -4,7 +4,7 @@ the slowly varying disturbance (water current, optionally a body force).
 State x = [N, E, psi, u, v, r, b_g, (b_ax, b_ay), (c_N, c_E), (tau_X, tau_Y, tau_N)]:
 position in local NED (m), heading (rad, clockwise from north), body velocities over ground
 (m/s, rad/s), gyro z bias (rad/s), by default the accelerometer's horizontal biases (m/s^2), by
-default the water current over ground (north, east, m/s; issue 19) and optionally an external
+default the water current over ground (north, east, m/s) and optionally an external
 body force and moment (N, N m: wind and other slowly varying forces). The optional blocks are
 switched by `EkfConfig`; the indices live on the instance (`i_ba`, `i_cur`, `i_tau`).
 
@@ -97,7 +97,7 @@ class EkfConfig:
     use_gnss_velocity: bool = True
     use_accel: bool = True
     accel_bias_states: bool = True
-    current_states: bool = True  # issue 19: water current north / east
+    current_states: bool = True  # water current north / east
     disturbance_states: bool = False  # body force X, Y and moment N (wind): see docs/fusion.md
     max_current_mps: float = 1.0  # the current estimate is clipped to this (a safety net, not a model)
     accel_decimation: int = 5

@@ -1,5 +1,5 @@
 """The model input of the EKF's prediction: achieved actuator values where measured, an emulation
-of the actuators from the set-points where not (issue 14, item 2).
+of the actuators from the set-points where not.
 
 Two sources reach the estimator:
 - set-points (`ThrustCommand` on ship_command), exact and without lag, but they say what was

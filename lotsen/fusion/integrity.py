@@ -1,4 +1,4 @@
-"""Estimator integrity monitoring (issue 14, item 4): is the estimate still worth trusting?
+"""Estimator integrity monitoring: is the estimate still worth trusting?
 
 An `IntegrityMonitor` sits inside an estimator (`ModelAidedEKF`, `SeedFilters`). The estimator
 tells it what happens to every sample; the monitor decides which faults exist and the estimator

@@ -254,7 +254,7 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
             r["heading_std_mean_deg"] = float(np.degrees(np.mean(ekf_std_psi))) if ekf_std_psi else math.nan
             r["gyro_bias_err_radps"] = float(ekf.gyro_bias_radps - sim.imu.gyro_bias_radps)
             r["fault_codes_seen"] = sorted(ekf_codes)  # integrity faults after the warm-up (no fault injected)
-            # issue 19: the water current (zero in the estimate without current states)
+            # the water current (zero in the estimate without current states)
             c_true = config.environment.current_ne
             c_est = ekf.current_ne_mps
             r["current_true_ne_mps"] = (float(c_true[0]), float(c_true[1]))
@@ -266,7 +266,7 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
             "truth_final": sim.truth()}
 
 
-# -- integrity scenarios (issue 14): faults injected into the messages the EKF sees ---------------
+# -- integrity scenarios: faults injected into the messages the EKF sees ---------------
 @dataclass(frozen=True)
 class FaultCase:
     """A fault injected at `start_s` for `duration_s`; `expected` is the fault code the monitor

@@ -30,6 +30,7 @@ from lotsen.control import (
 from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF
 from lotsen.messages import ActuatorState, ControllerStatus, OperatorCommand, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
+from lotsen.model.angles import wrap_angle
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.sim import DEFAULT_BOAT, SimConfig, SimulatedBoat, Simulator
@@ -266,7 +267,7 @@ def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> 
         end_n, end_e = float(res.path.north_m[-1]), float(res.path.east_m[-1])
         out["hold_position_error_final_m"] = round(float(math.hypot(xh[-1, 0] - end_n, xh[-1, 1] - end_e)), 4)
         out["hold_heading_error_final_deg"] = round(math.degrees(abs(
-            (xh[-1, 2] - float(res.path.heading_rad[-1]) + math.pi) % (2 * math.pi) - math.pi)), 3)
+            wrap_angle(xh[-1, 2] - float(res.path.heading_rad[-1])))), 3)
     if res.x_used.size and not np.allclose(res.x_used, res.x):
         d = res.x_used[f, :2] - res.x[f, :2]
         out["estimate_position_error_rms_m"] = round(_rms(np.hypot(d[:, 0], d[:, 1])), 4)

@@ -440,7 +440,7 @@ def _check_nodes_against_config(nodes: list[RouteNode], labels: list[str], water
         if not water.safe.covers(p):
             at = f"{labels[k]} (north {n.north_m:g}, east {n.east_m:g})"
             if not water.free.covers(p):
-                # outside the water altogether: its distance to an edge is no "clearance" (issue 14)
+                # outside the water altogether: its distance to an edge is no "clearance"
                 where = "outside the navigable area" if water.has_area else "not in navigable water"
                 inside = [name for name, g in water.parts if name.startswith("obstacles[")
                           and isinstance(g, Polygon) and g.covers(p)]

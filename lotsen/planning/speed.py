@@ -3,7 +3,7 @@
 Start from rest (the harbour, speed 0) and stops (a node with speed 0): seed eq. (42) interpolates
 linearly in arc length between node speeds, so the first leg after the harbour (speed 0) would
 ramp from 0 to the node speed over its *whole length* -- a 100 m leg at 0.5 m/s planned at about
-660 s, the boat leaving the harbour at 0.15 m/s after 30 m (issue 17). A speed of 0 at a node
+660 s, the boat leaving the harbour at 0.15 m/s after 30 m. A speed of 0 at a node
 means "at rest here", not "slow along the leg": the leg next to a zero-speed node runs at the
 speed of its other node, and the longitudinal-acceleration limit `a_long_max_mps2` (the
 planner's default 0.2 m/s^2) shapes the ramp from and to rest: v = sqrt(2 a s), so 0 -> 0.5 m/s

@@ -482,7 +482,7 @@ def _reconnect(url: str, token: str, clock: _Clock, frames: list, note: Callable
 def analyse_log(path: str, t_from: float, t_to: float, t_stop: float, failures: list[str],
                 allowed_failsafes: tuple[str, ...] = ()) -> dict[str, float]:
     """Figures of the AUTO window [t_from, t_to] (runtime seconds) and of the run up to the
-    operator leaving at `t_stop`; appends to `failures` what breaks the live-stack bar of issue 14/15."""
+    operator leaving at `t_stop`; appends to `failures` what breaks the live-stack bar (docs/runtime.md)."""
     topics = [Topic.STATE, Topic.TRUTH, Topic.ESTIMATOR_HEALTH, Topic.SHIP_COMMAND, Topic.SUPERVISOR, Topic.ALERT]
     by: dict[str, list] = {t: [] for t in topics}
     for topic, msg in read_log(path, topics):

@@ -1,4 +1,4 @@
-"""System identification of the vessel model (seed section 3.2, issue 6): experiments, grey-box
+"""System identification of the vessel model (seed section 3.2): experiments, grey-box
 estimation (single / multiple shooting), Fisher information and identifiability, validation,
 a black-box peer and experiment design. See docs/sysid.md."""
 

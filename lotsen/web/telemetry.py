@@ -59,7 +59,7 @@ def pose_json(s: VesselState) -> dict:
     out = {"t": num(s.stamp_s), "n": num(s.north_m), "e": num(s.east_m), "psi": num(s.heading_rad),
            "u": num(s.u_mps), "v": num(s.v_mps), "r": num(s.r_radps), "src": s.source}
     cur = getattr(s, "current_ne_mps", (0.0, 0.0))
-    if cur and any(num(c) for c in cur):  # the estimator's water current (issue 19), when it has one
+    if cur and any(num(c) for c in cur):  # the estimator's water current, when it has one
         out["cur"] = [num(cur[0], 3), num(cur[1], 3)]
     return out
 
