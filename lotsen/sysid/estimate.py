@@ -28,7 +28,7 @@ from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
 from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import IdRecord, Segment, check_excitation, check_record, split_segments, split_windows
-from lotsen.sysid.sensitivity import WindowSimulator
+from lotsen.sysid.kernels import WindowSimulator
 
 NAMES = VesselParameters.names()
 # Multiplying these by one factor leaves the motion unchanged (vessel-model.md "Identifiability"):

@@ -22,8 +22,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, geometry_tuple, symbolic_rhs
-from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment, step_inputs, step_limit
+from lotsen.model import symbolic_rhs
+from lotsen.sysid.data import Segment, step_inputs, step_limit
 
 NTHETA = 18
 NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
@@ -136,67 +136,3 @@ def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
             wos.append(w)
     return StepGrid(np.array(hs), np.array(us).T.copy(), np.array(reset), np.array(wstart),
                     np.array(sstep), np.array(wos), len(windows))
-
-
-class WindowSimulator:
-    """Simulate windows for a theta and initial states; optionally with sensitivities.
-
-    Runs the compiled chunk kernels of lotsen.sysid.kernels (CHUNK steps per call), so the memory
-    is bounded whatever the record length; only the states at the samples are kept."""
-
-    def __init__(self, windows: Sequence[Segment], geometry: VesselGeometry = DEFAULT_GEOMETRY,
-                 h_max: float = 0.0625, jit: bool | None = None) -> None:
-        from lotsen.sysid.kernels import step_kernels
-
-        self.windows = list(windows)
-        self.geom = geometry_tuple(geometry)
-        self.grid = make_grid(self.windows, h_max)
-        self.n_steps = len(self.grid.h)
-        self.k = step_kernels(self.geom)
-
-    def _run(self, theta: Sequence[float], x0s: np.ndarray, sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        g, k = self.grid, self.k
-        L = k.chunk
-        need = g.sample_step
-        X = np.empty((len(need), 6))
-        S = np.empty((len(need), 6, NS)) if sens else None
-        x0s = np.asarray(x0s, dtype=float).reshape(-1, 6)
-        k.x0[:] = 0.0
-        k.S0[:] = 0.0
-        k.TH[:] = np.asarray(theta, float)[None, :]
-        UT = g.U.T  # 5 x n -> n x 5 view
-        for a in range(0, self.n_steps, L):
-            b = min(a + L, self.n_steps)
-            n = b - a
-            k.H[:n] = g.h[a:b]
-            k.H[n:] = 0.0
-            k.U[:n] = UT[a:b]
-            k.RS[:n] = g.reset[a:b]
-            k.RS[n:] = 0.0
-            k.XR[:] = 0.0
-            lo, hi = np.searchsorted(g.window_start_step, [a, b])
-            k.XR[g.window_start_step[lo:hi] - a] = x0s[lo:hi]
-            i0, i1 = np.searchsorted(need, [a, b])
-            cols = need[i0:i1] - a
-            if sens:
-                k.run_sens()
-                S[i0:i1] = k.S[cols].transpose(0, 2, 1)
-                k.S0[:] = k.S[n - 1]
-            else:
-                k.run_sim()
-            X[i0:i1] = k.X[cols]
-            k.x0[:] = k.X[n - 1]
-        return X, S
-
-    def simulate(self, theta: Sequence[float], x0s: np.ndarray) -> np.ndarray:
-        """States at every sample (n_samples x 6), windows concatenated."""
-        return self._run(theta, x0s, False)[0]
-
-    def simulate_sens(self, theta: Sequence[float], x0s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """States (n_samples x 6) and sensitivities (n_samples x 6 x 24: d x / d[x0_window, theta])."""
-        X, S = self._run(theta, x0s, True)
-        return X, S  # type: ignore[return-value]
-
-    def output_index(self) -> list[int]:
-        names = self.windows[0].output_names
-        return [OUTPUT_STATE_INDEX[n] for n in names]

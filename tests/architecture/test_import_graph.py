@@ -125,3 +125,113 @@ def test_no_algorithm_imports_the_simulator():
     graph = package_graph()
     bad = sorted(u for u in ALGORITHMS_WITHOUT_SIM if "sim" in graph.get(u, set()))
     assert not bad, f"these packages import lotsen.sim (share the model instead): {bad}"
+
+
+# The allowed import sets of docs/architecture.md ("imports" column), besides the base (layer 0:
+# errors, messages, files, settings), which every package may use. Stack, harness and cli may
+# import everything below them (the layer test).
+BASE = {"errors", "messages", "files", "settings", "__version__"}
+ALLOWED: dict[str, set[str]] = {
+    "model": set(),
+    "sim": {"model"}, "planning": {"model"},
+    "fusion": {"model"}, "control": {"model"}, "sysid": {"model"},
+    "runtime": {"model"},
+    "supervisor": {"runtime", "model", "control", "planning"},
+    "drivers": {"runtime", "model", "sim"},
+    "logs": {"runtime", "transport", "sysid", "fusion"},
+    "transport": {"runtime"},
+    "web": {"runtime", "planning"},
+}
+DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
+
+
+def test_each_package_imports_only_its_documented_set():
+    graph = package_graph()
+    bad = [f"{unit} imports {sorted(graph.get(unit, set()) - BASE - allowed)} (allowed: {sorted(allowed)})"
+           for unit, allowed in ALLOWED.items() if graph.get(unit, set()) - BASE - allowed]
+    assert not bad, "imports outside docs/architecture.md's sets:\n" + "\n".join(bad)
+
+
+def test_the_documented_sets_are_the_ones_tested():
+    """The "imports" column of docs/architecture.md names exactly the packages ALLOWED lists."""
+    rows = {}
+    for line in DOC.read_text().splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 4 and cells[1].startswith("`lotsen.") and "," not in cells[1]:
+            rows[cells[1].strip("`").removeprefix("lotsen.")] = cells[3]
+    for unit, allowed in ALLOWED.items():
+        assert unit in rows, f"docs/architecture.md has no row for lotsen.{unit}"
+        named = {w for w in rows[unit].replace(",", " ").replace(";", " ").replace("(", " ").replace(")", " ").split()
+                 if w in LAYERS} - BASE
+        assert named == allowed, f"lotsen.{unit}: the doc names {sorted(named)}, the test allows {sorted(allowed)}"
+
+
+def module_graph(root: Path = ROOT) -> dict[str, set[str]]:
+    """Module -> the modules of the same package it imports at run time (module level or inside a
+    function; imports under `if TYPE_CHECKING:` are annotations only and do not count)."""
+    def name(p: Path) -> str:
+        parts = p.relative_to(root.parent).with_suffix("").parts
+        return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+    modules = {name(p): p for p in root.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for mod, path in modules.items():
+        tree = ast.parse(path.read_text())
+        hidden = {id(n) for node in ast.walk(tree) if isinstance(node, ast.If)
+                  and "TYPE_CHECKING" in ast.unparse(node.test) for n in ast.walk(node)}
+        pkg = mod if path.name == "__init__.py" else mod.rsplit(".", 1)[0]
+        found: set[str] = set()
+        for node in ast.walk(tree):
+            if id(node) in hidden:
+                continue
+            if isinstance(node, ast.Import):
+                found.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = (".".join(pkg.split(".")[: len(pkg.split(".")) - node.level + 1] + ([node.module] if node.module
+                        else [])) if node.level else node.module or "")
+                found.add(base)
+                found.update(f"{base}.{a.name}" for a in node.names)
+        package = ".".join(mod.split(".")[:2])
+        graph[mod] = {m for m in found if m in modules and m != mod and m != package
+                      and ".".join(m.split(".")[:2]) == package}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(u: str) -> list[str] | None:
+        state[u] = 1
+        stack.append(u)
+        for v in sorted(graph.get(u, ())):
+            if state.get(v) == 1:
+                return stack[stack.index(v):] + [v]
+            if v not in state and (cycle := visit(v)):
+                return cycle
+        state[u] = 2
+        stack.pop()
+        return None
+
+    for u in sorted(graph):
+        if u not in state and (cycle := visit(u)):
+            return cycle
+    return None
+
+
+def test_no_module_cycle_inside_a_package():
+    cycle = find_cycle(module_graph())
+    assert cycle is None, "module cycle inside a package: " + " -> ".join(cycle)
+
+
+def test_the_module_checker_sees_a_cycle_hidden_in_a_function(tmp_path):
+    pkg = tmp_path / "lotsen" / "sysid"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from lotsen.sysid.b import x\n")
+    (pkg / "b.py").write_text("def x():\n    from lotsen.sysid import a\n")
+    (pkg / "c.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from lotsen.sysid.a import x\n")
+    graph = module_graph(tmp_path / "lotsen")
+    assert find_cycle(graph) in (["lotsen.sysid.a", "lotsen.sysid.b", "lotsen.sysid.a"],
+                                 ["lotsen.sysid.b", "lotsen.sysid.a", "lotsen.sysid.b"])
+    assert graph["lotsen.sysid.c"] == set()

@@ -6,7 +6,7 @@ from lotsen.sysid.data import IdRecord, Segment
 from lotsen.sysid.estimate import (
     NAMES, IdentifiabilityError, build_problem, estimate, fisher_information, identifiability,
 )
-from lotsen.sysid.sensitivity import WindowSimulator
+from lotsen.sysid.kernels import WindowSimulator
 
 TRUE = DEFAULT_PARAMETERS
 
