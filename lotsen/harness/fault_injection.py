@@ -93,6 +93,7 @@ class Scenario:
     route: str = "figure_eight"  # an example route (examples/routes/<route>.yaml)
     repeat_route: bool = False  # AUTO again whenever the route is finished (closed-loop routes)
     start: tuple[float, ...] = START  # initial state of the simulated boat
+    failsafes: dict = field(default_factory=dict)  # extra.failsafes of the run (FailsafeConfig keys)
 
 
 class _Observer(Node):
@@ -172,11 +173,14 @@ class FaultRun:
         log); without it, the events seen on the bus are checked."""
         self.scenario = scenario
         sc = scenario
+        # nobody watches a scenario: no page, no RC, so the pre-arm pilot_link check is skipped
+        failsafes = {"prearm_skip": ["pilot_link"], **sc.failsafes}
         cfg = LaunchConfig(seed=seed, route=example_route(sc.route),
                            nodes=NodesSection(fusion="ekf", controller=sc.controller),
                            sim=SimSection(initial_state=tuple(sc.start), environment=sc.environment),
                            web=WebSection(enabled=False),
-                           logging=LoggingSection(enabled=log_dir is not None, directory=log_dir or "logs"))
+                           logging=LoggingSection(enabled=log_dir is not None, directory=log_dir or "logs"),
+                           extra={"failsafes": failsafes})
         parts = ("state", "supervisor") + (("logs",) if log_dir is not None else ())
         self.stack = build_stack(cfg, realtime=False, parts=parts)
         self.log_path: Any = None
