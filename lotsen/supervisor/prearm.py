@@ -80,8 +80,8 @@ def route_corridor_m(route: Any, path: Any) -> float:
 
 
 def _m(x: float) -> str:
-    """A distance the way an operator reads it: 0.05, 0.50, 1.4, 12.0."""
-    return f"{x:.2f}" if abs(x) < 1.0 else f"{x:.1f}"
+    """A distance the way an operator reads it: 0.05, 0.5, 1.4, 1.01, 12.3 (no trailing zeros)."""
+    return f"{x:.2f}".rstrip("0").rstrip(".") if abs(x) < 10.0 else f"{x:.1f}"
 
 
 # ---------------------------------------------------------------------------- the checks
