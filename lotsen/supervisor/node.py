@@ -358,7 +358,7 @@ class SupervisorNode(Node):
                             rc=i.rc)
 
     def prearm_failures(self, action: str) -> list[FailedCheck]:
-        """The failed pre-arm checks of `action` (arm, auto), skipped ones left out."""
+        """The failed pre-arm checks of `action` (arm, auto); prearm_skip as in prearm.prearm_failures."""
         return prearm_failures(action, self.prearm_inputs(), self.config.failsafes)
 
     def _log_override(self, action: str, by: str, failed: list[FailedCheck]) -> None:
