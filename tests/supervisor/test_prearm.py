@@ -80,7 +80,8 @@ def test_position_accuracy_uses_the_estimate_std_and_the_cap_without_an_area():
     wide = good(route=replace(ROUTE, area=None), corridor_m=math.inf, fix=replace(good().fix, h_acc_m=0.99))
     assert check_position(wide, CFG) == []
     out = check_position(replace(wide, fix=replace(wide.fix, h_acc_m=1.01)), CFG)
-    assert out and out[0].message == "position accuracy 1.01 m is worse than the 1 m AUTO allows (prearm_max_position_accuracy_m)"
+    assert out and out[0].message == ("position accuracy 1.01 m is worse than the 1 m AUTO allows "
+                                      "(prearm_max_position_accuracy_m)")
     assert check_position(wide, FailsafeConfig(prearm_max_position_accuracy_m=0.5)) != []
 
 
