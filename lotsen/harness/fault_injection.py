@@ -93,6 +93,7 @@ class Scenario:
     route: str = "figure_eight"  # an example route (examples/routes/<route>.yaml)
     repeat_route: bool = False  # AUTO again whenever the route is finished (closed-loop routes)
     start: tuple[float, ...] = START  # initial state of the simulated boat
+    failsafes: dict = field(default_factory=dict)  # extra.failsafes of the run (FailsafeConfig keys)
 
 
 class _Observer(Node):
@@ -172,11 +173,14 @@ class FaultRun:
         log); without it, the events seen on the bus are checked."""
         self.scenario = scenario
         sc = scenario
+        # nobody watches a scenario: no page, no RC, so the pre-arm pilot_link check is skipped
+        failsafes = {"prearm_skip": ["pilot_link"], **sc.failsafes}
         cfg = LaunchConfig(seed=seed, route=example_route(sc.route),
                            nodes=NodesSection(fusion="ekf", controller=sc.controller),
                            sim=SimSection(initial_state=tuple(sc.start), environment=sc.environment),
                            web=WebSection(enabled=False),
-                           logging=LoggingSection(enabled=log_dir is not None, directory=log_dir or "logs"))
+                           logging=LoggingSection(enabled=log_dir is not None, directory=log_dir or "logs"),
+                           extra={"failsafes": failsafes})
         parts = ("state", "supervisor") + (("logs",) if log_dir is not None else ())
         self.stack = build_stack(cfg, realtime=False, parts=parts)
         self.log_path: Any = None
@@ -210,7 +214,7 @@ class FaultRun:
         sc, ex = self.scenario, self.stack.executor
         inject, clear = INJECTIONS[sc.inject]
         t0 = time.perf_counter()
-        if sc.inject == "escs_never_arm":  # a fault present from power-up
+        if sc.inject in POWER_UP_FAULTS:  # a fault present from power-up
             inject(self, sc.params)
         ex.run_until(3.0)
         self.operator("arm")
@@ -218,7 +222,7 @@ class FaultRun:
             self.operator("auto")
         ex.run_until(self.fault_t)
         self.observer.errors_after_s = self.fault_t
-        if sc.inject != "escs_never_arm":
+        if sc.inject not in POWER_UP_FAULTS:
             inject(self, sc.params)
         end = self.fault_t + sc.run_after_s
         if clear is not None:
@@ -323,12 +327,15 @@ def _check_fallback(run: FaultRun, step: dict) -> tuple[bool, float | None, str]
 
 
 def _check_refused(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
+    """`action` refused with an alert (whose text holds every one of `text_contains`), and
+    `not_mode` never entered."""
     action = step["action"]
     refusals = [a for a in run.trace.alerts if a.code == f"refused:{action}"]
     entered = [m for t, m, _ in run.trace.modes if m == step.get("not_mode", "AUTO")]
-    ok = bool(refusals) and not entered
+    missing = [p for p in step.get("text_contains", ()) if refusals and p not in refusals[0].text]
+    ok = bool(refusals) and not entered and not missing
     return ok, 0.0, (f"{action} refused: {refusals[0].text}" if refusals else f"{action} was not refused") + \
-        (f"; but entered {entered[0]}" if entered else "")
+        (f"; but entered {entered[0]}" if entered else "") + (f"; the reason lacks {missing}" if missing else "")
 
 
 def _check_guard(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
@@ -471,6 +478,10 @@ def _escs_never_arm(run: FaultRun, params: dict) -> None:
     run.boat.esc_fault = True
 
 
+def _gnss_fix_type(run: FaultRun, params: dict) -> None:
+    run.sim.set_gnss_fix_type(GnssFixType[str(params.get("fix_type", "FIX_3D"))])
+
+
 INJECTIONS: dict[str, tuple[Callable[[FaultRun, dict], None], Callable[[FaultRun, dict], None] | None]] = {
     "none": (lambda run, p: None, None),
     "gnss_outage": (_set("sim.gnss.outage", True), _set("sim.gnss.outage", False)),
@@ -492,7 +503,10 @@ INJECTIONS: dict[str, tuple[Callable[[FaultRun, dict], None], Callable[[FaultRun
     "nan_injected": (_inject_nan, None),
     "future_stamp": (_future_stamp, None),
     "escs_never_arm": (_escs_never_arm, None),
+    "gnss_fix_type": (_gnss_fix_type, None),
 }
+#: injections present from power-up (before arming), not at fault_at_s
+POWER_UP_FAULTS = ("escs_never_arm", "gnss_fix_type")
 
 
 # ---------------------------------------------------------------------------- the table

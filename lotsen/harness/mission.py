@@ -164,7 +164,9 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
     sim = Simulator(boat, config=sim_cfg, x0=x0)
     launch = LaunchConfig(seed=config.seed, nodes=NodesSection(fusion="truth" if estimator is None else "ekf",
                                                                control_rate_hz=config.control_rate_hz),
-                          sim=SimSection(dt_s=sim_cfg.dt_s, esc_arm_time_s=0.0), web=WebSection(enabled=False))
+                          sim=SimSection(dt_s=sim_cfg.dt_s, esc_arm_time_s=0.0), web=WebSection(enabled=False),
+                          # a controller run nobody watches, often without sensors (truth as the estimate)
+                          extra={"failsafes": {"prearm_skip": ["pilot_link", "battery"]}})
     stack = build_stack(launch, realtime=False, parts=("state", "supervisor"),
                         harness=Harness(simulator=sim, model=model, estimator=estimator, follower=follower,
                                         station_keeper=keeper, truth_rate_hz=1.0 / sim_cfg.dt_s))

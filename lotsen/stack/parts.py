@@ -66,6 +66,19 @@ def add_state(stack: Stack, estimator: Any = None) -> None:
     stack.add(FusionNode(estimator, calibration))
 
 
+def heading_calibration(stack: Stack) -> str:
+    """Where the magnetometer calibration the estimator starts with comes from, for the pre-arm
+    heading check; "" when there is none (hardware without nodes.mag_calibration_file)."""
+    cfg = stack.config.nodes
+    if cfg.fusion == "truth":
+        return "not needed: the simulator's truth is the estimate"
+    if cfg.mag_calibration_file:
+        return f"nodes.mag_calibration_file {cfg.mag_calibration_file}"
+    if stack.simulator is not None:
+        return "the simulated magnetometer's factory values"
+    return ""
+
+
 def mag_calibrator(samples: list[tuple[float, float]]) -> MagCalibrationResult:
     cal = fit_mag_calibration([s[0] for s in samples], [s[1] for s in samples], units="uT")
     return MagCalibrationResult(stamp_s=0.0, ok=True, center=tuple(cal.center), matrix=cal.matrix,
@@ -96,7 +109,8 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
                          SupervisorConfig(control_rate_hz=cfg.nodes.control_rate_hz,
                                           controller=cfg.nodes.controller,
                                           failsafes=failsafe_config(cfg), planner=planner_config(cfg)),
-                         mag_calibrator=mag_calibrator, follower=follower, station_keeper=station_keeper)
+                         mag_calibrator=mag_calibrator, follower=follower, station_keeper=station_keeper,
+                         heading_calibration=heading_calibration(stack))
     if cfg.route:
         route = load_route(cfg.route)
         msg = planned_route_message(route, plan_route(route, planner_config(cfg)), source="config")

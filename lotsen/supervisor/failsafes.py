@@ -26,6 +26,8 @@ if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read th
     from lotsen.supervisor.node import SupervisorInputs
 
 Action = Literal["continue", "hold", "stop", "return", "fallback", "neutral"]
+#: pre-arm checks an expert may skip (lotsen.supervisor.prearm; the ESCs are always checked)
+SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,17 @@ class FailsafeConfig:
     thruster_fault_action: Literal["hold", "stop", "continue"] = "hold"
     # state estimate: uncertainty above this (position std, m) counts as no position
     max_position_std_m: float = field(default=2.0, metadata=_r(0.01, 100.0))
+    # pre-arm checks before arm and AUTO (lotsen.supervisor.prearm, docs/failsafes.md): the
+    # position accuracy needed is the smaller of prearm_max_position_accuracy_m and
+    # prearm_corridor_fraction x the path's clearance to non-navigable water
+    prearm_corridor_fraction: float = field(default=0.25, metadata=_r(0.05, 1.0))
+    prearm_max_position_accuracy_m: float = field(default=1.0, metadata=_r(0.01, 10.0))
+    prearm_max_heading_std_deg: float = field(default=5.0, metadata=_r(0.1, 90.0))
+    prearm_battery_reserve_frac: float = field(default=0.25, metadata=_r(0.0, 1.0))  # the return reserve
+    # checks not run at all (e.g. pilot_link in a headless simulation nobody watches)
+    prearm_skip: tuple[SkippablePrearmCheck, ...] = ()
+    # expert override: failed checks that can be overridden are logged and alerted, not refused
+    prearm_override: bool = False
 
     @property
     def min_fix_type(self) -> GnssFixType:

@@ -38,6 +38,7 @@ from lotsen.supervisor.failsafes import (
     standard_monitors,
 )
 from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
+from lotsen.supervisor.prearm import FailedCheck, PrearmInputs, blocking, describe, prearm_failures, route_corridor_m
 
 #: failsafes whose action is "hold on dead reckoning, then stop after gnss_stop_after_s"
 DEAD_RECKONING = ("gnss_lost", "estimator")
@@ -90,7 +91,7 @@ class SupervisorNode(Node):
     def __init__(self, model: VesselModel | None = None, limits: ActuatorLimits = DEFAULT_LIMITS,
                  config: SupervisorConfig = SupervisorConfig(), control_config: ControlConfig | None = None,
                  mag_calibrator: Callable[[list[tuple[float, float]]], Any] | None = None,
-                 follower: Any = None, station_keeper: Any = None) -> None:
+                 follower: Any = None, station_keeper: Any = None, heading_calibration: str = "") -> None:
         self.model = model or VesselModel()
         self.limits = limits
         self.config = config
@@ -132,6 +133,10 @@ class SupervisorNode(Node):
                          "routes_refused": 0}
         self.last_status: ControllerStatus | None = None
         self._last_progress_s = -math.inf
+        # pre-arm: where the magnetometer calibration in use came from ("" = not calibrated), and
+        # the route's corridor, computed once per (route, path)
+        self.heading_calibration = heading_calibration
+        self._corridor: tuple[Any, Any, float] = (None, None, math.inf)
 
     @property
     def hold_target(self) -> HoldTarget | None:
@@ -272,13 +277,17 @@ class SupervisorNode(Node):
         if action == "arm":
             if self.armed:
                 return "already armed"
-            return "" if self.inputs.escs_armed else "the ESCs are not armed yet (they need neutral for a few seconds)"
+            if not self.inputs.escs_armed:
+                return "the ESCs are not armed yet (they need neutral for a few seconds)"
+            return describe(blocking(self.prearm_failures(action), self.config.failsafes))
         if action == "manual":
             return ""
         target = {"auto": "AUTO", "hold": "HOLD", "return": "RETURN", "calibrate_mag": "CALIBRATE"}[action]
         mode = self.modes[target]
         if mode.requires_armed and not self.armed:
             return "arm first"
+        if action == "auto":  # every failing pre-arm check, listed
+            return describe(blocking(self.prearm_failures(action), self.config.failsafes))
         if mode.requires_armed and not self.inputs.escs_armed:
             return "the ESCs are not armed"
         if mode.requires_heading and not self._heading_ok():
@@ -294,11 +303,15 @@ class SupervisorNode(Node):
         if action in ("rtk_start", "rtk_stop", "logging_on", "logging_off") and action in OPERATOR_ACTIONS:
             return  # handled by the GNSS driver / simulated receiver and the recorder
         why = self.why_not(action)
+        prearm = self.prearm_failures(action) if action in ("arm", "auto") and self.mode.name not in ("RC", "ESTOP") \
+            else []
         if why:
-            self._refuse(action, why)
+            self._refuse(action, why, **({"prearm_failed": [f.id for f in prearm]} if prearm else {}))
             return
         t = self.ctx.now()
         by = f"requested by {cmd.source}"
+        if prearm:  # accepted with failing checks: only the expert override does that
+            self._log_override(action, by, prearm)
         if action == "estop":
             self.set_mode(self.modes["ESTOP"], f"emergency stop by {cmd.source}")
             self.alert("critical", "estop", f"emergency stop by {cmd.source}")
@@ -326,10 +339,32 @@ class SupervisorNode(Node):
             self.set_mode(self.modes["CALIBRATE"], by)
         self._publish_status()
 
-    def _refuse(self, action: str, why: str) -> None:
+    def _refuse(self, action: str, why: str, **data: Any) -> None:
         self.counters["refused_requests"] += 1
-        self.ctx.log("warning", f"request refused: {action}: {why}", refused=action)
+        self.ctx.log("warning", f"request refused: {action}: {why}", refused=action, **data)
         self.alert("warning", f"refused:{action}", f"{action} refused: {why}")
+
+    # ------------------------------------------------------------------ pre-arm checks
+    def prearm_inputs(self) -> PrearmInputs:
+        i, t = self.inputs, self.ctx.now()
+        route, path, corridor = self._corridor
+        if route is not self.route or path is not self.path:
+            corridor = route_corridor_m(self.route, self.path)
+            self._corridor = (self.route, self.path, corridor)
+        return PrearmInputs(now_s=t, escs_armed=i.escs_armed, state=i.state, position_usable=self.position_ok(),
+                            heading_usable=self._heading_ok(), health=i.health, fix=i.fix,
+                            heading_calibration=self.heading_calibration, battery=i.battery, route=self.route,
+                            path=self.path, corridor_m=corridor, link=i.link, link_age_s=t - i.link_arrival_s,
+                            rc=i.rc)
+
+    def prearm_failures(self, action: str) -> list[FailedCheck]:
+        """The failed pre-arm checks of `action` (arm, auto); prearm_skip as in prearm.prearm_failures."""
+        return prearm_failures(action, self.prearm_inputs(), self.config.failsafes)
+
+    def _log_override(self, action: str, by: str, failed: list[FailedCheck]) -> None:
+        text = f"pre-arm checks overridden for {action} (prearm_override, {by}): {describe(failed)}"
+        self.ctx.log("warning", text, prearm_overridden=[f.id for f in failed], action=action)
+        self.alert("warning", f"prearm_override:{action}", text)
 
     def alert(self, severity: str, code: str, text: str, active: bool = True) -> None:
         self.ctx.publish(Topic.ALERT, Alert(stamp_s=self.ctx.now(), severity=severity, code=code, text=text,
@@ -394,6 +429,8 @@ class SupervisorNode(Node):
 
     def publish_calibration(self, result: MagCalibrationResult) -> None:
         self.ctx.publish(Topic.MAG_CALIBRATION, result)
+        if result.ok:
+            self.heading_calibration = f"the turn manoeuvre at {self.ctx.now():.0f} s"
         self.ctx.log("info" if result.ok else "warning", f"magnetometer calibration: {result.text}")
         if not result.ok:
             self.alert("warning", "calibration", f"magnetometer calibration failed: {result.text}")

@@ -99,11 +99,11 @@ def progress_json(p: MissionProgress) -> dict:
 
 
 def _blocked(items: tuple[str, ...]) -> dict[str, str]:
-    """("auto: no route", ...) -> {"auto": "no route"}."""
+    """("auto: no route", ...) -> {"auto": "no route"} (a pre-arm refusal lists every failing check: long)."""
     out = {}
     for item in list(items)[:40]:
         action, _, why = str(item).partition(":")
-        out[action.strip()[:30]] = why.strip()[:200] or "not possible now"
+        out[action.strip()[:30]] = why.strip()[:MAX_LOG_TEXT] or "not possible now"
     return out
 
 

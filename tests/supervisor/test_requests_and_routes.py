@@ -15,7 +15,8 @@ from lotsen.stack.stack import example_route
 
 def make(route=None, esc_arm_time_s=1.0):
     cfg = LaunchConfig(route=route, nodes=NodesSection(fusion="truth", controller="los"),
-                       sim=SimSection(initial_state=(4.0, 20.0, 0.0, 0.0, 0.0, 0.0), esc_arm_time_s=esc_arm_time_s))
+                       sim=SimSection(initial_state=(4.0, 20.0, 0.0, 0.0, 0.0, 0.0), esc_arm_time_s=esc_arm_time_s),
+                       extra={"failsafes": {"prearm_skip": ["pilot_link"]}})  # no page here
     stack = build_stack(cfg, realtime=False, parts=("state", "supervisor"))
     seen = {Topic.ALERT: [], Topic.PROGRESS: [], Topic.ACTIVE_ROUTE: [], Topic.PATH: []}
     for topic, box in seen.items():

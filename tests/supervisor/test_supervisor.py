@@ -17,7 +17,8 @@ ROUTE = example_route("figure_eight")
 
 def make_stack(route=ROUTE, x0=(4.0, 20.0, 0.0, 0.0, 0.0, 0.0), controller="los", failsafes=None):
     cfg = LaunchConfig(route=route, nodes=NodesSection(fusion="truth", controller=controller),
-                       sim=SimSection(initial_state=x0), extra={"failsafes": failsafes or {}})
+                       sim=SimSection(initial_state=x0),
+                       extra={"failsafes": {"prearm_skip": ["pilot_link"], **(failsafes or {})}})  # no page here
     stack = build_stack(cfg, realtime=False, parts=("state", "supervisor"))
     logs, cmds = [], []
     stack.bus.subscribe(Topic.LOG, logs.append)
