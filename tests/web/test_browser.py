@@ -16,7 +16,7 @@ import pytest
 from lotsen.messages import Topic
 
 from .conftest import TOKEN, start_stack, stop_stack
-from .test_maps_and_logs import TileServer
+from .test_maps_and_logs import TileServer, small_mcap
 
 CHROMIUM = "/usr/bin/chromium"
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,7 +44,7 @@ def tile_server():
 @pytest.fixture(scope="module")
 def stack(tile_server, tmp_path_factory):
     logs = tmp_path_factory.mktemp("logs")
-    (logs / "2026-11-23_lake.mcap").write_bytes(b"\x89MCAP0\r\n" + b"x" * 1000)
+    small_mcap(logs / "2026-11-23_lake.mcap")
     rs = start_stack(parts=None, log_dir=str(logs),
                      extra_web={"tile_dir": str(tmp_path_factory.mktemp("tiles")), "tile_url": tile_server.url,
                                 "battery_capacity_ah": 5.0})

@@ -22,9 +22,13 @@ TABLET = {"width": 820, "height": 1180}
 LAPTOP = {"width": 1280, "height": 800}
 
 
+LOG_DIR: list[str] = []
+
+
 @pytest.fixture(scope="module")
 def stack(tmp_path_factory):
     logs = tmp_path_factory.mktemp("logs")
+    LOG_DIR[:] = [str(logs)]
     rs = start_stack(parts=None, log_dir=str(logs))
     yield rs
     stop_stack(rs)
@@ -256,6 +260,37 @@ def test_a_gamepad_drives_only_while_its_dead_man_is_held(phone, stack):
     phone.evaluate("() => { navigator.getGamepads = () => []; window.dispatchEvent(new Event('gamepaddisconnected')); }")
     wait_until(lambda: stack.messages(Topic.MANUAL)[-1].surge == 0.0, timeout=1.0)
     assert phone.errors == []
+
+
+def test_recording_indicator_and_download_while_recording(phone, stack):
+    """The HUD names the file being recorded with its size and duration, updated live; "download
+    so far" gives an MCAP the mcap library reads, while the recording goes on."""
+    import io
+
+    from mcap.reader import make_reader
+
+    from lotsen.logs.recorder import McapRecorder, RecorderConfig
+
+    rec = McapRecorder(RecorderConfig(directory=LOG_DIR[0], flush_period_s=0.2, fsync=False)).attach(stack.stack.bus)
+    try:
+        path = rec.start()
+        wait_js(phone, "!document.querySelector('#hud-rec-cell').hidden", timeout=6)
+        text0 = phone.inner_text("#hud-rec")
+        assert path.name in text0 and " MB" in text0
+        time.sleep(2.5)
+        wait_js(phone, f"document.querySelector('#hud-rec').textContent !== {text0!r}", timeout=4)
+        assert hit(phone, "#hud-rec-dl")
+        no_sideways_scroll(phone)
+        shot(phone, "recording")
+        with phone.expect_download() as info:
+            phone.tap("#hud-rec-dl")
+        data = open(info.value.path(), "rb").read()
+        msgs = list(make_reader(io.BytesIO(data)).iter_messages())
+        assert len(msgs) > 20 and info.value.suggested_filename == path.stem + ".partial.mcap"
+        assert rec.recording  # still going
+    finally:
+        rec.close()
+    wait_js(phone, "document.querySelector('#hud-rec-cell').hidden", timeout=10)  # closed: no longer shown
 
 
 def test_phone_landscape_and_tablet(phone):

@@ -117,6 +117,7 @@ function onHello(m) {
     : "no geographic origin (set `origin` in the launch config): local metres only, no map background";
   refreshTiles();
   renderMaps();
+  refreshRecording();
 }
 
 function onError(m) {
@@ -749,12 +750,32 @@ async function refreshLogs() {
     state.logList = d.logs;
     $("#logsinfo").textContent = d.directory_set ? `${d.logs.length} file(s)` : "no log directory configured";
     $("#logtable tbody").innerHTML = d.logs.map(l =>
-      `<tr><td>${esc(l.name)}${l.recording ? ' <span class="hint">(recording)</span>' : ""}</td><td>${(l.size / 1e6).toFixed(1)} MB</td>` +
-      `<td>${new Date(l.mtime * 1000).toLocaleString()}</td><td><a href="${esc(l.url)}" download="${esc(l.name)}" data-log="${esc(l.name)}">Download</a>` +
+      `<tr><td>${esc(l.name)}${l.recording ? ' <span class="rec">● recording</span>' : ""}</td><td>${(l.size / 1e6).toFixed(1)} MB</td>` +
+      `<td>${new Date(l.mtime * 1000).toLocaleString()}</td><td><a href="${esc(l.url)}" download="${esc(l.recording ? l.name.replace(/\.mcap$/, ".partial.mcap") : l.name)}" data-log="${esc(l.name)}">${l.recording ? "Download so far" : "Download"}</a>` +
       `<a href="${esc(l.foxglove)}" target="_blank" rel="noopener noreferrer" data-foxglove="${esc(l.name)}">Open in Foxglove</a></td></tr>`).join("");
   } catch (e) { $("#logsinfo").textContent = "could not list the logs"; }
 }
 $("#btn-logs").onclick = refreshLogs;
+setInterval(() => { if (!$("#tab-logs").hidden) refreshLogs(); }, 3000);   // sizes and "(recording)" stay current
+
+// the recording indicator: the active file's name, size and duration, polled from the boat
+async function refreshRecording() {
+  if (!state.hello || !state.hello.logs) { $("#hud-rec-cell").hidden = true; return; }
+  let active = [];
+  try { active = (await (await fetch("/api/recording")).json()).recording || []; } catch (e) { active = null; }
+  state.recording = active;
+  const cell = $("#hud-rec-cell");
+  cell.hidden = !active || !active.length;
+  if (cell.hidden) return;
+  const r = active[0];
+  $("#hud-rec").textContent = `● ${r.name} · ${(r.size / 1e6).toFixed(1)} MB · ${fmtDuration(r.duration_s)}` +
+    (active.length > 1 ? ` (+${active.length - 1} more)` : "");
+  const dl = $("#hud-rec-dl");
+  if (dl.getAttribute("href") !== r.url) dl.setAttribute("href", r.url);
+  dl.setAttribute("download", r.name.replace(/\.mcap$/, ".partial.mcap"));
+}
+setInterval(refreshRecording, 2000);
+state.refreshRecording = refreshRecording;
 
 // -- events, tabs, toasts --------------------------------------------------------------------------------
 function onLog(m) {
