@@ -236,6 +236,45 @@ def test_phone_hold_to_drive_stops_when_the_finger_lifts_or_the_page_goes(phone,
     assert phone.errors == []
 
 
+def tap_map(pg, north: float, east: float) -> None:
+    pg.locator("#map").scroll_into_view_if_needed()
+    x, y = pg.evaluate(f"() => window.lotsen.map.toScreen({north}, {east})")
+    b = box(pg, "#map")
+    pg.touchscreen.tap(b["x"] + x, b["y"] + y)
+
+
+def test_phone_first_mission_by_touch_only(phone, stack):
+    """Draw a route with taps on the map, upload, AUTO, and stop it, all by touch."""
+    take_controls_by_touch(phone)
+    tab(phone, "plan")
+    tap(phone, "#btn-clear")
+    phone.evaluate("() => { window.lotsen.viewTouched = true; const m = window.lotsen.map; m.follow = false;"
+                   " m.scale = 12; m.n0 = 7; m.e0 = 3; m.invalidate(); }")
+    tap(phone, "#maptools [data-tool=harbour]")
+    tap_map(phone, 0.0, 0.0)
+    tap(phone, "#maptools [data-tool=node]")
+    tap_map(phone, 6.0, 0.0)
+    tap_map(phone, 14.0, 5.0)
+    wait_js(phone, "window.lotsen.route.complete() && window.lotsen.route.nodes.length === 2")
+    tap(phone, "#maptools [data-tool=select]")
+    wait_js(phone, "document.querySelector('#planstatus').textContent.startsWith('planned')", timeout=10)
+    tap(phone, "#btn-use")
+    wait_js(phone, "window.lotsen.readbackMatch === true", timeout=10)
+    tab(phone, "operate")
+    if not phone.evaluate("() => window.lotsen.telemetry.sup.armed"):
+        wait_js(phone, "window.lotsen.actionState('arm').ok", timeout=10)
+        tap(phone, "[data-action=arm]")
+    wait_js(phone, "window.lotsen.actionState('auto').ok", timeout=10)
+    tap(phone, "[data-action=auto]")
+    wait_js(phone, "window.lotsen.telemetry.sup.mode === 'AUTO'")
+    shot(phone, "phone-auto")
+    phone.tap("#estop")
+    wait_js(phone, "window.lotsen.telemetry.sup.mode === 'ESTOP'")
+    tap(phone, "[data-action=reset_estop]")
+    wait_js(phone, "window.lotsen.telemetry.sup.mode !== 'ESTOP'")
+    assert phone.errors == []
+
+
 def test_a_gamepad_drives_only_while_its_dead_man_is_held(phone, stack):
     """A stand-in for navigator.getGamepads (headless Chromium has no pads): left stick ahead with
     and without a shoulder button held, then disconnected."""
