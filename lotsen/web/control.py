@@ -4,7 +4,8 @@ a valid message from the pilot. It has no sockets and no threads of its own, so 
 
 Who may do what (docs/web.md, "Access rules"): a viewer may authenticate, ping, and convert
 routes to and from YAML/GeoJSON (64 kB messages, one viewer conversion at a time in all); every
-thing that plans, commands, drives or downloads tiles needs the pilot seat.
+thing that plans, commands, drives or downloads tiles needs the pilot seat; the emergency stop
+too, unless `viewer_may_estop` (extra.web.viewer_may_estop) lets any page stop the boat.
 """
 
 from __future__ import annotations
@@ -75,7 +76,8 @@ class ControlHandler:
     def __init__(self, seat: PilotSeat, publish: Publish, clock: Callable[[], float],
                  planner_config: PlannerConfig | None = None, run_blocking: RunBlocking = _to_thread,
                  notify: Callable[[Session, dict], None] | None = None, origin: GeoOrigin | None = None,
-                 auth_guard: AuthGuard | None = None, tiles: TileJobs | None = None) -> None:
+                 auth_guard: AuthGuard | None = None, tiles: TileJobs | None = None,
+                 viewer_may_estop: bool = False) -> None:
         self.seat = seat
         self.publish = publish
         self.clock = clock
@@ -86,6 +88,7 @@ class ControlHandler:
         self.origin = origin  # geographic origin of the local frame, for GeoJSON export
         self.auth_guard = auth_guard or AuthGuard(clock)
         self.tiles = tiles
+        self.viewer_may_estop = viewer_may_estop
         self.viewer_jobs = 0  # conversions in flight for viewers (all together)
         self.last_upload: dict | None = None  # {"route_id", "route"} of the pilot's last upload
 
@@ -144,7 +147,8 @@ class ControlHandler:
         kind = msg.type if msg.type in ("manual", "ping") else "other"
         if not precharged and not session.limiter.allow(kind):
             return self._rate_error(session, msg.id), None
-        if msg.type in PILOT_ONLY and not is_pilot:
+        viewer_estop = self.viewer_may_estop and msg.type == "command" and msg.fields.get("action") == "estop"
+        if msg.type in PILOT_ONLY and not is_pilot and not viewer_estop:
             return [_error(msg.id, "not_pilot", f"{msg.type}: only the pilot may do this; "
                                                 "take the controls with the pilot token first")], None
         self.seat.heard(session)

@@ -155,7 +155,8 @@ class Hub:
         self.tiles = TileService(self, options) if options.tile_dir else None
         self.handler = ControlHandler(self.seat, publish, clock, planner_config=planner_config,
                                       run_blocking=run_blocking, notify=self._notify, origin=origin,
-                                      auth_guard=AuthGuard(clock), tiles=self.tiles)
+                                      auth_guard=AuthGuard(clock), tiles=self.tiles,
+                                      viewer_may_estop=options.viewer_may_estop)
         self.clients: dict[Session, Client] = {}
         self.loop: asyncio.AbstractEventLoop | None = None
         self.state = TelemetryState(options.battery_capacity_ah)
@@ -266,6 +267,7 @@ class Hub:
                 "logs": bool(self.options.log_dir),
                 "uploaded_route_id": last["route_id"] if last else None,
                 "viewer_may": sorted(VIEWER_ALLOWED),
+                "viewer_may_estop": self.options.viewer_may_estop,
                 "max_chars": {"pilot": MAX_MESSAGE_CHARS, "viewer": VIEWER_MAX_MESSAGE_CHARS}}
 
     async def _evict(self, client: Client, reason: str) -> None:

@@ -32,6 +32,9 @@ class WebExtra:
     tile_max_zoom: int = field(default=19, metadata={"range": (0, 22)})
     # battery: time left from the capacity when given, else from the observed discharge
     battery_capacity_ah: float | None = field(default=None, metadata={"range": (0.01, 1000.0)})
+    # any page that reaches the server may press the emergency stop (not only the pilot): a second
+    # person on the jetty can stop the boat; off by default, where a viewer only watches
+    viewer_may_estop: bool = False
     # TLS: `lotsen run --tls` creates a self-signed pair in tls_dir once (lotsen.web.tls), or serves
     # the given certificate and key; setting both files turns TLS on without the flag
     tls_dir: str = "~/.config/lotsen/tls"
@@ -56,6 +59,7 @@ class WebOptions:
     tile_max_count: int = 1000
     tile_max_zoom: int = 19
     battery_capacity_ah: float | None = None
+    viewer_may_estop: bool = False
     tls_dir: str = ""
     tls_certfile: str | None = None
     tls_keyfile: str | None = None
@@ -86,7 +90,7 @@ class WebOptions:
                    tile_dir=os.path.expanduser(extra.tile_dir) if extra.tile_dir else "",
                    tile_url=extra.tile_url, tile_attribution=extra.tile_attribution,
                    tile_max_count=extra.tile_max_count, tile_max_zoom=extra.tile_max_zoom,
-                   battery_capacity_ah=extra.battery_capacity_ah,
+                   battery_capacity_ah=extra.battery_capacity_ah, viewer_may_estop=extra.viewer_may_estop,
                    tls_dir=os.path.expanduser(extra.tls_dir) if extra.tls_dir else "",
                    tls_certfile=extra.tls_certfile and os.path.expanduser(extra.tls_certfile),
                    tls_keyfile=extra.tls_keyfile and os.path.expanduser(extra.tls_keyfile))

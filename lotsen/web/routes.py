@@ -8,20 +8,28 @@ a CDN), the `/ws` socket, cached map tiles, the MCAP logs, and security headers 
 | `/api/health` | liveness, no secrets | anyone |
 | `/api/tiles`, `/tiles/{z}/{x}/{y}.png` | the offline tile cache | anyone |
 | `/api/logs`, `/logs/{name}.mcap` | MCAP logs (GET, HEAD, Range; CORS for Foxglove's web app) | anyone |
+| `/api/recording` | the files being recorded: name, size, duration | anyone |
+
+A file being recorded downloads as a snapshot with a fixed length (lotsen.web.logfiles): readable,
+up to the last chunk on disk; no Range (the next request would get a different snapshot).
 """
 
 from __future__ import annotations
 
 import asyncio
+import time
 from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request, WebSocket
-from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 
 from lotsen.web.hub import Hub
-from lotsen.web.logfiles import FOXGLOVE_APP, foxglove_url, list_logs, resolve_log
+from lotsen.web.logfiles import (
+    FOXGLOVE_APP, RECORDING_WITHIN_S, ExtentCache, foxglove_url, list_logs, recordings, resolve_log, scan_extent, snapshot_chunks,
+    snapshot_tail,
+)
 from lotsen.web.tiles import tile_image_type, valid_tile
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -43,6 +51,16 @@ LOG_CORS = {"Access-Control-Allow-Origin": FOXGLOVE_APP, "Vary": "Origin",
             "Access-Control-Expose-Headers": "Content-Length, Content-Range, Accept-Ranges, ETag, Last-Modified"}
 
 
+async def iterate_in_thread(chunks):
+    """A file's blocks read off the event loop (the loop also serves the pilot's socket)."""
+    it = iter(chunks)
+    while True:
+        block = await asyncio.to_thread(next, it, None)
+        if block is None:
+            return
+        yield block
+
+
 def create_app(hub: Hub) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -53,6 +71,7 @@ def create_app(hub: Hub) -> FastAPI:
             hub.stop()
 
     app = FastAPI(title="lotsen operator", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
+    extents = ExtentCache()
 
     @app.middleware("http")
     async def security_headers(request: Request, call_next):
@@ -100,12 +119,32 @@ def create_app(hub: Hub) -> FastAPI:
             e["foxglove"] = foxglove_url(f"{base}/logs/{e['name']}")
         return JSONResponse({"directory_set": bool(hub.options.log_dir), "logs": entries})
 
+    @app.get("/api/recording")
+    async def recording() -> JSONResponse:
+        active = await asyncio.to_thread(recordings, hub.options.log_dir, extents)
+        for e in active:
+            e["url"] = f"/logs/{e['name']}"
+        return JSONResponse({"directory_set": bool(hub.options.log_dir), "recording": active})
+
     @app.api_route("/logs/{name}", methods=["GET", "HEAD"])
-    async def log_file(name: str) -> Response:
+    async def log_file(name: str, request: Request) -> Response:
         p = resolve_log(hub.options.log_dir, name)
         if p is None:
             return Response(status_code=404, headers=LOG_CORS)
-        return FileResponse(p, media_type="application/octet-stream", filename=p.name, headers=LOG_CORS)
+        ext = await asyncio.to_thread(scan_extent, p)
+        if ext is None or ext.closed:  # complete (or not ours to judge): the file as it is
+            return FileResponse(p, media_type="application/octet-stream", filename=p.name, headers=LOG_CORS)
+        # still recording (or killed before it closed the file): a snapshot of fixed length,
+        # readable up to the last complete chunk
+        recording = time.time() - p.stat().st_mtime < RECORDING_WITHIN_S
+        headers = {**LOG_CORS, "Content-Length": str(ext.end + len(snapshot_tail())), "Accept-Ranges": "none",
+                   "Content-Disposition": f'attachment; filename="{p.stem}.partial.mcap"' if recording else
+                   f'attachment; filename="{p.name}"',
+                   "Cache-Control": "no-store", "X-Lotsen-Recording": "snapshot"}
+        if request.method == "HEAD":
+            return Response(status_code=200, headers=headers, media_type="application/octet-stream")
+        return StreamingResponse(iterate_in_thread(snapshot_chunks(p, ext)), headers=headers,
+                                 media_type="application/octet-stream")
 
     @app.options("/logs/{name}")
     async def log_preflight(name: str) -> Response:

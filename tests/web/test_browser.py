@@ -16,7 +16,7 @@ import pytest
 from lotsen.messages import Topic
 
 from .conftest import TOKEN, start_stack, stop_stack
-from .test_maps_and_logs import TileServer
+from .test_maps_and_logs import TileServer, small_mcap
 
 CHROMIUM = "/usr/bin/chromium"
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,7 +44,7 @@ def tile_server():
 @pytest.fixture(scope="module")
 def stack(tile_server, tmp_path_factory):
     logs = tmp_path_factory.mktemp("logs")
-    (logs / "2026-11-23_lake.mcap").write_bytes(b"\x89MCAP0\r\n" + b"x" * 1000)
+    small_mcap(logs / "2026-11-23_lake.mcap")
     rs = start_stack(parts=None, log_dir=str(logs),
                      extra_web={"tile_dir": str(tmp_path_factory.mktemp("tiles")), "tile_url": tile_server.url,
                                 "battery_capacity_ah": 5.0})
@@ -125,8 +125,11 @@ def test_viewer_cannot_control(page, stack):
     assert page.locator("[data-action=auto]").is_disabled()
     assert page.locator("#btn-use").is_disabled()
     n = len(stack.messages(Topic.OPERATOR))
-    page.click("#estop")  # always visible; without the token it only explains
-    wait_js(page, "document.querySelector('#toast').textContent.includes('take the controls')")
+    # always visible; without the token it is marked disabled with the reason, and a click explains
+    assert page.get_attribute("#estop", "aria-disabled") == "true"
+    assert "only the pilot can stop the boat" in page.inner_text("#estop-why")
+    page.click("#estop", force=True)
+    wait_js(page, "document.querySelector('#toast').textContent.includes('take controls')")
     assert len(stack.messages(Topic.OPERATOR)) == n
     # drafts are planned by the boat's planner worker, which only the pilot may load
     assert "pilot" in page.get_attribute("#btn-use", "title")
@@ -464,14 +467,14 @@ def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
     page.locator("#map").focus()
     p0 = boat(page)
     page.keyboard.down("w")
-    wait_js(page, "document.querySelector('#keys [data-key=w]').classList.contains('on')")
+    wait_js(page, "document.querySelector('#drivepad [data-key=w]').classList.contains('on')")
     wait_js(page, "window.lotsen.telemetry.cmd && Math.abs(window.lotsen.telemetry.cmd.n1) > 5")
     shot(page, "manual")
     time.sleep(2.0)
     p1 = boat(page)
     assert math.hypot(p1["n"] - p0["n"], p1["e"] - p0["e"]) > 0.3 and p1["u"] > 0.1  # ahead
     page.keyboard.up("w")
-    wait_js(page, "!document.querySelector('#keys [data-key=w]').classList.contains('on')")
+    wait_js(page, "!document.querySelector('#drivepad [data-key=w]').classList.contains('on')")
     wait_until(lambda: stack.messages(Topic.MANUAL)[-1].surge == 0.0)  # a zero command on release
     page.keyboard.down("w")  # drive again, then hit the big red button
     wait_js(page, "Math.abs(window.lotsen.telemetry.cmd.n1) > 5")

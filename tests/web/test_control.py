@@ -76,6 +76,21 @@ def test_control_without_token_is_refused_and_publishes_nothing():
     assert published == []
 
 
+def test_a_viewer_may_stop_the_boat_only_when_the_config_allows_it():
+    """extra.web.viewer_may_estop: the emergency stop (and nothing else) opens to every page."""
+    h, _, published, _ = make()
+    viewer = h.open_session()
+    assert code(send(h, viewer, {"type": "command", "action": "estop"})) == "not_pilot"
+    assert published == []
+    h.viewer_may_estop = True
+    assert send(h, viewer, {"type": "command", "action": "estop"})[0] == {"type": "ack", "id": None, "action": "estop"}
+    assert [(t, m.action) for t, m in published] == [(Topic.OPERATOR, "estop")]
+    for action in ("auto", "reset_estop", "arm"):
+        assert code(send(h, viewer, {"type": "command", "action": action})) == "not_pilot"
+    assert code(send(h, viewer, {"type": "manual", "surge": 0.5, "sway": 0, "yaw": 0})) == "not_pilot"
+    assert len(published) == 1
+
+
 def test_wrong_token_is_refused_and_repeated_guessing_closes_the_connection():
     h, _, published, _ = make()
     s = h.open_session()

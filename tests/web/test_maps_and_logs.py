@@ -140,8 +140,22 @@ def test_the_pilot_preloads_tiles_that_the_boat_then_serves(tmp_path, tile_serve
         stop_stack(rs)
 
 
+def small_mcap(path, messages: int = 5) -> int:
+    """A complete (closed) MCAP file; its size."""
+    from mcap.writer import Writer
+
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start(profile="", library="test")
+        ch = w.register_channel("t", "json", w.register_schema("s", "jsonschema", b"{}"))
+        for i in range(messages):
+            w.add_message(ch, log_time=(i + 1) * 10**9, data=b"{}", publish_time=(i + 1) * 10**9)
+        w.finish()
+    return path.stat().st_size
+
+
 def test_logs_are_listed_and_downloaded_and_nothing_else_is(tmp_path):
-    (tmp_path / "2026-11-23_run.mcap").write_bytes(b"\x89MCAP0\r\n" + b"x" * 100)
+    size = small_mcap(tmp_path / "2026-11-23_run.mcap")
     (tmp_path / "notes.txt").write_text("not a log")
     (tmp_path / "inner").mkdir()
     (tmp_path / "inner" / "hidden.mcap").write_bytes(b"x")
@@ -155,10 +169,97 @@ def test_logs_are_listed_and_downloaded_and_nothing_else_is(tmp_path):
         entry = listing["logs"][0]
         assert entry["foxglove"].startswith("https://app.foxglove.dev/?ds=remote-file&ds.url=http%3A%2F%2F127.0.0.1")
         status, headers, body = _get(base + entry["url"])
-        assert status == 200 and body.startswith(b"\x89MCAP0") and len(body) == 108
+        assert status == 200 and body.startswith(b"\x89MCAP0") and len(body) == size  # a closed file: as it is
         assert headers["access-control-allow-origin"] == "https://app.foxglove.dev"
         assert "attachment" in headers["content-disposition"]
         for bad in ("notes.txt", "..%2Fnotes.txt", "inner%2Fhidden.mcap", "%2Fetc%2Fpasswd"):
             assert _get(f"{base}/logs/{bad}")[0] == 404, bad
     finally:
         stop_stack(rs)
+
+
+def _read_mcap(data: bytes) -> list:
+    import io
+
+    from mcap.reader import make_reader
+
+    return [(c.topic, m.log_time) for _, c, m in make_reader(io.BytesIO(data)).iter_messages()]
+
+
+def test_the_file_being_recorded_downloads_as_a_readable_snapshot(tmp_path):
+    """While the recorder writes (chunks closed every 0.2 s here), every download is a complete
+    MCAP up to a recent point, its length fixed in the header (never "content longer than
+    Content-Length"); /api/recording names the file with its size and duration; once the
+    recorder closes the file, the download is the file itself."""
+    import time
+
+    from lotsen.logs.recorder import McapRecorder, RecorderConfig
+    from lotsen.web.logfiles import ExtentCache, scan_extent
+
+    rs = start_stack(log_dir=str(tmp_path))
+    rec = McapRecorder(RecorderConfig(directory=str(tmp_path), flush_period_s=0.2, fsync=False)).attach(rs.stack.bus)
+    try:
+        path = rec.start()
+        base = rs.url.rstrip("/")
+        time.sleep(1.5)
+        sizes = []
+        lags = []
+        for _ in range(4):
+            t_request = time.time()
+            status, headers, body = _get(f"{base}/logs/{path.name}")
+            assert status == 200 and headers["x-lotsen-recording"] == "snapshot"
+            assert int(headers["content-length"]) == len(body)
+            assert headers["content-disposition"].endswith(f'{path.stem}.partial.mcap"')
+            msgs = _read_mcap(body)
+            assert len(msgs) > 20 and len({t for t, _ in msgs}) > 3  # several topics, readable
+            sizes.append(len(body))
+            lags.append(t_request - max(t for _, t in msgs) / 1e9)
+            time.sleep(0.4)
+        assert sizes == sorted(sizes) and sizes[-1] > sizes[0]  # it follows the recording
+        print(f"snapshot lag behind the request: {[round(x, 2) for x in lags]} s")
+        assert max(lags) < 2.0  # up to a recent point (flush 0.2 s, queue, writer thread)
+        # "a recent point": the snapshot ends within about a second of what the recorder has taken in
+        ext = scan_extent(path)
+        assert not ext.closed and ext.duration_s > 1.0
+        listing = json.loads(_get(base + "/api/recording")[2])["recording"]
+        assert [e["name"] for e in listing] == [path.name]
+        assert listing[0]["size"] > 0 and listing[0]["duration_s"] > 1.0
+        assert listing[0]["readable_bytes"] <= path.stat().st_size + 50
+        cache = ExtentCache()
+        first = cache.get(path)
+        time.sleep(0.5)
+        assert cache.get(path).end >= first.end  # incremental: walks only the new records
+        rec.stop()
+        status, headers, body = _get(f"{base}/logs/{path.name}")
+        assert status == 200 and "x-lotsen-recording" not in headers and len(body) == path.stat().st_size
+        assert len(_read_mcap(body)) >= len(msgs)
+        assert json.loads(_get(base + "/api/recording")[2])["recording"] == []
+    finally:
+        rec.close()
+        stop_stack(rs)
+
+
+def test_snapshot_cuts_a_partly_written_record(tmp_path):
+    """A chunk half on disk is left out; the cut file still reads."""
+    from mcap.writer import Writer
+
+    from lotsen.web.logfiles import scan_extent, snapshot_chunks
+
+    p = tmp_path / "live.mcap"
+    f = open(p, "wb")
+    w = Writer(f, chunk_size=200)
+    w.start(profile="", library="test")
+    ch = w.register_channel("t", "json", w.register_schema("s", "jsonschema", b"{}"))
+    for i in range(40):
+        w.add_message(ch, log_time=(i + 1) * 10**8, data=b'{"x": 1234567890}', publish_time=0)
+    f.flush()
+    whole = p.read_bytes()
+    p.write_bytes(whole + b"\x06" + (10**6).to_bytes(8, "little") + b"partial")  # a chunk being written
+    ext = scan_extent(p)
+    assert ext.end == len(whole) and not ext.closed and ext.start_ns == 10**8
+    msgs = _read_mcap(b"".join(snapshot_chunks(p, ext)))
+    assert len(msgs) >= 30 and msgs == sorted(msgs, key=lambda m: m[1])
+    assert scan_extent(tmp_path / "live.mcap") == ext
+    (tmp_path / "not.mcap").write_bytes(b"hello")
+    assert scan_extent(tmp_path / "not.mcap") is None
+    f.close()

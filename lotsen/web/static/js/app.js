@@ -3,7 +3,7 @@
 import { RouteModel, parseField, routeDiff, LIMITS } from "./route.js";
 import { MapView } from "./map.js";
 import { StripChart } from "./plot.js";
-import { KeyboardDriver } from "./keys.js";
+import { KeyboardDriver, PERIOD_MS } from "./keys.js";
 import { AlertCenter, esc } from "./alerts.js";
 import { TileLayer } from "./tiles.js";
 import { fmtLatLon, latLonToNe, neToLatLon, tilesForBox } from "./geo.js";
@@ -117,6 +117,7 @@ function onHello(m) {
     : "no geographic origin (set `origin` in the launch config): local metres only, no map background";
   refreshTiles();
   renderMaps();
+  refreshRecording();
 }
 
 function onError(m) {
@@ -237,7 +238,8 @@ function renderHud(f) {
 // -- what the operator can do now -----------------------------------------------------------
 function actionState(action) {
   if (!state.connected) return { ok: false, why: "not connected to the boat" };
-  if (!state.pilot) return { ok: action === "estop", why: "take the controls first (pilot token)" };
+  if (!state.pilot) return action === "estop" && viewerMayStop() ? { ok: true, why: "" }
+    : { ok: false, why: action === "estop" ? ESTOP_PILOT_ONLY : "take the controls first (pilot token)" };
   if (action === "estop") return { ok: true, why: "" };
   const s = state.telemetry && state.telemetry.sup;
   if (!s || (!s.available.length && !Object.keys(s.blocked).length)) return { ok: true, why: "" };   // an older core: no list
@@ -245,6 +247,17 @@ function actionState(action) {
   return { ok: false, why: s.blocked[action] || "not possible now" };
 }
 state.actionState = actionState;
+const ESTOP_PILOT_ONLY = "only the pilot can stop the boat — take controls";
+// extra.web.viewer_may_estop: any page that reaches the boat may stop it (a second person on the jetty)
+function viewerMayStop() { return !!(state.hello && state.hello.viewer_may_estop); }
+
+function renderEstop() {   // always clickable (a viewer's tap explains and offers the token field)
+  const b = $("#estop"), a = actionState("estop");
+  const why = a.ok ? "" : a.why;
+  b.classList.toggle("off", !a.ok);
+  b.setAttribute("aria-disabled", String(!a.ok));
+  if ($("#estop-why").textContent !== why) $("#estop-why").textContent = why;
+}
 
 function updateButtons() {
   $$("[data-action]").forEach(b => {
@@ -263,6 +276,7 @@ function updateButtons() {
   $("#btn-undo").disabled = !route.canUndo(); $("#btn-redo").disabled = !route.canRedo();
   const tilesWhy = !state.pilot ? "take the controls first (pilot token)" : !state.origin ? "no geographic origin" : !(state.hello && state.hello.tiles.enabled) ? "no tile cache on this server" : "";
   $("#btn-tiles").disabled = !!tilesWhy; $("#btn-tiles").title = tilesWhy || "download the tiles of the area in view to the boat's cache";
+  renderEstop(); renderDriveState();
 }
 
 function renderNext() {
@@ -328,7 +342,11 @@ $("#btn-release").onclick = () => { driver.stop(); send({ type: "release" }); st
 
 // -- operator commands -------------------------------------------------------------------------
 function command(action) {
-  if (!state.pilot) { toast(`${action}: take the controls first (pilot token)`, true); return; }
+  if (!state.pilot && !(action === "estop" && viewerMayStop())) {
+    toast(action === "estop" ? ESTOP_PILOT_ONLY : `${action}: take the controls first (pilot token)`, true);
+    if (!$("#token").hidden) $("#token").focus();
+    return;
+  }
   const a = actionState(action);
   if (!a.ok) { alerts.push({ severity: "error", code: `web:blocked:${action}`, text: `${action} not possible: ${a.why}` }); return; }
   send({ type: "command", action });
@@ -338,13 +356,13 @@ $$("[data-action]").forEach(b => b.addEventListener("click", () => {
   command(b.dataset.action);
 }));
 
-// -- keyboard driving --------------------------------------------------------------------------
+// -- manual driving: keys, the on-screen pad, a gamepad ----------------------------------------
 const driver = new KeyboardDriver({
   send: (c) => send({ type: "manual", surge: round3(c.surge), sway: round3(c.sway), yaw: round3(c.yaw) }),
   enabled: () => state.pilot && state.connected,
   gain: () => Number($("#gain").value),
   onChange: (keys, c, hint) => {
-    $$("#keys span").forEach(s => s.classList.toggle("on", keys.has(s.dataset.key)));
+    $$("#drivepad [data-key]").forEach(s => s.classList.toggle("on", keys.has(s.dataset.key)));
     $("#manualcmd").textContent = `surge ${c.surge.toFixed(2)} · sway ${c.sway.toFixed(2)} · yaw ${c.yaw.toFixed(2)}`;
     if (hint) toast(hint, true);
   },
@@ -353,6 +371,50 @@ const driver = new KeyboardDriver({
 state.driver = driver;
 $("#gain").addEventListener("input", () => { $("#gainval").textContent = Number($("#gain").value).toFixed(2); });
 function round3(x) { return Math.round(x * 1000) / 1000; }
+
+// hold-to-drive pad: each finger holds one button (captured, so sliding off keeps it) until it
+// lifts or the browser cancels the touch (scroll, palm, system gesture); focus loss stops all
+$$("#drivepad [data-drive]").forEach(b => {
+  const who = (ev) => `pad${ev.pointerId}`;
+  b.addEventListener("pointerdown", ev => {
+    ev.preventDefault();
+    if (b.dataset.drive === "stop") { driver.stop(); return; }
+    if (!driver.press(who(ev), b.dataset.drive)) return;
+    try { b.setPointerCapture(ev.pointerId); } catch (e) { /* a synthetic pointer: no capture */ }
+  });
+  for (const type of ["pointerup", "pointercancel", "lostpointercapture"]) b.addEventListener(type, ev => driver.release(who(ev)));
+  b.addEventListener("contextmenu", ev => ev.preventDefault());   // a long press is driving, not a menu
+});
+
+function renderDriveState() {
+  const s = state.telemetry && state.telemetry.sup;
+  const why = !state.connected ? "not connected to the boat" : !state.pilot ? "take the controls (pilot token) to drive"
+    : !s ? "waiting for the boat's status" : s.mode !== "MANUAL" ? `the boat is in ${s.mode}: press Manual to drive`
+    : !s.armed ? "arm first (thrust allowed)" : "";
+  const el = $("#drivestate");
+  const text = why || "hold a button to drive; lift to stop";
+  if (el.textContent !== text) el.textContent = text;
+  $("#drivepad").classList.toggle("off", !!why);
+}
+
+// gamepad (standard mapping): left stick ahead/astern and sideways, right stick turn, only while
+// a shoulder button (the dead-man) is held; polled with the page visible and focused
+const GAMEPAD_DEAD = 0.15;
+function deadband(x) { return Math.abs(x) < GAMEPAD_DEAD ? 0 : (x - Math.sign(x) * GAMEPAD_DEAD) / (1 - GAMEPAD_DEAD); }
+function pollGamepad() {
+  const pads = navigator.getGamepads ? Array.from(navigator.getGamepads()).filter(Boolean) : [];
+  const gp = pads[0];
+  const usable = gp && gp.connected && !document.hidden && document.hasFocus();
+  const held = usable && [4, 5, 6, 7].some(i => gp.buttons[i] && gp.buttons[i].pressed);
+  const ax = (i) => deadband(gp.axes[i] || 0);
+  driver.setAnalog(held ? { surge: -ax(1), sway: ax(0), yaw: ax(2) } : null);
+  const text = !gp ? "gamepad: none (press a button on one to connect it)"
+    : `gamepad: ${gp.id.slice(0, 40)} · ${held ? "driving" : "hold a shoulder button to drive"}`;
+  if ($("#gamepad").textContent !== text) $("#gamepad").textContent = text;
+}
+setInterval(pollGamepad, PERIOD_MS);
+window.addEventListener("gamepaddisconnected", () => driver.setAnalog(null));
+state.pollGamepad = pollGamepad;
 
 // -- route editing and planning ------------------------------------------------------------------
 function setTool(tool) {
@@ -688,12 +750,32 @@ async function refreshLogs() {
     state.logList = d.logs;
     $("#logsinfo").textContent = d.directory_set ? `${d.logs.length} file(s)` : "no log directory configured";
     $("#logtable tbody").innerHTML = d.logs.map(l =>
-      `<tr><td>${esc(l.name)}${l.recording ? ' <span class="hint">(recording)</span>' : ""}</td><td>${(l.size / 1e6).toFixed(1)} MB</td>` +
-      `<td>${new Date(l.mtime * 1000).toLocaleString()}</td><td><a href="${esc(l.url)}" download="${esc(l.name)}" data-log="${esc(l.name)}">Download</a>` +
+      `<tr><td>${esc(l.name)}${l.recording ? ' <span class="rec">● recording</span>' : ""}</td><td>${(l.size / 1e6).toFixed(1)} MB</td>` +
+      `<td>${new Date(l.mtime * 1000).toLocaleString()}</td><td><a href="${esc(l.url)}" download="${esc(l.recording ? l.name.replace(/\.mcap$/, ".partial.mcap") : l.name)}" data-log="${esc(l.name)}">${l.recording ? "Download so far" : "Download"}</a>` +
       `<a href="${esc(l.foxglove)}" target="_blank" rel="noopener noreferrer" data-foxglove="${esc(l.name)}">Open in Foxglove</a></td></tr>`).join("");
   } catch (e) { $("#logsinfo").textContent = "could not list the logs"; }
 }
 $("#btn-logs").onclick = refreshLogs;
+setInterval(() => { if (!$("#tab-logs").hidden) refreshLogs(); }, 3000);   // sizes and "(recording)" stay current
+
+// the recording indicator: the active file's name, size and duration, polled from the boat
+async function refreshRecording() {
+  if (!state.hello || !state.hello.logs) { $("#hud-rec-cell").hidden = true; return; }
+  let active = [];
+  try { active = (await (await fetch("/api/recording")).json()).recording || []; } catch (e) { active = null; }
+  state.recording = active;
+  const cell = $("#hud-rec-cell");
+  cell.hidden = !active || !active.length;
+  if (cell.hidden) return;
+  const r = active[0];
+  $("#hud-rec").textContent = `● ${r.name} · ${(r.size / 1e6).toFixed(1)} MB · ${fmtDuration(r.duration_s)}` +
+    (active.length > 1 ? ` (+${active.length - 1} more)` : "");
+  const dl = $("#hud-rec-dl");
+  if (dl.getAttribute("href") !== r.url) dl.setAttribute("href", r.url);
+  dl.setAttribute("download", r.name.replace(/\.mcap$/, ".partial.mcap"));
+}
+setInterval(refreshRecording, 2000);
+state.refreshRecording = refreshRecording;
 
 // -- events, tabs, toasts --------------------------------------------------------------------------------
 function onLog(m) {

@@ -1,5 +1,6 @@
-// Keyboard driving: held keys -> ManualCommand axes, sent at 10 Hz while any key is held and
-// once as zero when the last key is released, the window loses focus or the tab is hidden.
+// Manual driving: held keys, held buttons of the on-screen pad (one per finger) and a gamepad's
+// sticks -> ManualCommand axes, sent at 10 Hz while anything is held and once as zero when the
+// last one is released, the window loses focus or the tab is hidden.
 const AXES = {
   KeyW: ["surge", 1, "w"], ArrowUp: ["surge", 1, "w"],
   KeyS: ["surge", -1, "s"], ArrowDown: ["surge", -1, "s"],
@@ -15,7 +16,8 @@ export class KeyboardDriver {
   // (inside one, Esc cancels the edit).
   constructor({ send, enabled, gain, onChange, onEstop }) {
     this.send = send; this.enabled = enabled; this.gain = gain; this.onChange = onChange; this.onEstop = onEstop;
-    this.held = new Set();
+    this.held = new Map();   // who holds (a key code, "pad<pointerId>") -> the AXES key it drives
+    this.analog = null;      // a gamepad's {surge, sway, yaw} in [-1, 1] while its dead-man is held
     this.spaceFlash = false;
     this.timer = null;
     this.editStart = new WeakMap();  // a field's value when it got the focus: what Esc restores
@@ -35,14 +37,15 @@ export class KeyboardDriver {
 
   command() {
     const c = { surge: 0, sway: 0, yaw: 0 };
-    for (const code of this.held) { const [axis, sign] = AXES[code]; c[axis] += sign; }
+    for (const code of this.held.values()) { const [axis, sign] = AXES[code]; c[axis] += sign; }
+    if (this.analog) for (const k of Object.keys(c)) c[k] += this.analog[k];
     const g = this.gain();
     for (const k of Object.keys(c)) c[k] = Math.max(-1, Math.min(1, c[k])) * g;
     return c;
   }
 
   keys() {
-    const s = new Set([...this.held].map(code => AXES[code][2]));
+    const s = new Set([...this.held.values()].map(code => AXES[code][2]));
     if (this.spaceFlash) s.add("space");
     return s;
   }
@@ -73,15 +76,37 @@ export class KeyboardDriver {
     if (!(ev.code in AXES)) return;
     ev.preventDefault();
     if (ev.repeat || this.held.has(ev.code)) return;
-    if (!this.enabled()) { this.onChange(this.keys(), this.command(), "take the controls (pilot token) to drive"); return; }
-    this.held.add(ev.code);
-    this.tick();
-    if (!this.timer) this.timer = setInterval(() => this.tick(), PERIOD_MS);
+    this.press(ev.code, ev.code);
   }
 
-  keyup(ev) {
-    if (!this.held.delete(ev.code)) return;
-    if (this.held.size === 0) this.stop(); else this.tick();
+  keyup(ev) { this.release(ev.code); }
+
+  // `who` holds `code` (a key of AXES) until release(who); false when driving is not allowed now
+  press(who, code) {
+    if (!(code in AXES)) return false;
+    if (!this.enabled()) { this.onChange(this.keys(), this.command(), "take the controls (pilot token) to drive"); return false; }
+    this.held.set(who, code);
+    this.run();
+    return true;
+  }
+
+  release(who) {
+    if (!this.held.delete(who)) return;
+    if (this.held.size === 0 && !this.analog) this.stop(); else this.tick();
+  }
+
+  // a gamepad's axes while its dead-man button is held; null when released (then a stop)
+  setAnalog(a) {
+    if (a && !this.enabled()) a = null;
+    const had = !!this.analog;
+    this.analog = a;
+    if (a) this.run();
+    else if (had && this.held.size === 0) this.stop();
+  }
+
+  run() {
+    this.tick();
+    if (!this.timer) this.timer = setInterval(() => this.tick(), PERIOD_MS);
   }
 
   tick() {
@@ -92,8 +117,9 @@ export class KeyboardDriver {
   }
 
   stop() {
-    const wasDriving = this.held.size > 0 || this.timer !== null;
+    const wasDriving = this.held.size > 0 || this.timer !== null || !!this.analog;
     this.held.clear();
+    this.analog = null;
     if (this.timer) { clearInterval(this.timer); this.timer = null; }
     const zero = { surge: 0, sway: 0, yaw: 0 };
     if (this.enabled() && (wasDriving || this.spaceFlash)) this.send(zero);
