@@ -88,11 +88,11 @@ class RecoveryStats:
 
 
 # ---------------------------------------------------------------------------------- checks
-def has_footer(path: str | os.PathLike) -> bool:
+def has_footer(path: str | os.PathLike, size: int | None = None) -> bool:
     """Does the file end with an MCAP footer record and the closing magic (what a seeking reader
-    looks for first)?"""
+    looks for first)? `size`: the file's length as already known (a file still growing)."""
     p = Path(path)
-    size = p.stat().st_size
+    size = p.stat().st_size if size is None else size
     if size < len(MAGIC) * 2 + _FOOTER_LEN:
         return False
     with open(p, "rb") as f:

@@ -25,10 +25,10 @@ from fastapi import FastAPI, Request, WebSocket
 from fastapi.responses import FileResponse, JSONResponse, Response, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 
+from lotsen.logs.snapshot import scan_extent, snapshot_chunks, snapshot_tail
 from lotsen.web.hub import Hub
 from lotsen.web.logfiles import (
-    FOXGLOVE_APP, RECORDING_WITHIN_S, ExtentCache, foxglove_url, list_logs, recordings, resolve_log, scan_extent, snapshot_chunks,
-    snapshot_tail,
+    FOXGLOVE_APP, RECORDING_WITHIN_S, ExtentCache, foxglove_url, list_logs, recordings, resolve_log,
 )
 from lotsen.web.tiles import tile_image_type, valid_tile
 

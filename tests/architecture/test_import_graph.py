@@ -27,6 +27,7 @@ LAYERS: dict[str, int] = {
 # Same-layer arrows that are part of the design (each must stay acyclic).
 SIDEWAYS: set[tuple[str, str]] = {
     ("logs", "transport"),  # logs decode recorded messages with the transport's codec
+    ("web", "logs"),  # the page's log list and downloads read the files with the logs' MCAP walk
     ("files", "errors"), ("messages", "errors"),  # the base: errors is the root of all
 }
 
@@ -140,7 +141,7 @@ ALLOWED: dict[str, set[str]] = {
     "drivers": {"runtime", "model", "sim"},
     "logs": {"runtime", "transport", "sysid", "fusion"},
     "transport": {"runtime"},
-    "web": {"runtime", "planning"},
+    "web": {"runtime", "planning", "logs"},
 }
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
 

@@ -194,7 +194,8 @@ def test_the_file_being_recorded_downloads_as_a_readable_snapshot(tmp_path):
     import time
 
     from lotsen.logs.recorder import McapRecorder, RecorderConfig
-    from lotsen.web.logfiles import ExtentCache, scan_extent
+    from lotsen.logs.snapshot import scan_extent
+    from lotsen.web.logfiles import ExtentCache
 
     rs = start_stack(log_dir=str(tmp_path))
     rec = McapRecorder(RecorderConfig(directory=str(tmp_path), flush_period_s=0.2, fsync=False)).attach(rs.stack.bus)
@@ -243,7 +244,7 @@ def test_snapshot_cuts_a_partly_written_record(tmp_path):
     """A chunk half on disk is left out; the cut file still reads."""
     from mcap.writer import Writer
 
-    from lotsen.web.logfiles import scan_extent, snapshot_chunks
+    from lotsen.logs.snapshot import scan_extent, snapshot_chunks
 
     p = tmp_path / "live.mcap"
     f = open(p, "wb")
