@@ -176,7 +176,7 @@ class RcReceiverNode(DriverNode):
             self.error(out, now, "read_errors", f"{self.device}: read failed: {exc}")
             self.health.opened = False
             self._next_open_s = now + self.reopen_s
-            self._publish(out, now)  # the link is judged even without a port
+            self._emit(out, now)  # the link is judged even without a port
             return out
         if data:
             for f in self.decoder.feed(bytes(data)):
@@ -189,10 +189,10 @@ class RcReceiverNode(DriverNode):
                     self._counted[key] += new
                     self.health.dropped += new
                     self.error(out, now, key, f"{self.device}: {new} {key.replace('_', ' ')}")
-        self._publish(out, now)
+        self._emit(out, now)
         return out
 
-    def _publish(self, out: Out, now: float) -> None:
+    def _emit(self, out: Out, now: float) -> None:
         msg = self.rc.override(now)
         key = (msg.active, msg.estop, msg.link, self.rc.thrust_enabled)
         if key != self._last_key:
