@@ -127,7 +127,7 @@ def test_fuzz_random_and_mutated_bytes_never_raise(seed):
                     b.insert(i, int(rng.integers(256)))
             chunk = bytes(b)
         else:  # the bytes that matter most: headers and footers
-            chunk = bytes(rng.choice([0x0F, 0x00, 0xFF], int(rng.integers(1, 60))))
+            chunk = rng.choice([0x0F, 0x00, 0xFF], int(rng.integers(1, 60))).astype(np.uint8).tobytes()
         for f in dec.feed(chunk):
             assert len(f.channels) == 16 and all(0 <= v <= 2047 for v in f.channels)
             total += 1
