@@ -153,10 +153,12 @@ class RcReceiverNode(DriverNode):
         self._counted = {"bad_frames": 0, "garbage_bytes": 0}
         self._last_pub_s = -math.inf
         self._last_key: tuple | None = None
+        self._opened_s = -math.inf
 
     def open(self, now: float) -> None:
         self.port = self._open_port()
         self.decoder.reset()
+        self._opened_s = now
 
     def close(self) -> None:
         if self.port is not None:
@@ -193,6 +195,8 @@ class RcReceiverNode(DriverNode):
         return out
 
     def _emit(self, out: Out, now: float) -> None:
+        if self.rc.last_frame is None and now - self._opened_s <= self.cfg.lost_after_s:
+            return  # just opened: the first frame is on its way, no "lost" yet
         msg = self.rc.override(now)
         key = (msg.active, msg.estop, msg.link, self.rc.thrust_enabled)
         if key != self._last_key:

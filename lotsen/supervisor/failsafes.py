@@ -196,7 +196,7 @@ class RcLinkMonitor(Monitor):
         if rc.link == "failsafe":
             return True, "RC receiver in failsafe (transmitter off or out of range)"
         if rc.link != "ok":
-            return True, "RC frames lost (transmitter off or out of range)"
+            return True, "RC link lost: no good frames (transmitter off or out of range, or the receiver unplugged)"
         return False, ""
 
 

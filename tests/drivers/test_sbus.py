@@ -237,7 +237,7 @@ def test_node_publishes_at_its_rate_and_reports_the_link_within_its_time():
     node, x8r = node_and_twin(cfg)
     out = run_node(node, x8r, 0.0, 2.0)
     rc = [(t, m) for t, topic, m in out if topic == Topic.RC]
-    assert 38 <= len(rc) <= 42 and all(m.link == "ok" and not m.active for _, m in rc[1:])
+    assert 38 <= len(rc) <= 42 and all(m.link == "ok" and not m.active for _, m in rc)  # no "lost" at start
     assert node.health.messages >= 200 and node.health.dropped == 0
     x8r.transmitter_on = False
     out = run_node(node, x8r, 2.0, 3.5)
@@ -253,6 +253,15 @@ def test_node_publishes_at_its_rate_and_reports_the_link_within_its_time():
     out = run_node(node, x8r, 3.6, 4.0)
     lost = [t for t, topic, m in out if topic == Topic.RC and m.link == "lost"]
     assert lost and lost[0] - 3.6 <= cfg.lost_after_s + 0.03
+
+
+def test_node_reports_a_receiver_that_never_speaks_as_lost():
+    cfg = RcSection()
+    node, x8r = node_and_twin(cfg)
+    x8r.output_on = False
+    out = run_node(node, x8r, 0.0, 1.0)
+    rc = [(t, m) for t, topic, m in out if topic == Topic.RC]
+    assert rc and all(m.link == "lost" for _, m in rc) and rc[0][0] <= cfg.lost_after_s + 0.02
 
 
 def test_node_survives_a_corrupted_stream():
