@@ -354,11 +354,19 @@ class ManualCommand:
 
 @dataclass(slots=True, kw_only=True)
 class RcOverride:
-    """The RC transmitter (seed: can always take over). active=True wins over everything."""
+    """The RC transmitter (seed: can always take over), as the receiver driver reads it.
+
+    active: the takeover switch is on (it wins over every mode); estop: the e-stop switch is on
+    (latches the emergency stop); link: "ok", "lost" (no frames, or frames flagged lost, for the
+    driver's `lost_after_s`) or "failsafe" (the receiver's failsafe flag). With a link that is
+    not "ok" the switches are unknown: `active` repeats the last known takeover state, `estop`
+    is False and there is no command."""
 
     stamp_s: float
     active: bool
     command: ThrustCommand | None = None
+    estop: bool = False
+    link: str = "ok"
 
 
 @dataclass(slots=True, kw_only=True)

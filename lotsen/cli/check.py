@@ -67,6 +67,9 @@ def run(args: argparse.Namespace) -> int:
         fix = stack.bus.latest.get("gps_chatter")
         extra["gnss"] = (f"configured={'yes' if r.configured else 'NO'}"
                          + (f", fix {fix.fix_type.name}, h_acc {fix.h_acc_m:.3f} m, {fix.num_sv} SV" if fix else ""))
+    rc = boat.drivers.get("rc")
+    if rc is not None and rc.health.opened:
+        extra["rc"] = rc.detail()
     rows = boat.health()
     print(format_table(rows, extra))
     bad = [h.name for h in rows if not h.ok]

@@ -1,4 +1,5 @@
-"""Hardware configuration: pin map, ports, buses, calibrations and gains of the real boat.
+"""Hardware configuration: pin map, ports, buses, calibrations and gains of the real boat, and the
+RC transmitter's channel map.
 
 Defaults follow the seed's pin map (section 1, Table 2 of the design specification). Load it from the launch
 config's ``extra["hardware"]`` mapping with the project's strict loader::
@@ -168,6 +169,73 @@ class BatterySection:
 
 
 @dataclass(frozen=True)
+class RcStick:
+    """One stick channel of the transmitter: raw SBUS value -> [-1, 1], linear on each side of
+    `center_raw`, 0 within `deadband` (a fraction of full deflection)."""
+
+    channel: int = field(default=0, metadata=_r(1, 16))  # required: which channel the stick is on
+    min_raw: int = field(default=172, metadata=_r(0, 2047))  # FrSky -100 %
+    center_raw: int = field(default=992, metadata=_r(0, 2047))
+    max_raw: int = field(default=1811, metadata=_r(0, 2047))  # FrSky +100 %
+    deadband: float = field(default=0.05, metadata=_r(0.0, 0.5))
+    reverse: bool = False
+
+    def __post_init__(self) -> None:
+        if self.channel == 0:
+            raise ValueError("channel: say which channel (1-16) this stick is on")
+        if not self.min_raw + 100 <= self.center_raw <= self.max_raw - 100:
+            raise ValueError(f"channel {self.channel}: needs min_raw + 100 <= center_raw <= max_raw - 100 "
+                             f"(a usable stick travel), got min_raw {self.min_raw}, center_raw "
+                             f"{self.center_raw}, max_raw {self.max_raw}")
+
+
+@dataclass(frozen=True)
+class RcSwitch:
+    """A switch channel: on when the raw value is above `on_above_raw` (below it with `reverse`).
+    Channels 17 and 18 are the SBUS digital channels."""
+
+    channel: int = field(default=0, metadata=_r(1, 18))  # required: which channel the switch is on
+    on_above_raw: int = field(default=1400, metadata=_r(1, 2046))
+    reverse: bool = False
+
+    def __post_init__(self) -> None:
+        if self.channel == 0:
+            raise ValueError("channel: say which channel (1-16, or 17/18 digital) this switch is on")
+
+
+@dataclass(frozen=True)
+class RcSection:
+    """FrSky X8R on a Pi UART (SBUS) and the channel map. Default: Mode 2 transmitter in FrSky's
+    AETR order; steering on the right stick (ch1), throttle on the spring-centred right stick
+    (ch2: ahead / astern), bow thruster on the left stick sideways (ch4), takeover on a two-position
+    switch (ch5), emergency stop on another (ch6)."""
+
+    enabled: bool = True
+    port: str = "/dev/ttyAMA2"  # Pi 4 uart3 on GPIO 4 (TX) / 5 (RX) through an inverter; see docs/drivers.md
+    steering: RcStick = RcStick(channel=1)  # right: the bow turns to starboard going ahead
+    throttle: RcStick = RcStick(channel=2)  # up: ahead
+    bow: RcStick = RcStick(channel=4)  # right: the bow thruster pushes the bow to starboard
+    takeover: RcSwitch = RcSwitch(channel=5)
+    estop: RcSwitch = RcSwitch(channel=6)
+    n_az_max_rps: float = field(default=60.0, metadata=_r(1.0, 200.0))  # full throttle stick
+    n_bow_max_rps: float = field(default=50.0, metadata=_r(1.0, 200.0))  # full bow stick
+    alpha_max_deg: float = field(default=35.0, metadata=_r(1.0, 90.0))  # full steering stick
+    # frames flagged lost (or none at all) for this long: the link is lost. The supervisor adds
+    # one control period (0.1 s) before the thrusters go neutral; keep the sum under 0.5 s.
+    lost_after_s: float = field(default=0.2, metadata=_r(0.05, 0.35))
+    publish_hz: float = field(default=20.0, metadata=_r(5.0, 100.0))  # rc/override (and at once on a change)
+    min_frame_hz: float = field(default=50.0, metadata=_r(1.0, 200.0))  # `lotsen check`: frames at least this often
+
+    def __post_init__(self) -> None:
+        used: dict[int, str] = {}
+        for name in ("steering", "throttle", "bow", "takeover", "estop"):
+            ch = getattr(self, name).channel
+            if ch in used:
+                raise ValueError(f"{name}.channel {ch} is also {used[ch]}.channel: every function needs its own channel")
+            used[ch] = name
+
+
+@dataclass(frozen=True)
 class EmulationSection:
     """How the emulated twins differ from the driver's assumptions (to exercise the loops)."""
 
@@ -181,6 +249,7 @@ class HardwareConfig:
     imu: ImuSection = field(default_factory=ImuSection)
     actuators: ActuatorSection = field(default_factory=ActuatorSection)
     battery: BatterySection = field(default_factory=BatterySection)
+    rc: RcSection = field(default_factory=RcSection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 
 

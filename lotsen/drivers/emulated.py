@@ -8,6 +8,8 @@ fed by `lotsen.sim.Simulator`, so the real driver code runs end to end on any ma
 - `EmulatedI2CBus` with `Mpu9250Twin`, `Ak8963Twin` (visible only with the MPU's bypass on),
   `Ina219Twin`: the smbus2.SMBus methods the drivers use; absent addresses raise OSError 121
   (Remote I/O error) as the kernel does; `error_probability` injects read errors.
+- `EmulatedX8R`: the RC receiver's SBUS frames from the transmitter's channels, with the
+  frame-lost and failsafe flags of a lost transmitter and a cut wire (no bytes).
 - `EmulatedPigpio`: stores pulse widths and calls tachometer callbacks with edges at the
   simulated propeller speeds.
 - `EmulatedBoatNode`: steps the simulator at its dt: reads the ESC/servo pulses, turns them into
@@ -30,6 +32,7 @@ import numpy as np
 from lotsen.drivers import actuators as act
 from lotsen.drivers import battery as ina
 from lotsen.drivers import imu as mpu
+from lotsen.drivers import sbus
 from lotsen.drivers.config import HardwareConfig
 from lotsen.drivers.ubx import StreamFramer, encode_nav_pvt, ubx_frame
 from lotsen.messages import BatteryStatus, GnssFix, GnssFixType, ImuSample, MagSample, Topic
@@ -186,6 +189,63 @@ class EmulatedZedF9P:
 
     def has_corrections(self, t: float, timeout_s: float = 5.0) -> bool:
         return t - self.last_rtcm_t < timeout_s
+
+
+class EmulatedX8R:
+    """FrSky X8R twin: one SBUS frame every `frame_period_s` of simulated time on `port` (the
+    bytes a real X8R sends, after the inverter). The transmitter side is `channels` (raw values,
+    FrSky's 172..1811; set them with lotsen.drivers.rc.stick_raw / switch_raw).
+
+    `transmitter_on = False`: the receiver repeats the last channels with the frame-lost flag and
+    after `failsafe_after_s` sets the failsafe flag too, with its failsafe values (`failsafe_hold`:
+    the last ones, else `failsafe_channels`). `output_on = False`: no bytes at all (a cut wire,
+    or the receiver's "no pulses" failsafe). `corrupt_probability` flips bytes."""
+
+    def __init__(self, frame_period_s: float = 0.009, failsafe_after_s: float = 1.0,
+                 rng: np.random.Generator | None = None) -> None:
+        self.port = EmulatedSerialPort("emulated:x8r/sbus", timeout=0.05)
+        self.frame_period_s = frame_period_s
+        self.failsafe_after_s = failsafe_after_s
+        self.channels = [sbus.RAW_CENTER] * 4 + [sbus.RAW_LOW] * 12  # sticks centred, switches off
+        self.ch17 = self.ch18 = False
+        self.transmitter_on = True
+        self.output_on = True
+        self.failsafe_hold = True
+        self.failsafe_channels = [sbus.RAW_CENTER] * 16
+        self.corrupt_probability = 0.0
+        self.rng = rng or np.random.default_rng(2)
+        self.frames_sent = 0
+        self._held: tuple[int, ...] = tuple(self.channels)
+        self._off_since: float | None = None
+        self._next_s = 0.0
+
+    def frame(self, t: float) -> sbus.SbusFrame:
+        if self.transmitter_on:
+            self._off_since = None
+            self._held = tuple(self.channels)
+            return sbus.SbusFrame(self._held, ch17=self.ch17, ch18=self.ch18)
+        if self._off_since is None:
+            self._off_since = t
+        if t - self._off_since < self.failsafe_after_s:
+            return sbus.SbusFrame(self._held, ch17=self.ch17, ch18=self.ch18, frame_lost=True)
+        chans = self._held if self.failsafe_hold else tuple(self.failsafe_channels)
+        return sbus.SbusFrame(chans, frame_lost=True, failsafe=True)
+
+    def advance(self, t: float) -> None:
+        """Send the frames due up to simulated time t."""
+        out = bytearray()
+        while self._next_s <= t:
+            f = self.frame(self._next_s)
+            self._next_s += self.frame_period_s
+            if self.output_on:
+                out += sbus.encode_frame(f)
+                self.frames_sent += 1
+        if out and self.corrupt_probability:
+            for i in range(len(out)):
+                if self.rng.random() < self.corrupt_probability:
+                    out[i] ^= 1 << int(self.rng.integers(8))
+        if out:
+            self.port.push(bytes(out))
 
 
 # -- I2C --------------------------------------------------------------------------------------
@@ -446,6 +506,7 @@ class EmulatedBoatNode(Node):
         self.i2c.ak = Ak8963Twin(hw.imu.axes) if hw.imu.enabled else None
         self.i2c.ina = Ina219Twin(hw.battery.shunt_ohm) if hw.battery.enabled else None
         self.pi = EmulatedPigpio()
+        self.x8r = EmulatedX8R(rng=np.random.default_rng(sim.config.seed + 1002)) if hw.rc.enabled else None
         a = hw.actuators
         # the *true* ESCs: the driver's calibration scaled by esc_gain
         from dataclasses import replace
@@ -524,6 +585,8 @@ class EmulatedBoatNode(Node):
                 with self.i2c._lock:
                     self.i2c.ina.set(m.voltage_v, m.current_a)
         self._edges(t0, t1)
+        if self.x8r is not None:
+            self.x8r.advance(t1)
         self.pi.tick_us = int(round(t1 * 1e6))
         self._steps += 1
         if self._steps % self._truth_every == 0:

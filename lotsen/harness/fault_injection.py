@@ -12,7 +12,12 @@ run, any other mode fails it, and no failsafe may trigger except those listed), 
 thrusters neutral within the deadline and from then on), `fallback` (the fallback controller
 commands within the deadline), `refused` (an operator action is refused with an alert and the
 mode does not change), `guard_non_finite` (non-finite commands replaced at the actuators),
-`geofence` (a breach answered by HOLD at a point inside the area).
+`geofence` (a breach answered by HOLD at a point inside the area), `command` (the thrusters
+follow a source, e.g. the RC transmitter, within the deadline), `latched` (a mode, once
+entered, kept to the end).
+
+RC scenarios put the emulated X8R receiver and the real SBUS driver into the stack
+(`rc_receiver`, or any `rc_*` injection); `rc_pilot` lets the pilot take over before the fault.
 """
 
 from __future__ import annotations
@@ -25,6 +30,9 @@ from typing import Any, Callable
 
 from shapely.geometry import Point
 
+from lotsen.drivers.config import RcSection
+from lotsen.drivers.emulated import EmulatedX8R
+from lotsen.drivers.rc import RcReceiverNode, stick_raw, switch_raw
 from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
 from lotsen.messages import (
@@ -94,6 +102,8 @@ class Scenario:
     repeat_route: bool = False  # AUTO again whenever the route is finished (closed-loop routes)
     start: tuple[float, ...] = START  # initial state of the simulated boat
     failsafes: dict = field(default_factory=dict)  # extra.failsafes of the run (FailsafeConfig keys)
+    rc_receiver: bool = False  # an emulated X8R and the RC driver in the stack from the start
+    rc_pilot: dict = field(default_factory=dict)  # takeover_at_s, throttle, steering, bow: RC control before the fault
 
 
 class _Observer(Node):
@@ -191,6 +201,13 @@ class FaultRun:
             sup = self.supervisor
             sup.route = replace(sup.route, area=sc.area)
         self.pilot = self.stack.add(_Pilot()) if sc.start_mode == "manual" else None
+        self.rc: _RcTransmitter | None = None
+        if sc.rc_receiver or sc.inject.startswith("rc_") or sc.rc_pilot:
+            self.rc = self.stack.add(_RcTransmitter())  # first: its frames are there when the driver polls
+            self.stack.add(RcReceiverNode(self.rc.cfg, self.rc.x8r.port.reopen))
+            if sc.rc_pilot:
+                p = dict(sc.rc_pilot)
+                self.stack.add(_Later(float(p.pop("takeover_at_s", 0.0)), lambda: self.rc.take_over(self, p)))
         self.sim = self.stack.simulator
         self.boat = self.stack.nodes["sim_boat"]
         self.fault_t = sc.fault_at_s
@@ -367,10 +384,33 @@ def _check_estimate(run: FaultRun, step: dict) -> tuple[bool, float | None, str]
     return ok, None, f"max position error {run.trace.max_position_error_m:.2f} m (<= {max_pos:g})"
 
 
+def _check_command(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
+    """A ship_command from `source` with both azimuth propellers at `min_n_rps` or more within the deadline
+    (the thrusters follow the RC transmitter's sticks)."""
+    within, source, n_min = float(step["within_s"]), step["source"], float(step.get("min_n_rps", 0.0))
+    for t, c in run.trace.commands:
+        if t >= run.fault_t and c.source == source and min(c.n1_rps, c.n2_rps) >= n_min:
+            dt = t - run.fault_t
+            return dt <= within, dt, f"{source} commands {c.n1_rps:.0f} rev/s after {dt:.2f} s"
+    seen = sorted({c.source for t, c in run.trace.commands if t >= run.fault_t})
+    return False, None, f"no command from {source} with n >= {n_min:g} rev/s (sources seen: {', '.join(seen)})"
+
+
+def _check_latched(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
+    """`mode`, once entered after the fault, is never left until the end of the run."""
+    mode = step["mode"]
+    t = run.trace.first_time(lambda m, r: m == mode, run.fault_t)
+    if t is None:
+        return False, None, f"never entered {mode}"
+    left = [(tm, m, r) for tm, m, r in run.trace.modes if tm > t and m != mode]
+    return not left, None, (f"{mode} latched to the end" if not left else f"left {mode}: {left[0]}")
+
+
 _CHECKS: dict[str, Callable[[FaultRun, dict], tuple[bool, float | None, str]]] = {
     "mode": _check_mode, "auto_continues": _check_auto_continues, "neutral": _check_neutral,
     "stays": _check_stays, "fallback": _check_fallback, "refused": _check_refused, "guard_non_finite": _check_guard,
-    "geofence": _check_geofence, "estimate_close": _check_estimate,
+    "geofence": _check_geofence, "estimate_close": _check_estimate, "command": _check_command,
+    "latched": _check_latched,
 }
 
 
@@ -480,6 +520,43 @@ def _escs_never_arm(run: FaultRun, params: dict) -> None:
 
 def _gnss_fix_type(run: FaultRun, params: dict) -> None:
     run.sim.set_gnss_fix_type(GnssFixType[str(params.get("fix_type", "FIX_3D"))])
+class _RcTransmitter(Node):
+    """The pilot's RC transmitter and the X8R receiver (`EmulatedX8R`), stepped on simulated time;
+    the real SBUS driver (`RcReceiverNode`) reads its bytes."""
+
+    name = "rc_transmitter"
+
+    def __init__(self) -> None:
+        self.cfg = RcSection()
+        self.x8r = EmulatedX8R()
+
+    def start(self, ctx: NodeContext) -> None:
+        self.ctx = ctx
+        ctx.add_timer(0.005, lambda: self.x8r.advance(ctx.now()))
+
+    def sticks(self, throttle: float = 0.0, steering: float = 0.0, bow: float = 0.0) -> None:
+        c, ch = self.cfg, self.x8r.channels
+        for stick, value in ((c.throttle, throttle), (c.steering, steering), (c.bow, bow)):
+            ch[stick.channel - 1] = stick_raw(stick, value)
+
+    def switch(self, which: str, on: bool) -> None:
+        sw = getattr(self.cfg, which)
+        self.x8r.channels[sw.channel - 1] = switch_raw(sw, on)
+
+    def take_over(self, run: FaultRun, params: dict) -> None:
+        """Takeover switch on with the sticks centred, then the sticks to `params` 0.3 s later."""
+        self.sticks()
+        self.switch("takeover", True)
+        run.stack.add(_Later(0.3, lambda: self.sticks(**{k: float(v) for k, v in params.items()})))
+
+
+def _rc(run: FaultRun) -> _RcTransmitter:
+    assert run.rc is not None, "an RC injection needs the RC receiver in the stack"
+    return run.rc
+
+
+def _rc_setter(attr: str, value: Any) -> Callable[[FaultRun, dict], None]:
+    return lambda run, p: setattr(_rc(run).x8r, attr, value)
 
 
 INJECTIONS: dict[str, tuple[Callable[[FaultRun, dict], None], Callable[[FaultRun, dict], None] | None]] = {
@@ -504,6 +581,10 @@ INJECTIONS: dict[str, tuple[Callable[[FaultRun, dict], None], Callable[[FaultRun
     "future_stamp": (_future_stamp, None),
     "escs_never_arm": (_escs_never_arm, None),
     "gnss_fix_type": (_gnss_fix_type, None),
+    "rc_takeover": (lambda run, p: _rc(run).take_over(run, p), None),
+    "rc_estop": (lambda run, p: _rc(run).switch("estop", True), lambda run, p: _rc(run).switch("estop", False)),
+    "rc_transmitter_off": (_rc_setter("transmitter_on", False), _rc_setter("transmitter_on", True)),
+    "rc_receiver_silent": (_rc_setter("output_on", False), _rc_setter("output_on", True)),
 }
 #: injections present from power-up (before arming), not at fault_at_s
 POWER_UP_FAULTS = ("escs_never_arm", "gnss_fix_type")

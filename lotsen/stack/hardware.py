@@ -1,6 +1,6 @@
 """Put the hardware boat into a `Stack`: driver nodes publishing what the simulated boat
-publishes (imu/data_raw, imu/mag, gps_chatter, rpm_chatter, battery, sim/actuators) and
-obeying ship_command through the `ActuatorGuard`.
+publishes (imu/data_raw, imu/mag, gps_chatter, rpm_chatter, battery, sim/actuators), the RC
+receiver (rc/override), and obeying ship_command through the `ActuatorGuard`.
 
 `emulated=True` puts the device twins (lotsen.drivers.emulated) behind the same driver code and
 adds the node that steps the simulator (stack.simulator, created from the launch config when
@@ -19,6 +19,7 @@ from lotsen.drivers.battery import BatteryNode
 from lotsen.drivers.config import HardwareConfig, hardware_config_from_launch
 from lotsen.drivers.gnss import GnssNode, serial_opener
 from lotsen.drivers.imu import ImuNode
+from lotsen.drivers.rc import RcReceiverNode, sbus_opener
 from lotsen.model.parameters import DEFAULT_LIMITS
 from lotsen.runtime.executor import RealtimeExecutor
 from lotsen.stack.stack import simulator_from_config
@@ -79,6 +80,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         open_imu_bus = lambda: twin.i2c  # noqa: E731
         open_batt_bus = lambda: twin.i2c  # noqa: E731
         open_pi = lambda: twin.pi  # noqa: E731
+        open_rc = twin.x8r.port.reopen if twin.x8r is not None else None
         sleep = no_sleep
     else:
         import time
@@ -90,6 +92,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         open_imu_bus = _smbus_opener(hw.imu.bus)
         open_batt_bus = _smbus_opener(hw.battery.bus)
         open_pi = pigpio_opener(hw.actuators.pigpio_host, hw.actuators.pigpio_port)
+        open_rc = sbus_opener(hw.rc.port)
         sleep = time.sleep
     limits = DEFAULT_LIMITS  # the boat's configured limits, also with emulated devices (the twin has its own)
     if hw.actuators.enabled:
@@ -100,6 +103,8 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         boat.drivers["gnss"] = GnssNode(hw.gnss, open_gnss, open_rtcm, open_base, threaded=threaded)
     if hw.battery.enabled:
         boat.drivers["battery"] = BatteryNode(hw.battery, open_batt_bus, threaded=threaded)
+    if hw.rc.enabled and open_rc is not None:
+        boat.drivers["rc"] = RcReceiverNode(hw.rc, open_rc, threaded=threaded)
     for node in boat.drivers.values():
         if emulated:
             node.device = node.health.device = f"emulated {node.device}"

@@ -88,6 +88,9 @@ class FailsafeConfig:
     prearm_skip: tuple[SkippablePrearmCheck, ...] = ()
     # expert override: failed checks that can be overridden are logged and alerted, not refused
     prearm_override: bool = False
+    # RC receiver: no rc/override for this long counts as a lost RC link (the driver itself
+    # reports a lost link after its lost_after_s); while the RC has control: neutral
+    rc_timeout_s: float = field(default=0.3, metadata=_r(0.1, 0.4))
 
     @property
     def min_fix_type(self) -> GnssFixType:
@@ -182,6 +185,31 @@ class LinkMonitor(Monitor):
             return True, f"no word from the operator's page for {age:.1f} s"
         if not inputs.link.pilot_connected:
             return True, "the pilot left (page closed or silent)"
+        return False, ""
+
+
+class RcLinkMonitor(Monitor):
+    """The RC receiver, once heard: its link lost or in failsafe, or the driver silent for
+    rc_timeout_s. No action of its own: the RC mode commands neutral without a good link, and
+    in the other modes the boat goes on (the RC is the pilot's backup)."""
+
+    name = "rc_lost"
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        super().__init__(0.0, 0.5, {})
+        self.timeout_s = cfg.rc_timeout_s
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        rc = inputs.rc
+        if rc is None:
+            return False, ""
+        age = t - inputs.rc_arrival_s
+        if age > self.timeout_s:
+            return True, f"no word from the RC receiver for {age:.1f} s"
+        if rc.link == "failsafe":
+            return True, "RC receiver in failsafe (transmitter off or out of range)"
+        if rc.link != "ok":
+            return True, "RC link lost: no good frames (transmitter off or out of range, or the receiver unplugged)"
         return False, ""
 
 
@@ -334,6 +362,7 @@ def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMI
     thrusting: dict[str, Action] = {m: "stop" for m in ("AUTO", "RETURN", "HOLD", "MANUAL", "CALIBRATE")}
     return [
         LinkMonitor(cfg),
+        RcLinkMonitor(cfg),
         GnssLostMonitor(cfg),
         GnssDegradedMonitor(cfg),
         EstimatorMonitor(cfg),

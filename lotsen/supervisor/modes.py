@@ -9,7 +9,7 @@ predicates), what happens when it is entered and left, and what the thrusters do
 | RETURN    | plan to the harbour inside the area and follow it      | armed, route, position      |
 | CALIBRATE | spin on the bow thruster one turn, fit the magnetometer | armed, heading              |
 | ESTOP     | neutral, latched until 'reset_estop'; disarms          | -                           |
-| RC        | the RC transmitter's command (or neutral)              | RcOverride.active           |
+| RC        | the RC transmitter's command (neutral without a link)  | RcOverride.active           |
 
 "Stop" in the failsafe table means MANUAL with neutral thrusters and the reason shown: the
 operator can still drive by keyboard, the boat does not move by itself.
@@ -186,14 +186,17 @@ class Estop(Mode):
 
 
 class Rc(Mode):
-    """The RC transmitter has control (the seed: a human can always take over)."""
+    """The RC transmitter has control (the seed: a human can always take over). Neutral when it
+    sends no command, and when its link is lost, in failsafe or silent for rc_timeout_s."""
 
     name = "RC"
     requires_armed = False
 
     def update(self, sup: "SupervisorNode", t: float) -> Output:
         rc = sup.inputs.rc
-        return (rc.command if rc is not None and rc.command is not None else neutral(t, "rc")), None
+        if rc is None or rc.link != "ok" or t - sup.inputs.rc_arrival_s > sup.config.failsafes.rc_timeout_s:
+            return neutral(t, "rc:link-lost"), None
+        return (rc.command if rc.command is not None else neutral(t, "rc")), None
 
 
 def all_modes() -> dict[str, Any]:

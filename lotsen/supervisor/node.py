@@ -74,6 +74,8 @@ class SupervisorInputs:
     link: LinkStatus | None = None
     link_arrival_s: float = -math.inf
     rc: RcOverride | None = None
+    rc_arrival_s: float = -math.inf
+    rc_takeover: bool = False  # the takeover switch as last seen over a good link
     fix: GnssFix | None = None
     last_usable_fix_s: float | None = None
     battery: BatteryStatus | None = None
@@ -179,8 +181,21 @@ class SupervisorNode(Node):
         self.inputs.link_arrival_s = self.ctx.now()
 
     def _on_rc(self, msg: RcOverride) -> None:
+        """The e-stop switch latches ESTOP; the takeover switch going on enters RC (also from
+        ESTOP: the transmitter wins), going off releases it. Without a good link the switches are
+        unknown and change nothing (the RC mode then commands neutral)."""
         t = self.ctx.now()
-        if msg.active and self.mode.name != "RC":
+        was_on = self.inputs.rc_takeover
+        self.inputs.rc, self.inputs.rc_arrival_s = msg, t
+        if msg.link != "ok":
+            return
+        self.inputs.rc_takeover = msg.active
+        if msg.estop:
+            if self.mode.name != "ESTOP":
+                self.set_mode(self.modes["ESTOP"], "emergency stop by the RC transmitter")
+                self.alert("critical", "estop", "emergency stop by the RC transmitter")
+            return
+        if msg.active and not was_on:
             self.mode_before_rc = self.mode.name
             self.set_mode(self.modes["RC"], "RC transmitter override")
         elif not msg.active and self.mode.name == "RC":
@@ -188,7 +203,6 @@ class SupervisorNode(Node):
                 self.enter_hold(t, "RC override released")
             else:
                 self.set_mode(self.modes["MANUAL"], "RC override released")
-        self.inputs.rc = msg
 
     def _on_state(self, msg: VesselState) -> None:
         self.inputs.state = msg

@@ -274,5 +274,5 @@ class TelemetryState:
                             "n1": num(m.n1_rps, 2), "n2": num(m.n2_rps, 2), "nt": num(m.nt_rps, 2)}
         rc = L.get(Topic.RC)
         if isinstance(rc, RcOverride):
-            out["rc"] = {"t": num(rc.stamp_s), "active": rc.active}
+            out["rc"] = {"t": num(rc.stamp_s), "active": rc.active, "estop": rc.estop, "link": rc.link}
         return out

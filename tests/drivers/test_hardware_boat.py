@@ -173,3 +173,4 @@ def test_check_command_against_the_twins(capsys):
     out = capsys.readouterr().out
     assert "all devices OK" in out and "configured=yes" in out
     assert "imu: emulated MPU9250" in out
+    assert "rc: emulated X8R SBUS" in out and "link ok, takeover off, e-stop off" in out

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from lotsen.harness.fault_injection import FaultRun, load_scenarios
+from lotsen.messages import ThrustCommand
 
 SCENARIOS = load_scenarios(Path(__file__).with_name("failsafe_scenarios.yaml"))
 
@@ -19,3 +20,41 @@ def test_fault_reaches_the_documented_safe_state(scenario, tmp_path):
     assert row["max_outside_area_m"] <= scenario.margin_m, row
     assert row["logged"], f"the run's MCAP log {run.log_path} does not hold '{scenario.log_contains}'"
     assert row["pass"], row
+
+
+def _ignore(field):
+    """A supervisor that does not see one of the RC switches."""
+    from dataclasses import replace
+
+    from lotsen.supervisor.node import SupervisorNode
+
+    original = SupervisorNode._on_rc
+    return SupervisorNode, "_on_rc", lambda self, msg: original(self, replace(msg, **{field: False}))
+
+
+def _holds_last_rc_command():
+    """An RC mode that keeps the last command it had when the link goes (a receiver 'hold' bug)."""
+    from lotsen.supervisor.modes import Rc
+
+    def update(self, sup, t):
+        rc = sup.inputs.rc
+        if rc is not None and rc.command is not None:
+            self.last = rc.command
+        last = getattr(self, "last", None)
+        return (last if last is not None else ThrustCommand.neutral(t)), None
+
+    return Rc, "update", update
+
+
+@pytest.mark.parametrize("name, sabotage", [
+    ("rc_takeover", lambda: _ignore("active")),
+    ("rc_estop", lambda: _ignore("estop")),
+    ("rc_transmitter_lost", _holds_last_rc_command),
+    ("rc_receiver_silent", _holds_last_rc_command),
+])
+def test_rc_scenarios_fail_when_the_supervisor_does_not_act(name, sabotage, monkeypatch):
+    """The RC checks can fail: with the safety behaviour broken, the scenario does not pass."""
+    monkeypatch.setattr(*sabotage())
+    scenario = next(s for s in SCENARIOS if s.name == name)
+    row = FaultRun(scenario, seed=1).run()
+    assert not row["safe_state_reached"] and not row["pass"], row

@@ -83,13 +83,14 @@ def test_rc_override_wins_over_everything():
     op(stack, "estop")
     run(stack, 0.5)
     rc_cmd = ThrustCommand(stamp_s=0.5, n1_rps=30, n2_rps=30, source="rc")
-    stack.bus.publish(Topic.RC, RcOverride(stamp_s=0.5, active=True, command=rc_cmd))
+    sticks = {"msg": RcOverride(stamp_s=0.5, active=True, command=rc_cmd)}
+    stack.executor.add_timer(0.05, lambda: stack.bus.publish(Topic.RC, sticks["msg"]))  # a receiver: 20 Hz
     run(stack, 1.0)
     assert sup.mode.name == "RC" and cmds[-1].n1_rps == 30
     op(stack, "auto")
     run(stack, 0.5)
     assert sup.mode.name == "RC"
-    stack.bus.publish(Topic.RC, RcOverride(stamp_s=2.0, active=False))
+    sticks["msg"] = RcOverride(stamp_s=2.0, active=False)
     run(stack, 0.5)
     assert sup.mode.name == "MANUAL" and not sup.armed  # the e-stop disarmed the boat
 

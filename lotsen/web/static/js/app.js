@@ -229,7 +229,7 @@ function renderHud(f) {
   // supervisor warnings not already shown as alerts
   const shown = new Set([...alerts.items.keys()].map(k => k.replace(/^failsafe:/, "")));
   const warn = [...(s ? s.warnings : [])].filter(w => !shown.has(w.split(":")[0]) && !(w.startsWith("link_lost") && !l.ever));
-  if (f.rc && f.rc.active) warn.push("RC override active");
+  if (f.rc && (f.rc.active || f.rc.link !== "ok")) warn.push(`RC: ${f.rc.active ? "takeover ON" : "takeover off"} · link ${f.rc.link || "ok"}`);
   const html = warn.map(w => `<li>${esc(w)}</li>`).join("");
   const ul = $("#warnings");
   if (ul.innerHTML !== html) ul.innerHTML = html;
