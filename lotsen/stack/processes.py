@@ -47,7 +47,7 @@ from lotsen.stack.launch import build_stack, summary
 from lotsen.stack.logs import add_foxglove_server, add_recorder, recorder_config
 from lotsen.stack.planner_worker import PlannerWorker
 from lotsen.stack.stack import Stack, failsafe_config, load_parameters, planner_config, resolve_origin, simulated_boat, vessel_model
-from lotsen.stack.web import add_web, tls_certificate
+from lotsen.stack.web import add_web, check_web_host, tls_certificate
 from lotsen.stack.zenoh import bridge_config
 from lotsen.transport import codec
 from lotsen.transport.ros2_bridge import Ros2Bridge, Ros2BridgeConfig
@@ -387,9 +387,10 @@ def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False)
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
             subscribe=("core/**", "recorder/log", "launcher/log"))
     worker = PlannerWorker(planning_budget(config))
-    threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
     stack.on_shutdown(worker.close)
     add_web(stack, run_blocking=worker.run, tls=tls)
+    # the worker after the server is up: a web process that cannot serve ends with its one error
+    threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
 
 
@@ -641,6 +642,7 @@ def validate(config: LaunchConfig, tls: bool = False) -> None:
     recorder_config(config, resolve_origin(config))
     web = WebOptions.from_config(config, failsafe.link_timeout_s)
     if config.web.enabled:
+        check_web_host(config.web.host)
         tls_certificate(web, tls)
     bridge_config(config)
     if "ros2" in config.extra:
