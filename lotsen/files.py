@@ -167,11 +167,25 @@ def parse_yaml(text: str, path: str | Path, error: type[LotsenError] = LotsenErr
     return check_structure(data, path, error)
 
 
+class _DuplicateJsonKey(ValueError):
+    pass
+
+
+def _unique_object(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object whose keys are all different (json.loads lets the last one win silently)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateJsonKey(f"duplicate key {key[:60]!r} in an object")
+        out[key] = value
+    return out
+
+
 def parse_json(text: str, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
     """JSON with the line of a syntax error in the message; hostile structures refused
     (`check_structure`)."""
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=_unique_object)
     except json.JSONDecodeError as exc:
         raise error(f"{path}: not valid JSON at line {exc.lineno}: {exc.msg}") from None
     except RecursionError:

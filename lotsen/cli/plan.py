@@ -38,9 +38,16 @@ def _config(args):
     return PlannerConfig(**kw)
 
 
+def planning_budget():
+    """The page's planning budget with its defaults (`extra.planning` of a launch config)."""
+    from lotsen.planning.budget import PlanningBudget
+
+    return PlanningBudget()
+
+
 def run(args: argparse.Namespace) -> int:
     from lotsen.planning import plan_return_route, plan_route
-    from lotsen.planning.budget import PlanningBudget, check_budget
+    from lotsen.planning.budget import check_budget
     from lotsen.planning.io import load_route
     from lotsen.stack.planner_worker import PlannerWorker
 
@@ -48,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = _config(args)
     # the page's budget (extra.planning defaults): size bounds at once, then time and memory in
     # the planner worker, so no route file can hang this command or eat the machine's memory
-    budget = PlanningBudget()
+    budget = planning_budget()
     check_budget(route, budget)
     worker = PlannerWorker(budget)
     try:
