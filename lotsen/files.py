@@ -12,12 +12,34 @@ import yaml
 from lotsen.errors import LotsenError
 
 
+def decode_text(data: bytes, path: str | Path, error: type[LotsenError] = LotsenError, what: str = "file") -> str:
+    """UTF-8 text (a UTF-8 byte-order mark is dropped); anything else is `error` naming the file
+    and, for UTF-16 (what some Windows editors save), the fix. A NUL character is refused too:
+    UTF-16 text without a byte-order mark is valid UTF-8 with a NUL after every letter."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise error(f"{path}: the {what} is UTF-16 text; save it as UTF-8")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise error(f"{path}: the {what} is not UTF-8 text (byte 0x{data[exc.start]:02x} at line {line}); "
+                    "save it as UTF-8") from None
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        utf16 = " (UTF-16 without a byte-order mark?)" if text.count("\x00") * 3 > len(text) else ""
+        raise error(f"{path}: the {what} holds a NUL character at line {line}: not a text file{utf16}; "
+                    "save it as UTF-8")
+    return text
+
+
 def read_text(path: str | Path, error: type[LotsenError] = LotsenError, what: str = "file") -> str:
+    """The UTF-8 text of `path` (`decode_text`); `error` names the file and the problem."""
     p = Path(path)
     try:
-        return p.read_text(encoding="utf-8")
+        data = p.read_bytes()
     except OSError as exc:
         raise error(f"{p}: cannot read {what}: {exc.strerror or exc}") from None
+    return decode_text(data, p, error, what)
 
 
 # Limits of what a configuration, route or parameter file may hold. Real files nest < 10 levels
@@ -94,11 +116,46 @@ def check_structure(data: Any, path: str | Path, error: type[LotsenError] = Lots
     return data
 
 
+class DuplicateKeyError(yaml.constructor.ConstructorError):
+    pass
+
+
+def _construct_unique_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    """A mapping whose keys are all different: YAML itself lets the last of two equal keys win
+    silently (a setting typed twice, the first one believed)."""
+    seen: dict[Any, int] = {}
+    for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":  # `<<: *base`: its keys may be overridden here
+            continue
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            first = seen.get(key)
+        except TypeError:  # an unhashable key: the constructor reports it below
+            continue
+        if first is not None:
+            raise DuplicateKeyError(None, None, f"duplicate key {str(key)[:60]!r} (first at line {first})",
+                                    key_node.start_mark)
+        seen[key] = key_node.start_mark.line + 1
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+class StrictYamlLoader(yaml.SafeLoader):
+    """Safe YAML that refuses duplicate keys (top level and nested) with the key and its line."""
+
+
+class FastStrictYamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """StrictYamlLoader on libyaml's parser when present (the constructor stays in Python)."""
+
+
+for _loader in (StrictYamlLoader, FastStrictYamlLoader):
+    _loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping)  # type: ignore[arg-type]
+
+
 def parse_yaml(text: str, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
-    """YAML with the line of a syntax error in the message; hostile structures refused
-    (`check_structure`)."""
+    """YAML with the line of a syntax error in the message; duplicate keys and hostile
+    structures refused (`check_structure`)."""
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=StrictYamlLoader)  # noqa: S506 - a safe loader
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         loc = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -110,11 +167,25 @@ def parse_yaml(text: str, path: str | Path, error: type[LotsenError] = LotsenErr
     return check_structure(data, path, error)
 
 
+class _DuplicateJsonKey(ValueError):
+    pass
+
+
+def _unique_object(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object whose keys are all different (json.loads lets the last one win silently)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateJsonKey(f"duplicate key {key[:60]!r} in an object")
+        out[key] = value
+    return out
+
+
 def parse_json(text: str, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
     """JSON with the line of a syntax error in the message; hostile structures refused
     (`check_structure`)."""
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=_unique_object)
     except json.JSONDecodeError as exc:
         raise error(f"{path}: not valid JSON at line {exc.lineno}: {exc.msg}") from None
     except RecursionError:

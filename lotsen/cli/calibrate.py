@@ -15,7 +15,7 @@ import json
 import math
 from pathlib import Path
 
-from lotsen.files import read_json
+from lotsen.files import read_json, read_text
 from lotsen.errors import DataError
 from lotsen.fusion.magcal import CalibrationLimits, MagCalibration, fit_mag_calibration
 
@@ -41,10 +41,7 @@ def register(subparsers) -> None:  # type: ignore[no-untyped-def]
 def load_mag_csv(path: str | Path) -> tuple[list[float], list[float], list[float], int]:
     """Read t, mag_x, mag_y; returns (t, x, y, rows_skipped). Raises DataError naming file and row."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.strerror})") from None
+    text = read_text(path, DataError, "magnetometer CSV")
     reader = csv.DictReader(text.splitlines())
     cols = [c.strip() for c in (reader.fieldnames or [])]
     missing = [c for c in REQUIRED_COLUMNS if c not in cols]

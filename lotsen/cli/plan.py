@@ -38,17 +38,34 @@ def _config(args):
     return PlannerConfig(**kw)
 
 
+def planning_budget():
+    """The page's planning budget with its defaults (`extra.planning` of a launch config)."""
+    from lotsen.planning.budget import PlanningBudget
+
+    return PlanningBudget()
+
+
 def run(args: argparse.Namespace) -> int:
     from lotsen.planning import plan_return_route, plan_route
+    from lotsen.planning.budget import check_budget
     from lotsen.planning.io import load_route
+    from lotsen.stack.planner_worker import PlannerWorker
 
     route = load_route(args.route)
     cfg = _config(args)
-    if args.return_from:
-        n, e, hdg = args.return_from
-        path = plan_return_route(route, n, e, math.radians(hdg), cfg)
-    else:
-        path = plan_route(route, cfg)
+    # the page's budget (extra.planning defaults): size bounds at once, then time and memory in
+    # the planner worker, so no route file can hang this command or eat the machine's memory
+    budget = planning_budget()
+    check_budget(route, budget)
+    worker = PlannerWorker(budget)
+    try:
+        if args.return_from:
+            n, e, hdg = args.return_from
+            path = worker.call(plan_return_route, route, n, e, math.radians(hdg), cfg)
+        else:
+            path = worker.call(plan_route, route, cfg)
+    finally:
+        worker.close()
     for m in path.segments:
         print(f"{m.label}: {m.length_m:.2f} m (ratio {m.length_ratio:.3f}), max curvature "
               f"{m.max_curvature_1pm:.3f} 1/m, clearance {m.min_clearance_m:.2f} m, "

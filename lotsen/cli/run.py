@@ -18,7 +18,8 @@ from pathlib import Path
 from lotsen.runtime.config import BoatSection, LaunchConfig, load_config
 from lotsen.stack.launch import build_stack, summary
 from lotsen.stack.logs import add_foxglove_server, recover_unclosed_logs
-from lotsen.stack.processes import Launcher, freeze_heap, validate
+from lotsen.runtime.lifetime import RunLock
+from lotsen.stack.processes import Launcher, freeze_heap, run_identities, validate
 from lotsen.stack.stack import simulated_boat, vessel_model
 
 
@@ -45,9 +46,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def launch_config(args: argparse.Namespace) -> tuple[LaunchConfig, bool]:
+def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[LaunchConfig, bool]:
     """The config with the command line's overrides; a generated pilot token for this run (the
-    same for every process and every restart of the web process). Returns (config, generated)."""
+    same for every process and every restart of the web process). Returns (config, generated).
+    With `lock`: the boat is locked for this run (`RunRefused` when another run has it) before
+    the config is validated, so a second run is refused before anything else happens."""
     config = load_config(args.config)
     if args.hardware:
         config = replace(config, mode="hardware", extra={**config.extra, "emulated": bool(args.emulated)})
@@ -59,6 +62,9 @@ def launch_config(args: argparse.Namespace) -> tuple[LaunchConfig, bool]:
         web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
+    if lock is not None:
+        lock.identities = run_identities(config)
+        lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
     validate(config, tls=bool(getattr(args, "tls", False)))
     return config, generated
 
@@ -77,18 +83,26 @@ def with_model_and_boat(config: LaunchConfig, params: str | None, boat: str | No
 
 
 def run(args: argparse.Namespace) -> int:
-    config, generated = launch_config(args)
+    lock = RunLock([])  # one run per boat: held until this command ends (the kernel frees it if killed)
+    try:
+        return _run(args, lock)
+    finally:
+        lock.release()
+
+
+def _run(args: argparse.Namespace, lock: RunLock) -> int:
+    config, generated = launch_config(args, lock)
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
     if generated and config.web.enabled:
         print(f"pilot token (this run only; set web.pilot_token to fix it): {config.web.pilot_token}", flush=True)
     if args.one_process:
-        return _run_one_process(config, args)
+        return _run_one_process(config, args, lock)
     roles = ("core", "recorder") + (("web",) if config.web.enabled else ()) + \
         (("foxglove",) if args.foxglove is not None else ()) + (("ros2",) if "ros2" in config.extra else ())
     launcher = Launcher(config, roles, role_kwargs={"web": {"tls": bool(args.tls)},
                                                     "foxglove": {"port": args.foxglove or 8765}},
-                        out=lambda line: print(line, flush=True))
+                        out=lambda line: print(line, flush=True), lock=lock)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
@@ -104,8 +118,10 @@ def run(args: argparse.Namespace) -> int:
         launcher.stop()
 
 
-def _run_one_process(config: LaunchConfig, args: argparse.Namespace) -> int:
+def _run_one_process(config: LaunchConfig, args: argparse.Namespace, lock: RunLock) -> int:
     stack = build_stack(config, realtime=True)
+    if "web" in stack.services:
+        lock.update(stack.services["web"].url)
     if args.foxglove is not None:
         add_foxglove_server(stack, config.web.host, args.foxglove)
     print(f"lotsen: {config.mode} stack in one process with nodes: {', '.join(stack.nodes)}", flush=True)

@@ -21,6 +21,19 @@ Forbidden = Literal["inside", "outside"]
 #: Two consecutive nodes closer than this are "the same node" (an input error, not a segment).
 DUPLICATE_TOL_M = 0.05
 
+# Physical limits of a route for a 1 m model ship, the one place for them: the route files of
+# the CLI (`lotsen plan`, `lotsen run`'s config route), the page's drawn and imported routes and
+# the supervisor's routes all pass `validate_route`. Beyond them a number is a typo or hostile.
+#: every node and polygon vertex within this distance (north and east) of the local origin;
+#: the area's extent follows (at most twice this)
+MAX_COORDINATE_M = 2000.0
+#: node to node (a leg longer than this on a basin is a misplaced node)
+MAX_LEG_M = 2000.0
+#: |heading| in a route (degrees in the files): one turn either way
+MAX_HEADING_RAD = 2.0 * math.pi
+#: a node's speed set-point (the boat makes ~2 m/s at most)
+MAX_SPEED_MPS = 5.0
+
 
 @dataclass(frozen=True, slots=True)
 class HarbourNode:
@@ -132,6 +145,39 @@ def _check_polygon(label: str, ring: tuple[tuple[float, float], ...]) -> Polygon
     return poly
 
 
+def check_route_limits(route: Route) -> None:
+    """The physical limits above (finite numbers assumed): ConfigError naming the node or vertex,
+    the value and the limit. Cheap: runs before any geometry."""
+    def coordinate(where: str, north: float, east: float) -> None:
+        for name, v in (("north", north), ("east", east)):
+            if not abs(v) <= MAX_COORDINATE_M:
+                raise ConfigError(f"{where}.{name}: {v:g} m is outside [-{MAX_COORDINATE_M:g}, {MAX_COORDINATE_M:g}] m "
+                                  "(a route stays within 2 km of its origin)")
+
+    nodes = route.all_nodes()
+    for k, n in enumerate(nodes):
+        where = "harbour" if k == 0 else f"nodes[{k - 1}]"
+        coordinate(where, n.north_m, n.east_m)
+        if not abs(n.heading_rad) <= MAX_HEADING_RAD + 1e-9:
+            raise ConfigError(f"{where}.heading_deg: {math.degrees(n.heading_rad):g} deg is outside "
+                              f"[-{math.degrees(MAX_HEADING_RAD):g}, {math.degrees(MAX_HEADING_RAD):g}] deg")
+        if k > 0:
+            speed = getattr(n, "speed_mps", 0.0)
+            if not speed <= MAX_SPEED_MPS:
+                raise ConfigError(f"{where}.speed_mps: {speed:g} m/s is more than {MAX_SPEED_MPS:g} m/s")
+            leg = math.hypot(n.north_m - nodes[k - 1].north_m, n.east_m - nodes[k - 1].east_m)
+            if leg > MAX_LEG_M:
+                raise ConfigError(f"{Route.node_label(k)}: {leg:.0f} m from {Route.node_label(k - 1)}, more than "
+                                  f"{MAX_LEG_M:g} m (a misplaced node?)")
+    polygons = ([("area", route.area)] if route.area is not None else []) + \
+        [(f"obstacles[{i}]", r.polygon) for i, r in enumerate(route.obstacles)]
+    for name, poly in polygons:
+        for j, (north, east) in enumerate(poly):
+            if not (math.isfinite(north) and math.isfinite(east)):
+                raise ConfigError(f"{name}[{j}]: [{north}, {east}] is not a finite point")
+            coordinate(f"{name}[{j}]", north, east)
+
+
 def validate_route(route: Route) -> None:
     """Check everything about a route that does not depend on the planner's settings.
 
@@ -152,6 +198,7 @@ def validate_route(route: Route) -> None:
                 raise ConfigError(f"nodes[{i}].{name}: {v} is not a finite number")
         if n.speed_mps < 0:
             raise ConfigError(f"nodes[{i}].speed_mps: {n.speed_mps:g} is negative")
+    check_route_limits(route)
     nodes = route.all_nodes()
     for k in range(1, len(nodes)):
         d = math.hypot(nodes[k].north_m - nodes[k - 1].north_m, nodes[k].east_m - nodes[k - 1].east_m)

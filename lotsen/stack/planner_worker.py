@@ -22,6 +22,7 @@ from typing import Any, Callable
 from lotsen.errors import LotsenError, PlanningError
 from lotsen.planning.budget import PlanningBudget, check_budget
 from lotsen.planning.io import route_from_dict
+from lotsen.runtime.lifetime import die_with_parent
 
 
 def _within_budget(args: tuple, budget: PlanningBudget) -> None:
@@ -36,9 +37,13 @@ def _within_budget(args: tuple, budget: PlanningBudget) -> None:
         check_budget(route, budget)
 
 
-def _serve(conn: Any, budget: PlanningBudget) -> None:
-    """The worker's loop (in the child process)."""
+def _serve(conn: Any, budget: PlanningBudget, parent_pid: int | None = None) -> None:
+    """The worker's loop (in the child process); it ends with the process that started it (that
+    process may have started it from a short-lived thread: no parent-death signal, the watcher)."""
     import resource
+
+    if parent_pid is not None:
+        die_with_parent(parent_pid, parent_death_signal=False)
 
     try:  # a background job: the web server that waits for it must stay responsive
         os.nice(10)
@@ -86,7 +91,7 @@ class PlannerWorker:
         env_before = os.environ.get("OPENBLAS_NUM_THREADS")
         os.environ["OPENBLAS_NUM_THREADS"] = "1"  # one BLAS thread: less address space, no CPU fight
         try:
-            self._proc = self._ctx.Process(target=_serve, args=(child, self.budget), daemon=True,
+            self._proc = self._ctx.Process(target=_serve, args=(child, self.budget, os.getpid()), daemon=True,
                                            name="lotsen-planner")
             self._proc.start()
         finally:

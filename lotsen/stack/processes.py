@@ -10,8 +10,10 @@ The processes talk only through Zenoh (lotsen.transport): the core publishes eve
 accepts from the edge only the operator's topics coming from the web process. An edge process
 may crash, hang or be flooded; the core notices only through its link monitors and keeps its
 10 Hz and its failsafe table. The launcher starts the core first, then the edge, restarts a dead
-edge process (logged), stops everything when the core ends, and stops the core first on the
-way out so the recorder keeps its last words. All processes stamp on one clock (LOTSEN_CLOCK_T0).
+edge process (logged), stops everything when the core ends (neutral pulses from the launcher
+on the hardware), and stops the core first on the way out so the recorder keeps its last words.
+Every child ends with the launcher however it ends (`die_with_parent`: SIGTERM, so the core's
+neutral and the recorder's closed file). All processes stamp on one clock (LOTSEN_CLOCK_T0).
 
 On the boat the core asks for the highest priority, its own CPU and locked memory where the OS
 allows it (root or CAP_SYS_NICE / CAP_IPC_LOCK); what it got is printed at start.
@@ -37,12 +39,15 @@ from lotsen.planning.budget import PlanningBudget
 from lotsen.runtime.clock import CLOCK_ENV
 from lotsen.runtime.config import LaunchConfig, from_mapping
 from lotsen.runtime.executor import RealtimeExecutor
+from lotsen.sim.boat import DEFAULT_BOAT
+from lotsen.runtime.lifetime import RunLock, die_with_parent
 from lotsen.drivers import hardware_config_from_launch
+from lotsen.drivers.actuators import pigpio_opener
 from lotsen.stack.launch import build_stack, summary
 from lotsen.stack.logs import add_foxglove_server, add_recorder, recorder_config
 from lotsen.stack.planner_worker import PlannerWorker
 from lotsen.stack.stack import Stack, failsafe_config, load_parameters, planner_config, resolve_origin, simulated_boat, vessel_model
-from lotsen.stack.web import add_web, tls_certificate
+from lotsen.stack.web import add_web, check_web_host, tls_certificate
 from lotsen.stack.zenoh import bridge_config
 from lotsen.transport import codec
 from lotsen.transport.ros2_bridge import Ros2Bridge, Ros2BridgeConfig
@@ -293,6 +298,28 @@ def emergency_neutral(stack: Stack) -> None:
                           stack.executor.clock.now())
 
 
+def launcher_neutral(config: LaunchConfig) -> str:
+    """Neutral pulses from outside the core, when the core ended without saying goodbye (killed,
+    or its watchdog's hard exit): pigpiod keeps sending the last pulse widths it was given, so
+    without this an ESC would keep its last thrust. Nothing to do for the simulated boat or the
+    emulated devices (they lived in the core). Returns what was done, for the log."""
+    if config.mode != "hardware" or config.extra.get("emulated"):
+        return "no actuators outside the core"
+    act = hardware_config_from_launch(config.extra).actuators
+    if not act.enabled:
+        return "actuators disabled"
+    try:
+        pi = pigpio_opener(act.pigpio_host, act.pigpio_port)()
+        for pin, cal in zip(act.esc_pins, act.esc):
+            pi.set_servo_pulsewidth(pin, int(cal.neutral_us))
+        for pin, servo in zip(act.servo_pins, act.servo):
+            pi.set_servo_pulsewidth(pin, int(servo.center_us))
+        pi.stop()
+        return "ESCs at neutral, servos centred by the launcher"
+    except Exception as exc:  # noqa: BLE001 - pigpiod gone too: nothing drives the pulses
+        return f"neutral from the launcher failed ({exc!r})"
+
+
 # ------------------------------------------------------------------------------------------------
 # the roles (each the main function of one process)
 # ------------------------------------------------------------------------------------------------
@@ -307,8 +334,15 @@ def _edge_stack(config: LaunchConfig) -> Stack:
     return Stack(config=config, executor=RealtimeExecutor(), model=vessel_model(config), origin=resolve_origin(config))
 
 
-def _run_until_stopped(stack: Stack, ready: Any, info: dict) -> None:
-    stop = lambda *_: stack.executor.stop()  # noqa: E731
+def _run_until_stopped(stack: Stack, ready: Any, info: dict, on_stop: Callable[[], None] | None = None) -> None:
+    """Serve until SIGTERM (the launcher's stop, or its death: `die_with_parent`); `on_stop` runs
+    first thing in the signal handler (the core: neutral at the actuators)."""
+
+    def stop(*_: Any) -> None:
+        if on_stop is not None:
+            on_stop()
+        stack.executor.stop()
+
     freeze_heap()  # no 0.3 s collector pauses in the web server's or the recorder's loop either
     signal.signal(signal.SIGTERM, stop)
     ready.send(("ready", info))
@@ -332,8 +366,8 @@ def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     watchdog.start()
     info = {"banner": [f"core: {config.mode} boat with {', '.join(stack.nodes)}; {', '.join(done)}",
                        *stack.services.get("banner", [])]}
-    _run_until_stopped(stack, ready, info)
-    # the last command on the way out is neutral (the guard's deadline would do it too)
+    # neutral first when told to stop (by the launcher, or by its death), and again on the way out
+    _run_until_stopped(stack, ready, info, on_stop=lambda: emergency_neutral(stack))
     emergency_neutral(stack)
 
 
@@ -353,9 +387,10 @@ def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False)
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
             subscribe=("core/**", "recorder/log", "launcher/log"))
     worker = PlannerWorker(planning_budget(config))
-    threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
     stack.on_shutdown(worker.close)
     add_web(stack, run_blocking=worker.run, tls=tls)
+    # the worker after the server is up: a web process that cannot serve ends with its one error
+    threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
 
 
@@ -387,7 +422,10 @@ _MAINS: dict[str, Callable[..., None]] = {"core": core_main, "recorder": recorde
                                          "foxglove": foxglove_main, "ros2": ros2_main}
 
 
-def _child(role: str, config: LaunchConfig, endpoint: str, ready: Any, kwargs: dict) -> None:
+def _child(role: str, config: LaunchConfig, endpoint: str, ready: Any, kwargs: dict, launcher_pid: int) -> None:
+    # no orphans: whatever ends the launcher (SIGKILL included) ends this process, through its
+    # own orderly SIGTERM path (the core's neutral, the recorder's closed file)
+    die_with_parent(launcher_pid)
     # Ctrl-C reaches every process of the terminal's group: only the launcher acts on it, so the
     # shutdown order stays core first, then the edge
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -419,7 +457,8 @@ class Launcher:
     """Starts, watches and stops the processes of one run (`lotsen run`)."""
 
     def __init__(self, config: LaunchConfig, roles: tuple[str, ...] = ("core", "recorder", "web"),
-                 role_kwargs: dict[str, dict] | None = None, out: Callable[[str], None] = print) -> None:
+                 role_kwargs: dict[str, dict] | None = None, out: Callable[[str], None] = print,
+                 lock: RunLock | None = None) -> None:
         unknown = set(roles) - set(ROLES)
         if unknown or "core" not in roles:
             raise ConfigError(f"processes: roles must include 'core' and be among {ROLES}, got {roles}")
@@ -437,6 +476,8 @@ class Launcher:
         os.environ.setdefault(CLOCK_ENV, repr(time.monotonic()))  # one clock for every process of the run
         self.clock_t0 = float(os.environ[CLOCK_ENV])
         self.exit_code = 0
+        self.lock = lock  # held by the caller for the whole run; here only its web address is kept current
+        self.web_url = ""
 
     # -- starting ----------------------------------------------------------------------------
     def _spawn(self, child: Child) -> list[str]:
@@ -445,11 +486,20 @@ class Launcher:
     def _launch(self, child: Child) -> Any:
         parent, conn = self._ctx.Pipe(duplex=False)
         proc = self._ctx.Process(target=_child, name=f"lotsen-{child.role}",
-                                 args=(child.role, self.config, self.endpoint, conn, child.kwargs))
+                                 args=(child.role, self.config, self.endpoint, conn, child.kwargs, os.getpid()))
         proc.start()
         conn.close()
         child.proc, child.started_s = proc, time.monotonic()
         return parent
+
+    def _note(self, lines: list[str]) -> list[str]:
+        """The web address from the web process's banner, into the run lock (for a refused second run)."""
+        for line in lines:
+            if line.startswith("operator interface: "):
+                self.web_url = line.split(": ", 1)[1]
+                if self.lock is not None and self.lock.held:
+                    self.lock.update(self.web_url)
+        return lines
 
     def _wait_ready(self, child: Child, parent: Any) -> list[str]:
         proc = child.proc
@@ -464,7 +514,7 @@ class Launcher:
         if kind != "ready":
             proc.join(2.0)
             raise LotsenError(f"{child.role}: {info}")
-        return list(info.get("banner", []))
+        return self._note(list(info.get("banner", [])))
 
     def start(self) -> None:
         """The core first (the Zenoh router lives there), then the edge processes side by side."""
@@ -505,7 +555,8 @@ class Launcher:
                 break
             core = self.children["core"]
             if not core.proc.is_alive():
-                self.log("error", f"the core process ended (exit code {core.proc.exitcode}): stopping the run")
+                self.log("error", f"the core process ended (exit code {core.proc.exitcode}): stopping the run; "
+                                  f"{launcher_neutral(self.config)}")
                 self.exit_code = 1
                 break
             for child in self.children.values():
@@ -539,6 +590,9 @@ class Launcher:
                 if p.is_alive():
                     p.kill()
                     p.join(1.0)
+                    if role == "core":
+                        self.log("error", f"the core did not stop within {timeout_s:g} s and was killed; "
+                                          f"{launcher_neutral(self.config)}")
             if role == "core":
                 time.sleep(0.3)  # the recorder takes the core's last messages
         if self._session is not None:
@@ -550,6 +604,28 @@ class Launcher:
 
     def pids(self) -> dict[str, int]:
         return {r: c.proc.pid for r, c in self.children.items() if c.proc is not None}
+
+
+def run_identities(config: LaunchConfig) -> list[str]:
+    """What makes two runs the same boat (one run per boat, `RunLock`): in simulation the
+    simulated boat's name; on the hardware every device the run would open (serial ports, I2C
+    addresses, pigpiod's pins). Emulated devices live in the run's core: their runs are told
+    apart by the same names under "emulated"."""
+    if config.mode == "sim":
+        b = config.sim.boat
+        return [f"sim boat {b.name or ('ideal model' if b.ideal else DEFAULT_BOAT.name)}"]
+    hw = hardware_config_from_launch(config.extra)
+    kind = "emulated" if config.extra.get("emulated") else "hardware"
+    ids = []
+    if hw.gnss.enabled:
+        ids += [f"{kind} serial {port}" for port in (hw.gnss.port, hw.gnss.rtcm_port, hw.gnss.base_port) if port]
+    if hw.imu.enabled:
+        ids.append(f"{kind} i2c {hw.imu.bus} 0x{hw.imu.address:02x}")
+    if hw.battery.enabled:
+        ids.append(f"{kind} i2c {hw.battery.bus} 0x{hw.battery.address:02x}")
+    if hw.actuators.enabled:
+        ids.append(f"{kind} pigpio {hw.actuators.pigpio_host}:{hw.actuators.pigpio_port}")
+    return ids or [f"{kind} boat"]
 
 
 def validate(config: LaunchConfig, tls: bool = False) -> None:
@@ -566,6 +642,7 @@ def validate(config: LaunchConfig, tls: bool = False) -> None:
     recorder_config(config, resolve_origin(config))
     web = WebOptions.from_config(config, failsafe.link_timeout_s)
     if config.web.enabled:
+        check_web_host(config.web.host)
         tls_certificate(web, tls)
     bridge_config(config)
     if "ros2" in config.extra:

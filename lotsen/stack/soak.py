@@ -34,6 +34,7 @@ import yaml
 from lotsen.logs.reader import read_log
 from lotsen.messages import Alert, EstimatorHealth, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.runtime.clock import CLOCK_ENV
+from lotsen.runtime.lifetime import RUNTIME_DIR_ENV
 from lotsen.stack.processes import free_port
 
 WS_PATH = "/ws"
@@ -289,7 +290,9 @@ class LiveProcess:
         self.url = f"ws://127.0.0.1:{self.port}{WS_PATH}"
         config = _derived_config(plan, work, self.port, self.token)
         self.clock = _Clock()
-        env = {**os.environ, CLOCK_ENV: repr(self.clock.t0), "PYTHONUNBUFFERED": "1"}
+        # its own run-lock directory: a harness run is its own boat, whatever else runs here
+        env = {**os.environ, CLOCK_ENV: repr(self.clock.t0), "PYTHONUNBUFFERED": "1",
+               RUNTIME_DIR_ENV: str(work / "run-locks")}
         self.proc = subprocess.Popen([sys.executable, "-m", "lotsen", "run", str(config), "--sim"], cwd=elsewhere,
                                      env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      stdin=subprocess.DEVNULL)

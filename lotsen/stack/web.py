@@ -19,6 +19,26 @@ from lotsen.web.server import WebServer
 from lotsen.web.tls import Certificate, ensure_certificate, fingerprint
 
 
+def check_web_host(host: str) -> None:
+    """ConfigError unless `host` names an address of this machine the web server can bind (a
+    trial bind on a free port), checked before any process starts."""
+    try:
+        infos = socket.getaddrinfo(host or None, 0, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError, ValueError) as exc:
+        raise ConfigError(f"web.host: {host!r} is not a host name or address ({getattr(exc, 'strerror', None) or exc}); "
+                          "use 127.0.0.1 (this computer only) or 0.0.0.0 (every network)") from None
+    problems = []
+    for family, kind, proto, _, address in infos:
+        try:
+            with socket.socket(family, kind, proto) as s:
+                s.bind(address)
+            return
+        except OSError as exc:
+            problems.append(f"{address[0]}: {exc.strerror or exc}")
+    raise ConfigError(f"web.host: {host!r} is not an address of this machine ({'; '.join(problems)}); "
+                      "use 127.0.0.1 (this computer only) or 0.0.0.0 (every network)")
+
+
 def tls_certificate(options: WebOptions, tls: bool) -> Certificate | None:
     """The certificate to serve: the configured pair (extra.web.tls_certfile/keyfile, TLS on
     without the flag), else with `tls` (`lotsen run --tls`) a self-signed one in `tls_dir`,

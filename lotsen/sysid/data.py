@@ -24,6 +24,7 @@ no measurements, an input column that never has a value) with a DataError naming
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +33,7 @@ from typing import Callable
 import numpy as np
 
 from lotsen.errors import DataError
+from lotsen.files import read_text
 
 INPUT_COLUMNS = ("alpha1", "alpha2", "n1", "n2", "nt")
 OUTPUT_COLUMNS = ("north", "east", "psi", "r")
@@ -307,10 +309,7 @@ def load_csv(path: str | Path) -> IdRecord:
     unparsable or infinite cells, a missing or non-finite t, a t before the previous row's.
     """
     path = Path(path)
-    try:
-        fh = open(path, newline="")
-    except OSError as exc:
-        raise DataError(f"{path}: cannot open ({exc.strerror})") from exc
+    fh = io.StringIO(read_text(path, DataError, "data file"), newline="")  # UTF-8 or a clear error
     with fh:
         reader = csv.reader(fh)
         kind = "held"

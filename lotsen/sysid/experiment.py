@@ -21,6 +21,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from lotsen.errors import ConfigError
+from lotsen.files import read_yaml
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, rk4_step
 from lotsen.model.angles import wrap_angle
 
@@ -287,18 +288,8 @@ def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Exp
 
 
 def load_experiment(path: str | Path) -> Experiment:
-    import yaml
-
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read ({exc.strerror})") from exc
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: invalid YAML: {exc}") from exc
-    return parse_experiment(data, str(path))
+    """An experiment YAML file (lotsen.files: UTF-8, no duplicate keys, no hostile structures)."""
+    return parse_experiment(read_yaml(path, ConfigError, "experiment file"), str(path))
 
 
 # ----------------------------------------------------------------------------------------------

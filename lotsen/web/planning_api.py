@@ -11,6 +11,7 @@ import numpy as np
 import yaml
 
 from lotsen.errors import ConfigError, LotsenError
+from lotsen.files import FastStrictYamlLoader, StrictYamlLoader
 from lotsen.planning import GeoOrigin, PlannerConfig, plan_route
 from lotsen.planning.exchange import planned_route_message, route_id
 from lotsen.planning.io import route_from_dict, route_from_geojson, route_to_dict, route_to_geojson
@@ -112,7 +113,7 @@ def export_route(route_data: dict, fmt: str, origin: GeoOrigin | None = None) ->
     return yaml.safe_dump(route_to_dict(route), sort_keys=False, default_flow_style=None)
 
 
-class _NoAliasLoader(yaml.SafeLoader):
+class _NoAliasLoader(StrictYamlLoader):
     """Safe YAML without anchors/aliases: a route file never needs them, and nested aliases
     ("billion laughs") would make a few kB of text expand into millions of nodes."""
 
@@ -128,7 +129,7 @@ def _load_yaml(text: str) -> Any:
     """libyaml's fast loader when the text cannot hold an alias (no '*'); else the Python
     loader that refuses aliases (libyaml composes in C, out of reach of compose_node)."""
     if "*" not in text and hasattr(yaml, "CSafeLoader"):
-        return yaml.load(text, Loader=yaml.CSafeLoader)  # noqa: S506 - a safe loader
+        return yaml.load(text, Loader=FastStrictYamlLoader)  # noqa: S506 - a safe loader (no duplicate keys)
     return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506
 
 

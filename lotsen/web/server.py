@@ -1,10 +1,14 @@
 """uvicorn in a background thread, bound to the configured address (loopback by default),
-optionally with TLS (`ssl_certfile`/`ssl_keyfile`, see lotsen.web.tls)."""
+optionally with TLS (`ssl_certfile`/`ssl_keyfile`, see lotsen.web.tls), behind `HostGuard`."""
 
 from __future__ import annotations
 
+import functools
+import ipaddress
+import socket
 import threading
 import time
+from typing import Any, Awaitable, Callable
 
 import uvicorn
 
@@ -13,13 +17,74 @@ from lotsen.web.hub import Hub
 from lotsen.web.routes import create_app
 
 
+@functools.lru_cache(maxsize=256)
+def _is_local_address(text: str) -> bool:
+    """An IP literal that is one of this machine's addresses (a trial bind on a free port)."""
+    try:
+        ip = ipaddress.ip_address(text)
+    except ValueError:
+        return False
+    if ip.is_loopback or ip.is_unspecified:
+        return ip.is_loopback
+    try:
+        with socket.socket(socket.AF_INET6 if ip.version == 6 else socket.AF_INET, socket.SOCK_STREAM) as s:
+            s.bind((text, 0))
+        return True
+    except OSError:
+        return False
+
+
+class HostGuard:
+    """Refuses requests whose Host header names no one this server serves: DNS rebinding (a page
+    of evil.example whose name then resolves to the boat) sends `Host: evil.example` with its own
+    origin, so only the Host header tells it apart. Served: localhost (and *.localhost), this
+    machine's names (host name, its .local and its full name), the configured bind host, and IP
+    literals of this machine's addresses. HTTP gets 421 Misdirected Request; a WebSocket
+    handshake is refused before it is accepted (421 where the server can say so, else 403)."""
+
+    def __init__(self, app: Callable[..., Awaitable[None]], bind_host: str) -> None:
+        self.app = app
+        names = {"localhost", socket.gethostname(), socket.gethostname() + ".local", socket.getfqdn()}
+        if bind_host not in ("", "0.0.0.0", "::"):
+            names.add(bind_host)
+        self.names = {n.lower().rstrip(".") for n in names if n}
+
+    def allows(self, host_header: str | None) -> bool:
+        if not host_header:
+            return False
+        host = host_header.strip().lower()
+        if host.startswith("["):  # [v6]:port
+            host = host[1:host.find("]")] if "]" in host else ""
+        elif host.count(":") == 1:
+            host = host.split(":", 1)[0]
+        host = host.rstrip(".")
+        return host in self.names or host.endswith(".localhost") or _is_local_address(host)
+
+    async def __call__(self, scope: dict, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            return await self.app(scope, receive, send)
+        host = next((v.decode("latin-1") for k, v in scope.get("headers", ()) if k == b"host"), None)
+        if self.allows(host):
+            return await self.app(scope, receive, send)
+        body = f"421 Misdirected Request: this server does not serve the host {host!r}\n".encode()[:300]
+        headers = [(b"content-type", b"text/plain; charset=utf-8"), (b"content-length", str(len(body)).encode())]
+        if scope["type"] == "http":
+            await send({"type": "http.response.start", "status": 421, "headers": headers})
+            await send({"type": "http.response.body", "body": body})
+        elif "websocket.http.response" in scope.get("extensions", {}):
+            await send({"type": "websocket.http.response.start", "status": 421, "headers": headers})
+            await send({"type": "websocket.http.response.body", "body": body})
+        else:
+            await send({"type": "websocket.close", "code": 1008})
+
+
 class WebServer:
     def __init__(self, hub: Hub, host: str, port: int, *, ssl_certfile: str | None = None,
                  ssl_keyfile: str | None = None) -> None:
         self.hub = hub
         self.host = host
         self.tls = ssl_certfile is not None
-        config = uvicorn.Config(create_app(hub), host=host, port=port, log_level="warning", access_log=False,
+        config = uvicorn.Config(HostGuard(create_app(hub), host), host=host, port=port, log_level="warning", access_log=False,
                                 ws_max_size=1 << 20, ws_ping_interval=5.0, ws_ping_timeout=5.0,
                                 lifespan="on", server_header=False, ssl_certfile=ssl_certfile,
                                 ssl_keyfile=ssl_keyfile)

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from lotsen.messages import OPERATOR_ACTIONS
+from lotsen.planning.route import MAX_COORDINATE_M
 
 MAX_MESSAGE_CHARS = 512 * 1024
 VIEWER_MAX_MESSAGE_CHARS = 64 * 1024  # a viewer needs no more (auth, ping, small conversions)
@@ -44,8 +45,8 @@ MAX_ROUTE_NODES = 200
 MAX_POLYGONS = 50
 MAX_POLYGON_VERTICES = 1000
 MAX_TOTAL_VERTICES = 5000
-#: every coordinate of a route within this distance of the local origin (a 1 m model ship's basin)
-MAX_EXTENT_M = 2000.0
+#: every coordinate of a route within this distance of the local origin: the route's own limit
+MAX_EXTENT_M = MAX_COORDINATE_M
 MAX_TOKEN_CHARS = 256
 MAX_IMPORT_CHARS = 400 * 1024
 

@@ -4,7 +4,7 @@ import asyncio
 
 import pytest
 
-from lotsen.errors import PlanningError
+from lotsen.errors import ConfigError, PlanningError
 from lotsen.planning import plan_route
 from lotsen.planning.budget import PlanningBudget, check_budget
 from lotsen.planning.io import load_route, route_from_dict
@@ -50,10 +50,12 @@ def test_requests_beyond_the_queue_are_refused_at_once(worker):
 
 
 def test_the_budget_bounds_the_route_before_any_planning():
-    far = {"harbour": {"north": 0, "east": 0}, "nodes": [{"north": 100000, "east": 0, "heading_deg": 0,
+    far = {"harbour": {"north": 0, "east": 0}, "nodes": [{"north": 1500, "east": 0, "heading_deg": 0,
                                                           "speed_mps": 1}]}
-    with pytest.raises(PlanningError, match="spans 100000 m.*max_extent_m"):
+    with pytest.raises(PlanningError, match="spans 1500 m.*max_extent_m"):
         check_budget(route_from_dict(far), PlanningBudget())
+    with pytest.raises(ConfigError, match="100000 m is outside"):  # beyond the route's physical limits
+        route_from_dict({**far, "nodes": [{**far["nodes"][0], "north": 100000}]})
     many = {"harbour": {"north": 0, "east": 0},
             "nodes": [{"north": i, "east": 0, "heading_deg": 0, "speed_mps": 1} for i in range(1, 300)]}
     with pytest.raises(PlanningError, match="299 nodes"):
@@ -68,6 +70,9 @@ def test_the_worker_refuses_the_100_km_route_before_planning(worker):
 
     far = {"harbour": {"north": 0, "east": 0, "heading_deg": 0},
            "nodes": [{"north": 100000, "east": 0, "heading_deg": 0, "speed_mps": 1}]}
+    refused = worker.call(plan_for_display, far)  # the route's physical limits, reported as the page shows them
+    assert not refused["ok"] and "100000 m is outside" in refused["errors"][0]["message"]
+    far["nodes"][0]["north"] = 1500  # within them, over the budget's extent
     with pytest.raises(PlanningError, match="max_extent_m"):
         worker.call(plan_for_display, far)
     assert worker.stats["timeouts"] == 0 and worker.stats["out_of_memory"] == 0

@@ -1,0 +1,73 @@
+"""DNS rebinding: the server answers only Host names it serves (HTTP and the WebSocket)."""
+
+from __future__ import annotations
+
+import http.client
+import socket
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import connect
+
+from lotsen.web.server import HostGuard
+
+
+def _get(port: int, host: str | None, path: str = "/") -> int:
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+    try:
+        conn.putrequest("GET", path, skip_host=True)
+        if host is not None:
+            conn.putheader("Host", host)
+        conn.endheaders()
+        return conn.getresponse().status
+    finally:
+        conn.close()
+
+
+def test_a_page_asked_for_by_another_name_is_refused(running):
+    port = running.port
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", "localhost", f"[::1]:{port}", socket.gethostname()):
+        assert _get(port, host) == 200, host
+    for host in ("evil.example", f"evil.example:{port}", "127.0.0.1.evil.example", "localhost.evil.example",
+                 "8.8.8.8", "", "[::1", "a" * 300):
+        assert _get(port, host) in (400, 421), host
+    assert _get(port, None) in (400, 421)  # no Host header at all
+    assert _get(port, "evil.example", "/static/app.js") in (400, 421)
+
+
+def test_a_websocket_from_a_rebound_name_is_refused_before_it_opens(running):
+    with connect(running.ws_url, open_timeout=5) as ws:  # the served name: the socket opens
+        ws.send('{"type": "ping", "id": 1}')
+    with pytest.raises(InvalidStatus) as exc:
+        with connect(running.ws_url, open_timeout=5, additional_headers={"Host": "evil.example"},
+                     origin="http://evil.example"):
+            pass
+    assert exc.value.response.status_code in (400, 403, 421)
+
+
+def test_served_names_include_the_configured_host_and_this_machines_addresses():
+    guard = HostGuard(lambda *a: None, "boat.lan")
+    assert guard.allows("boat.lan:8080") and guard.allows("BOAT.LAN.")
+    assert guard.allows("127.0.0.1:8080") and guard.allows("[::1]:8080") and guard.allows("app.localhost")
+    assert not guard.allows("evil.example") and not guard.allows(None) and not guard.allows("0.0.0.0:8080")
+    wildcard = HostGuard(lambda *a: None, "0.0.0.0")
+    assert not wildcard.allows("0.0.0.0") and not wildcard.allows("boat.lan")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(max_size=80))
+def test_fuzzed_host_headers_are_allowed_only_when_served(host):
+    guard = HostGuard(lambda *a: None, "127.0.0.1")
+    allowed = guard.allows(host)  # never raises
+    if allowed:
+        bare = host.strip().lower().rstrip(".")
+        assert ("localhost" in bare or "127." in bare or "::1" in bare or socket.gethostname().lower() in bare
+                or any(c.isdigit() for c in bare)), host
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.from_regex(r"[a-z0-9-]{1,20}(\.[a-z0-9-]{1,10}){0,3}\.(example|com|net|io)(:[0-9]{1,5})?", fullmatch=True))
+def test_fuzzed_foreign_names_are_refused(host):
+    assert not HostGuard(lambda *a: None, "0.0.0.0").allows(host)
