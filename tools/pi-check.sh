@@ -73,7 +73,7 @@ step "binfmt_misc: qemu-aarch64" binfmt
 if [ ! -e "$ROOTFS/.lotsen-complete" ]; then
     rm -rf "$ROOTFS"; mkdir -p "$ROOTFS"
     step "debootstrap bookworm arm64 (once)" debootstrap --arch=arm64 \
-        --include=python3,python3-venv,python3-dev,make,ca-certificates,rsync bookworm "$ROOTFS" "$MIRROR"
+        --include=python3,python3-venv,python3-dev,make,ca-certificates bookworm "$ROOTFS" "$MIRROR"
     touch "$ROOTFS/.lotsen-complete"
 else
     STEPS+=("| debootstrap bookworm arm64 | cached ($ROOTFS) | 0 |")
@@ -86,16 +86,26 @@ for m in proc sys dev dev/pts; do
     mountpoint -q "$ROOTFS/$m" || { mount --bind "/$m" "$ROOTFS/$m"; MOUNTS+=("$ROOTFS/$m"); }
 done
 cp -L /etc/resolv.conf "$ROOTFS/etc/resolv.conf"
+# the host's own certificate authorities (a company or sandbox proxy) are trusted inside too
+if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
+    mkdir -p "$ROOTFS/usr/local/share/ca-certificates"
+    cp /usr/local/share/ca-certificates/*.crt "$ROOTFS/usr/local/share/ca-certificates/"
+    chroot "$ROOTFS" update-ca-certificates >>"$LOG" 2>&1
+fi
 
 in_pi() { chroot "$ROOTFS" /usr/bin/env -i HOME=/root PATH=/usr/local/bin:/usr/bin:/bin LANG=C.UTF-8 \
-    PIP_CACHE_DIR=/var/cache/pip NUMBA_CACHE_DIR=/var/cache/numba MPLBACKEND=Agg bash -c "$*"; }
+    PIP_CACHE_DIR=/var/cache/pip PIP_CERT=/etc/ssl/certs/ca-certificates.crt NUMBA_CACHE_DIR=/var/cache/numba MPLBACKEND=Agg bash -c "$*"; }
 
 step "arch in the chroot is aarch64" in_pi '[ "$(uname -m)" = aarch64 ] && python3 -V'
 PYV="$(in_pi 'python3 -V' 2>&1)"
 
 # -- install as the README says (a fresh venv, pip install -e .) ----------------------------------
-step "copy the checkout" rsync -a --delete --exclude .venv --exclude .git --exclude '__pycache__' \
-    --exclude .pytest_cache --exclude 'bench/results' "$SRC/" "$ROOTFS/opt/lotsen/"
+copy_checkout() {
+    rm -rf "$ROOTFS/opt/lotsen" && mkdir -p "$ROOTFS/opt/lotsen"
+    tar -C "$SRC" --exclude=./.venv --exclude=./.git --exclude='__pycache__' --exclude=.pytest_cache \
+        --exclude=./bench/results -cf - . | tar -C "$ROOTFS/opt/lotsen" -xf -
+}
+step "copy the checkout" copy_checkout
 step "make venv (pip install -e .)" in_pi 'cd /opt/lotsen && rm -rf .venv && make venv'
 step "test tools (pytest, hypothesis pins)" in_pi "cd /opt/lotsen && .venv/bin/pip install -q \
     $(python3 - "$SRC/pyproject.toml" <<'PY'
