@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 PIP := $(PY) -m pip --disable-pip-version-check
 RUN_ARGS ?=
 
-.PHONY: run test bench bench-quick venv venv-dev browser clean
+.PHONY: run test bench bench-quick venv venv-dev browser clean pi-check
 
 $(VENV)/.run-installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -41,6 +41,12 @@ bench: venv-dev
 
 bench-quick: venv-dev
 	$(PY) bench/run.py --quick
+
+# arm64 Debian bookworm (the Raspberry Pi OS base) under qemu: install as the README says, then
+# `lotsen check --emulated`, a short `lotsen run --sim` and the unit tests without a browser.
+# Root, network, ~20 min the first time (the root file system is cached); not part of `make test`.
+pi-check:
+	bash tools/pi-check.sh
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info

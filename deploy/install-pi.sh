@@ -6,6 +6,11 @@ set -euo pipefail
 SRC="$(cd "$(dirname "$0")/.." && pwd)"
 PREFIX=/opt/lotsen
 
+python3 -c 'import sys; sys.exit(sys.version_info < (3, 11))' || {
+    echo "lotsen needs Python >= 3.11 (Raspberry Pi OS bookworm, Ubuntu 24.04); this is $(python3 -V)" >&2; exit 1; }
+[ "$(uname -m)" = aarch64 ] || [ "$(uname -m)" = x86_64 ] || {
+    echo "lotsen needs a 64-bit OS (aarch64 wheels); this is $(uname -m)" >&2; exit 1; }
+
 apt-get update
 apt-get install -y python3-venv python3-dev i2c-tools pigpio
 

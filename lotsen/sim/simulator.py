@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -184,6 +184,12 @@ class Simulator:
         a = self.actuators
         self._consts = np.array([a._max_dalpha, a._motor_gain, a._max_dn, config.dt_s, 0.0, 0.0, 0.0, 0.0, 0.0,
                                  boat.thrust_dead_band_rps])
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the plant step now, on a throwaway copy without
+        sensors (this simulator's state and random streams stay untouched): the first call costs
+        0.3 s or more, which a live control loop must not pay in its first tick."""
+        Simulator(self.boat, config=replace(self.config, sensors=False), x0=self.x).step()
 
     # -- inputs -------------------------------------------------------------------------------
     def command(self, u: Sequence[float] | ThrustCommand) -> None:

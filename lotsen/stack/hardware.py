@@ -47,16 +47,6 @@ def _smbus_opener(bus: int) -> Any:
     return open_bus
 
 
-def _warm_up(sim: Any) -> None:
-    """One step of a throwaway copy: loads the compiled model code now, not in the first
-    real-time tick (which would make the emulated devices start with a burst)."""
-    from dataclasses import replace
-
-    from lotsen.sim import Simulator
-
-    Simulator(sim.boat, config=replace(sim.config, sensors=False), x0=sim.x).step()
-
-
 def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None = None) -> HardwareBoat:
     """Add the driver nodes (and, if `emulated`, the twins and the simulator stepping them)."""
     hw = config or hardware_config_from_launch(stack.config.extra)
@@ -68,7 +58,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
 
         if stack.simulator is None:
             stack.simulator = simulator_from_config(stack.config, stack.model)
-        _warm_up(stack.simulator)
+        stack.simulator.warm_up()  # the plant step compiled now, not in the twins' first tick
         twin = EmulatedBoatNode(stack.simulator, hw)
         stack.add(twin)  # first: its timer runs before the drivers' at equal times
         boat.twin = twin

@@ -71,6 +71,8 @@ def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | N
         stack.model.warm_up()  # numba compiles now, not when the operator presses AUTO
         advance_motors((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1)  # the thruster monitor's and the EKF's motor model
     add_boat(stack, h.simulator, h.truth_rate_hz)
+    if realtime and stack.simulator is not None:
+        stack.simulator.warm_up()  # the simulated boat's plant step: compiled before the loop's first tick
     for name, adder in PARTS.items():
         if parts is None or name in parts:
             if name == "state":

@@ -1,0 +1,235 @@
+"""What `lotsen run --sim` costs the boat's computer: memory, locked memory, idle CPU, start-up.
+
+`lotsen run --sim` (config/sim.yaml, web page on a free port, no browser) is started as the
+operator starts it, from another directory. Per process (launcher, core, recorder, web and any
+child they start): resident memory (RSS; shared library pages count in every process that maps
+them), proportional memory (PSS: shared pages split between the processes, so the PSS column
+adds up to what the run really occupies), locked memory (VmLck, /proc/PID/status) and the CPU
+used while the boat sits idle for 20 s (10 s quick), in % of one core of this machine.
+Locked: pages pinned in RAM (smaps Locked); VmLck: the address space under mlock, faulted in or
+not (with MCL_ONFAULT a locked but never touched page costs nothing). Working set: the pages
+the process touched during the idle window (Referenced after clear_refs).
+Start-up: seconds from the command to the web page answering (HTTP 200 on /) and to the core's
+control loop running (its banner; the watchdog starts then); "cold" with an empty compiled-kernel
+cache (NUMBA_CACHE_DIR), "warm" with the cache the cold start left. Watchdog events: "control
+loop silent" lines in the run's console.
+Targets (issue: what a Raspberry Pi carries): total PSS <= 400 MB, core <= 200 MB, locked
+<= 256 MB, idle CPU <= 12 %, warm start page <= 3 s and control <= 5 s, no watchdog event.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "config" / "sim.yaml"
+CLK_TCK = os.sysconf("SC_CLK_TCK")
+PAGE = os.sysconf("SC_PAGE_SIZE")
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _status_kb(pid: int, key: str) -> float:
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith(key + ":"):
+                return float(line.split()[1])
+    except OSError:
+        pass
+    return float("nan")
+
+
+def _rollup_kb(pid: int, key: str) -> float:
+    """A total of /proc/PID/smaps_rollup: Pss, Locked (pinned resident pages), Referenced."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith(key + ":"):
+                return float(line.split()[1])
+    except OSError:
+        pass
+    return float("nan")
+
+
+def _clear_referenced(pid: int) -> None:
+    try:
+        Path(f"/proc/{pid}/clear_refs").write_text("1")
+    except OSError:
+        pass
+
+
+def _cpu_ticks(pid: int) -> float:
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return float(fields[11]) + float(fields[12])  # utime + stime
+    except (OSError, IndexError):
+        return float("nan")
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if int((d / "stat").read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                    out.append(int(d.name))
+            except (OSError, IndexError, ValueError):
+                pass
+    return out
+
+
+def _tree(root: int, roles: dict[int, str]) -> dict[int, str]:
+    """Every process of the run with a name: the roles the run printed, others by command."""
+    named = {root: "launcher"}
+    todo = [root]
+    while todo:
+        p = todo.pop()
+        for c in _children(p):
+            if c not in named:
+                try:
+                    cmd = Path(f"/proc/{c}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:60]
+                except OSError:
+                    cmd = "?"
+                named[c] = roles.get(c) or ("multiprocessing helper" if "multiprocessing" in cmd else cmd)
+                todo.append(c)
+    return named
+
+
+class Run:
+    """One `lotsen run --sim` with its console collected and its start-up timed."""
+
+    def __init__(self, work: Path, numba_cache: Path) -> None:
+        self.port = _free_port()
+        data = yaml.safe_load(CONFIG.read_text()) or {}
+        if isinstance(data.get("route"), str):
+            data["route"] = str((CONFIG.parent / data["route"]).resolve())
+        data.setdefault("web", {}).update(port=self.port, host="127.0.0.1", enabled=True)
+        data.setdefault("logging", {}).update(enabled=True, directory=str(work / "logs"))
+        config = work / "launch.yaml"
+        config.write_text(yaml.safe_dump(data, sort_keys=False))
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "NUMBA_CACHE_DIR": str(numba_cache)}
+        self.output: list[str] = []
+        self.t0 = time.monotonic()
+        self.proc = subprocess.Popen([sys.executable, "-m", "lotsen", "run", str(config), "--sim"], cwd=work,
+                                     env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                     stdin=subprocess.DEVNULL)
+        self.control_s = float("nan")
+        self.all_up_s = float("nan")
+        self.roles: dict[int, str] = {}
+        self._up = threading.Event()
+        threading.Thread(target=self._pump, daemon=True).start()
+
+    def _pump(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.output.append(line.rstrip())
+            if line.startswith("core:") and self.control_s != self.control_s:
+                self.control_s = time.monotonic() - self.t0
+            if line.startswith("processes:"):
+                self.all_up_s = time.monotonic() - self.t0
+                self.roles = {int(pid): role for role, pid in (kv.split("=") for kv in line.split()[1:])}
+                self._up.set()
+        self._up.set()
+
+    def wait_page(self, timeout_s: float = 120.0) -> float:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end and self.proc.poll() is None:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{self.port}/", timeout=1.0) as r:
+                    if r.status == 200:
+                        return time.monotonic() - self.t0
+            except OSError:
+                pass
+            time.sleep(0.05)
+        raise RuntimeError("the page did not answer:\n" + "\n".join(self.output[-30:]))
+
+    def wait_up(self, timeout_s: float = 120.0) -> None:
+        if not self._up.wait(timeout_s) or not self.roles:
+            raise RuntimeError("lotsen run did not start:\n" + "\n".join(self.output[-30:]))
+
+    def watchdog_events(self) -> int:
+        return sum("control loop silent" in line for line in self.output)
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+
+
+def _start(work: Path, cache: Path, label: str) -> tuple[Run, dict]:
+    run = Run(work, cache)
+    page_s = run.wait_page()
+    run.wait_up()
+    row = {"table": "start-up", "case": label, "page_s": round(page_s, 2), "control_ready_s": round(run.control_s, 2),
+           "all_processes_s": round(run.all_up_s, 2)}
+    return run, row
+
+
+def run(quick: bool = False) -> list[dict]:
+    idle_s = 10.0 if quick else 20.0
+    rows: list[dict] = []
+    with tempfile.TemporaryDirectory(prefix="lotsen-bench-footprint-") as tmp:
+        cache = Path(tmp) / "numba-cache"
+        cold, cold_row = _start(Path(tmp), cache, "cold (empty kernel cache)")
+        cold.stop()
+        cold_row["watchdog_events"] = cold.watchdog_events()
+        warm_dir = Path(tmp) / "warm"
+        warm_dir.mkdir()
+        warm, warm_row = _start(warm_dir, cache, "warm (kernel cache present)")
+        try:
+            time.sleep(3.0)  # past the first console summary and the planner's warm-up
+            procs = _tree(warm.proc.pid, warm.roles)
+            ticks0 = {p: _cpu_ticks(p) for p in procs}
+            for p in procs:
+                _clear_referenced(p)  # what each process touches from now on: its working set
+            t0 = time.monotonic()
+            time.sleep(idle_s)
+            wall = time.monotonic() - t0
+            mem_rows = []
+            for pid, name in procs.items():
+                cpu = 100.0 * (_cpu_ticks(pid) - ticks0[pid]) / CLK_TCK / wall
+                mem_rows.append({"table": "memory and idle CPU per process", "process": name, "pid": pid,
+                                 "rss_mb": round(_status_kb(pid, "VmRSS") / 1024, 1),
+                                 "pss_mb": round(_rollup_kb(pid, "Pss") / 1024, 1),
+                                 "working_set_mb": round(_rollup_kb(pid, "Referenced") / 1024, 1),
+                                 "locked_mb": round(_rollup_kb(pid, "Locked") / 1024, 1),
+                                 "vmlck_mb": round(_status_kb(pid, "VmLck") / 1024, 1),
+                                 "cpu_idle_pct": round(cpu, 1)})
+            warm_row["watchdog_events"] = warm.watchdog_events()
+        finally:
+            warm.stop()
+        total = {k: round(sum(r[k] for r in mem_rows if r[k] == r[k]), 1)
+                 for k in ("rss_mb", "pss_mb", "working_set_mb", "locked_mb", "vmlck_mb", "cpu_idle_pct")}
+        core = next((r for r in mem_rows if r["process"] == "core"), {})
+        target = "total PSS <= 400 MB, core PSS <= 200 MB, locked <= 256 MB, idle CPU <= 12 %"
+        for r in mem_rows:
+            r["target"] = target
+        mem_rows.append({"table": "memory and idle CPU per process", "process": "whole run", **total,
+                         "target": target,
+                         "pass": bool(total["pss_mb"] <= 400 and core.get("pss_mb", 1e9) <= 200
+                                      and total["locked_mb"] <= 256 and total["cpu_idle_pct"] <= 12)})
+        cold_row["target"] = "(info: first start after install)"
+        warm_row["target"] = "warm: page <= 3 s, control <= 5 s; no watchdog event"
+        warm_row["pass"] = bool(warm_row["page_s"] <= 3.0 and warm_row["control_ready_s"] <= 5.0
+                                and warm_row["watchdog_events"] == 0 and cold_row["watchdog_events"] == 0)
+        rows += [cold_row, warm_row] + mem_rows
+    return rows
