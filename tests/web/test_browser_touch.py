@@ -14,7 +14,7 @@ import pytest
 from lotsen.messages import Topic
 
 from .conftest import TOKEN, start_stack, stop_stack
-from .test_browser import ARTIFACTS, CHROMIUM, LAUNCH_ARGS, pytestmark, wait_js, wait_until  # noqa: F401
+from .test_browser import ARTIFACTS, browser, pytestmark, wait_js, wait_until  # noqa: F401  (browser: the fixture)
 
 PHONE = {"width": 390, "height": 844}
 LANDSCAPE = {"width": 844, "height": 390}
@@ -32,15 +32,6 @@ def stack(tmp_path_factory):
     rs = start_stack(parts=None, log_dir=str(logs))
     yield rs
     stop_stack(rs)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=LAUNCH_ARGS)
-        yield b
-        b.close()
 
 
 def open_page(browser, url: str, viewport: dict, touch: bool = True):
