@@ -117,8 +117,23 @@ PY
 
 # -- run ------------------------------------------------------------------------------------------
 step "lotsen check --emulated" in_pi 'cd /opt/lotsen && .venv/bin/lotsen check --emulated'
+# the compiled kernels ahead of the run, into numba's disk cache, as an install would: compiling
+# them under emulation takes minutes, longer than a process may take to start
+step "compile the kernels (numba cache)" in_pi "cd /opt/lotsen && .venv/bin/python -c '
+from lotsen.runtime.config import load_config
+from lotsen.runtime.executor import SimExecutor
+from lotsen.stack.launch import build_stack
+build_stack(load_config(\"config/sim.yaml\"), realtime=True, parts=(\"state\", \"supervisor\"), executor=SimExecutor())'"
+# the sim config, with the start-up allowance an emulated CPU needs
+in_pi "cd /opt/lotsen && .venv/bin/python -c '
+import yaml; d = yaml.safe_load(open(\"config/sim.yaml\")) or {}
+d.setdefault(\"extra\", {}).setdefault(\"processes\", {})[\"ready_timeout_s\"] = 600
+r = d.get(\"route\"); d[\"route\"] = \"/opt/lotsen/config/\" + r if isinstance(r, str) else r
+d.setdefault(\"logging\", {})[\"directory\"] = \"/tmp/pi-run/logs\"
+yaml.safe_dump(d, open(\"/tmp/pi-sim.yaml\", \"w\"))'" >>"$LOG" 2>&1
 step "lotsen run --sim --duration $RUN_S (no browser)" in_pi "cd /tmp && rm -rf pi-run && mkdir pi-run && cd pi-run && \
-    timeout $((RUN_S + 600)) /opt/lotsen/.venv/bin/lotsen run --sim --duration $RUN_S --port 18080"
+    timeout $((RUN_S + 900)) /opt/lotsen/.venv/bin/lotsen run /tmp/pi-sim.yaml --sim --duration $RUN_S --port 18080"
+step "no watchdog event in the run" bash -c "! grep 'control loop silent' '$LOG'"
 step "unit tests without a browser ($TESTS)" in_pi "cd /opt/lotsen && .venv/bin/python -m pytest -q -p no:cacheprovider \
     -m 'not browser and not live and not slow' $TESTS"
 
