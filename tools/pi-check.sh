@@ -14,7 +14,7 @@ SRC="$(cd "$(dirname "$0")/.." && pwd)"
 ROOTFS="${PI_ROOTFS:-$HOME/.cache/lotsen/pi-rootfs}"
 MIRROR="${PI_MIRROR:-http://deb.debian.org/debian}"
 RUN_S="${PI_RUN_S:-30}"
-TESTS="${PI_TESTS:-tests/model tests/sim tests/control tests/planning tests/architecture tests/test_packaging.py}"
+TESTS="${PI_TESTS:-tests/model tests/sim tests/control tests/architecture tests/test_packaging.py}"
 RESULT="$SRC/bench/results/pi-check.md"
 LOG="$(mktemp -t lotsen-pi-check.XXXXXX.log)"
 
@@ -133,7 +133,7 @@ d.setdefault(\"logging\", {})[\"directory\"] = \"/tmp/pi-run/logs\"
 yaml.safe_dump(d, open(\"/tmp/pi-sim.yaml\", \"w\"))'" >>"$LOG" 2>&1
 step "lotsen run --sim --duration $RUN_S (no browser)" in_pi "cd /tmp && rm -rf pi-run && mkdir pi-run && cd pi-run && \
     timeout $((RUN_S + 900)) /opt/lotsen/.venv/bin/lotsen run /tmp/pi-sim.yaml --sim --duration $RUN_S --port 18080"
-step "no watchdog event in the run" bash -c "! grep 'control loop silent' '$LOG'"
+step "no watchdog event in the run" bash -c "cp '$LOG' '$LOG.run' && [ \"\$(grep -c 'control loop silent' '$LOG.run')\" = 0 ]"
 step "unit tests without a browser ($TESTS)" in_pi "cd /opt/lotsen && .venv/bin/python -m pytest -q -p no:cacheprovider \
     -m 'not browser and not live and not slow' $TESTS"
 
