@@ -84,6 +84,7 @@ class DriverNode(Node):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_error = ""
+        self._dropped_seen: dict[str, int] = {}  # count_dropped: each decoder counter as last reported
 
     # -- to implement -----------------------------------------------------------------------
     def open(self, now: float) -> None:
@@ -114,6 +115,35 @@ class DriverNode(Node):
         self.health.detail = ""
         self.log(out, now, "info", f"{self.device} opened")
         return True
+
+    def read_serial(self, out: Out, now: float) -> bytes | None:
+        """What the serial `self.port` holds now (thread mode: block for the first byte up to the
+        port's timeout, then take the rest). None when the read failed: reported, the port marked
+        closed and reopened after `reopen_s` (an unplugged adapter, EIO)."""
+        try:
+            waiting = self.port.in_waiting
+            data = self.port.read(waiting if waiting else (1 if self.threaded else 0))
+            if self.threaded and data:
+                more = self.port.in_waiting
+                if more:
+                    data += self.port.read(more)
+        except Exception as exc:  # noqa: BLE001 - a lost device is reported, never fatal
+            self.error(out, now, "read_errors", f"{self.device}: read failed: {exc}")
+            self.health.opened = False
+            self._next_open_s = now + self.reopen_s
+            return None
+        return bytes(data)
+
+    def count_dropped(self, out: Out, now: float, counters: Any, keys: tuple[str, ...]) -> None:
+        """Report what a decoder's cumulative `counters` (attributes `keys`) counted since the last
+        call: each new drop in `health.dropped` and as an error of that kind."""
+        seen = self._dropped_seen
+        for key in keys:
+            new = getattr(counters, key) - seen.get(key, 0)
+            if new:
+                seen[key] = seen.get(key, 0) + new
+                self.health.dropped += new
+                self.error(out, now, key, f"{self.device}: {new} {key.replace('_', ' ')}")
 
     def count(self, key: str, n: int = 1) -> None:
         self.health.counters[key] = self.health.counters.get(key, 0) + n

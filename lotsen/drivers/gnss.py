@@ -161,7 +161,6 @@ class GnssNode(DriverNode):
         self._config_sent_s = -math.inf
         self._config_attempts = 0
         self._last_fix: GnssFix | None = None
-        self._counted = {"garbage_bytes": 0, "bad_checksums": 0}
         self._refused_counted = 0
         self._rtcm_write_errors = 0
         self._corrections_stale = False
@@ -207,28 +206,11 @@ class GnssNode(DriverNode):
                 self._write(rx.configuration_bytes(), out, now)
                 self._config_sent_s = now
                 self._config_attempts += 1
-        try:
-            waiting = self.port.in_waiting
-            data = self.port.read(waiting if waiting else (1 if self.threaded else 0))
-            if self.threaded and data:
-                more = self.port.in_waiting
-                if more:
-                    data += self.port.read(more)
-        except Exception as exc:  # noqa: BLE001 - unplugged USB-serial, EIO: reopen later
-            self.error(out, now, "read_errors", f"{self.device}: read failed: {exc}")
-            self.health.opened = False
-            self._next_open_s = now + self.reopen_s
-            return out
+        data = self.read_serial(out, now)
         if not data:
             return out
-        fixes = rx.feed(bytes(data), now)
-        c = rx.framer.counters
-        for key in ("garbage_bytes", "bad_checksums"):
-            new = getattr(c, key) - self._counted[key]
-            if new:
-                self._counted[key] += new
-                self.health.dropped += new
-                self.error(out, now, key, f"{self.device}: {new} {key.replace('_', ' ')}")
+        fixes = rx.feed(data, now)
+        self.count_dropped(out, now, rx.framer.counters, ("garbage_bytes", "bad_checksums"))
         if rx.refused > self._refused_counted:
             new = rx.refused - self._refused_counted
             self._refused_counted = rx.refused

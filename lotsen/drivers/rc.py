@@ -150,7 +150,6 @@ class RcReceiverNode(DriverNode):
         self.port: Any = None
         self.decoder = SbusDecoder()
         self.rc = RcInterpreter(cfg)
-        self._counted = {"bad_frames": 0, "garbage_bytes": 0}
         self._last_pub_s = -math.inf
         self._last_key: tuple | None = None
         self._opened_s = -math.inf
@@ -167,30 +166,15 @@ class RcReceiverNode(DriverNode):
 
     def poll(self, now: float) -> Out:
         out: Out = []
-        try:
-            waiting = self.port.in_waiting
-            data = self.port.read(waiting if waiting else (1 if self.threaded else 0))
-            if self.threaded and data:
-                more = self.port.in_waiting
-                if more:
-                    data += self.port.read(more)
-        except Exception as exc:  # noqa: BLE001 - unplugged adapter, EIO: reopen later
-            self.error(out, now, "read_errors", f"{self.device}: read failed: {exc}")
-            self.health.opened = False
-            self._next_open_s = now + self.reopen_s
+        data = self.read_serial(out, now)
+        if data is None:
             self._emit(out, now)  # the link is judged even without a port
             return out
         if data:
-            for f in self.decoder.feed(bytes(data)):
+            for f in self.decoder.feed(data):
                 self.produced(now)
                 self.rc.frame(f, now)
-            c = self.decoder.counters
-            for key in ("bad_frames", "garbage_bytes"):
-                new = getattr(c, key) - self._counted[key]
-                if new:
-                    self._counted[key] += new
-                    self.health.dropped += new
-                    self.error(out, now, key, f"{self.device}: {new} {key.replace('_', ' ')}")
+            self.count_dropped(out, now, self.decoder.counters, ("bad_frames", "garbage_bytes"))
         self._emit(out, now)
         return out
 
