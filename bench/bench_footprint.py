@@ -31,34 +31,19 @@ from pathlib import Path
 
 import yaml
 
+from lotsen.stack.processes import free_port
+
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config" / "sim.yaml"
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 PAGE = os.sysconf("SC_PAGE_SIZE")
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _status_kb(pid: int, key: str) -> float:
+def _proc_kb(pid: int, name: str, key: str) -> float:
+    """One "Key: value kB" line of /proc/PID/<name>: status (VmRSS, VmLck) or smaps_rollup (Pss,
+    Locked = pinned resident pages, Referenced); nan when the process is gone."""
     try:
-        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-            if line.startswith(key + ":"):
-                return float(line.split()[1])
-    except OSError:
-        pass
-    return float("nan")
-
-
-def _rollup_kb(pid: int, key: str) -> float:
-    """A total of /proc/PID/smaps_rollup: Pss, Locked (pinned resident pages), Referenced."""
-    try:
-        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+        for line in Path(f"/proc/{pid}/{name}").read_text().splitlines():
             if line.startswith(key + ":"):
                 return float(line.split()[1])
     except OSError:
@@ -114,7 +99,7 @@ class Run:
     """One `lotsen run --sim` with its console collected and its start-up timed."""
 
     def __init__(self, work: Path, numba_cache: Path) -> None:
-        self.port = _free_port()
+        self.port = free_port()
         data = yaml.safe_load(CONFIG.read_text()) or {}
         if isinstance(data.get("route"), str):
             data["route"] = str((CONFIG.parent / data["route"]).resolve())
@@ -208,11 +193,11 @@ def run(quick: bool = False) -> list[dict]:
             for pid, name in procs.items():
                 cpu = 100.0 * (_cpu_ticks(pid) - ticks0[pid]) / CLK_TCK / wall
                 mem_rows.append({"table": "memory and idle CPU per process", "process": name, "pid": pid,
-                                 "rss_mb": round(_status_kb(pid, "VmRSS") / 1024, 1),
-                                 "pss_mb": round(_rollup_kb(pid, "Pss") / 1024, 1),
-                                 "working_set_mb": round(_rollup_kb(pid, "Referenced") / 1024, 1),
-                                 "locked_mb": round(_rollup_kb(pid, "Locked") / 1024, 1),
-                                 "vmlck_mb": round(_status_kb(pid, "VmLck") / 1024, 1),
+                                 "rss_mb": round(_proc_kb(pid, "status", "VmRSS") / 1024, 1),
+                                 "pss_mb": round(_proc_kb(pid, "smaps_rollup", "Pss") / 1024, 1),
+                                 "working_set_mb": round(_proc_kb(pid, "smaps_rollup", "Referenced") / 1024, 1),
+                                 "locked_mb": round(_proc_kb(pid, "smaps_rollup", "Locked") / 1024, 1),
+                                 "vmlck_mb": round(_proc_kb(pid, "status", "VmLck") / 1024, 1),
                                  "cpu_idle_pct": round(cpu, 1)})
             warm_row["watchdog_events"] = warm.watchdog_events()
         finally:
