@@ -34,6 +34,7 @@ from typing import Any
 
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS
+from lotsen.runtime.config import VesselSection
 from lotsen.sysid.verdict import Verdict, judge
 
 SCALE_DEFAULT = ("m11", 14.0)
@@ -44,23 +45,29 @@ NAMES_INDEX = {n: i for i, n in enumerate(DEFAULT_PARAMETERS.names())}
 
 
 def _ratio(text: str) -> float:
+    """--reverse-thrust-ratio, within the range of `vessel.reverse_thrust_ratio`."""
     try:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0.1 <= v <= 1.0:
-        raise argparse.ArgumentTypeError(f"{v:g} is outside 0.1-1 (astern thrust is at most the ahead thrust)")
+    lo, hi = next(f for f in dataclasses.fields(VesselSection) if f.name == "reverse_thrust_ratio").metadata["range"]
+    if not lo <= v <= hi:
+        raise argparse.ArgumentTypeError(f"{v:g} is outside {lo:g}-{hi:g} (astern thrust is at most the ahead thrust)")
     return v
 
 
-def _parse_pair(text: str, flag: str) -> tuple[float, float]:
+def _parse_antenna(text: str) -> tuple[float, float]:
+    """--gnss-antenna X,Y, checked as `vessel.gnss_antenna_m` is."""
     try:
         x, y = (float(v) for v in text.split(","))
     except ValueError:
-        raise ConfigError(f"{flag} {text!r}: expected two numbers X,Y in metres") from None
-    if not (math.isfinite(x) and math.isfinite(y)) or max(abs(x), abs(y)) > 2.0:
-        raise ConfigError(f"{flag} {text!r}: more than 2 m from the hull's origin")
-    return x, y
+        raise ConfigError(f"--gnss-antenna {text!r}: expected two numbers X,Y in metres") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ConfigError(f"--gnss-antenna {text!r}: not finite")
+    try:
+        return VesselSection(gnss_antenna_m=(x, y)).gnss_antenna_m
+    except ConfigError as exc:
+        raise ConfigError(f"--gnss-antenna {text!r} (as {exc})") from None
 
 
 def _parse_fix(items: list[str]) -> dict[str, float]:
@@ -113,7 +120,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     from lotsen.sysid.estimate import estimate
     from lotsen.sysid.multiple import check_identifiable, estimate_lake, estimate_multiple_shooting
 
-    antenna = _parse_pair(args.gnss_antenna, "--gnss-antenna") if args.gnss_antenna else (0.0, 0.0)
+    antenna = _parse_antenna(args.gnss_antenna) if args.gnss_antenna else (0.0, 0.0)
     # the project's own run logs (the same path as `lotsen export`), the fixes moved to the hull's origin
     register_loader(".mcap", lambda path: sysid_record(path, gnss_antenna_m=antenna))
     geometry = dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio)
