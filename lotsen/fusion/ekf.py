@@ -63,6 +63,7 @@ from lotsen.fusion.magcal import MagCalibration
 from lotsen.messages import (
     ActuatorState, EstimatorHealth, GnssFix, ImuSample, MagSample, RpmSample, ThrustCommand, VesselState,
 )
+from lotsen.model.angles import lever_arm_ne
 from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
 
 IN, IE, IPSI, IU, IV, IR, IBG = range(7)
@@ -592,12 +593,11 @@ class ModelAidedEKF:
         noise = self.config.gnss_noise
         s = noise.position_sigma_m(fix)
         self._gnss_self_check(fix.stamp_s, n, e, fix, s)
-        ax, ay = self.config.gnss_antenna_m
-        c, sn = math.cos(self.x[IPSI]), math.sin(self.x[IPSI])
+        dn, de = lever_arm_ne(self.x[IPSI], self.config.gnss_antenna_m)
         H = np.zeros((2, self.n))
         H[0, IN] = H[1, IE] = 1.0
-        H[0, IPSI], H[1, IPSI] = -sn * ax - c * ay, c * ax - sn * ay  # the lever arm turns with psi
-        y = np.array([n - (self.x[IN] + c * ax - sn * ay), e - (self.x[IE] + sn * ax + c * ay)])
+        H[0, IPSI], H[1, IPSI] = -de, dn  # the lever arm turns with psi
+        y = np.array([n - (self.x[IN] + dn), e - (self.x[IE] + de)])
         self._update("gnss", y, H, np.eye(2) * s * s, reopen=(IN, IE))
         if not (self.config.use_gnss_velocity and finite(fix.vel_n_mps, fix.vel_e_mps)):
             return
@@ -607,6 +607,7 @@ class ModelAidedEKF:
             self.counters.count("skipped", "gnss_vel")
         else:
             psi, r = self.x[IPSI], self.x[IR]
+            ax, ay = self.config.gnss_antenna_m
             u, v = self.x[IU] - r * ay, self.x[IV] + r * ax  # the antenna's body velocity
             c, sn = math.cos(psi), math.sin(psi)
             h = np.array([c * u - sn * v, sn * u + c * v])

@@ -27,6 +27,7 @@ import numpy as np
 
 from lotsen.errors import DataError, LotsenError
 from lotsen.fusion.common import LocalFrame
+from lotsen.model.angles import lever_arm_ne
 from lotsen.logs.reader import LogReader
 from lotsen.messages import Topic
 from lotsen.sysid.data import IdRecord, check_record
@@ -177,7 +178,7 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
     frame = None
     bias = 0.0
     psi_last = nan
-    ax, ay = (float(v) for v in gnss_antenna_m)
+    arm = (float(gnss_antenna_m[0]), float(gnss_antenna_m[1]))
     for topic, msg in reader.messages(need):
         t = float(msg.stamp_s)
         if topic == in_topic:
@@ -188,11 +189,11 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
             if frame is None:
                 frame = LocalFrame(msg.lat_deg, msg.lon_deg, msg.height_m if math.isfinite(msg.height_m) else 0.0)
             n, e = frame.to_ne(msg.lat_deg, msg.lon_deg, msg.height_m)
-            if ax or ay:
+            if any(arm):
                 if not math.isfinite(psi_last):
                     continue  # no heading yet to carry the lever arm: the fix cannot be placed
-                c, s_ = math.cos(psi_last), math.sin(psi_last)
-                n, e = n - (c * ax - s_ * ay), e - (s_ * ax + c * ay)
+                dn, de = lever_arm_ne(psi_last, arm)
+                n, e = n - dn, e - de
             rows.append((t, *blank_u, n, e, nan, nan))
         elif outputs == "raw" and topic == Topic.IMU_RAW:
             rows.append((t, *blank_u, nan, nan, nan, msg.gyro_radps[2] - bias))

@@ -1,4 +1,5 @@
-"""The one angle wrap and the one finite check of the project (floats and numpy arrays alike)."""
+"""The one angle wrap, the one finite check (floats and numpy arrays alike) and the one lever arm
+rotation of the project."""
 
 from __future__ import annotations
 
@@ -26,3 +27,13 @@ def all_finite(*values: Any) -> bool:
         elif not np.all(np.isfinite(np.asarray(v, dtype=float))):
             return False
     return True
+
+
+def lever_arm_ne(heading_rad: float, arm_m: tuple[float, float]) -> tuple[float, float]:
+    """A point fixed on the hull at body (x, y) = `arm_m` from the model's origin, seen from that
+    origin in north/east at `heading_rad` (R(psi) of seed eq. 7-8 applied to the arm). Its derivative
+    by heading is (-east, north), and with yaw rate r its velocity relative to the origin is
+    r (-east, north)."""
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    ax, ay = arm_m
+    return c * ax - s * ay, s * ax + c * ay

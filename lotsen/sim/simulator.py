@@ -21,6 +21,7 @@ import numpy as np
 
 from lotsen.messages import ActuatorState, BatteryStatus, GnssFixType, ThrustCommand, VesselState
 from lotsen.model._jit import njit
+from lotsen.model.angles import lever_arm_ne
 from lotsen.model.dynamics import VesselModel, rk4_step
 from lotsen.model.environment import Environment, WindCoefficients, wind_force
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
@@ -291,12 +292,10 @@ class Simulator:
         s = self._sched_gnss
         if k >= s.next_k:
             s.next_k += s.period_steps
-            ax, ay = self.boat.gnss_antenna_m
-            if ax or ay:  # the antenna, not the model's origin, is what the receiver locates
-                cp, sp, r = math.cos(x[2]), math.sin(x[2]), x[5]
-                fix = self.gnss.sample(t, x[0] + cp * ax - sp * ay, x[1] + sp * ax + cp * ay,
-                                       xd[0] - r * (sp * ax + cp * ay), xd[1] + r * (cp * ax - sp * ay),
-                                       t - s.last_t)
+            if any(self.boat.gnss_antenna_m):  # the antenna, not the model's origin, is what the receiver locates
+                dn, de = lever_arm_ne(x[2], self.boat.gnss_antenna_m)
+                r = x[5]
+                fix = self.gnss.sample(t, x[0] + dn, x[1] + de, xd[0] - r * de, xd[1] + r * dn, t - s.last_t)
             else:
                 fix = self.gnss.sample(t, x[0], x[1], xd[0], xd[1], t - s.last_t)
             s.last_t = t
