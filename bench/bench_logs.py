@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -28,6 +27,7 @@ if str(REPO) not in sys.path:
 RECEIVER = r"""
 import json, sys, threading, time
 from lotsen.runtime import RealtimeExecutor
+from lotsen.stack.processes import free_port
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
 ex = RealtimeExecutor()
 br = ZenohBridge(BridgeConfig(vessel="rx", connect=(sys.argv[1],), subscribe=("tx/**",), drain_period_s=0.0005,
@@ -54,11 +54,6 @@ br.close()
 """
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
 
 def _pct(xs: list[float], p: float) -> float:
     xs = sorted(xs)
@@ -70,7 +65,7 @@ def _zenoh_case(kind: str, encoding: str, n: int, rate_hz: float | None) -> dict
     from lotsen.runtime import SimExecutor
     from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
 
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     ex = SimExecutor()
     tx = ZenohBridge(BridgeConfig(vessel="tx", listen=(ep,), publish=("bench", "warmup"), encoding=encoding,
                                   queue_maxlen=100000))

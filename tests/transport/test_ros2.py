@@ -6,7 +6,6 @@ import json
 import math
 import os
 import queue
-import socket
 import subprocess
 import sys
 import threading
@@ -19,6 +18,7 @@ import pytest
 from lotsen import messages as M
 from lotsen.errors import ConfigError, DataError
 from lotsen.runtime import SimExecutor
+from lotsen.stack.processes import free_port
 from lotsen.transport import rmw_zenoh as W
 from lotsen.transport import ros2_map, ros2_types
 from lotsen.transport.ros2_bridge import CommandGate, Ros2Bridge, Ros2BridgeConfig, source_name
@@ -41,11 +41,6 @@ PUBLISHED_HASHES = {
     "rcl_interfaces/msg/Log": "RIHS01_e28ce254ca8abc06abf92773b74602cdbf116ed34fbaf294fb9f81da9f318eac",
 }
 
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 # ---------------------------------------------------------------- types and hashes
@@ -237,7 +232,7 @@ def _pump(ex, until, timeout_s):
 
 def test_two_processes_ros2_peer_without_lotsen(same):
     """The boat (this process) and a ROS 2 node made of zenoh + rosbags only (ros2_peer.py)."""
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     ex = SimExecutor()
     # the boat listens; the peer process and a second bridge ("/rosbot", the reverse direction) connect as
     # Zenoh clients, so the boat forwards between them (two Zenoh peers without gossip would not route)

@@ -1,7 +1,6 @@
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -13,6 +12,7 @@ import pytest
 from lotsen import messages as M
 from lotsen.errors import ConfigError, DataError
 from lotsen.runtime import SimExecutor
+from lotsen.stack.processes import free_port
 from lotsen.transport import codec
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge, zenoh_config
 
@@ -105,14 +105,8 @@ def test_bad_envelopes_are_data_errors():
 
 
 # ---------------------------------------------------------------- Zenoh
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_config_never_scouts_and_binds_only_given_endpoints():
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     c = zenoh_config(BridgeConfig(listen=(ep,)))
     assert json.loads(c.get_json("scouting/multicast/enabled")) is False
     assert json.loads(c.get_json("scouting/gossip/enabled")) is False
@@ -133,7 +127,7 @@ def _pump(ex: SimExecutor, until, timeout_s: float = 10.0) -> bool:
 
 
 def test_no_echo_loop_between_two_bridges_forwarding_everything():
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     ex_a, ex_b = SimExecutor(), SimExecutor()
     a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), subscribe=("*/**",)))
     b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), publish=("*",), subscribe=("*/**",)))
@@ -173,7 +167,7 @@ def test_stalled_sender_drops_oldest_and_never_blocks_the_bus(monkeypatch):
     real = zb.codec.encode
     monkeypatch.setattr(zb.codec, "encode", lambda *a, **k: (gate.wait(30), real(*a, **k))[1])
     ex = SimExecutor()
-    bridge = ZenohBridge(BridgeConfig(vessel="a", listen=(f"tcp/127.0.0.1:{_free_port()}",), publish=("*",), queue_maxlen=50))
+    bridge = ZenohBridge(BridgeConfig(vessel="a", listen=(f"tcp/127.0.0.1:{free_port()}",), publish=("*",), queue_maxlen=50))
     try:
         ex.add_node(bridge)
         for i in range(3000):  # a disconnected / slow peer: this loop must not wait
@@ -189,7 +183,7 @@ def test_two_processes_round_trip_and_shore_recording(tmp_path, same):
     answers pings and records what it receives from the boat to MCAP."""
     from lotsen.logs import LogReader
 
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     out = tmp_path / "shore.mcap"
     ex = SimExecutor()
     boat = ZenohBridge(BridgeConfig(vessel="boat", listen=(ep,), subscribe=("shore/**",),
@@ -231,7 +225,7 @@ def test_two_processes_round_trip_and_shore_recording(tmp_path, same):
 def test_a_late_joiner_gets_the_latched_path_published_before_it_existed():
     """The planned path is published once, when the route is set; a recorder or a page process
     that connects afterwards still receives it (transient-local), an ordinary topic it does not."""
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     ex_a, ex_b = SimExecutor(), SimExecutor()
     a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",)))
     b = None
