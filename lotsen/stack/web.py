@@ -75,7 +75,7 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     if run_blocking is not None:
         hub.handler.run_blocking = run_blocking
     server = WebServer(hub, options.host, options.port, ssl_certfile=cert.certfile if cert else None,
-                       ssl_keyfile=cert.keyfile if cert else None)
+                       ssl_keyfile=cert.keyfile if cert else None, allowed_hosts=options.allowed_hosts)
     server.start()
     stack.services["web"] = server
     banner = stack.services.setdefault("banner", [])

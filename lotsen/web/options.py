@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import secrets
 from dataclasses import dataclass, field
 
@@ -12,6 +13,9 @@ from lotsen.web.auth import check_token_strength
 
 OSM_TILE_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png"
 OSM_ATTRIBUTION = "© OpenStreetMap contributors"
+
+
+_HOST_NAME = re.compile(r"(?=.{1,253}$)[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?(?:\.[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*\.?")
 
 
 @dataclass(frozen=True)
@@ -40,6 +44,15 @@ class WebExtra:
     tls_dir: str = "~/.config/lotsen/tls"
     tls_certfile: str | None = None
     tls_keyfile: str | None = None
+    # further names the boat is reached by (a LAN DNS name, a reverse proxy's name), served
+    # besides HostGuard's own list; a bare host name each: no scheme, port, path or wildcard
+    allowed_hosts: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for i, name in enumerate(self.allowed_hosts):
+            if not _HOST_NAME.fullmatch(name):
+                raise ConfigError(f"extra.web.allowed_hosts[{i}]: {name[:80]!r} is not a bare host name "
+                                  "(letters, digits, '-' and '.'; no scheme, port, path or '*')")
 
 
 @dataclass(frozen=True)
@@ -63,6 +76,7 @@ class WebOptions:
     tls_dir: str = ""
     tls_certfile: str | None = None
     tls_keyfile: str | None = None
+    allowed_hosts: tuple[str, ...] = ()
 
     @classmethod
     def from_config(cls, config: LaunchConfig, failsafe_link_timeout_s: float = 1.5) -> "WebOptions":
@@ -93,4 +107,5 @@ class WebOptions:
                    battery_capacity_ah=extra.battery_capacity_ah, viewer_may_estop=extra.viewer_may_estop,
                    tls_dir=os.path.expanduser(extra.tls_dir) if extra.tls_dir else "",
                    tls_certfile=extra.tls_certfile and os.path.expanduser(extra.tls_certfile),
-                   tls_keyfile=extra.tls_keyfile and os.path.expanduser(extra.tls_keyfile))
+                   tls_keyfile=extra.tls_keyfile and os.path.expanduser(extra.tls_keyfile),
+                   allowed_hosts=extra.allowed_hosts)

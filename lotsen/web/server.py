@@ -39,12 +39,14 @@ class HostGuard:
     of evil.example whose name then resolves to the boat) sends `Host: evil.example` with its own
     origin, so only the Host header tells it apart. Served: localhost (and *.localhost), this
     machine's names (host name, its .local and its full name), the configured bind host, and IP
-    literals of this machine's addresses. HTTP gets 421 Misdirected Request; a WebSocket
+    literals of this machine's addresses, and the configured `extra.web.allowed_hosts`. HTTP gets 421 Misdirected Request; a WebSocket
     handshake is refused before it is accepted (421 where the server can say so, else 403)."""
 
-    def __init__(self, app: Callable[..., Awaitable[None]], bind_host: str) -> None:
+    def __init__(self, app: Callable[..., Awaitable[None]], bind_host: str,
+                 allowed_hosts: tuple[str, ...] = ()) -> None:
         self.app = app
-        names = {"localhost", socket.gethostname(), socket.gethostname() + ".local", socket.getfqdn()}
+        names = {"localhost", socket.gethostname(), socket.gethostname() + ".local", socket.getfqdn(),
+                 *allowed_hosts}
         if bind_host not in ("", "0.0.0.0", "::"):
             names.add(bind_host)
         self.names = {n.lower().rstrip(".") for n in names if n}
@@ -80,11 +82,11 @@ class HostGuard:
 
 class WebServer:
     def __init__(self, hub: Hub, host: str, port: int, *, ssl_certfile: str | None = None,
-                 ssl_keyfile: str | None = None) -> None:
+                 ssl_keyfile: str | None = None, allowed_hosts: tuple[str, ...] = ()) -> None:
         self.hub = hub
         self.host = host
         self.tls = ssl_certfile is not None
-        config = uvicorn.Config(HostGuard(create_app(hub), host), host=host, port=port, log_level="warning", access_log=False,
+        config = uvicorn.Config(HostGuard(create_app(hub), host, allowed_hosts), host=host, port=port, log_level="warning", access_log=False,
                                 ws_max_size=1 << 20, ws_ping_interval=5.0, ws_ping_timeout=5.0,
                                 lifespan="on", server_header=False, ssl_certfile=ssl_certfile,
                                 ssl_keyfile=ssl_keyfile)

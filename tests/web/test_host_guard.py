@@ -11,6 +11,9 @@ from hypothesis import strategies as st
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
+from lotsen.errors import ConfigError
+from lotsen.runtime.config import LaunchConfig
+from lotsen.web.options import WebOptions
 from lotsen.web.server import HostGuard
 
 
@@ -54,6 +57,16 @@ def test_served_names_include_the_configured_host_and_this_machines_addresses():
     assert not guard.allows("evil.example") and not guard.allows(None) and not guard.allows("0.0.0.0:8080")
     wildcard = HostGuard(lambda *a: None, "0.0.0.0")
     assert not wildcard.allows("0.0.0.0") and not wildcard.allows("boat.lan")
+
+
+def test_configured_extra_names_are_served_and_bad_ones_refused_at_start():
+    options = WebOptions.from_config(LaunchConfig(extra={"web": {"allowed_hosts": ["boat.lab.example", "Proxy.LAN"]}}))
+    guard = HostGuard(lambda *a: None, "0.0.0.0", options.allowed_hosts)
+    assert guard.allows("boat.lab.example:8080") and guard.allows("proxy.lan")
+    assert not guard.allows("evil.example") and not guard.allows("lab.example")
+    for bad in ("http://boat.lab", "boat.lab:8080", "*.lab", "boat/x", ""):
+        with pytest.raises(ConfigError, match=r"extra.web.allowed_hosts\[0\]"):
+            WebOptions.from_config(LaunchConfig(extra={"web": {"allowed_hosts": [bad]}}))
 
 
 @settings(max_examples=300, deadline=None)
