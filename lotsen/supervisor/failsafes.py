@@ -5,7 +5,9 @@ whether it holds and why. A `PersistentCondition` turns that into a failsafe: th
 hold for `persist_s` before the failsafe triggers and be clear for `clear_s` before it releases
 (hysteresis), so one bad sample neither triggers nor releases one. When a failsafe triggers, the
 supervisor logs it, raises an `Alert` for the operator and runs its action for the current mode
-(`action_for(mode)`: continue, hold, stop, return, fallback).
+(`action_for(mode)`, a `FailsafeAction`: continue, hold, hold inside the area, stop, return,
+fallback controller). The monitors ask the mode object what it is (fenced, needs a heading, a
+human in control), never compare its name.
 
 Monitors are pure: they get the inputs and the time, never read a clock.
 """
@@ -15,17 +17,36 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import TYPE_CHECKING, Any, Literal
 
+from shapely.geometry import Point
+from shapely.ops import nearest_points
+
+from lotsen.control import HoldTarget
 from lotsen.messages import ActuatorState, GnssFixType, RpmSample, ThrustCommand
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.model.actuators import advance_motors
 from lotsen.settings import value_range as _r
+from lotsen.supervisor.modes import Mode, ModeName
 
 if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read them
     from lotsen.supervisor.node import SupervisorInputs
 
-Action = Literal["continue", "hold", "stop", "return", "fallback", "neutral"]
+
+class FailsafeAction(StrEnum):
+    """What a triggered failsafe does in the current mode (docs/failsafes.md)."""
+
+    CONTINUE = "continue"  # reported only
+    HOLD = "hold"  # station keeping where the boat is (on dead reckoning when the position is lost)
+    HOLD_INSIDE = "hold_inside"  # station keeping at the nearest point inside the navigable area
+    STOP = "stop"  # MANUAL, thrusters neutral, the reason shown
+    RETURN = "return"  # plan to the harbour and follow it
+    FALLBACK = "fallback"  # the fallback path follower; stop when that fails too
+
+
+Action = FailsafeAction
+MOVING = (ModeName.AUTO, ModeName.RETURN)  # the modes that follow a path
 #: pre-arm checks an expert may skip (lotsen.supervisor.prearm; the ESCs are always checked)
 SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link"]
 
@@ -143,13 +164,16 @@ class FailsafeState:
 class Monitor:
     """One failsafe: `check(inputs, t) -> (condition, reason)`, persistence, severity, actions.
 
-    `actions` maps a mode name (or "*") to the action taken when the failsafe triggers in that
-    mode; modes not listed: the failsafe is reported and nothing else happens."""
+    `actions` maps a mode to the action taken when the failsafe triggers in that mode; modes not
+    listed: the failsafe is reported and nothing else happens. `acts_while_active`: the action is
+    taken on every tick the failsafe is active (the mode may change under it), not only when it
+    triggers."""
 
     name = "monitor"
     severity = "warning"
+    acts_while_active = False
 
-    def __init__(self, persist_s: float, clear_s: float, actions: dict[str, Action]) -> None:
+    def __init__(self, persist_s: float, clear_s: float, actions: dict[ModeName, FailsafeAction]) -> None:
         self.condition = PersistentCondition(persist_s, clear_s)
         self.actions = actions
         self.reason = ""
@@ -163,8 +187,18 @@ class Monitor:
             self.reason = reason  # the reason of the condition as it began, kept while it lasts
         return self.condition.update(raw, t)
 
-    def action_for(self, mode: str) -> Action:
-        return self.actions.get(mode, self.actions.get("*", "continue"))
+    @property
+    def active(self) -> bool:
+        return self.condition.active
+
+    def action_for(self, mode: Mode) -> FailsafeAction:
+        return self.actions.get(mode.name, FailsafeAction.CONTINUE)
+
+
+def _in(modes: tuple[ModeName, ...], action: str | FailsafeAction) -> dict[ModeName, FailsafeAction]:
+    """`action` (a config value such as "hold") in each of `modes`; "continue": no action at all."""
+    act = FailsafeAction(action)
+    return {} if act is FailsafeAction.CONTINUE else {m: act for m in modes}
 
 
 class LinkMonitor(Monitor):
@@ -173,8 +207,7 @@ class LinkMonitor(Monitor):
     name = "link_lost"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        auto: Action = "hold" if cfg.link_lost_auto_action == "hold" else "continue"
-        super().__init__(0.0, 0.0, {"AUTO": auto, "RETURN": auto})
+        super().__init__(0.0, 0.0, _in(MOVING, cfg.link_lost_auto_action))
         self.timeout_s = cfg.link_timeout_s
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -220,8 +253,7 @@ class GnssLostMonitor(Monitor):
     severity = "error"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        act: Action = cfg.gnss_lost_action
-        super().__init__(0.0, 1.0, {"AUTO": act, "RETURN": act, "CALIBRATE": act})
+        super().__init__(0.0, 1.0, _in(MOVING + (ModeName.CALIBRATE,), cfg.gnss_lost_action))
         self.lost_s = cfg.gnss_lost_s
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -237,8 +269,7 @@ class GnssDegradedMonitor(Monitor):
     name = "gnss_degraded"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        act = cfg.gnss_degraded_action
-        super().__init__(cfg.gnss_degraded_s, 2.0, {} if act == "continue" else {"AUTO": act, "RETURN": act})
+        super().__init__(cfg.gnss_degraded_s, 2.0, _in(MOVING, cfg.gnss_degraded_action))
         self.min_fix = cfg.min_fix_type
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -256,8 +287,8 @@ class EstimatorMonitor(Monitor):
     severity = "error"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        pos: Action = cfg.estimator_position_action
-        super().__init__(cfg.estimator_persist_s, 2.0, {"AUTO": pos, "RETURN": pos, "CALIBRATE": "stop"})
+        super().__init__(cfg.estimator_persist_s, 2.0,
+                         {**_in(MOVING, cfg.estimator_position_action), ModeName.CALIBRATE: FailsafeAction.STOP})
         self.heading_bad = False
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -269,9 +300,9 @@ class EstimatorMonitor(Monitor):
         what = ", ".join(x for x, ok in (("position", h.position_ok), ("heading", h.heading_ok)) if not ok)
         return bad, f"estimate not trustworthy ({what}): " + "; ".join(h.faults[:3])
 
-    def action_for(self, mode: str) -> Action:
-        if self.heading_bad and mode in ("AUTO", "RETURN", "HOLD", "CALIBRATE"):
-            return "stop"  # without a heading neither following nor holding works
+    def action_for(self, mode: Mode) -> FailsafeAction:
+        if self.heading_bad and mode.requires_heading:
+            return FailsafeAction.STOP  # without a heading neither following nor holding works
         return super().action_for(mode)
 
 
@@ -288,8 +319,7 @@ class ThrusterMonitor(Monitor):
     severity = "error"
 
     def __init__(self, cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> None:
-        act = cfg.thruster_fault_action
-        super().__init__(cfg.thruster_persist_s, 2.0, {} if act == "continue" else {"AUTO": act, "RETURN": act})
+        super().__init__(cfg.thruster_persist_s, 2.0, _in(MOVING, cfg.thruster_fault_action))
         self.limits = limits
         self.frac = cfg.thruster_mismatch_frac
         self.min_rps = cfg.thruster_mismatch_min_rps
@@ -344,8 +374,8 @@ class ThrusterMonitor(Monitor):
 class BatteryMonitor(Monitor):
     """Pack voltage below a threshold for battery_persist_s."""
 
-    def __init__(self, name: str, threshold_v: float, persist_s: float, actions: dict[str, Action],
-                 severity: str) -> None:
+    def __init__(self, name: str, threshold_v: float, persist_s: float,
+                 actions: dict[ModeName, FailsafeAction], severity: str) -> None:
         super().__init__(persist_s, 10.0, actions)
         self.name = name
         self.severity = severity
@@ -356,20 +386,131 @@ class BatteryMonitor(Monitor):
         return (math.isfinite(v) and v < self.threshold_v), f"battery {v:.2f} V below {self.threshold_v} V"
 
 
+class DeadReckoningMonitor(Monitor):
+    """Dead reckoning (GNSS lost, or the estimate's position not trusted) for longer than
+    gnss_stop_after_s while the boat holds or follows a path: stop. Reads the monitors it follows
+    up on (updated before it in the same tick)."""
+
+    name = "dead_reckoning"
+    severity = "error"
+    acts_while_active = True  # also when HOLD is entered after the time is up
+
+    def __init__(self, cfg: FailsafeConfig, sources: list[Monitor]) -> None:
+        super().__init__(cfg.gnss_stop_after_s, 0.0, _in(MOVING + (ModeName.HOLD,), FailsafeAction.STOP))
+        self.sources = sources
+        self.stop_after_s = cfg.gnss_stop_after_s
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        return (any(m.active for m in self.sources),
+                f"no trustworthy position for more than {self.stop_after_s:.0f} s")
+
+
+class GeofenceMonitor(Monitor):
+    """The estimated position outside the navigable water (by more than geofence_margin_m) for
+    geofence_persist_s, in a fenced mode (or MANUAL with geofence_in_manual): hold at the nearest
+    point geofence_inset_m inside. Judged on a trustworthy estimate only: a position the integrity
+    monitor declared bad is the estimator failsafe's to act on."""
+
+    name = "geofence"
+    severity = "error"
+    acts_while_active = True  # also when the boat was already outside on entering the mode
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        super().__init__(cfg.geofence_persist_s, 2.0, {})
+        self.margin_m = cfg.geofence_margin_m
+        self.inset_m = cfg.geofence_inset_m
+        self.in_manual = cfg.geofence_in_manual
+        self.max_position_std_m = cfg.max_position_std_m
+        self._regions: tuple[Any, Any, Any] = (None, None, None)  # (route, fence, inset), once per route
+
+    def _fence(self, route: Any) -> tuple[Any, Any]:
+        """The region outside which the fence trips, and the one the boat holds in after a breach."""
+        if self._regions[0] is not route:
+            free = route.free_region()
+            inner = free.buffer(-self.inset_m)
+            self._regions = (route, free.buffer(self.margin_m), free if inner.is_empty else inner)
+        return self._regions[1], self._regions[2]
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        s = inputs.state
+        if inputs.route is None or s is None or not inputs.position_trusted(self.max_position_std_m):
+            return False, ""
+        outside = not self._fence(inputs.route)[0].contains(Point(s.north_m, s.east_m))
+        return outside, f"position ({s.north_m:.1f}, {s.east_m:.1f}) outside the navigable area"
+
+    def action_for(self, mode: Mode) -> FailsafeAction:
+        fenced = mode.fenced or (mode.name == ModeName.MANUAL and self.in_manual)
+        return FailsafeAction.HOLD_INSIDE if fenced else FailsafeAction.CONTINUE
+
+    def hold_target(self, inputs: "SupervisorInputs") -> HoldTarget:
+        """The nearest point geofence_inset_m inside the area, bow toward it: whatever pushed the
+        boat out (current, wind) is then met by the azimuths' full forward thrust, not by the weak
+        sideways one."""
+        s = inputs.state
+        p = Point(s.north_m, s.east_m)
+        q = nearest_points(self._fence(inputs.route)[1], p)[0]
+        heading = math.atan2(q.y - p.y, q.x - p.x) if p.distance(q) > 0.05 else s.heading_rad
+        return HoldTarget(q.x, q.y, heading)
+
+
+class ControllerMonitor(Monitor):
+    """The path follower's health, seen after each of its updates (not on the tick: it judges the
+    update itself): controller_failure_count failed updates in a row (solver failure, coasting on
+    the previous plan, safe stop) or controller_overrun_count updates longer than
+    controller_overrun_factor x the control period. Action: the fallback path follower; when the
+    fallback fails too, stop (the supervisor knows which one ran)."""
+
+    name = "controller"
+    severity = "error"
+
+    def __init__(self, cfg: FailsafeConfig, period_s: float) -> None:
+        super().__init__(0.0, math.inf, _in(MOVING, FailsafeAction.FALLBACK))
+        self.failure_count, self.overrun_count = cfg.controller_failure_count, cfg.controller_overrun_count
+        self.overrun_ms = cfg.controller_overrun_factor * period_s * 1000.0
+        self.failures = self.overruns = 0
+
+    def reset(self) -> None:
+        self.failures = self.overruns = 0
+
+    def observe(self, status: str, solve_ms: float) -> str:
+        """One update's status text and duration; returns why it trips now ('' when it does not)."""
+        # the followers report "ok"/"saturated" normally, "fallback_plan (...)" while coasting on
+        # the previous solution and "safe_stop (...)" when they gave up
+        failed = status.startswith(("safe_stop", "fallback_plan", "failed"))
+        self.failures = self.failures + 1 if failed else 0
+        self.overruns = self.overruns + 1 if solve_ms > self.overrun_ms else 0
+        if self.failures >= self.failure_count:
+            why = f"{self.failures} failed updates ({status})"
+        elif self.overruns >= self.overrun_count:
+            why = f"{self.overruns} overruns ({solve_ms:.1f} ms)"
+        else:
+            return ""
+        self.reset()
+        return why
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        return False, ""  # event-driven: `observe`
+
+
 def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> list[Monitor]:
-    """The failsafe table of docs/failsafes.md (geofence and controller are checked by the
-    supervisor itself: their actions need the route and the controllers)."""
-    thrusting: dict[str, Action] = {m: "stop" for m in ("AUTO", "RETURN", "HOLD", "MANUAL", "CALIBRATE")}
+    """The failsafe table of docs/failsafes.md that is checked every tick, in order (dead
+    reckoning after the monitors it follows up on). The controller monitor is separate: it
+    judges each path-follower update (`ControllerMonitor.observe`)."""
+    thrusting = _in((ModeName.AUTO, ModeName.RETURN, ModeName.HOLD, ModeName.MANUAL, ModeName.CALIBRATE),
+                    FailsafeAction.STOP)
+    gnss_lost, estimator = GnssLostMonitor(cfg), EstimatorMonitor(cfg)
     return [
         LinkMonitor(cfg),
         RcLinkMonitor(cfg),
-        GnssLostMonitor(cfg),
+        gnss_lost,
         GnssDegradedMonitor(cfg),
-        EstimatorMonitor(cfg),
+        estimator,
+        DeadReckoningMonitor(cfg, [gnss_lost, estimator]),
         ThrusterMonitor(cfg, limits),
         BatteryMonitor("battery_critical", cfg.battery_critical_v, cfg.battery_persist_s, thrusting, "critical"),
-        BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s, {"AUTO": "return", "HOLD": "return"},
-                       "warning"),
+        BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s,
+                       _in((ModeName.AUTO, ModeName.HOLD), FailsafeAction.RETURN), "warning"),
+        GeofenceMonitor(cfg),
     ]
 
 

@@ -18,7 +18,8 @@ operator can still drive by keyboard, the boat does not move by itself.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from enum import StrEnum
+from typing import TYPE_CHECKING
 
 from lotsen.control import HoldTarget
 from lotsen.errors import LotsenError
@@ -31,6 +32,18 @@ if TYPE_CHECKING:
 Output = tuple[ThrustCommand, "ControllerStatus | None"]
 
 
+class ModeName(StrEnum):
+    """The modes' names: what the status message, the log and the page show (plain strings there)."""
+
+    MANUAL = "MANUAL"
+    AUTO = "AUTO"
+    HOLD = "HOLD"
+    RETURN = "RETURN"
+    CALIBRATE = "CALIBRATE"
+    ESTOP = "ESTOP"
+    RC = "RC"
+
+
 def neutral(t: float, source: str) -> ThrustCommand:
     return ThrustCommand.neutral(t, source=source)
 
@@ -38,13 +51,16 @@ def neutral(t: float, source: str) -> ThrustCommand:
 class Mode:
     """Base class. Capability predicates are class attributes; `update` returns the command."""
 
-    name = "MODE"
+    name: ModeName
     requires_armed = True  # thrust in this mode needs the operator's arm
     requires_position = False  # a trustworthy position estimate
     requires_heading = False
     requires_route = False
     moving = False  # follows a path (failsafes that 'hold' act in it)
     fenced = False  # the geofence acts in it
+    # a human has the boat (the latched e-stop, the RC transmitter): failsafe actions leave it
+    # alone and operator requests other than the e-stop are refused with this reason
+    human_in_control = ""
 
     def enter(self, sup: "SupervisorNode", t: float) -> None:
         pass
@@ -57,7 +73,7 @@ class Mode:
 
 
 class Manual(Mode):
-    name = "MANUAL"
+    name = ModeName.MANUAL
     requires_armed = False  # selectable disarmed; keys give thrust only when armed
 
     def enter(self, sup: "SupervisorNode", t: float) -> None:
@@ -83,7 +99,7 @@ class Manual(Mode):
 class Hold(Mode):
     """Station keeping at `target` (set before entering)."""
 
-    name = "HOLD"
+    name = ModeName.HOLD
     requires_position = True
     requires_heading = True
     fenced = True
@@ -122,17 +138,17 @@ class FollowPath(Mode):
 
 
 class Auto(FollowPath):
-    name = "AUTO"
+    name = ModeName.AUTO
 
 
 class Return(FollowPath):
-    name = "RETURN"
+    name = ModeName.RETURN
 
 
 class Calibrate(Mode):
     """One slow turn on the bow thruster (the azimuths idle), then fit the magnetometer ellipse."""
 
-    name = "CALIBRATE"
+    name = ModeName.CALIBRATE
     requires_heading = True
 
     def __init__(self) -> None:
@@ -171,12 +187,13 @@ class Calibrate(Mode):
         if sup.position_ok():
             sup.enter_hold(t, "calibration finished")
         else:
-            sup.set_mode(sup.modes["MANUAL"], "calibration finished")
+            sup.set_mode(sup.modes[ModeName.MANUAL], "calibration finished")
 
 
 class Estop(Mode):
-    name = "ESTOP"
+    name = ModeName.ESTOP
     requires_armed = False
+    human_in_control = "emergency stop is latched; reset it first"
 
     def enter(self, sup: "SupervisorNode", t: float) -> None:
         sup.armed = False
@@ -189,8 +206,9 @@ class Rc(Mode):
     """The RC transmitter has control (the seed: a human can always take over). Neutral when it
     sends no command, and when its link is lost, in failsafe or silent for rc_timeout_s."""
 
-    name = "RC"
+    name = ModeName.RC
     requires_armed = False
+    human_in_control = "the RC transmitter has control"
 
     def update(self, sup: "SupervisorNode", t: float) -> Output:
         rc = sup.inputs.rc
@@ -199,5 +217,5 @@ class Rc(Mode):
         return (rc.command if rc.command is not None else neutral(t, "rc")), None
 
 
-def all_modes() -> dict[str, Any]:
+def all_modes() -> dict[ModeName, Mode]:
     return {m.name: m for m in (Manual(), Auto(), Hold(), Return(), Calibrate(), Estop(), Rc())}

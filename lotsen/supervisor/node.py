@@ -4,8 +4,8 @@ The supervisor owns the controllers and publishes the only ship_command, so exac
 decides what the thrusters do. Every command leaving it is checked for non-finite values
 (neutral instead), and the actuator guard downstream checks again.
 
-Each control tick: inputs -> failsafe monitors (and the geofence, the controller watch) -> the
-mode's command -> ship_command, supervisor/status (with the actions possible now and why the
+Each control tick: inputs -> failsafe monitors (lotsen.supervisor.failsafes; the controller
+monitor judges each path-follower update) -> the mode's command -> ship_command, supervisor/status (with the actions possible now and why the
 others are not), mission/progress. Operator requests are checked against the modes' capability
 predicates; a refusal is an `Alert` the operator sees, not only a log line.
 """
@@ -18,8 +18,6 @@ from typing import Any, Callable
 
 import numpy as np
 from shapely import contains_xy
-from shapely.geometry import Point
-from shapely.ops import nearest_points
 
 from lotsen.control import ControlConfig, HoldTarget, ThrustAllocator, make_path_follower, make_station_keeper
 from lotsen.errors import LotsenError
@@ -34,14 +32,18 @@ from lotsen.planning.exchange import path_from_message
 from lotsen.planning.io import route_from_dict, route_to_dict
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.supervisor.failsafes import (
-    FailsafeConfig, FailsafeState, Monitor, PersistentCondition, ThrusterMonitor, monitor,
-    standard_monitors,
+    ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ThrusterMonitor,
+    monitor, standard_monitors,
 )
-from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
+from lotsen.supervisor.modes import Hold, Mode, ModeName, all_modes, neutral
 from lotsen.supervisor.prearm import FailedCheck, PrearmInputs, blocking, describe, prearm_failures, route_corridor_m
 
 #: failsafes whose action is "hold on dead reckoning, then stop after gnss_stop_after_s"
 DEAD_RECKONING = ("gnss_lost", "estimator")
+#: the mode each operator request asks for
+REQUESTED_MODE = {"auto": ModeName.AUTO, "hold": ModeName.HOLD, "return": ModeName.RETURN,
+                  "calibrate_mag": ModeName.CALIBRATE}
+GEOFENCE_HOLD_REASON = "failsafe: geofence, holding inside the area"
 SEVERITY_ORDER = ("info", "warning", "error", "critical")
 
 
@@ -81,10 +83,21 @@ class SupervisorInputs:
     battery: BatteryStatus | None = None
     actuators: ActuatorState | None = None
     health: Any = None  # EstimatorHealth (lotsen.fusion) when the estimator publishes one
+    route: Any = None  # the route in use (its navigable area and obstacles), None without one
 
     @property
     def escs_armed(self) -> bool:
         return self.actuators is not None and bool(self.actuators.escs_armed)
+
+    def position_trusted(self, max_position_std_m: float) -> bool:
+        """A finite state estimate whose position std is within the bound and whose integrity
+        monitor (when there is one) trusts the position."""
+        s = self.state
+        if s is None or not _finite_state(s):
+            return False
+        if len(s.std) >= 2 and max(s.std[0], s.std[1]) > max_position_std_m:
+            return False
+        return self.health is None or bool(self.health.position_ok)
 
 
 class SupervisorNode(Node):
@@ -107,30 +120,27 @@ class SupervisorNode(Node):
         self.mag_calibrator = mag_calibrator
         self.period_s = 1.0 / config.control_rate_hz
         self.inputs = SupervisorInputs()
-        # route
-        self.route: Any = None
+        # route (the route itself is an input: the geofence monitor reads it)
         self.path: Any = None
         self.route_id = ""
         self.node_s: tuple[float, ...] = ()
         self.active_path: Any = None  # the path AUTO/RETURN is following
         self._time_to_end: np.ndarray | None = None  # planned seconds from each path point to the end
         # modes
-        self.modes: dict[str, Mode] = all_modes()
-        self.mode: Mode = self.modes["MANUAL"]
+        self.modes: dict[ModeName, Mode] = all_modes()
+        self.mode: Mode = self.modes[ModeName.MANUAL]
         self.reason = "start"
         self.armed = False
         self.stopped = ""  # non-empty: a failsafe stopped the boat (MANUAL, neutral until new keys)
-        self.mode_before_rc = "MANUAL"
+        self.mode_before_rc = ModeName.MANUAL
         # failsafes
         fs = config.failsafes
         self.failsafes = FailsafeState()
         self.monitors: list[Monitor] = standard_monitors(fs, limits)
         self.thruster: ThrusterMonitor = monitor(self.monitors, "thruster")
-        self._geofence = PersistentCondition(fs.geofence_persist_s, 2.0)
-        self._dead_reckoning_since: float | None = None
+        self.geofence: GeofenceMonitor = monitor(self.monitors, "geofence")
+        self.controller_monitor = ControllerMonitor(fs, self.period_s)
         self.failsafe_history: list[str] = []  # "name: reason at t" of every failsafe that triggered
-        self._controller_failures = 0
-        self._controller_overruns = 0
         self.counters = {"non_finite_commands": 0, "refused_requests": 0, "controller_fallbacks": 0,
                          "routes_refused": 0}
         self.last_status: ControllerStatus | None = None
@@ -141,8 +151,16 @@ class SupervisorNode(Node):
         self._corridor: tuple[Any, Any, float] = (None, None, math.inf)
 
     @property
+    def route(self) -> Any:
+        return self.inputs.route
+
+    @route.setter
+    def route(self, route: Any) -> None:
+        self.inputs.route = route
+
+    @property
     def hold_target(self) -> HoldTarget | None:
-        return self.modes["HOLD"].target  # type: ignore[attr-defined]
+        return self.modes[ModeName.HOLD].target  # type: ignore[attr-defined]
 
     # ------------------------------------------------------------------ wiring
     def start(self, ctx: NodeContext) -> None:
@@ -173,7 +191,7 @@ class SupervisorNode(Node):
         self.inputs.manual = ManualCommand(stamp_s=msg.stamp_s, surge=_clip1(msg.surge), sway=_clip1(msg.sway),
                                            yaw=_clip1(msg.yaw))
         self.inputs.manual_arrival_s = self.ctx.now()
-        if any(vals) and self.stopped and self.mode.name == "MANUAL":
+        if any(vals) and self.stopped and self.mode.name == ModeName.MANUAL:
             self.stopped = ""  # the operator takes over after a failsafe stop
 
     def _on_link(self, msg: LinkStatus) -> None:
@@ -191,18 +209,18 @@ class SupervisorNode(Node):
             return
         self.inputs.rc_takeover = msg.active
         if msg.estop:
-            if self.mode.name != "ESTOP":
-                self.set_mode(self.modes["ESTOP"], "emergency stop by the RC transmitter")
+            if self.mode.name != ModeName.ESTOP:
+                self.set_mode(self.modes[ModeName.ESTOP], "emergency stop by the RC transmitter")
                 self.alert("critical", "estop", "emergency stop by the RC transmitter")
             return
         if msg.active and not was_on:
             self.mode_before_rc = self.mode.name
-            self.set_mode(self.modes["RC"], "RC transmitter override")
-        elif not msg.active and self.mode.name == "RC":
+            self.set_mode(self.modes[ModeName.RC], "RC transmitter override")
+        elif not msg.active and self.mode.name == ModeName.RC:
             if self.position_ok() and self.armed:
                 self.enter_hold(t, "RC override released")
             else:
-                self.set_mode(self.modes["MANUAL"], "RC override released")
+                self.set_mode(self.modes[ModeName.MANUAL], "RC override released")
 
     def _on_state(self, msg: VesselState) -> None:
         self.inputs.state = msg
@@ -225,8 +243,8 @@ class SupervisorNode(Node):
         self.thruster.on_rpm(msg, self.inputs.actuators)
 
     def _on_mag(self, msg: MagSample) -> None:
-        if self.mode.name == "CALIBRATE":
-            self.modes["CALIBRATE"].samples.append((msg.field_uT[0], msg.field_uT[1]))  # type: ignore[attr-defined]
+        if self.mode.name == ModeName.CALIBRATE:
+            self.modes[ModeName.CALIBRATE].samples.append((msg.field_uT[0], msg.field_uT[1]))  # type: ignore[attr-defined]
 
     # ------------------------------------------------------------------ routes
     def _on_route(self, msg: Any) -> None:
@@ -275,15 +293,13 @@ class SupervisorNode(Node):
     # ------------------------------------------------------------------ operator requests
     def why_not(self, action: str) -> str:
         """'' when `action` would be accepted now, else the reason (for refusals and the page)."""
-        m = self.mode.name
         if action not in OPERATOR_ACTIONS:
             return f"unknown action {action!r}"
         if action in ("estop", "rtk_start", "rtk_stop", "logging_on", "logging_off"):
             return ""
-        if m == "RC":
-            return "the RC transmitter has control"
-        if m == "ESTOP":
-            return "" if action == "reset_estop" else "emergency stop is latched; reset it first"
+        if self.mode.human_in_control:
+            latched_estop = self.mode.name == ModeName.ESTOP and action == "reset_estop"
+            return "" if latched_estop else self.mode.human_in_control
         if action == "reset_estop":
             return "no emergency stop to reset"
         if action == "disarm":
@@ -296,8 +312,7 @@ class SupervisorNode(Node):
             return describe(blocking(self.prearm_failures(action), self.config.failsafes))
         if action == "manual":
             return ""
-        target = {"auto": "AUTO", "hold": "HOLD", "return": "RETURN", "calibrate_mag": "CALIBRATE"}[action]
-        mode = self.modes[target]
+        mode = self.modes[REQUESTED_MODE[action]]
         if mode.requires_armed and not self.armed:
             return "arm first"
         if action == "auto":  # every failing pre-arm check, listed
@@ -317,7 +332,7 @@ class SupervisorNode(Node):
         if action in ("rtk_start", "rtk_stop", "logging_on", "logging_off") and action in OPERATOR_ACTIONS:
             return  # handled by the GNSS driver / simulated receiver and the recorder
         why = self.why_not(action)
-        prearm = self.prearm_failures(action) if action in ("arm", "auto") and self.mode.name not in ("RC", "ESTOP") \
+        prearm = self.prearm_failures(action) if action in ("arm", "auto") and not self.mode.human_in_control \
             else []
         if why:
             self._refuse(action, why, **({"prearm_failed": [f.id for f in prearm]} if prearm else {}))
@@ -327,30 +342,30 @@ class SupervisorNode(Node):
         if prearm:  # accepted with failing checks: only the expert override does that
             self._log_override(action, by, prearm)
         if action == "estop":
-            self.set_mode(self.modes["ESTOP"], f"emergency stop by {cmd.source}")
+            self.set_mode(self.modes[ModeName.ESTOP], f"emergency stop by {cmd.source}")
             self.alert("critical", "estop", f"emergency stop by {cmd.source}")
         elif action == "reset_estop":
-            self.set_mode(self.modes["MANUAL"], "emergency stop reset (disarmed)")
+            self.set_mode(self.modes[ModeName.MANUAL], "emergency stop reset (disarmed)")
             self.alert("info", "estop", "emergency stop reset", active=False)
         elif action == "arm":
             self.armed = True
             self.ctx.log("info", f"armed ({by})")
         elif action == "disarm":
             self.armed = False
-            if self.mode.name != "MANUAL":
-                self.set_mode(self.modes["MANUAL"], f"disarmed ({by})")
+            if self.mode.name != ModeName.MANUAL:
+                self.set_mode(self.modes[ModeName.MANUAL], f"disarmed ({by})")
             self.ctx.log("info", f"disarmed ({by})")
         elif action == "manual":
-            self.set_mode(self.modes["MANUAL"], by)
+            self.set_mode(self.modes[ModeName.MANUAL], by)
         elif action == "hold":
             self.enter_hold(t, by)
         elif action == "auto":
-            self.start_following(self.path, "AUTO", by,
-                                 resume=self.active_path is self.path and self.mode.name == "HOLD")
+            self.start_following(self.path, ModeName.AUTO, by,
+                                 resume=self.active_path is self.path and self.mode.name == ModeName.HOLD)
         elif action == "return":
             self.start_return(t, by)
         elif action == "calibrate_mag":
-            self.set_mode(self.modes["CALIBRATE"], by)
+            self.set_mode(self.modes[ModeName.CALIBRATE], by)
         self._publish_status()
 
     def _refuse(self, action: str, why: str, **data: Any) -> None:
@@ -388,13 +403,13 @@ class SupervisorNode(Node):
     def set_mode(self, mode: Mode, reason: str) -> None:
         t = self.ctx.now()
         if mode is not self.mode or reason != self.reason:
-            self.ctx.log("warning" if mode.name == "ESTOP" else "info",
+            self.ctx.log("warning" if mode.name == ModeName.ESTOP else "info",
                          f"mode {self.mode.name} -> {mode.name}: {reason}", mode=mode.name)
         if mode is not self.mode:
             self.mode.exit(self, t)
             self.mode = mode
             mode.enter(self, t)
-        if mode.name != "MANUAL":
+        if mode.name != ModeName.MANUAL:
             self.stopped = ""
         self.reason = reason
         self._publish_status()
@@ -406,7 +421,7 @@ class SupervisorNode(Node):
                 self.stop(f"{reason} (no position to hold)")
                 return
             target = HoldTarget(s.north_m, s.east_m, s.heading_rad)
-        hold: Hold = self.modes["HOLD"]  # type: ignore[assignment]
+        hold: Hold = self.modes[ModeName.HOLD]  # type: ignore[assignment]
         hold.target = target
         if self.mode is hold:
             self.station_keeper.reset()
@@ -414,16 +429,16 @@ class SupervisorNode(Node):
 
     def stop(self, reason: str) -> None:
         self.stopped = reason
-        self.set_mode(self.modes["MANUAL"], f"stopped: {reason}")
+        self.set_mode(self.modes[ModeName.MANUAL], f"stopped: {reason}")
 
-    def start_following(self, path: Any, mode_name: str, reason: str, resume: bool = False) -> None:
+    def start_following(self, path: Any, mode_name: ModeName, reason: str, resume: bool = False) -> None:
         if not resume:
             self.follower.reset(path)
             if self.fallback is not None:
                 self.fallback.reset(path)
         self.active_path = path
         self._time_to_end = _time_to_end(path)
-        self._controller_failures = self._controller_overruns = 0
+        self.controller_monitor.reset()
         self.set_mode(self.modes[mode_name], reason)
 
     def start_return(self, t: float, reason: str) -> None:
@@ -439,7 +454,7 @@ class SupervisorNode(Node):
             self.enter_hold(t, f"{reason}: return not plannable, holding instead")
             return
         self.ctx.publish(Topic.PATH, path_message(t, path, self.config.path_message_points))
-        self.start_following(path, "RETURN", reason)
+        self.start_following(path, ModeName.RETURN, reason)
 
     def publish_calibration(self, result: MagCalibrationResult) -> None:
         self.ctx.publish(Topic.MAG_CALIBRATION, result)
@@ -491,13 +506,7 @@ class SupervisorNode(Node):
         return became_on
 
     def position_ok(self) -> bool:
-        s = self.inputs.state
-        if s is None or not _finite_state(s):
-            return False
-        if len(s.std) >= 2 and max(s.std[0], s.std[1]) > self.config.failsafes.max_position_std_m:
-            return False
-        h = self.inputs.health
-        return h is None or bool(h.position_ok)
+        return self.inputs.position_trusted(self.config.failsafes.max_position_std_m)
 
     def _heading_ok(self) -> bool:
         s = self.inputs.state
@@ -509,83 +518,42 @@ class SupervisorNode(Node):
     def _check_failsafes(self, t: float) -> None:
         for mon in self.monitors:
             active = mon.update(self.inputs, t)
-            if self._flag(mon.name, active, mon.reason, mon.severity):
-                self._act(t, mon, mon.action_for(self.mode.name))
-        fs = self.config.failsafes
-        # dead reckoning (GNSS lost or not trusted): stop when it lasts too long while holding
-        dr = any(n in self.failsafes.active for n in DEAD_RECKONING)
-        if not dr:
-            self._dead_reckoning_since = None
-        elif self._dead_reckoning_since is None:
-            self._dead_reckoning_since = t
-        elif t - self._dead_reckoning_since > fs.gnss_stop_after_s and self.mode.name in ("HOLD", "AUTO", "RETURN"):
-            self.stop(f"failsafe: no trustworthy position for more than {fs.gnss_stop_after_s:.0f} s")
-        self._check_geofence(t)
+            if self._flag(mon.name, active, mon.reason, mon.severity) or (active and mon.acts_while_active):
+                self._act(t, mon, mon.action_for(self.mode))
 
-    def _act(self, t: float, mon: Monitor, action: str) -> None:
+    def _act(self, t: float, mon: Monitor, action: FailsafeAction) -> None:
         why = f"failsafe {mon.name}: {mon.reason}"
-        if action == "hold":
-            if self.mode.name != "HOLD":
+        if action is FailsafeAction.CONTINUE or self.mode.human_in_control:
+            return
+        if action is FailsafeAction.HOLD:
+            if self.mode.name != ModeName.HOLD:
                 self.enter_hold(t, f"{why} (holding{' on dead reckoning' if mon.name in DEAD_RECKONING else ''})")
-        elif action == "stop":
-            if self.mode.name not in ("ESTOP", "RC"):
-                self.stop(why)
-        elif action == "return":
+        elif action is FailsafeAction.HOLD_INSIDE:
+            # once: then the boat holds at the point inside until the operator decides
+            if self.armed and self.reason != GEOFENCE_HOLD_REASON:
+                self.enter_hold(t, GEOFENCE_HOLD_REASON, self.geofence.hold_target(self.inputs))
+        elif action is FailsafeAction.STOP:
+            self.stop(why)
+        elif action is FailsafeAction.RETURN:
             self.start_return(t, why)
-
-    def _check_geofence(self, t: float) -> None:
-        fs = self.config.failsafes
-        s = self.inputs.state
-        if self.route is None or s is None or not _finite_state(s) or not self.position_ok():
-            # an estimate the integrity monitor declared bad is not trusted to judge the fence:
-            # the estimator failsafe acts instead
-            self._geofence.update(False, t)
-            self._flag("geofence", False, "", "error")
-            return
-        free = self.route.free_region()
-        p = Point(s.north_m, s.east_m)
-        outside = not free.buffer(fs.geofence_margin_m).contains(p)
-        breach = self._geofence.update(outside, t)
-        self._flag("geofence", breach, f"position ({s.north_m:.1f}, {s.east_m:.1f}) outside the navigable area",
-                   "error")
-        # act whenever the boat is outside in a fenced mode (also when it was already outside on
-        # entering the mode), unless it is already holding at the point inside
-        if not breach or self.reason.startswith("failsafe: geofence"):
-            return
-        if not self.mode.fenced and not (self.mode.name == "MANUAL" and fs.geofence_in_manual and self.armed):
-            return
-        inner = free.buffer(-fs.geofence_inset_m)
-        if inner.is_empty:
-            inner = free
-        q = nearest_points(inner, p)[0]
-        # bow toward the water the boat was pushed out of: whatever pushed it out (current,
-        # wind) is then met by the azimuths' full forward thrust, not by the weak sideways one
-        heading = math.atan2(q.y - p.y, q.x - p.x) if p.distance(q) > 0.05 else s.heading_rad
-        self.enter_hold(t, "failsafe: geofence, holding inside the area", HoldTarget(q.x, q.y, heading))
-
-    def watch_controller(self, t: float, status: ControllerStatus, solve_ms: float) -> None:
-        fs = self.config.failsafes
-        # the controllers report "ok"/"saturated" normally, "fallback_plan (...)" while coasting on
-        # the previous solution and "safe_stop (...)" when they gave up
-        failed = status.status.startswith(("safe_stop", "fallback_plan", "failed"))
-        self._controller_failures = self._controller_failures + 1 if failed else 0
-        overrun = solve_ms > fs.controller_overrun_factor * self.period_s * 1000.0
-        self._controller_overruns = self._controller_overruns + 1 if overrun else 0
-        if self._controller_failures >= fs.controller_failure_count or \
-                self._controller_overruns >= fs.controller_overrun_count:
-            why = (f"{self._controller_failures} failed updates ({status.status})"
-                   if self._controller_failures >= fs.controller_failure_count
-                   else f"{self._controller_overruns} overruns ({solve_ms:.1f} ms)")
-            self._controller_failures = self._controller_overruns = 0
+        elif action is FailsafeAction.FALLBACK:
+            fallback = self.config.failsafes.fallback_controller
             if self.fallback is None:
                 self.counters["controller_fallbacks"] += 1
-                self._flag("controller", True, f"{self.follower.name}: {why}; fallback {fs.fallback_controller}",
-                           "error")
-                self.fallback = self._make_follower(fs.fallback_controller)
+                self._flag(mon.name, True, f"{self.follower.name}: {mon.reason}; fallback {fallback}", mon.severity)
+                self.fallback = self._make_follower(fallback)
                 self.fallback.reset(self.active_path)
             else:
-                self._flag("controller", True, f"fallback {self.fallback.name} failed too: {why}", "error")
+                self._flag(mon.name, True, f"fallback {self.fallback.name} failed too: {mon.reason}", mon.severity)
                 self.stop("failsafe: controller and fallback failed")
+
+    def watch_controller(self, t: float, status: ControllerStatus, solve_ms: float) -> None:
+        """After each path-follower update: the controller monitor judges it (and may act)."""
+        mon = self.controller_monitor
+        why = mon.observe(status.status, solve_ms)
+        if why:
+            mon.reason = why
+            self._act(t, mon, mon.action_for(self.mode))
 
     # ------------------------------------------------------------------ status
     def _publish_status(self) -> None:
@@ -600,7 +568,7 @@ class SupervisorNode(Node):
             else:
                 available.append(action)
         self.ctx.publish(Topic.SUPERVISOR, SupervisorStatus(
-            stamp_s=self.ctx.now(), mode=self.mode.name, reason=self.reason, armed=self.armed, warnings=warnings,
+            stamp_s=self.ctx.now(), mode=str(self.mode.name), reason=self.reason, armed=self.armed, warnings=warnings,
             active_failsafes=tuple(self.failsafes.active), escs_armed=self.inputs.escs_armed,
             available_actions=tuple(available), blocked_actions=tuple(blocked), route_id=self.route_id))
 
@@ -612,13 +580,13 @@ class SupervisorNode(Node):
         s = min(max(status.progress_m, 0.0), path.length_m)
         eta = float(np.interp(s, path.s_m, self._time_to_end)) if self._time_to_end is not None else math.nan
         next_node, dist = -1, math.nan
-        if self.mode.name == "AUTO" and path is self.path:
+        if self.mode.name == ModeName.AUTO and path is self.path:
             for k, sk in enumerate(self.node_s):
                 if sk > s + 0.05:
                     next_node, dist = k - 1, sk - s  # planner node k is route node k - 1 (harbour first)
                     break
         self.ctx.publish(Topic.PROGRESS, MissionProgress(
-            stamp_s=t, mode=self.mode.name, path_length_m=round(path.length_m, 3), progress_m=round(s, 3),
+            stamp_s=t, mode=str(self.mode.name), path_length_m=round(path.length_m, 3), progress_m=round(s, 3),
             remaining_m=round(path.length_m - s, 3), eta_s=round(eta, 1), next_node=next_node,
             distance_to_next_node_m=round(dist, 3) if math.isfinite(dist) else math.nan,
             route_id=self.route_id if path is self.path else ""))

@@ -1,4 +1,5 @@
-"""Failsafe monitors as pure objects: the thruster monitor against the modelled ESC response."""
+"""Failsafe monitors as pure objects: the thruster monitor against the modelled ESC response; the
+geofence, dead-reckoning, controller and estimator monitors asking the mode object what it is."""
 
 import math
 
@@ -81,3 +82,82 @@ def test_persistent_condition_needs_persistence_and_clears_with_hysteresis():
     assert not c.update(True, 0.0) and not c.update(True, 0.4) and c.update(True, 0.5)
     assert c.update(False, 0.6) and c.update(False, 1.5) and not c.update(False, 1.6)
     assert c.activations == 1 and math.isfinite(c.persist_s)
+
+
+# ------------------------------------------------------------------ monitors that ask the mode
+def _state(north_m, east_m, std_m=0.05):
+    from lotsen.messages import VesselState
+
+    return VesselState(stamp_s=0.0, north_m=north_m, east_m=east_m, heading_rad=0.0, u_mps=0.0, v_mps=0.0,
+                       r_radps=0.0, std=(std_m,) * 6)
+
+
+def test_geofence_trips_after_its_persistence_and_holds_inside_only_in_fenced_modes():
+    from lotsen.planning.route import HarbourNode, Route, RouteNode
+    from lotsen.supervisor.failsafes import FailsafeAction, GeofenceMonitor
+    from lotsen.supervisor.modes import all_modes
+
+    modes = all_modes()
+    cfg = FailsafeConfig(geofence_persist_s=0.3, geofence_inset_m=1.5)
+    mon = GeofenceMonitor(cfg)
+    inputs = SupervisorInputs(route=Route(HarbourNode(5.0, 5.0, 0.0), (RouteNode(8.0, 8.0, 0.0, 0.5),),
+                                          area=((0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0))))
+    inputs.state = _state(5.0, 10.5)  # 0.5 m east of the east edge
+    assert not mon.update(inputs, 0.0) and not mon.update(inputs, 0.2) and mon.update(inputs, 0.3)
+    assert "outside the navigable area" in mon.reason
+    assert {m: mon.action_for(modes[m]) for m in modes} == {
+        "MANUAL": "continue", "AUTO": "hold_inside", "HOLD": "hold_inside", "RETURN": "hold_inside",
+        "CALIBRATE": "continue", "ESTOP": "continue", "RC": "continue"}
+    target = mon.hold_target(inputs)
+    assert abs(target.north_m - 5.0) < 1e-6 and abs(target.east_m - 8.5) < 1e-6  # 1.5 m inside
+    assert abs(target.heading_rad - (-math.pi / 2)) < 1e-6  # bow toward the water it was pushed out of
+    in_manual = GeofenceMonitor(FailsafeConfig(geofence_in_manual=True))
+    assert in_manual.action_for(modes["MANUAL"]) is FailsafeAction.HOLD_INSIDE
+    inputs.state = _state(5.0, 10.5, std_m=5.0)  # an estimate not trusted does not judge the fence
+    assert mon.check(inputs, 1.0) == (False, "")
+
+
+def test_dead_reckoning_stops_after_gnss_stop_after_s_of_its_sources():
+    from lotsen.supervisor.failsafes import DeadReckoningMonitor, FailsafeAction, GnssLostMonitor
+    from lotsen.supervisor.modes import all_modes
+
+    cfg = FailsafeConfig(gnss_lost_s=1.5, gnss_stop_after_s=20.0)
+    lost = GnssLostMonitor(cfg)
+    dr = DeadReckoningMonitor(cfg, [lost])
+    inputs = SupervisorInputs(last_usable_fix_s=0.0)
+    tripped = None
+    for k in range(300):
+        t = k * 0.1
+        lost.update(inputs, t)
+        if dr.update(inputs, t) and tripped is None:
+            tripped = t
+    assert tripped is not None and abs(tripped - (1.6 + 20.0)) < 0.15
+    modes = all_modes()
+    assert {m for m in modes if dr.action_for(modes[m]) is FailsafeAction.STOP} == {"HOLD", "AUTO", "RETURN"}
+    inputs.last_usable_fix_s = 30.0  # a fix again: released at once
+    lost.update(inputs, 30.0), lost.update(inputs, 31.1)
+    assert not dr.update(inputs, 31.1)
+
+
+def test_controller_monitor_counts_consecutive_failures_and_overruns():
+    from lotsen.supervisor.failsafes import ControllerMonitor
+
+    mon = ControllerMonitor(FailsafeConfig(controller_failure_count=3, controller_overrun_count=5,
+                                           controller_overrun_factor=0.8), period_s=0.1)
+    assert [mon.observe(s, 5.0) for s in ("fallback_plan (x)", "ok", "safe_stop", "failed")] == ["", "", "", ""]
+    assert "3 failed updates (fallback_plan (y))" == mon.observe("fallback_plan (y)", 5.0)
+    assert mon.failures == 0  # counted afresh after it tripped
+    assert [mon.observe("ok", 81.0) for _ in range(5)][-1] == "5 overruns (81.0 ms)"
+    assert all(mon.observe("ok", 79.0) == "" for _ in range(20))
+
+
+def test_estimator_heading_loss_stops_every_mode_that_needs_a_heading():
+    from lotsen.messages import EstimatorHealth
+    from lotsen.supervisor.failsafes import EstimatorMonitor, FailsafeAction
+    from lotsen.supervisor.modes import all_modes
+
+    mon = EstimatorMonitor(FailsafeConfig())
+    mon.check(SupervisorInputs(health=EstimatorHealth(stamp_s=0.0, position_ok=True, heading_ok=False, velocity_ok=True)), 0.0)
+    modes = all_modes()
+    stops = {m for m in modes if mon.action_for(modes[m]) is FailsafeAction.STOP}
+    assert stops == {m for m, mode in modes.items() if mode.requires_heading} == {"AUTO", "RETURN", "HOLD", "CALIBRATE"}
