@@ -26,6 +26,9 @@ class Topic:
     """Topic names. Seed Table 3 names are kept so people who know the original find their way."""
 
     SHIP_COMMAND = "ship_command"  # ThrustCommand to the actuators (seed: Ship node)
+    # ThrustCommand of an identification experiment (lotsen experiment run): a command source the
+    # supervisor forwards in EXPERIMENT mode, as it does the keys in MANUAL
+    EXPERIMENT_COMMAND = "experiment/command"
     IMU_RAW = "imu/data_raw"  # ImuSample
     IMU_MAG = "imu/mag"  # MagSample, raw
     IMU_MAG_CALIBRATED = "imu/mag_calibrated"  # MagCalibrated
@@ -289,6 +292,7 @@ OPERATOR_ACTIONS = (
     "estop",  # emergency stop: neutral, latched, disarms
     "reset_estop",  # release the latch (to MANUAL, thrusters neutral)
     "calibrate_mag",  # run the one-turn manoeuvre and fit the magnetometer calibration
+    "experiment",  # forward the running identification experiment's commands (lotsen experiment run)
     "rtk_start", "rtk_stop",  # RTK corrections on/off
     "logging_on", "logging_off",
 )

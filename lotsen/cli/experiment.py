@@ -192,12 +192,13 @@ def parse_area(text: str) -> tuple[float, float]:
 
 def run_on_stack(experiment: Experiment, config: Any, realtime: bool) -> Any:
     """Run `experiment` through the runtime on the boat the config names (hardware, or its emulated
-    twin): drivers, the state estimate and the recorder run; the experiment node commands the
-    thrusters. Returns the ExperimentNode (its `record()` and `aborted`)."""
+    twin): drivers, the state estimate, the supervisor and the recorder run; the experiment node
+    is the supervisor's command source in EXPERIMENT mode. Returns the ExperimentNode (its
+    `record()` and `aborted`)."""
     from lotsen.stack.launch import build_stack
     from lotsen.stack.experiment import ExperimentNode
 
-    stack = build_stack(config, realtime=realtime, parts=("state", "logs"))
+    stack = build_stack(config, realtime=realtime, parts=("state", "supervisor", "logs"))
     node = stack.add(ExperimentNode(experiment))
     deadline = experiment.duration_s + node.preroll_s + 10.0
     try:

@@ -1,14 +1,19 @@
 """Identification experiments on a running stack: the real boat (drivers), or its emulated twin.
 
 The same `lotsen.sysid.experiment.InputGenerator` that drives the simulator in
-`lotsen experiment run --sim` publishes ship_command here, with the state estimate as its heading
-feedback (zigzag triggers). The node records the identification record as it goes:
+`lotsen experiment run --sim` is a command source here, like the operator's keys: it publishes
+experiment/command, and the supervisor forwards it in EXPERIMENT mode under every failsafe (the
+pre-arm checks, GNSS and estimator loss, the thruster monitor, the geofence of a loaded route,
+the RC takeover and e-stop). The node asks for the mode as an operator would (`arm`, then
+`experiment`, once the ESCs are armed and the estimate has settled), starts the experiment's clock
+when the supervisor is in EXPERIMENT, and ends it with `disarm`. It records the identification
+record as it goes:
   - inputs: the commanded azimuth angles (the servos report no angle) and the propeller speeds
     measured by the tachometers (rpm_chatter; the command where none has arrived yet);
   - outputs: north, east, psi, r, u, v of state/estimate at each command tick.
-It aborts to neutral when the estimate is not finite or leaves the experiment's area (relative
-to where the experiment started): no supervisor runs during an experiment, so this node is the
-geofence, and the actuator guard downstream still applies neutral on a stale command.
+It aborts (and disarms) when the estimate is not finite, when it leaves the experiment's area
+(relative to where the experiment started), when the supervisor refuses the mode or leaves it (a
+failsafe, the RC pilot, an e-stop).
 """
 
 from __future__ import annotations
@@ -18,22 +23,29 @@ from typing import Any
 
 import numpy as np
 
-from lotsen.messages import RpmSample, ThrustCommand, Topic, VesselState
+from lotsen.messages import Alert, OperatorCommand, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.runtime.executor import Node, NodeContext
+
+EXPERIMENT_MODE = "EXPERIMENT"  # lotsen.supervisor.modes.ModeName.EXPERIMENT, as the status names it
 
 
 class ExperimentNode(Node):
     name = "experiment"
 
-    def __init__(self, experiment: Any, preroll_s: float = 2.0, margin_m: float = 0.0) -> None:
+    def __init__(self, experiment: Any, preroll_s: float = 2.0, margin_m: float = 0.0,
+                 request_timeout_s: float = 3.0) -> None:
         from lotsen.sysid.experiment import InputGenerator
 
         self.experiment = experiment
         self.generator = InputGenerator(experiment)
         self.preroll_s = preroll_s
         self.margin_m = margin_m
+        self.request_timeout_s = request_timeout_s
         self.state: VesselState | None = None
         self.rpm: RpmSample | None = None
+        self.status: SupervisorStatus | None = None
+        self.refusal = ""
+        self.requested_s: float | None = None
         self.t0: float | None = None
         self.origin = (0.0, 0.0)
         self.rows: list[tuple[float, ...]] = []
@@ -45,6 +57,8 @@ class ExperimentNode(Node):
         self.t_start = ctx.now()
         ctx.subscribe(Topic.STATE, self._on_state)
         ctx.subscribe(Topic.RPM, self._on_rpm)
+        ctx.subscribe(Topic.SUPERVISOR, self._on_status)
+        ctx.subscribe(Topic.ALERT, self._on_alert)
         ctx.add_timer(1.0 / self.experiment.command_rate_hz, self._tick)
 
     def _on_state(self, msg: VesselState) -> None:
@@ -53,8 +67,27 @@ class ExperimentNode(Node):
     def _on_rpm(self, msg: RpmSample) -> None:
         self.rpm = msg
 
+    def _on_status(self, msg: SupervisorStatus) -> None:
+        self.status = msg
+
+    def _on_alert(self, msg: Alert) -> None:
+        if msg.active and msg.code in ("refused:arm", "refused:experiment"):
+            self.refusal = msg.text
+
+    def _request(self, action: str, t: float) -> None:
+        self.ctx.publish(Topic.OPERATOR, OperatorCommand(stamp_s=t, action=action, source="experiment"))
+
     def _neutral(self, t: float) -> None:
-        self.ctx.publish(Topic.SHIP_COMMAND, ThrustCommand.neutral(t, source="experiment"))
+        # keeps the command stream alive (the supervisor takes EXPERIMENT only from a live source)
+        self.ctx.publish(Topic.EXPERIMENT_COMMAND, ThrustCommand.neutral(t, source="experiment"))
+
+    def _end(self, t: float, why: str) -> None:
+        self.done = True
+        self.aborted = why
+        self.ctx.log("error" if why else "info", f"experiment '{self.experiment.name}' "
+                     + (f"aborted: {why}" if why else "finished"))
+        self._neutral(t)
+        self._request("disarm", t)
 
     def _tick(self) -> None:
         t = self.ctx.now()
@@ -63,27 +96,37 @@ class ExperimentNode(Node):
             self._neutral(t)
             return
         finite = s is not None and all(math.isfinite(v) for v in s.as_array_tuple())
-        if self.t0 is None:  # wait for the estimate to settle, thrusters neutral
-            if finite and t - self.t_start >= self.preroll_s:
+        mode = self.status.mode if self.status is not None else ""
+        if self.t0 is None:  # the estimate settles and the ESCs arm at neutral; then ask for the mode
+            if (self.requested_s is None and finite and t - self.t_start >= self.preroll_s
+                    and self.status is not None and self.status.escs_armed):
+                self.requested_s = t
+                if not self.status.armed:
+                    self._request("arm", t)
+                self._request("experiment", t)
+                mode = self.status.mode  # a supervisor in this process has answered already
+            if self.refusal:
+                self._end(t, f"the supervisor refused: {self.refusal}")
+            elif mode == EXPERIMENT_MODE and finite:
                 self.t0, self.origin = t, (s.north_m, s.east_m)
                 self.ctx.log("info", f"experiment '{self.experiment.name}' started "
                                      f"({self.experiment.duration_s:.0f} s)")
-            self._neutral(t)
+            elif self.requested_s is not None and t - self.requested_s > self.request_timeout_s:
+                self._end(t, f"the supervisor did not enter EXPERIMENT within {self.request_timeout_s:g} s "
+                             f"(mode {mode or 'unknown'})")
+            self._neutral(t)  # the experiment's first command goes out on the next tick
             return
         tau = t - self.t0
         why = "" if finite else "the state estimate is not finite"
         if finite and not self._inside(s):
             why = f"left the experiment area at ({s.north_m:.1f}, {s.east_m:.1f}) m"
+        if mode != EXPERIMENT_MODE:
+            why = f"the supervisor left EXPERIMENT: {mode} ({self.status.reason if self.status else ''})"
         if why or tau >= self.experiment.duration_s:
-            self.done = True
-            self.aborted = why
-            self.ctx.log("error" if why else "info", f"experiment '{self.experiment.name}' "
-                         + (f"aborted: {why}" if why else "finished"))
-            self._neutral(t)
+            self._end(t, why)
             return
         u = self.generator.command(tau, s)
-        cmd = ThrustCommand.from_tuple(t, u, source="experiment")
-        self.ctx.publish(Topic.SHIP_COMMAND, cmd)
+        self.ctx.publish(Topic.EXPERIMENT_COMMAND, ThrustCommand.from_tuple(t, u, source="experiment"))
         n = (self.rpm.n1_rps, self.rpm.n2_rps, self.rpm.nt_rps) if self.rpm is not None else u[2:]
         self.rows.append((tau, u[0], u[1], *n, s.north_m, s.east_m, s.heading_rad, s.r_radps, s.u_mps, s.v_mps))
 

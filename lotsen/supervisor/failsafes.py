@@ -46,7 +46,8 @@ class FailsafeAction(StrEnum):
 
 
 Action = FailsafeAction
-MOVING = (ModeName.AUTO, ModeName.RETURN)  # the modes that follow a path
+FOLLOWING = (ModeName.AUTO, ModeName.RETURN)  # the modes that follow a path
+UNDER_WAY = FOLLOWING + (ModeName.EXPERIMENT,)  # the modes in which the boat moves by itself
 #: pre-arm checks an expert may skip (lotsen.supervisor.prearm; the ESCs are always checked)
 SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link"]
 
@@ -207,7 +208,7 @@ class LinkMonitor(Monitor):
     name = "link_lost"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        super().__init__(0.0, 0.0, _in(MOVING, cfg.link_lost_auto_action))
+        super().__init__(0.0, 0.0, _in(UNDER_WAY, cfg.link_lost_auto_action))
         self.timeout_s = cfg.link_timeout_s
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -253,7 +254,7 @@ class GnssLostMonitor(Monitor):
     severity = "error"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        super().__init__(0.0, 1.0, _in(MOVING + (ModeName.CALIBRATE,), cfg.gnss_lost_action))
+        super().__init__(0.0, 1.0, _in(UNDER_WAY + (ModeName.CALIBRATE,), cfg.gnss_lost_action))
         self.lost_s = cfg.gnss_lost_s
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -269,7 +270,7 @@ class GnssDegradedMonitor(Monitor):
     name = "gnss_degraded"
 
     def __init__(self, cfg: FailsafeConfig) -> None:
-        super().__init__(cfg.gnss_degraded_s, 2.0, _in(MOVING, cfg.gnss_degraded_action))
+        super().__init__(cfg.gnss_degraded_s, 2.0, _in(UNDER_WAY, cfg.gnss_degraded_action))
         self.min_fix = cfg.min_fix_type
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -288,7 +289,7 @@ class EstimatorMonitor(Monitor):
 
     def __init__(self, cfg: FailsafeConfig) -> None:
         super().__init__(cfg.estimator_persist_s, 2.0,
-                         {**_in(MOVING, cfg.estimator_position_action), ModeName.CALIBRATE: FailsafeAction.STOP})
+                         {**_in(UNDER_WAY, cfg.estimator_position_action), ModeName.CALIBRATE: FailsafeAction.STOP})
         self.heading_bad = False
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
@@ -319,7 +320,7 @@ class ThrusterMonitor(Monitor):
     severity = "error"
 
     def __init__(self, cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> None:
-        super().__init__(cfg.thruster_persist_s, 2.0, _in(MOVING, cfg.thruster_fault_action))
+        super().__init__(cfg.thruster_persist_s, 2.0, _in(UNDER_WAY, cfg.thruster_fault_action))
         self.limits = limits
         self.frac = cfg.thruster_mismatch_frac
         self.min_rps = cfg.thruster_mismatch_min_rps
@@ -396,7 +397,7 @@ class DeadReckoningMonitor(Monitor):
     acts_while_active = True  # also when HOLD is entered after the time is up
 
     def __init__(self, cfg: FailsafeConfig, sources: list[Monitor]) -> None:
-        super().__init__(cfg.gnss_stop_after_s, 0.0, _in(MOVING + (ModeName.HOLD,), FailsafeAction.STOP))
+        super().__init__(cfg.gnss_stop_after_s, 0.0, _in(UNDER_WAY + (ModeName.HOLD,), FailsafeAction.STOP))
         self.sources = sources
         self.stop_after_s = cfg.gnss_stop_after_s
 
@@ -464,7 +465,7 @@ class ControllerMonitor(Monitor):
     severity = "error"
 
     def __init__(self, cfg: FailsafeConfig, period_s: float) -> None:
-        super().__init__(0.0, math.inf, _in(MOVING, FailsafeAction.FALLBACK))
+        super().__init__(0.0, math.inf, _in(FOLLOWING, FailsafeAction.FALLBACK))
         self.failure_count, self.overrun_count = cfg.controller_failure_count, cfg.controller_overrun_count
         self.overrun_ms = cfg.controller_overrun_factor * period_s * 1000.0
         self.failures = self.overruns = 0
@@ -496,8 +497,7 @@ def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMI
     """The failsafe table of docs/failsafes.md that is checked every tick, in order (dead
     reckoning after the monitors it follows up on). The controller monitor is separate: it
     judges each path-follower update (`ControllerMonitor.observe`)."""
-    thrusting = _in((ModeName.AUTO, ModeName.RETURN, ModeName.HOLD, ModeName.MANUAL, ModeName.CALIBRATE),
-                    FailsafeAction.STOP)
+    thrusting = _in(UNDER_WAY + (ModeName.HOLD, ModeName.MANUAL, ModeName.CALIBRATE), FailsafeAction.STOP)
     gnss_lost, estimator = GnssLostMonitor(cfg), EstimatorMonitor(cfg)
     return [
         LinkMonitor(cfg),
@@ -509,7 +509,7 @@ def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMI
         ThrusterMonitor(cfg, limits),
         BatteryMonitor("battery_critical", cfg.battery_critical_v, cfg.battery_persist_s, thrusting, "critical"),
         BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s,
-                       _in((ModeName.AUTO, ModeName.HOLD), FailsafeAction.RETURN), "warning"),
+                       _in((ModeName.AUTO, ModeName.HOLD, ModeName.EXPERIMENT), FailsafeAction.RETURN), "warning"),
         GeofenceMonitor(cfg),
     ]
 

@@ -10,6 +10,8 @@ predicates), what happens when it is entered and left, and what the thrusters do
 | CALIBRATE | spin on the bow thruster one turn, fit the magnetometer | armed, heading              |
 | ESTOP     | neutral, latched until 'reset_estop'; disarms          | -                           |
 | RC        | the RC transmitter's command (neutral without a link)  | RcOverride.active           |
+| EXPERIMENT| the identification experiment's commands (neutral when | armed, position, heading,   |
+|           | they stop coming)                                      | an experiment sending       |
 
 "Stop" in the failsafe table means MANUAL with neutral thrusters and the reason shown: the
 operator can still drive by keyboard, the boat does not move by itself.
@@ -42,6 +44,7 @@ class ModeName(StrEnum):
     CALIBRATE = "CALIBRATE"
     ESTOP = "ESTOP"
     RC = "RC"
+    EXPERIMENT = "EXPERIMENT"
 
 
 def neutral(t: float, source: str) -> ThrustCommand:
@@ -197,6 +200,7 @@ class Estop(Mode):
 
     def enter(self, sup: "SupervisorNode", t: float) -> None:
         sup.armed = False
+        sup.send_command(t, neutral(t, "estop"))  # now, not on the next tick
 
     def update(self, sup: "SupervisorNode", t: float) -> Output:
         return neutral(t, "estop"), None
@@ -217,5 +221,22 @@ class Rc(Mode):
         return (rc.command if rc.command is not None else neutral(t, "rc")), None
 
 
+class Experiment(Mode):
+    """An identification experiment (lotsen experiment run) drives: its commands on
+    experiment/command are forwarded like the keys in MANUAL, under every failsafe of a boat
+    under way; neutral once they are older than the manual timeout."""
+
+    name = ModeName.EXPERIMENT
+    requires_position = True
+    requires_heading = True  # the experiment's zigzag triggers and its record need the heading
+    fenced = True
+
+    def update(self, sup: "SupervisorNode", t: float) -> Output:
+        cmd = sup.inputs.experiment
+        if cmd is None or t - sup.inputs.experiment_arrival_s > sup.config.failsafes.manual_timeout_s:
+            return neutral(t, "experiment:stale"), None
+        return ThrustCommand.from_tuple(t, cmd.as_tuple(), source="experiment"), None
+
+
 def all_modes() -> dict[ModeName, Mode]:
-    return {m.name: m for m in (Manual(), Auto(), Hold(), Return(), Calibrate(), Estop(), Rc())}
+    return {m.name: m for m in (Manual(), Auto(), Hold(), Return(), Calibrate(), Estop(), Rc(), Experiment())}

@@ -42,7 +42,8 @@ from lotsen.supervisor.prearm import FailedCheck, PrearmInputs, blocking, descri
 DEAD_RECKONING = ("gnss_lost", "estimator")
 #: the mode each operator request asks for
 REQUESTED_MODE = {"auto": ModeName.AUTO, "hold": ModeName.HOLD, "return": ModeName.RETURN,
-                  "calibrate_mag": ModeName.CALIBRATE}
+                  "calibrate_mag": ModeName.CALIBRATE, "experiment": ModeName.EXPERIMENT}
+PREARM_ACTIONS = ("arm", "auto", "experiment")  # the requests pre-arm checks guard
 GEOFENCE_HOLD_REASON = "failsafe: geofence, holding inside the area"
 SEVERITY_ORDER = ("info", "warning", "error", "critical")
 
@@ -73,6 +74,8 @@ class SupervisorInputs:
     state: VesselState | None = None
     manual: ManualCommand | None = None
     manual_arrival_s: float = -math.inf
+    experiment: ThrustCommand | None = None  # the running identification experiment's command
+    experiment_arrival_s: float = -math.inf
     link: LinkStatus | None = None
     link_arrival_s: float = -math.inf
     rc: RcOverride | None = None
@@ -167,6 +170,7 @@ class SupervisorNode(Node):
         self.ctx = ctx
         ctx.subscribe(Topic.OPERATOR, self._on_operator)
         ctx.subscribe(Topic.MANUAL, self._on_manual)
+        ctx.subscribe(Topic.EXPERIMENT_COMMAND, self._on_experiment)
         ctx.subscribe(Topic.LINK, self._on_link)
         ctx.subscribe(Topic.RC, self._on_rc)
         ctx.subscribe(Topic.STATE, self._on_state)
@@ -193,6 +197,17 @@ class SupervisorNode(Node):
         self.inputs.manual_arrival_s = self.ctx.now()
         if any(vals) and self.stopped and self.mode.name == ModeName.MANUAL:
             self.stopped = ""  # the operator takes over after a failsafe stop
+
+    def _on_experiment(self, msg: ThrustCommand) -> None:
+        if not msg.is_finite():
+            self.counters["refused_requests"] += 1
+            return
+        t = self.ctx.now()
+        self.inputs.experiment, self.inputs.experiment_arrival_s = msg, t
+        if self.mode.name == ModeName.EXPERIMENT:
+            # forwarded as it comes, at the experiment's own rate (its design may be faster than
+            # the control loop); the failsafes are judged on the loop's ticks as always
+            self.send_command(t, self._command(t)[0])
 
     def _on_link(self, msg: LinkStatus) -> None:
         self.inputs.link = msg
@@ -315,8 +330,12 @@ class SupervisorNode(Node):
         mode = self.modes[REQUESTED_MODE[action]]
         if mode.requires_armed and not self.armed:
             return "arm first"
-        if action == "auto":  # every failing pre-arm check, listed
-            return describe(blocking(self.prearm_failures(action), self.config.failsafes))
+        if action in PREARM_ACTIONS:  # every failing pre-arm check, listed
+            why = describe(blocking(self.prearm_failures(action), self.config.failsafes))
+            if why or action != "experiment":
+                return why
+            stale = self.ctx.now() - self.inputs.experiment_arrival_s > self.config.failsafes.manual_timeout_s
+            return "no experiment is sending commands (lotsen experiment run)" if stale else ""
         if mode.requires_armed and not self.inputs.escs_armed:
             return "the ESCs are not armed"
         if mode.requires_heading and not self._heading_ok():
@@ -332,7 +351,7 @@ class SupervisorNode(Node):
         if action in ("rtk_start", "rtk_stop", "logging_on", "logging_off") and action in OPERATOR_ACTIONS:
             return  # handled by the GNSS driver / simulated receiver and the recorder
         why = self.why_not(action)
-        prearm = self.prearm_failures(action) if action in ("arm", "auto") and not self.mode.human_in_control \
+        prearm = self.prearm_failures(action) if action in PREARM_ACTIONS and not self.mode.human_in_control \
             else []
         if why:
             self._refuse(action, why, **({"prearm_failed": [f.id for f in prearm]} if prearm else {}))
@@ -364,8 +383,8 @@ class SupervisorNode(Node):
                                  resume=self.active_path is self.path and self.mode.name == ModeName.HOLD)
         elif action == "return":
             self.start_return(t, by)
-        elif action == "calibrate_mag":
-            self.set_mode(self.modes[ModeName.CALIBRATE], by)
+        elif action in ("calibrate_mag", "experiment"):
+            self.set_mode(self.modes[REQUESTED_MODE[action]], by)
         self._publish_status()
 
     def _refuse(self, action: str, why: str, **data: Any) -> None:
@@ -469,18 +488,22 @@ class SupervisorNode(Node):
         t = self.ctx.now()
         self._check_failsafes(t)
         cmd, status = self._command(t)
-        if not cmd.is_finite():
-            self.counters["non_finite_commands"] += 1
-            self.ctx.log("error", "non-finite thrust command replaced by neutral", mode=self.mode.name)
-            cmd = neutral(t, "supervisor:non-finite")
-        self.ctx.publish(Topic.SHIP_COMMAND, cmd)
-        self.thruster.on_command(cmd, t, self.inputs.escs_armed)
+        self.send_command(t, cmd)
         if status is not None:
             self.last_status = status
             self.ctx.publish(Topic.CONTROL_STATUS, status)
         self._publish_status()
         if self.mode.moving and t - self._last_progress_s >= 1.0 / self.config.progress_rate_hz:
             self._publish_progress(t, status)
+
+    def send_command(self, t: float, cmd: ThrustCommand) -> None:
+        """The one place a ship_command leaves the supervisor."""
+        if not cmd.is_finite():
+            self.counters["non_finite_commands"] += 1
+            self.ctx.log("error", "non-finite thrust command replaced by neutral", mode=self.mode.name)
+            cmd = neutral(t, "supervisor:non-finite")
+        self.ctx.publish(Topic.SHIP_COMMAND, cmd)
+        self.thruster.on_command(cmd, t, self.inputs.escs_armed)
 
     def _command(self, t: float) -> tuple[ThrustCommand, ControllerStatus | None]:
         mode = self.mode

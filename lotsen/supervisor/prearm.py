@@ -31,7 +31,8 @@ from lotsen.supervisor.failsafes import FailsafeConfig, SkippablePrearmCheck
 CHECK_IDS: tuple[str, ...] = ("escs", "battery", "position", "gnss", "heading", "route", "pilot_link")
 SKIPPABLE: tuple[str, ...] = typing.get_args(SkippablePrearmCheck)
 #: the checks each request runs
-CHECKS_FOR: dict[str, tuple[str, ...]] = {"arm": ("battery",), "auto": CHECK_IDS}
+CHECKS_FOR: dict[str, tuple[str, ...]] = {"arm": ("battery",), "auto": CHECK_IDS,
+                                          "experiment": ("escs", "battery", "position", "gnss", "heading")}
 
 
 @dataclass(frozen=True)
@@ -221,7 +222,7 @@ CHECKS: dict[str, Any] = {"escs": check_escs, "battery": check_battery, "positio
 
 
 def prearm_failures(action: str, inp: PrearmInputs, cfg: FailsafeConfig) -> list[FailedCheck]:
-    """Every failed check `action` ("arm" or "auto") needs, in the order of CHECK_IDS. A check in
+    """Every failed check `action` ("arm", "auto" or "experiment") needs, in the order of CHECK_IDS. A check in
     cfg.prearm_skip reports only what no override could start anyway (no position estimate, no
     route). Other actions have no pre-arm checks."""
     out: list[FailedCheck] = []

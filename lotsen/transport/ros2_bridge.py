@@ -50,7 +50,8 @@ SOURCE_PREFIX = "ros2:"
 _CLIENT_RE = re.compile(r"[^A-Za-z0-9_-]")
 SENSOR_TOPICS = (M.Topic.IMU_RAW, M.Topic.IMU_MAG, M.Topic.GNSS, M.Topic.RPM)
 # topics that move the boat: never taken from ROS 2 onto the topics the actuators and supervisor use
-DRIVING_TOPICS = (M.Topic.SHIP_COMMAND, M.Topic.VELOCITY_COMMAND, M.Topic.ANGLE_COMMAND, M.Topic.MANUAL, M.Topic.RC)
+DRIVING_TOPICS = (M.Topic.SHIP_COMMAND, M.Topic.VELOCITY_COMMAND, M.Topic.ANGLE_COMMAND, M.Topic.MANUAL, M.Topic.RC,
+                  M.Topic.EXPERIMENT_COMMAND)
 
 
 @dataclass(frozen=True)

@@ -218,7 +218,7 @@ JSON_MAPPING = RosMapping(JSON_TYPE, _json_to, _json_from)
 TOPIC_CLASSES: dict[str, type] = {
     M.Topic.IMU_RAW: M.ImuSample, M.Topic.IMU_MAG: M.MagSample, M.Topic.GNSS: M.GnssFix,
     M.Topic.STATE: M.VesselState, M.Topic.SENS_FUS: M.VesselState, M.Topic.TRUTH: M.VesselState,
-    M.Topic.PATH: M.PathMessage, M.Topic.SHIP_COMMAND: M.ThrustCommand,
+    M.Topic.PATH: M.PathMessage, M.Topic.SHIP_COMMAND: M.ThrustCommand, M.Topic.EXPERIMENT_COMMAND: M.ThrustCommand,
     M.Topic.VELOCITY_COMMAND: M.VelocityCommand, M.Topic.ANGLE_COMMAND: M.AngleCommand,
     M.Topic.SUPERVISOR: M.SupervisorStatus, M.Topic.OPERATOR: M.OperatorCommand, M.Topic.BATTERY: M.BatteryStatus,
     M.Topic.LOG: M.LogEvent, M.Topic.IMU_MAG_CALIBRATED: M.MagCalibrated, M.Topic.RPM: M.RpmSample,

@@ -107,7 +107,7 @@ def test_geofence_trips_after_its_persistence_and_holds_inside_only_in_fenced_mo
     assert "outside the navigable area" in mon.reason
     assert {m: mon.action_for(modes[m]) for m in modes} == {
         "MANUAL": "continue", "AUTO": "hold_inside", "HOLD": "hold_inside", "RETURN": "hold_inside",
-        "CALIBRATE": "continue", "ESTOP": "continue", "RC": "continue"}
+        "CALIBRATE": "continue", "ESTOP": "continue", "RC": "continue", "EXPERIMENT": "hold_inside"}
     target = mon.hold_target(inputs)
     assert abs(target.north_m - 5.0) < 1e-6 and abs(target.east_m - 8.5) < 1e-6  # 1.5 m inside
     assert abs(target.heading_rad - (-math.pi / 2)) < 1e-6  # bow toward the water it was pushed out of
@@ -133,7 +133,8 @@ def test_dead_reckoning_stops_after_gnss_stop_after_s_of_its_sources():
             tripped = t
     assert tripped is not None and abs(tripped - (1.6 + 20.0)) < 0.15
     modes = all_modes()
-    assert {m for m in modes if dr.action_for(modes[m]) is FailsafeAction.STOP} == {"HOLD", "AUTO", "RETURN"}
+    assert {m for m in modes if dr.action_for(modes[m]) is FailsafeAction.STOP} == {"HOLD", "AUTO", "RETURN",
+                                                                                "EXPERIMENT"}
     inputs.last_usable_fix_s = 30.0  # a fix again: released at once
     lost.update(inputs, 30.0), lost.update(inputs, 31.1)
     assert not dr.update(inputs, 31.1)
@@ -160,4 +161,5 @@ def test_estimator_heading_loss_stops_every_mode_that_needs_a_heading():
     mon.check(SupervisorInputs(health=EstimatorHealth(stamp_s=0.0, position_ok=True, heading_ok=False, velocity_ok=True)), 0.0)
     modes = all_modes()
     stops = {m for m in modes if mon.action_for(modes[m]) is FailsafeAction.STOP}
-    assert stops == {m for m, mode in modes.items() if mode.requires_heading} == {"AUTO", "RETURN", "HOLD", "CALIBRATE"}
+    assert stops == {m for m, mode in modes.items() if mode.requires_heading} == {"AUTO", "RETURN", "HOLD", "CALIBRATE",
+                                                                                  "EXPERIMENT"}
