@@ -511,3 +511,26 @@ def test_the_harbour_start_is_a_short_ramp_not_a_slow_leg():
     assert res["duration_s"] < 100 / 0.5 + 2 * ramp["time_s"] + 1.0  # about 200 s, not 660
     v, s = res["path"]["v"], res["path"]["s"]
     assert min(x for x, d in zip(v, s) if 2.0 < d < 98.0) >= 0.49
+
+
+# -- the parameter sheet -------------------------------------------------------------------------
+def test_the_pilot_may_lower_the_planner_speed_limit_and_the_next_plan_uses_it():
+    h, _, published, _ = make()
+    seen = []
+    h.broadcast = seen.append
+    viewer = h.open_session("10.0.0.9")
+    assert code(send(h, viewer, {"type": "params", "name": "planner.speed_max_mps", "value": 1.0})) == "not_pilot"
+    s = pilot(h)
+    r = send(h, s, {"type": "params", "name": "planner.speed_max_mps", "value": 2.3})
+    assert code(r) == "invalid"
+    assert r[0]["error"] == ("top speed of planned routes: 2.3 m/s exceeds 1.5 m/s, the launch config's value "
+                             "(a pilot may lower it, not raise it)")
+    r = send(h, s, {"type": "params", "name": "planner.clearance_m", "value": -1})
+    assert code(r) == "invalid" and "a pilot may raise it, not lower it" in r[0]["error"]
+    assert code(send(h, s, {"type": "params", "name": "planner.mystery", "value": 1})) == "out_of_range"
+    assert send(h, s, {"type": "params", "name": "planner.speed_max_mps", "value": 0.4})[0]["type"] == "params_ok"
+    assert h.planner_config.speed_max_mps == 0.4 and seen[-1]["planner"]["speed_max_mps"]["value"] == 0.4
+    assert seen[-1]["planner"]["speed_max_mps"]["launch"] == 1.5 and seen[-1]["changes"][-1]["to"] == 0.4
+    res = send(h, s, {"type": "plan", "route": ROUTE})[0]
+    assert not res["ok"] and res["errors"][0]["message"] == "node 1: speed 0.5 m/s exceeds the boat's 0.4 m/s"
+    assert published == [] or all(t != Topic.ROUTE for t, _ in published)
