@@ -140,6 +140,11 @@ class MagCalibrationResult:
     residual: float = float("nan")
     coverage_deg: float = float("nan")
     text: str = ""
+    #: the raw horizontal field samples the fit used (decimated, raw units), for the operator's plot
+    samples: tuple[tuple[float, float], ...] = ()
+    #: "" = a fresh fit, in use and waiting for the operator's review; "accepted"; "rejected" (the
+    #: calibration in use before it is back)
+    decision: str = ""
 
 
 class GnssFixType(IntEnum):
@@ -292,6 +297,7 @@ OPERATOR_ACTIONS = (
     "estop",  # emergency stop: neutral, latched, disarms
     "reset_estop",  # release the latch (to MANUAL, thrusters neutral)
     "calibrate_mag",  # run the one-turn manoeuvre and fit the magnetometer calibration
+    "mag_accept", "mag_reject",  # keep the fresh fit, or go back to the calibration in use before it
     "experiment",  # forward the running identification experiment's commands (lotsen experiment run)
     "rtk_start", "rtk_stop",  # RTK corrections on/off
     "logging_on", "logging_off",

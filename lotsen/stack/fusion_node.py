@@ -56,6 +56,7 @@ class FusionNode(Node):
                  starvation_s: float = 0.125, health_rate_hz: float = 5.0, frozen_s: float = 0.5) -> None:
         self.estimator = estimator
         self.calibration = calibration
+        self._before_review: Any = None  # the calibration in use before a fit under review
         self.period_s = 1.0 / rate_hz
         self.max_future_s = max_future_s
         self.starvation_s = starvation_s
@@ -113,12 +114,28 @@ class FusionNode(Node):
             self.ctx.publish(Topic.IMU_MAG_CALIBRATED, calibrated_heading(msg, self.calibration))
 
     def _on_calibration(self, result: MagCalibrationResult) -> None:
-        if result.ok:
-            self.calibration = MagCalibration(center=result.center, matrix=result.matrix,
-                                              residual_rms=result.residual, coverage_deg=result.coverage_deg)
-            self.estimator.calibration = self.calibration
-            if hasattr(self.estimator, "set_calibration"):
-                self.estimator.set_calibration(self.calibration)
+        """A fresh fit is used at once; the operator's rejection brings back the one before it."""
+        if not result.ok:
+            return
+        if result.decision == "accepted":
+            self._before_review = None
+            return
+        if result.decision == "rejected":
+            if self._before_review is None:
+                return
+            cal, self._before_review = self._before_review, None
+        else:
+            if self._before_review is None:
+                self._before_review = self.calibration
+            cal = MagCalibration(center=result.center, matrix=result.matrix,
+                                 residual_rms=result.residual, coverage_deg=result.coverage_deg)
+        self._set_calibration(cal)
+
+    def _set_calibration(self, cal: MagCalibration) -> None:
+        self.calibration = cal
+        self.estimator.calibration = cal
+        if hasattr(self.estimator, "set_calibration"):
+            self.estimator.set_calibration(cal)
 
     # -- input starvation --------------------------------------------------------------------
     def samples_used(self) -> int:

@@ -16,6 +16,7 @@ from lotsen.stack.stack import Stack, failsafe_config, planner_config
 from lotsen.web.hub import Hub
 from lotsen.web.options import WebOptions
 from lotsen.web.server import WebServer
+from lotsen.web.settings import Settings
 from lotsen.web.tls import Certificate, ensure_certificate, fingerprint
 
 
@@ -72,6 +73,11 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     cert = tls_certificate(options, tls)
     hub = Hub(bus, executor.clock.now, publish, options, origin=stack.origin)
     hub.handler.planner_config = planner_config(config)  # the run's one PlannerConfig
+    fs = failsafe_config(config)
+    hub.handler.settings = Settings(hub.handler.planner_config, fs, controller={
+        "controller": config.nodes.controller, "control_rate_hz": config.nodes.control_rate_hz,
+        "command_deadline_s": config.nodes.command_deadline_s, "fallback_controller": fs.fallback_controller,
+        "settings": "the defaults of lotsen.control (docs/control.md); the launch config has no section for them"})
     if run_blocking is not None:
         hub.handler.run_blocking = run_blocking
     server = WebServer(hub, options.host, options.port, ssl_certfile=cert.certfile if cert else None,

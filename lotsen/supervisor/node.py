@@ -13,7 +13,7 @@ predicates; a refusal is an `Alert` the operator sees, not only a log line.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -151,6 +151,8 @@ class SupervisorNode(Node):
         # pre-arm: where the magnetometer calibration in use came from ("" = not calibrated), and
         # the route's corridor, computed once per (route, path)
         self.heading_calibration = heading_calibration
+        self.mag_review: MagCalibrationResult | None = None  # a fresh fit in use, awaiting accept/reject
+        self._heading_calibration_before = heading_calibration
         self._corridor: tuple[Any, Any, float] = (None, None, math.inf)
 
     @property
@@ -312,6 +314,8 @@ class SupervisorNode(Node):
             return f"unknown action {action!r}"
         if action in ("estop", "rtk_start", "rtk_stop", "logging_on", "logging_off"):
             return ""
+        if action in ("mag_accept", "mag_reject"):  # moves nothing: possible in any mode
+            return "" if self.mag_review is not None else "no magnetometer fit waiting for review"
         if self.mode.human_in_control:
             latched_estop = self.mode.name == ModeName.ESTOP and action == "reset_estop"
             return "" if latched_estop else self.mode.human_in_control
@@ -385,6 +389,13 @@ class SupervisorNode(Node):
             self.start_return(t, by)
         elif action in ("calibrate_mag", "experiment"):
             self.set_mode(self.modes[REQUESTED_MODE[action]], by)
+        elif action in ("mag_accept", "mag_reject") and self.mag_review is not None:
+            decision = "accepted" if action == "mag_accept" else "rejected"
+            if decision == "rejected":
+                self.heading_calibration = self._heading_calibration_before
+            self.ctx.log("info", f"magnetometer calibration {decision} ({by})")
+            self.ctx.publish(Topic.MAG_CALIBRATION, replace(self.mag_review, stamp_s=t, decision=decision))
+            self.mag_review = None
         self._publish_status()
 
     def _refuse(self, action: str, why: str, **data: Any) -> None:
@@ -453,8 +464,10 @@ class SupervisorNode(Node):
     def start_following(self, path: Any, mode_name: ModeName, reason: str, resume: bool = False) -> None:
         if not resume:
             self.follower.reset(path)
-            if self.fallback is not None:
-                self.fallback.reset(path)
+            # a new path gives the configured controller a new chance: its failsafe (and the
+            # fallback) end here, the history stays in the log
+            self.fallback = None
+            self._flag("controller", False, "", "info")
         self.active_path = path
         self._time_to_end = _time_to_end(path)
         self.controller_monitor.reset()
@@ -476,12 +489,19 @@ class SupervisorNode(Node):
         self.start_following(path, ModeName.RETURN, reason)
 
     def publish_calibration(self, result: MagCalibrationResult) -> None:
+        """A fresh fit is used at once (the estimator applies it) and waits for the operator's
+        mag_accept / mag_reject; a rejection brings back the calibration in use before it."""
         self.ctx.publish(Topic.MAG_CALIBRATION, result)
         if result.ok:
+            if self.mag_review is None:
+                self._heading_calibration_before = self.heading_calibration
+            self.mag_review = result
             self.heading_calibration = f"the turn manoeuvre at {self.ctx.now():.0f} s"
         self.ctx.log("info" if result.ok else "warning", f"magnetometer calibration: {result.text}")
         if not result.ok:
             self.alert("warning", "calibration", f"magnetometer calibration failed: {result.text}")
+        else:
+            self.alert("info", "calibration", "magnetometer calibrated", active=False)
 
     # ------------------------------------------------------------------ the control tick
     def _tick(self) -> None:

@@ -22,6 +22,7 @@ from lotsen.planning import GeoOrigin, PlannerConfig
 from lotsen.web.auth import MAX_AUTH_FAILURES, AuthError, AuthGuard, PilotSeat
 from lotsen.web.planning_api import export_route, import_route, plan_for_display, plan_for_upload
 from lotsen.web.ratelimit import RateLimiter
+from lotsen.web.settings import Settings
 from lotsen.web.validation import (
     MAX_MESSAGE_CHARS, PILOT_ONLY, VIEWER_MAX_MESSAGE_CHARS, Message, ValidationError, parse_message,
 )
@@ -77,7 +78,7 @@ class ControlHandler:
                  planner_config: PlannerConfig | None = None, run_blocking: RunBlocking = _to_thread,
                  notify: Callable[[Session, dict], None] | None = None, origin: GeoOrigin | None = None,
                  auth_guard: AuthGuard | None = None, tiles: TileJobs | None = None,
-                 viewer_may_estop: bool = False) -> None:
+                 viewer_may_estop: bool = False, broadcast: Callable[[dict], None] | None = None) -> None:
         self.seat = seat
         self.publish = publish
         self.clock = clock
@@ -90,7 +91,9 @@ class ControlHandler:
         self.tiles = tiles
         self.viewer_may_estop = viewer_may_estop
         self.viewer_jobs = 0  # conversions in flight for viewers (all together)
-        self.last_upload: dict | None = None  # {"route_id", "route"} of the pilot's last upload
+        self.last_upload: dict | None = None  # {"route_id", "route", "detours"} of the pilot's last upload
+        self.settings = Settings(self.planner_config)  # the parameter sheet (lotsen.web.settings)
+        self.broadcast = broadcast or (lambda m: None)  # a message to every page
 
     # -- connection life cycle ---------------------------------------------------------------
     def open_session(self, address: str = "?") -> Session:
@@ -256,9 +259,9 @@ class ControlHandler:
             return [_error(msg.id, "not_pilot", "route: you are no longer the pilot")]
         planned = dataclasses.replace(result.pop("message"), stamp_s=self.clock())
         self.publish(Topic.ROUTE, planned)
-        self.last_upload = {"route_id": planned.route_id, "route": result["route"]}
+        self.last_upload = {"route_id": planned.route_id, "route": result["route"], "detours": result["detours"]}
         return [{"type": "route_ok", "id": msg.id, **{k: result[k] for k in (
-            "route_id", "route", "path", "length_m", "duration_s", "segments", "start_ramp")}}]
+            "route_id", "route", "path", "length_m", "duration_s", "segments", "start_ramp", "detours")}}]
 
     async def _on_export(self, session: Session, msg: Message) -> list[dict]:
         text = await self.run_blocking(export_route, msg.fields["route"], msg.fields["format"], self.origin)
@@ -273,6 +276,14 @@ class ControlHandler:
         if self.tiles is None:
             return [_error(msg.id, "invalid", "tiles_preload: this server has no tile cache (extra.web.tile_dir)")]
         return [{"type": "tiles_started", "id": msg.id, **self.tiles.start(session, msg.fields)}]
+
+    def _on_params(self, session: Session, msg: Message) -> list[dict]:
+        """The pilot changes a planner limit (lotsen.web.settings): refused with the reason, or
+        used from the next plan on; every page gets the new sheet."""
+        self.planner_config = self.settings.set(msg.fields["name"], msg.fields["value"], self.clock())
+        summary = self.settings.summary()
+        self.broadcast(summary)
+        return [{"type": "params_ok", "id": msg.id, "name": msg.fields["name"], "value": msg.fields["value"]}]
 
     def _on_tiles_cancel(self, session: Session, msg: Message) -> list[dict]:
         cancelled = self.tiles.cancel() if self.tiles is not None else False

@@ -156,7 +156,8 @@ class Hub:
         self.handler = ControlHandler(self.seat, publish, clock, planner_config=planner_config,
                                       run_blocking=run_blocking, notify=self._notify, origin=origin,
                                       auth_guard=AuthGuard(clock), tiles=self.tiles,
-                                      viewer_may_estop=options.viewer_may_estop)
+                                      viewer_may_estop=options.viewer_may_estop,
+                                      broadcast=lambda m: self._broadcast_events([dumps(m)]))
         self.clients: dict[Session, Client] = {}
         self.loop: asyncio.AbstractEventLoop | None = None
         self.state = TelemetryState(options.battery_capacity_ah)
@@ -266,6 +267,9 @@ class Hub:
                 "tiles": self.tiles.info() if self.tiles is not None else {"enabled": False},
                 "logs": bool(self.options.log_dir),
                 "uploaded_route_id": last["route_id"] if last else None,
+                "uploaded_detours": last.get("detours", []) if last else [],
+                "settings": self.handler.settings.summary(),
+                "limits": {"speed_max_mps": self.handler.planner_config.speed_max_mps},
                 "viewer_may": sorted(VIEWER_ALLOWED),
                 "viewer_may_estop": self.options.viewer_may_estop,
                 "max_chars": {"pilot": MAX_MESSAGE_CHARS, "viewer": VIEWER_MAX_MESSAGE_CHARS}}

@@ -24,6 +24,28 @@ _NODE = re.compile(r"nodes\[(\d+)\]")
 _OBSTACLE = re.compile(r"obstacles\[(\d+)\]")
 
 
+_FIELD_WORDS = {"speed_mps": "speed", "heading_deg": "bearing", "north": "north", "east": "east"}
+_SPEED_OVER = re.compile(r"(harbour|nodes\[(\d+)\])\.speed_mps: (\S+) exceeds speed_max_mps (\S+)")
+_NODE_FIELD = re.compile(r"nodes\[(\d+)\]\.(\w+)")
+_LEG = re.compile(r"segment \d+ \((harbour|nodes\[\d+\]) -> (harbour|nodes\[\d+\])\)")
+
+
+def operator_text(message: str) -> str:
+    """A planner message in the operator's words: nodes counted from 1 as on the page ("node 4",
+    not "nodes[3]"), legs by their ends, field names as the table heads them, speeds with units."""
+    def node(label: str) -> str:
+        m = _NODE.fullmatch(label)
+        return f"node {int(m.group(1)) + 1}" if m else label
+
+    text = _SPEED_OVER.sub(lambda m: f"{node(m.group(1))}: speed {m.group(3)} m/s exceeds the boat's "
+                                     f"{m.group(4)} m/s", message)
+    text = _LEG.sub(lambda m: f"the leg from {node(m.group(1))} to {node(m.group(2))}", text)
+    text = _NODE_FIELD.sub(lambda m: f"node {int(m.group(1)) + 1} {_FIELD_WORDS.get(m.group(2), m.group(2))}", text)
+    text = _NODE.sub(lambda m: f"node {int(m.group(1)) + 1}", text)
+    text = _OBSTACLE.sub(lambda m: f"obstacle {int(m.group(1)) + 1}", text)
+    return text.replace("speed_max_mps", "the speed limit").replace("speed_mps", "speed")
+
+
 def locate_error(message: str) -> dict[str, Any]:
     """Which drawn element an error names: a segment error belongs to the node it leads to."""
     m = _SEGMENT.search(message)
@@ -43,8 +65,16 @@ def locate_error(message: str) -> dict[str, Any]:
 
 
 def _error(exc: BaseException) -> dict[str, Any]:
+    """The operator's message (1-based nodes) and where it points (`index` 0-based, for the page's
+    arrays; `field` the table column to mark)."""
     text = str(exc)
-    return {"message": text, "error_class": type(exc).__name__, **locate_error(text)}
+    out = {"message": operator_text(text), "error_class": type(exc).__name__, **locate_error(text)}
+    m = _NODE_FIELD.search(text)
+    if m and m.group(2) in _FIELD_WORDS:
+        out["field"] = m.group(2)
+    elif re.search(r"harbour\.(\w+)", text):
+        out["field"] = re.search(r"harbour\.(\w+)", text).group(1)
+    return out
 
 
 def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
@@ -62,12 +92,37 @@ def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
                  "v": np.round(path.speed_mps[idx], 3).tolist(), "s": np.round(path.s_m[idx], 2).tolist()},
         "length_m": round(path.length_m, 2),
         "duration_s": round(float(np.sum(ds / v_mid)), 1),
-        "segments": [{"label": s.label, "length_m": round(s.length_m, 2), "detour": bool(s.detour)}
-                     for s in path.segments],
+        "segments": [{"label": operator_text(s.label), "length_m": round(s.length_m, 2),
+                      "straight_m": round(s.straight_m, 2), "detour": bool(s.detour),
+                      "s0": round(s.s_start_m, 2), "s1": round(s.s_end_m, 2)} for s in path.segments],
+        "detours": detours(route, path.segments),
         # leaving the harbour: from rest to the first node's speed at the acceleration limit
         "start_ramp": {"speed_mps": first, "accel_mps2": a, "distance_m": round(first**2 / (2 * a), 3),
                        "time_s": round(first / a, 2)},
     }
+
+
+def detours(route: Any, segments: list) -> list[dict[str, Any]]:
+    """The legs the planner routed round an obstacle or an area edge: which leg, where on the path
+    (arc length s0..s1), its length and the straight line's (the operator is told and sees it)."""
+    def point(label: str) -> Any:
+        m = _NODE.fullmatch(label)
+        return route.nodes[int(m.group(1))] if m else route.harbour
+
+    out: list[dict[str, Any]] = []
+    for seg in segments:
+        m = _LEG.search(seg.label)
+        if not seg.detour or m is None:
+            continue
+        leg = operator_text(m.group(0))
+        if out and out[-1]["leg"] == leg:  # the parts of one detour
+            out[-1].update(s1=round(seg.s_end_m, 2), length_m=round(out[-1]["length_m"] + seg.length_m, 2))
+            continue
+        a, b = point(m.group(1)), point(m.group(2))
+        out.append({"leg": leg, "s0": round(seg.s_start_m, 2), "s1": round(seg.s_end_m, 2),
+                    "length_m": round(seg.length_m, 2),
+                    "straight_m": round(float(np.hypot(b.north_m - a.north_m, b.east_m - a.east_m)), 2)})
+    return out
 
 
 def plan_for_display(route_data: dict, config: PlannerConfig | None = None) -> dict[str, Any]:

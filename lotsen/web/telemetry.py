@@ -11,13 +11,13 @@ from typing import Any
 
 from lotsen.messages import (
     ActuatorState, Alert, BatteryStatus, ControllerStatus, GnssFix, GnssFixType, LogEvent, MagCalibrationResult,
-    MissionProgress, PathMessage, PlannedRoute, RcOverride, RouteMessage, SupervisorStatus, ThrustCommand, Topic,
-    VesselState,
+    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RouteMessage, SupervisorStatus, ThrustCommand,
+    Topic, VesselState,
 )
 
 TOPICS = (Topic.STATE, Topic.TRUTH, Topic.CONTROL_STATUS, Topic.SUPERVISOR, Topic.GNSS, Topic.BATTERY,
           Topic.SHIP_COMMAND, Topic.ACTUATORS, Topic.PATH, Topic.ROUTE, Topic.ACTIVE_ROUTE, Topic.LOG, Topic.RC,
-          Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS)
+          Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL)
 
 #: the estimate is shown when it is this fresh; otherwise the simulator's truth (simulation only)
 STATE_FRESH_S = 1.0
@@ -153,7 +153,15 @@ class BatteryEstimator:
 def magcal_json(m: MagCalibrationResult) -> dict:
     return {"type": "magcal", "t": num(m.stamp_s), "ok": bool(m.ok), "center": plain(m.center),
             "matrix": plain(m.matrix), "residual": num(m.residual, 5), "coverage_deg": num(m.coverage_deg, 1),
-            "text": str(m.text)[:MAX_LOG_TEXT]}
+            "text": str(m.text)[:MAX_LOG_TEXT], "samples": plain(getattr(m, "samples", ()))[:400],
+            "decision": str(getattr(m, "decision", ""))[:20]}
+
+
+def model_json(m: ModelInfo) -> dict:
+    """The model in use and where it came from (model/in_use, latched)."""
+    return {"type": "model", "t": num(m.stamp_s), "source": str(m.source)[:300],
+            "file_modified_utc": str(m.file_modified_utc)[:40], "parameters": plain(m.parameters),
+            "std": plain(m.std), "verdict": str(m.verdict)[:MAX_LOG_TEXT], "boat": str(m.boat)[:MAX_LOG_TEXT]}
 
 
 class TelemetryState:
@@ -178,6 +186,8 @@ class TelemetryState:
             event = {"type": "uploaded", "t": num(msg.stamp_s), "route_id": msg.route_id, "source": msg.source}
         elif topic == Topic.MAG_CALIBRATION and isinstance(msg, MagCalibrationResult):
             event = magcal_json(msg)
+        elif topic == Topic.MODEL and isinstance(msg, ModelInfo):
+            event = model_json(msg)
         elif topic == Topic.ALERT and isinstance(msg, Alert):
             a = alert_json(msg)
             with self._lock:
@@ -217,7 +227,7 @@ class TelemetryState:
         """What a page that connects now needs at once: the boat's route and path, the last upload,
         the magnetometer fit, the active alerts and those of the last minute (most severe first)."""
         with self._lock:
-            out = [self.replay[k] for k in ("uploaded", "active_route", "path", "magcal") if k in self.replay]
+            out = [self.replay[k] for k in ("model", "uploaded", "active_route", "path", "magcal") if k in self.replay]
             alerts = [a for a in self.alerts.values()
                       if a["active"] or (a["t"] is not None and now_s - a["t"] < ALERT_REPLAY_S)]
         alerts.sort(key=lambda a: (-SEVERITIES.index(a["severity"]), -(a["t"] or 0.0)))

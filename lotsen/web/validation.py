@@ -18,6 +18,7 @@ export        route: route dict, format: "yaml" | "geojson"            anyone
 import        text: str, format: "yaml" | "geojson"                    anyone
 tiles_preload south, west, north, east (deg), zoom_min, zoom_max        pilot
 tiles_cancel                                                           pilot
+params        name: an editable setting (lotsen.web.settings), value: number pilot
 ============= ======================================================== =========
 
 Before any of this the raw text is size-checked (512 kB for the pilot, 64 kB for viewers) and
@@ -35,6 +36,7 @@ from typing import Any
 
 from lotsen.messages import OPERATOR_ACTIONS
 from lotsen.planning.route import MAX_COORDINATE_M
+from lotsen.web.settings import EDITABLE_NAMES
 
 MAX_MESSAGE_CHARS = 512 * 1024
 VIEWER_MAX_MESSAGE_CHARS = 64 * 1024  # a viewer needs no more (auth, ping, small conversions)
@@ -84,10 +86,12 @@ SCHEMAS: dict[str, dict[str, Field]] = {
                       "west": Field("number", lo=-180.0, hi=180.0), "east": Field("number", lo=-180.0, hi=180.0),
                       "zoom_min": Field("int", lo=0, hi=22), "zoom_max": Field("int", lo=0, hi=22)},
     "tiles_cancel": {},
+    "params": {"name": Field("enum", choices=EDITABLE_NAMES), "value": Field("number", lo=-1e6, hi=1e6)},
 }
 
 #: everything that plans, commands or downloads on the boat's behalf needs the pilot seat
-PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel"})
+PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel",
+                        "params"})
 #: what a viewer may send (docs/web.md, "Access rules")
 VIEWER_ALLOWED = frozenset(SCHEMAS) - PILOT_ONLY
 

@@ -212,7 +212,7 @@ def test_draw_a_route_by_clicking_and_see_the_plan_and_its_errors(page):
     click_map(page, 13, 6)
     wait_js(page, "document.querySelector('#planstatus').classList.contains('bad')")
     err_rows = page.locator("#nodetable tr.err td.errmsg")
-    assert "nodes[2]" in err_rows.first.inner_text()
+    assert "node 3" in err_rows.first.inner_text() and "nodes[" not in err_rows.first.inner_text()  # 1-based
     shot(page, "plan-error")
     page.locator("#nodetable button[data-del='2']").click()
     wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')")

@@ -6,16 +6,18 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
+import yaml
 from hypothesis import strategies as st
 
 from lotsen.messages import OPERATOR_ACTIONS, LinkStatus, ManualCommand, OperatorCommand, PlannedRoute, Topic
 from lotsen.planning.exchange import route_id
 from lotsen.web.auth import MAX_AUTH_FAILURES, AuthGuard, PilotSeat, token_matches
 from lotsen.web.control import ControlHandler
-from lotsen.web.planning_api import import_route, locate_error, plan_for_display
+from lotsen.web.planning_api import import_route, locate_error, operator_text, plan_for_display
 from lotsen.web.ratelimit import TokenBucket
 from lotsen.web.validation import VIEWER_MAX_MESSAGE_CHARS, ValidationError, parse_message
 
@@ -228,8 +230,9 @@ def test_a_route_the_planner_cannot_plan_is_not_published():
     bad = json.loads(json.dumps(ROUTE))
     bad["nodes"][1]["speed_mps"] = -1
     r = send(h, s, {"type": "route", "route": bad})
-    assert code(r) == "route_invalid" and "nodes[1].speed_mps" in r[0]["error"]
+    assert code(r) == "route_invalid" and "node 2 speed: -1 is negative" in r[0]["error"]  # 1-based, no code
     assert r[0]["errors"][0]["kind"] == "node" and r[0]["errors"][0]["index"] == 1
+    assert r[0]["errors"][0]["field"] == "speed_mps"  # the cell the page marks
     assert published == []
 
 
@@ -290,7 +293,28 @@ def test_plan_for_display_returns_a_thinned_path_or_errors_tied_to_nodes():
     tight["nodes"][1].update(north=13.0, east=1.0, heading_deg=180.0)
     res = plan_for_display(tight)
     assert not res["ok"] and res["errors"][0]["kind"] == "node" and res["errors"][0]["index"] == 1
-    assert "segment 1" in res["errors"][0]["message"]
+    assert "the leg from node 1 to node 2" in res["errors"][0]["message"]
+    fast = json.loads(json.dumps(ROUTE))
+    fast["nodes"][0]["speed_mps"] = 2.3
+    err = plan_for_display(fast)["errors"][0]
+    assert err["message"] == "node 1: speed 2.3 m/s exceeds the boat's 1.5 m/s"
+    assert (err["kind"], err["index"], err["field"]) == ("node", 0, "speed_mps")
+
+
+def test_operator_text_counts_nodes_from_one_and_speaks_no_code():
+    assert operator_text("segment 3 (nodes[2] -> nodes[3]): too sharp") == "the leg from node 3 to node 4: too sharp"
+    assert operator_text("segment 0 (harbour -> nodes[0]): blocked") == "the leg from harbour to node 1: blocked"
+    assert operator_text("nodes[3] (north 50) is inside obstacles[0]") == "node 4 (north 50) is inside obstacle 1"
+    assert operator_text("nodes[0].heading_deg: expected a number") == "node 1 bearing: expected a number"
+
+
+def test_detours_are_reported_with_where_and_how_long():
+    route = yaml.safe_load((Path(__file__).parents[2] / "examples/routes/square_with_obstacle.yaml").read_text())
+    res = plan_for_display(route)
+    assert res["ok"] and len(res["detours"]) == 1
+    d = res["detours"][0]
+    assert d["leg"] == "the leg from node 1 to node 2" and 0 < d["s0"] < d["s1"] <= res["length_m"]
+    assert d["length_m"] >= d["straight_m"] > 0
 
 
 @pytest.mark.parametrize("message, located", [
@@ -487,3 +511,26 @@ def test_the_harbour_start_is_a_short_ramp_not_a_slow_leg():
     assert res["duration_s"] < 100 / 0.5 + 2 * ramp["time_s"] + 1.0  # about 200 s, not 660
     v, s = res["path"]["v"], res["path"]["s"]
     assert min(x for x, d in zip(v, s) if 2.0 < d < 98.0) >= 0.49
+
+
+# -- the parameter sheet -------------------------------------------------------------------------
+def test_the_pilot_may_lower_the_planner_speed_limit_and_the_next_plan_uses_it():
+    h, _, published, _ = make()
+    seen = []
+    h.broadcast = seen.append
+    viewer = h.open_session("10.0.0.9")
+    assert code(send(h, viewer, {"type": "params", "name": "planner.speed_max_mps", "value": 1.0})) == "not_pilot"
+    s = pilot(h)
+    r = send(h, s, {"type": "params", "name": "planner.speed_max_mps", "value": 2.3})
+    assert code(r) == "invalid"
+    assert r[0]["error"] == ("top speed of planned routes: 2.3 m/s exceeds 1.5 m/s, the launch config's value "
+                             "(a pilot may lower it, not raise it)")
+    r = send(h, s, {"type": "params", "name": "planner.clearance_m", "value": -1})
+    assert code(r) == "invalid" and "a pilot may raise it, not lower it" in r[0]["error"]
+    assert code(send(h, s, {"type": "params", "name": "planner.mystery", "value": 1})) == "out_of_range"
+    assert send(h, s, {"type": "params", "name": "planner.speed_max_mps", "value": 0.4})[0]["type"] == "params_ok"
+    assert h.planner_config.speed_max_mps == 0.4 and seen[-1]["planner"]["speed_max_mps"]["value"] == 0.4
+    assert seen[-1]["planner"]["speed_max_mps"]["launch"] == 1.5 and seen[-1]["changes"][-1]["to"] == 0.4
+    res = send(h, s, {"type": "plan", "route": ROUTE})[0]
+    assert not res["ok"] and res["errors"][0]["message"] == "node 1: speed 0.5 m/s exceeds the boat's 0.4 m/s"
+    assert published == [] or all(t != Topic.ROUTE for t, _ in published)
