@@ -16,7 +16,7 @@ the hull) and rotated into the body frame at every step. Anti-windup: integral c
 Weathervaning (`weathervane`): "on" makes the target heading a preference; the heading
 reference is `lotsen.control.weathervane.weathervane_heading` for the estimated current in
 `VesselState.current_ne_mps` (re-chosen every `vane_period_s`, slewed at `vane_slew_radps`). With no
-estimate it stays at the target heading (unless `vane_from_integral`). "auto" (default) holds the target
+estimate it stays at the target heading. "auto" (default) holds the target
 heading while its steady load is within the actuators (`hold_load_ratio` below `engage_load_ratio`) and
 vanes only beyond (back below `release_load_ratio`): in light current the ~120 deg turn costs more
 than it saves. "off" never vanes. Feedforward: the steady thrust against the estimated current (and
@@ -25,7 +25,6 @@ known wind, estimated disturbance) at the present heading is added to the PID (`
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -34,7 +33,7 @@ import numpy as np
 from lotsen.control.allocation import AllocationConfig, ThrustAllocator, rate_limit
 from lotsen.control.base import HoldTarget, make_status, state_is_finite, wrap_angle
 from lotsen.control.weathervane import (
-    WeathervaneConfig, equivalent_current, hold_load_ratio, steady_hold_thrust, weathervane_heading,
+    WeathervaneConfig, hold_load_ratio, steady_hold_thrust, weathervane_heading,
 )
 from lotsen.errors import ConfigError
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
@@ -66,10 +65,6 @@ class StationKeepingConfig:
     vane: WeathervaneConfig = WeathervaneConfig()
     vane_period_s: float = 1.0  # how often the heading is re-chosen
     vane_slew_radps: float = math.radians(15.0)  # the heading reference turns at most this fast
-    # without estimator states, read the integral as the load (opt-in: during an approach the integral
-    # holds transient force too, and the chosen heading then wanders in calm water)
-    vane_from_integral: bool = False
-    vane_min_integral_N: float = 0.05  # ... beyond this integral force
     known_wind: Environment | None = None  # wind from an anemometer / forecast, if any
     # bow-into-current is yaw-unstable (Munk moment, m22 > m11): a stiffer heading loop when vaning
     vane_heading_natural_freq_radps: float = 1.5
@@ -115,7 +110,6 @@ class StationKeepingController:
         self._gains_fixed = gains(wp)
         self._gains_vane = gains(max(wp, c.vane_heading_natural_freq_radps))
         self.kp, self.kd, self.ki = self._gains_vane if c.weathervane == "on" else self._gains_fixed
-        self._vane_integral = dataclasses.replace(config.vane, hysteresis_abs=0.0)
         self.failures = 0
         self.reset()
 
@@ -141,8 +135,8 @@ class StationKeepingController:
 
     def _heading_reference(self, t: float, state: VesselState, target: HoldTarget) -> float:
         """The target's heading, or with `weathervane` the heading with the least steady thrust for the
-        estimated current (VesselState.current_ne_mps) and disturbance (disturbance_tau), else for the
-        integral's earth-frame force; slewed at vane_slew_radps."""
+        estimated current (VesselState.current_ne_mps) and disturbance (disturbance_tau); slewed at
+        vane_slew_radps."""
         c = self.config
         psi = state.heading_rad
         if self._vane_ref is None:
@@ -151,16 +145,7 @@ class StationKeepingController:
             self._vane_next_t = t + c.vane_period_s
             cur = tuple(float(x) for x in state.current_ne_mps)
             tau_b = tuple(float(x) for x in state.disturbance_tau)
-            if (c.vane_from_integral and not any(cur) and not any(tau_b)
-                    and float(np.hypot(*self._int_ne)) > c.vane_min_integral_N):
-                # no estimator states: the integral is the thrust holding against the load (earth
-                # frame); express it as the current that would need it at this heading
-                cp, sp = math.cos(psi), math.sin(psi)
-                ix, iy = self._int_ne
-                cur = equivalent_current(psi, (cp * ix + sp * iy, -sp * ix + cp * iy), self.model.params)
-                vane = self._vane_integral  # the integral is smooth: only the relative margin
-            else:
-                vane = c.vane
+            vane = c.vane
             if c.weathervane == "auto":
                 load = hold_load_ratio(target.heading_rad, cur, self.model.params, c.vane, c.known_wind,
                                        tau_b)  # type: ignore[arg-type]

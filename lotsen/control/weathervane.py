@@ -117,29 +117,6 @@ def hold_load_ratio(heading_rad: float, current_ne_mps: tuple[float, float], par
                      abs(t[2]) / config.capacity_N_Nm))
 
 
-def _solve_drag(a: float, b: float, t: float) -> float:
-    """x with a x + b |x| x = t (a > 0, b >= 0): monotone, closed form."""
-    if b <= 1e-12:
-        return t / a
-    return math.copysign((-a + math.sqrt(a * a + 4.0 * b * abs(t))) / (2.0 * b), t)
-
-
-def equivalent_current(heading_rad: float, thrust_body_N: tuple[float, float],
-                       params: VesselParameters) -> tuple[float, float]:
-    """The water current (north, east, m/s) whose steady drag at `heading_rad` needs the body thrust
-    `thrust_body_N` = (tau_X, tau_Y): the inverse of `steady_hold_thrust` without wind. Used when the
-    estimator has no current states and only the station keeper's integral measures the load: the
-    load then carries the hull's anisotropic drag (sway ~3x surge per m/s) into the heading choice,
-    which a heading-independent force would not (the choice would overshoot the upstream direction
-    and hunt)."""
-    p = params
-    ur = _solve_drag(p.X_u, max(-p.X_uu, 0.0), float(thrust_body_N[0]))
-    vr = _solve_drag(p.Y_v - p.Y_uv * abs(ur), max(-p.Y_vv, 0.0), float(thrust_body_N[1]))
-    uc, vc = -ur, -vr
-    c, s = math.cos(heading_rad), math.sin(heading_rad)
-    return (c * uc - s * vc, s * uc + c * vc)
-
-
 def weathervane_heading(preferred_heading_rad: float, previous_heading_rad: float | None,
                         current_ne_mps: tuple[float, float], params: VesselParameters,
                         config: WeathervaneConfig = WeathervaneConfig(), wind: Environment | None = None,

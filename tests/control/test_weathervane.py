@@ -9,7 +9,7 @@ import pytest
 from lotsen.control.base import HoldTarget
 from lotsen.control.station_keeping import StationKeepingConfig, StationKeepingController
 from lotsen.control.weathervane import (
-    WeathervaneConfig, equivalent_current, steady_hold_thrust, weathervane_heading,
+    WeathervaneConfig, steady_hold_thrust, weathervane_heading,
 )
 from lotsen.errors import ConfigError
 from lotsen.model import Environment
@@ -74,26 +74,9 @@ def test_weathervaning_hold_in_current_and_wind():
     assert_commands_within_limits(cmds)
 
 
-@pytest.mark.xfail(strict=True, reason="on the lake boat the integral's load, inverted through the model's "
-                   "coefficients, gives a wrong equivalent current and the vane heading hunts (1.7-2.2 m RMS); "
-                   "holds on a boat equal to the model. Opt-in (vane_from_integral), not the default")
-def test_weathervaning_without_current_estimate_uses_the_integral():
-    """No estimator states (current_ne_mps = 0): the integral's load, read as an equivalent current."""
-    errs, cmds, sim = _hold(BEAM, weathervane=True, estimate=False, duration_s=70.0, vane_from_integral=True)
-    assert rms(errs[-300:]) <= 0.05
-    assert abs((sim.x[2] + math.pi / 2 + math.pi) % (2 * math.pi) - math.pi) < math.radians(5.0)
-    assert_commands_within_limits(cmds)
-
-
 def test_weathervaning_without_estimate_keeps_the_target_heading_by_default():
     errs, _, sim = _hold(Environment(), weathervane=True, estimate=False, duration_s=20.0)
     assert abs(sim.x[2]) < math.radians(1.0) and errs[-1] < 0.01
-
-
-def test_equivalent_current_inverts_the_steady_thrust():
-    for psi, cur in [(0.3, (0.1, -0.25)), (-2.0, (0.4, 0.05))]:
-        t = steady_hold_thrust(psi, cur, DEFAULT_PARAMETERS)
-        assert np.allclose(equivalent_current(psi, (float(t[0]), float(t[1])), DEFAULT_PARAMETERS), cur, atol=1e-9)
 
 
 def test_bad_vane_config_is_rejected():
