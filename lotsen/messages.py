@@ -10,14 +10,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import IntEnum
+from enum import IntEnum, StrEnum
 
 
 __all__ = [
     "Topic", "ThrustCommand", "ActuatorState", "ImuSample", "MagSample", "MagCalibrated", "GnssFixType",
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
-    "OPERATOR_ACTIONS", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
+    "OPERATOR_ACTIONS", "ModeName", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
     "ModelInfo", "LATCHED_TOPICS",
 ]
 
@@ -302,6 +302,20 @@ OPERATOR_ACTIONS = (
     "rtk_start", "rtk_stop",  # RTK corrections on/off
     "logging_on", "logging_off",
 )
+
+
+class ModeName(StrEnum):
+    """The supervisor's modes (lotsen.supervisor.modes) by name: `SupervisorStatus.mode`, the log and
+    the page carry them as plain strings."""
+
+    MANUAL = "MANUAL"
+    AUTO = "AUTO"
+    HOLD = "HOLD"
+    RETURN = "RETURN"
+    CALIBRATE = "CALIBRATE"
+    ESTOP = "ESTOP"
+    RC = "RC"
+    EXPERIMENT = "EXPERIMENT"
 
 
 @dataclass(slots=True, kw_only=True)

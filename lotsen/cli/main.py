@@ -1,4 +1,9 @@
-"""`lotsen` command line. Each command lives in its own module with `register(subparsers)`."""
+"""`lotsen` command line. Each command lives in its own module with `register(subparsers)`.
+
+Only the module of the command being run is imported: the others appear in `lotsen --help` by
+the one-line help of `COMMANDS`, so `lotsen --help` and `lotsen run` do not pay for importing
+every library (numpy, scipy, numba, casadi, ...) that some other command uses.
+"""
 
 from __future__ import annotations
 
@@ -9,30 +14,63 @@ import sys
 from lotsen import __version__
 from lotsen.errors import LotsenError
 
-# module name in lotsen.cli -> registers one or more sub-commands
-COMMAND_MODULES = (
-    "model", "sim", "run", "plan", "mission", "identify", "experiment", "calibrate",
-    "logs", "gnss", "check", "recover",
-)
+#: sub-command -> (module in lotsen.cli that registers it, its one-line help for `lotsen --help`);
+#: a module may register several sub-commands (tests/test_cli.py checks both against the modules)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "model": ("model", "inspect the vessel model"),
+    "sim": ("sim", "run the simulated boat open loop and write the trajectory (CSV)"),
+    "run": ("run", "run the full stack (simulated boat by default)"),
+    "plan": ("plan", "plan a path through a route's nodes (cubic segments, speed profile)"),
+    "mission": ("mission", "plan a route and fly it in closed loop on the simulated boat"),
+    "identify": ("identify", "estimate the vessel parameters from experiment data"),
+    "experiment": ("experiment", "identification experiments: run, check, design"),
+    "calibrate-mag": ("calibrate", "fit the magnetometer's hard/soft iron from one full turn (seed 3.3)"),
+    "replay": ("logs", "re-publish a log on the bus (and to Foxglove / Zenoh)"),
+    "export": ("logs", "write the topics of a log as tables (CSV), and sysid.csv"),
+    "record": ("logs", "record topics received over Zenoh to MCAP (shore side)"),
+    "gnss-replay": ("gnss", "print the NAV-PVT fixes of a recorded UBX byte stream as CSV"),
+    "check": ("check", "pre-flight check: open each device, measure its rate and health"),
+    "recover": ("recover", "make a killed/unclosed MCAP recording readable (index + summary)"),
+}
+COMMAND_MODULES = tuple(dict.fromkeys(module for module, _ in COMMANDS.values()))
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _register(sub: argparse._SubParsersAction, module_name: str) -> bool:
+    try:
+        module = importlib.import_module(f"lotsen.cli.{module_name}")
+    except ModuleNotFoundError as exc:
+        if exc.name == f"lotsen.cli.{module_name}":
+            return False  # command not part of this build
+        raise
+    module.register(sub)
+    return True
+
+
+def build_parser(commands: tuple[str, ...] | None = None) -> argparse.ArgumentParser:
+    """The parser; with `commands` only those commands' modules are imported (their full
+    arguments), the others are listed by name and help only. None: every module."""
     parser = argparse.ArgumentParser(prog="lotsen", description="lotsen - model-based autonomy for small surface vessels")
     parser.add_argument("--version", action="version", version=f"lotsen {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(f"lotsen.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"lotsen.cli.{name}":
-                continue  # command not part of this build
-            raise
-        module.register(sub)
+    # the modules of the wanted commands first: a module registers all its commands (logs: export,
+    # replay, record, ...), which must not meet a placeholder of the same name
+    for module_name in dict.fromkeys(m for name, (m, _) in COMMANDS.items() if commands is None or name in commands):
+        _register(sub, module_name)
+    for name, (module_name, help_line) in COMMANDS.items():
+        if name not in sub.choices:
+            sub.add_parser(name, help=help_line, add_help=False)  # listed only; never parsed
     return parser
 
 
+def command_of(argv: list[str]) -> str | None:
+    """The sub-command of a command line (the first word that is not an option)."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = command_of(argv)
+    parser = build_parser((command,) if command in COMMANDS else ())
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -16,9 +16,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from lotsen.runtime.config import BoatSection, LaunchConfig, load_config
-from lotsen.stack.launch import build_stack, summary
-from lotsen.stack.logs import add_foxglove_server, recover_unclosed_logs
 from lotsen.runtime.lifetime import RunLock
+from lotsen.stack.logs import add_foxglove_server, recover_unclosed_logs
 from lotsen.stack.processes import Launcher, freeze_heap, run_identities, validate
 from lotsen.stack.stack import simulated_boat, vessel_model
 
@@ -119,6 +118,10 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
 
 
 def _run_one_process(config: LaunchConfig, args: argparse.Namespace, lock: RunLock) -> int:
+    # the whole stack only here: the launcher of the processes (the usual path) does not run it,
+    # and a second run is refused (RunLock) before the control stack's libraries are loaded
+    from lotsen.stack.launch import build_stack, summary
+
     stack = build_stack(config, realtime=True)
     if "web" in stack.services:
         lock.update(stack.services["web"].url)

@@ -26,9 +26,6 @@ from typing import Literal
 
 import numpy as np
 import shapely
-from scipy.optimize import minimize
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import LineString, Point, Polygon
 
 from lotsen.errors import ConfigError, PlanningError
@@ -308,6 +305,10 @@ def _plan_segment(p0: np.ndarray, psi0: float, p1: np.ndarray, psi1: float, wate
                         x_best, c_best = x[j], float(c[j])
                 width *= 0.5
         else:  # bounded Nelder-Mead (scipy) on V with a penalty outside the feasible set
+            # scipy only where it is used: the web server and the recorder import planning for
+            # its types and must not carry scipy (~45 MB a process)
+            from scipy.optimize import minimize
+
             def objective(x: np.ndarray) -> float:
                 _, ln, mk, v, _, _, f = evaluate(np.exp(x)[None])
                 if f[0]:
@@ -390,6 +391,9 @@ def _visibility_path(p0: np.ndarray, p1: np.ndarray, water: _Water, offset_m: fl
     ok = water.covers_coarse(segs)
     w = np.hypot(*(pts[j] - pts[i]).T)
     i, j, w = i[ok], j[ok], w[ok]
+    from scipy.sparse import csr_matrix  # see the Nelder-Mead branch: scipy only where used
+    from scipy.sparse.csgraph import dijkstra
+
     graph = csr_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n))
     dist, pred = dijkstra(graph, directed=False, indices=0, return_predecessors=True)
     if not np.isfinite(dist[1]):

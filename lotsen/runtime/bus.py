@@ -1,8 +1,9 @@
 """In-process publish/subscribe bus.
 
 Delivery is synchronous and in subscription order, so a simulated run is deterministic. A
-subscriber that raises is isolated: the error is counted and reported on the `log` topic, and the
-other subscribers still get the message (a bad message never takes a node down). Threads (web
+subscriber that raises is isolated: the error is counted and reported on the `log` topic (once per
+distinct error, then repeats at most every 10 s: `CallbackErrors`), and the other subscribers
+still get the message (a bad message never takes a node down). Threads (web
 server, drivers) read through `BoundedQueue`s, which drop the oldest message when full, so a slow
 consumer never blocks the control loop.
 """
@@ -13,6 +14,8 @@ import threading
 from collections import defaultdict, deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
+
+from lotsen.runtime.callback_errors import CallbackErrors
 
 Callback = Callable[[Any], None]
 AnyCallback = Callable[[str, Any], None]
@@ -54,8 +57,15 @@ class BoundedQueue:
 @dataclass
 class BusStats:
     published: dict[str, int] = field(default_factory=lambda: defaultdict(int))
-    callback_errors: int = 0
-    last_error: str = ""
+    errors: CallbackErrors = field(default_factory=CallbackErrors)
+
+    @property
+    def callback_errors(self) -> int:
+        return self.errors.total
+
+    @property
+    def last_error(self) -> str:
+        return self.errors.last_error
 
 
 class Bus:
@@ -103,15 +113,13 @@ class Bus:
             else:
                 cb(topic, msg)
         except Exception as exc:  # isolate subscribers: count, report, carry on
-            self.stats.callback_errors += 1
-            self.stats.last_error = f"{getattr(cb, '__qualname__', cb)} on {topic}: {exc!r}"
-            if not self._reporting and topic != "log":
+            text = self.stats.errors.record(f"subscriber {getattr(cb, '__qualname__', cb)}", topic, exc)
+            if text is not None and not self._reporting and topic != "log":
                 self._reporting = True
                 try:
                     from lotsen.messages import LogEvent
 
                     stamp = getattr(msg, "stamp_s", float("nan"))
-                    self.publish("log", LogEvent(stamp_s=stamp, level="error", source="bus",
-                                                 text=self.stats.last_error))
+                    self.publish("log", LogEvent(stamp_s=stamp, level="error", source="bus", text=text))
                 finally:
                     self._reporting = False

@@ -81,6 +81,10 @@ class Executor:
         self._seq = itertools.count()
         self.nodes: list[Node] = []
         self.timer_errors = 0
+        # one count for every callback this executor runs (subscribers, timers, external calls),
+        # on its clock: reports of repeats are reproducible on simulated time
+        self.errors = self.bus.stats.errors
+        self.errors.clock = self.clock.now
 
     def add_node(self, node: Node) -> Node:
         self.nodes.append(node)
@@ -99,8 +103,19 @@ class Executor:
             timer.callback()
         except Exception as exc:  # a failing node must not stop the others; it is reported
             self.timer_errors += 1
-            self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source=timer.name,
-                                             text=f"timer callback failed: {exc!r}"))
+            self._report(f"timer {timer.name or getattr(timer.callback, '__qualname__', '?')}", exc, timer.name)
+
+    def _report(self, where: str, exc: Exception, source: str) -> None:
+        text = self.errors.record(where, "", exc)
+        if text is not None:
+            self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source=source or "executor",
+                                             text=text, data={"callback_errors": self.errors.total}))
+
+    def health(self) -> dict[str, int]:
+        """Counts for health reports: callbacks that raised (all kinds), timers that raised, and
+        timer periods skipped because the loop was late."""
+        return {"callback_errors": self.errors.total, "timer_errors": self.timer_errors,
+                "timer_overruns": sum(t.overruns for _, _, t in self._heap)}
 
     def _reschedule(self, timer: Timer, now: float) -> None:
         timer.next_t += timer.period_s
@@ -165,9 +180,8 @@ class RealtimeExecutor(Executor):
     def _call(self, fn: Callable[[], None]) -> None:
         try:
             fn()
-        except Exception as exc:
-            self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level="error", source="executor",
-                                             text=f"external call failed: {exc!r}"))
+        except Exception as exc:  # a web handler's call must not stop the loop; it is reported
+            self._report(f"external call {getattr(fn, '__qualname__', '?')}", exc, "executor")
 
     def _drain_calls(self) -> None:
         while True:

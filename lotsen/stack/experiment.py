@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from lotsen.messages import Alert, OperatorCommand, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState
+from lotsen.messages import (
+    Alert, ModeName, OperatorCommand, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
+)
 from lotsen.runtime.executor import Node, NodeContext
-
-EXPERIMENT_MODE = "EXPERIMENT"  # lotsen.supervisor.modes.ModeName.EXPERIMENT, as the status names it
 
 
 class ExperimentNode(Node):
@@ -107,7 +107,7 @@ class ExperimentNode(Node):
                 mode = self.status.mode  # a supervisor in this process has answered already
             if self.refusal:
                 self._end(t, f"the supervisor refused: {self.refusal}")
-            elif mode == EXPERIMENT_MODE and finite:
+            elif mode == ModeName.EXPERIMENT and finite:
                 self.t0, self.origin = t, (s.north_m, s.east_m)
                 self.ctx.log("info", f"experiment '{self.experiment.name}' started "
                                      f"({self.experiment.duration_s:.0f} s)")
@@ -120,7 +120,7 @@ class ExperimentNode(Node):
         why = "" if finite else "the state estimate is not finite"
         if finite and not self._inside(s):
             why = f"left the experiment area at ({s.north_m:.1f}, {s.east_m:.1f}) m"
-        if mode != EXPERIMENT_MODE:
+        if mode != ModeName.EXPERIMENT:
             why = f"the supervisor left EXPERIMENT: {mode} ({self.status.reason if self.status else ''})"
         if why or tau >= self.experiment.duration_s:
             self._end(t, why)

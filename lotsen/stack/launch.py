@@ -92,7 +92,9 @@ def summary(stack: Stack) -> str:
     """One-line state of the boat for the console."""
     truth = stack.bus.latest.get(Topic.TRUTH) or stack.bus.latest.get(Topic.STATE)
     t = stack.executor.clock.now()
+    errors = stack.executor.errors.total
+    tail = f"  callback errors: {errors} (see the log)" if errors else ""
     if truth is None:
-        return f"t={t:7.1f} s  (no state yet)"
+        return f"t={t:7.1f} s  (no state yet){tail}"
     return (f"t={t:7.1f} s  N={truth.north_m:8.2f} m  E={truth.east_m:8.2f} m  "
-            f"heading={math.degrees(truth.heading_rad) % 360:6.1f} deg  speed={truth.speed_mps:5.2f} m/s")
+            f"heading={math.degrees(truth.heading_rad) % 360:6.1f} deg  speed={truth.speed_mps:5.2f} m/s{tail}")

@@ -9,15 +9,15 @@ from __future__ import annotations
 
 import os
 import socket
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from lotsen.errors import ConfigError
 from lotsen.stack.stack import Stack, failsafe_config, planner_config
-from lotsen.web.hub import Hub
 from lotsen.web.options import WebOptions
-from lotsen.web.server import WebServer
-from lotsen.web.settings import Settings
 from lotsen.web.tls import Certificate, ensure_certificate, fingerprint
+
+if TYPE_CHECKING:
+    from lotsen.web.server import WebServer
 
 
 def check_web_host(host: str) -> None:
@@ -61,6 +61,12 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     """The web server on `stack`'s bus. `run_blocking`: how planning requests run (the planner
     worker process in `lotsen run`; a thread of this process by default). `tls`: serve HTTPS with
     a self-signed certificate (`tls_certificate`; its fingerprint goes to the banner)."""
+    # the server here, not at the top: the launcher checks the host and the certificate with
+    # this module and must not carry FastAPI for the whole run
+    from lotsen.web.hub import Hub
+    from lotsen.web.server import WebServer
+    from lotsen.web.settings import Settings
+
     config = stack.config
     if not config.web.enabled:
         return None

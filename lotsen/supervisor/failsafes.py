@@ -23,14 +23,15 @@ from typing import TYPE_CHECKING, Any, Literal
 from shapely.geometry import Point
 from shapely.ops import nearest_points
 
-from lotsen.control import HoldTarget
-from lotsen.messages import ActuatorState, GnssFixType, RpmSample, ThrustCommand
+from lotsen.messages import ActuatorState, GnssFixType, ModeName, RpmSample, ThrustCommand
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.model.actuators import advance_motors
 from lotsen.settings import value_range as _r
-from lotsen.supervisor.modes import Mode, ModeName
 
-if TYPE_CHECKING:  # the inputs are defined with the node; monitors only read them
+if TYPE_CHECKING:  # the inputs are defined with the node, the modes with their controllers;
+    # monitors only read them (and the web server and the launcher import this module for
+    # FailsafeConfig without the controllers)
+    from lotsen.supervisor.modes import Mode
     from lotsen.supervisor.node import SupervisorInputs
 
 
@@ -192,7 +193,7 @@ class Monitor:
     def active(self) -> bool:
         return self.condition.active
 
-    def action_for(self, mode: Mode) -> FailsafeAction:
+    def action_for(self, mode: "Mode") -> FailsafeAction:
         return self.actions.get(mode.name, FailsafeAction.CONTINUE)
 
 
@@ -301,7 +302,7 @@ class EstimatorMonitor(Monitor):
         what = ", ".join(x for x, ok in (("position", h.position_ok), ("heading", h.heading_ok)) if not ok)
         return bad, f"estimate not trustworthy ({what}): " + "; ".join(h.faults[:3])
 
-    def action_for(self, mode: Mode) -> FailsafeAction:
+    def action_for(self, mode: "Mode") -> FailsafeAction:
         if self.heading_bad and mode.requires_heading:
             return FailsafeAction.STOP  # without a heading neither following nor holding works
         return super().action_for(mode)
@@ -439,19 +440,19 @@ class GeofenceMonitor(Monitor):
         outside = not self._fence(inputs.route)[0].contains(Point(s.north_m, s.east_m))
         return outside, f"position ({s.north_m:.1f}, {s.east_m:.1f}) outside the navigable area"
 
-    def action_for(self, mode: Mode) -> FailsafeAction:
+    def action_for(self, mode: "Mode") -> FailsafeAction:
         fenced = mode.fenced or (mode.name == ModeName.MANUAL and self.in_manual)
         return FailsafeAction.HOLD_INSIDE if fenced else FailsafeAction.CONTINUE
 
-    def hold_target(self, inputs: "SupervisorInputs") -> HoldTarget:
-        """The nearest point geofence_inset_m inside the area, bow toward it: whatever pushed the
-        boat out (current, wind) is then met by the azimuths' full forward thrust, not by the weak
-        sideways one."""
+    def hold_target(self, inputs: "SupervisorInputs") -> tuple[float, float, float]:
+        """(north, east, heading) of the nearest point geofence_inset_m inside the area, bow toward
+        it: whatever pushed the boat out (current, wind) is then met by the azimuths' full forward
+        thrust, not by the weak sideways one."""
         s = inputs.state
         p = Point(s.north_m, s.east_m)
         q = nearest_points(self._fence(inputs.route)[1], p)[0]
         heading = math.atan2(q.y - p.y, q.x - p.x) if p.distance(q) > 0.05 else s.heading_rad
-        return HoldTarget(q.x, q.y, heading)
+        return (q.x, q.y, heading)
 
 
 class ControllerMonitor(Monitor):

@@ -20,31 +20,17 @@ operator can still drive by keyboard, the boat does not move by itself.
 from __future__ import annotations
 
 import math
-from enum import StrEnum
 from typing import TYPE_CHECKING
 
 from lotsen.control import HoldTarget
 from lotsen.errors import LotsenError
-from lotsen.messages import ControllerStatus, MagCalibrationResult, ThrustCommand
+from lotsen.messages import ControllerStatus, MagCalibrationResult, ModeName, ThrustCommand
 from lotsen.model import wrap_angle
 
 if TYPE_CHECKING:
     from lotsen.supervisor.node import SupervisorNode
 
 Output = tuple[ThrustCommand, "ControllerStatus | None"]
-
-
-class ModeName(StrEnum):
-    """The modes' names: what the status message, the log and the page show (plain strings there)."""
-
-    MANUAL = "MANUAL"
-    AUTO = "AUTO"
-    HOLD = "HOLD"
-    RETURN = "RETURN"
-    CALIBRATE = "CALIBRATE"
-    ESTOP = "ESTOP"
-    RC = "RC"
-    EXPERIMENT = "EXPERIMENT"
 
 
 def neutral(t: float, source: str) -> ThrustCommand:

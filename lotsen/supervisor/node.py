@@ -22,7 +22,7 @@ from shapely import contains_xy
 from lotsen.control import ControlConfig, HoldTarget, ThrustAllocator, make_path_follower, make_station_keeper
 from lotsen.errors import LotsenError
 from lotsen.messages import (
-    OPERATOR_ACTIONS, ActuatorState, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
+    OPERATOR_ACTIONS, ActuatorState, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
     MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
     RcOverride, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
@@ -35,7 +35,7 @@ from lotsen.supervisor.failsafes import (
     ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ThrusterMonitor,
     monitor, standard_monitors,
 )
-from lotsen.supervisor.modes import Hold, Mode, ModeName, all_modes, neutral
+from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
 from lotsen.supervisor.prearm import FailedCheck, PrearmInputs, blocking, describe, prearm_failures, route_corridor_m
 
 #: failsafes whose action is "hold on dead reckoning, then stop after gnss_stop_after_s"
@@ -574,7 +574,7 @@ class SupervisorNode(Node):
         elif action is FailsafeAction.HOLD_INSIDE:
             # once: then the boat holds at the point inside until the operator decides
             if self.armed and self.reason != GEOFENCE_HOLD_REASON:
-                self.enter_hold(t, GEOFENCE_HOLD_REASON, self.geofence.hold_target(self.inputs))
+                self.enter_hold(t, GEOFENCE_HOLD_REASON, HoldTarget(*self.geofence.hold_target(self.inputs)))
         elif action is FailsafeAction.STOP:
             self.stop(why)
         elif action is FailsafeAction.RETURN:

@@ -238,3 +238,28 @@ def test_a_second_run_on_the_same_boat_is_refused_at_once_and_the_first_keeps_ru
         except subprocess.TimeoutExpired:
             first.kill()
     assert first.returncode == 0
+
+
+@pytest.mark.live
+def test_a_second_run_is_refused_within_a_second_before_the_stack_is_imported(tmp_path, run_env):
+    """The lock is checked before the control stack's libraries are loaded: a refusal costs the
+    interpreter's start and the launcher's light imports only (0.3-0.7 s on a loaded machine)."""
+    config = _sim_config(tmp_path)
+    holder = RunLock(run_identities(LaunchConfig()), directory=Path(run_env[RUNTIME_DIR_ENV]))
+    holder.acquire("http://127.0.0.1:8080/")
+    try:
+        probe = ("import sys, runpy; sys.argv = ['lotsen', 'run', sys.argv[1], '--sim', '--port', '0']\n"
+                 "try:\n    runpy.run_module('lotsen', run_name='__main__')\n"
+                 "finally:\n    print('loaded:', *(m for m in ('numba', 'scipy', 'fastapi', 'osqp') if m in sys.modules),"
+                 " file=sys.stderr)")
+        t0 = time.monotonic()
+        refused = subprocess.run([sys.executable, "-c", probe, str(config)], cwd=tmp_path, env=run_env,
+                                 capture_output=True, text=True, timeout=30)
+        took_s = time.monotonic() - t0
+    finally:
+        holder.release()
+    assert refused.returncode == 2, refused.stderr
+    first, loaded = refused.stderr.strip().splitlines()[0], refused.stderr.strip().splitlines()[-1]
+    assert first.startswith("error: another lotsen run is already running on this boat") and "http://127.0.0.1:8080/" in first
+    assert loaded == "loaded:"  # none of the heavy libraries was imported for the refusal
+    assert took_s < 1.0, f"refused after {took_s:.2f} s"

@@ -108,9 +108,9 @@ def test_geofence_trips_after_its_persistence_and_holds_inside_only_in_fenced_mo
     assert {m: mon.action_for(modes[m]) for m in modes} == {
         "MANUAL": "continue", "AUTO": "hold_inside", "HOLD": "hold_inside", "RETURN": "hold_inside",
         "CALIBRATE": "continue", "ESTOP": "continue", "RC": "continue", "EXPERIMENT": "hold_inside"}
-    target = mon.hold_target(inputs)
-    assert abs(target.north_m - 5.0) < 1e-6 and abs(target.east_m - 8.5) < 1e-6  # 1.5 m inside
-    assert abs(target.heading_rad - (-math.pi / 2)) < 1e-6  # bow toward the water it was pushed out of
+    north, east, heading = mon.hold_target(inputs)
+    assert abs(north - 5.0) < 1e-6 and abs(east - 8.5) < 1e-6  # 1.5 m inside
+    assert abs(heading - (-math.pi / 2)) < 1e-6  # bow toward the water it was pushed out of
     in_manual = GeofenceMonitor(FailsafeConfig(geofence_in_manual=True))
     assert in_manual.action_for(modes["MANUAL"]) is FailsafeAction.HOLD_INSIDE
     inputs.state = _state(5.0, 10.5, std_m=5.0)  # an estimate not trusted does not judge the fence

@@ -1,0 +1,428 @@
+"""The processes of `lotsen run`, one main function per role (docs/architecture.md), and what
+they share: process options, priority / CPU / locked memory, the core's watchdog.
+
+    core      the boat (simulated, or the drivers), the actuator guard, fusion, the supervisor and
+              the controllers, on one clock; a Zenoh router on loopback; its own watchdog
+    web       the operator's web server and its planner worker (time and memory budget)
+    recorder  the MCAP log of every topic
+    foxglove  the live Foxglove server (`--foxglove`)
+    ros2      the boat as a ROS 2 node (`extra.ros2`)
+
+A child process starts by importing this module (to find `child_main`), so it imports only what
+every role needs; each role's main imports what that role runs. A recorder does not carry the
+web server or the controllers, the web server not the estimator or the simulator: on a
+Raspberry Pi every library a process imports costs resident memory for the whole run. The
+launcher is `lotsen.stack.processes`.
+
+On the boat the core asks for the highest priority, its own CPU and locked memory where the OS
+allows it (root or CAP_SYS_NICE / CAP_IPC_LOCK); what it got is printed at start.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import gc
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Callable
+
+from lotsen.errors import ConfigError, LotsenError
+from lotsen.messages import ThrustCommand, Topic
+from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.executor import RealtimeExecutor
+from lotsen.runtime.lifetime import die_with_parent
+from lotsen.settings import value_range as _r
+from lotsen.transport.ros2_bridge import Ros2BridgeConfig
+from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
+
+if TYPE_CHECKING:
+    from lotsen.planning.budget import PlanningBudget
+    from lotsen.stack.stack import Stack
+
+MCL_CURRENT, MCL_FUTURE, MCL_ONFAULT = 1, 2, 4  # mlockall(2) flags (Linux >= 4.4 for MCL_ONFAULT)
+#: what the core accepts from the web process (nothing else from the edge reaches the helm)
+OPERATOR_TOPICS = (Topic.OPERATOR, Topic.MANUAL, Topic.LINK, Topic.ROUTE)
+#: ... and from the ROS 2 process: operator commands that passed its token gate (CommandGate)
+ROS2_TOPICS = (Topic.OPERATOR,)
+ROLES = ("core", "recorder", "web", "foxglove", "ros2")
+#: what the ROS 2 process publishes to ROS 2 by default (the seed's Table 3 and the status)
+ROS2_DEFAULT_PUBLISH = (Topic.IMU_RAW, Topic.IMU_MAG, Topic.GNSS, Topic.RPM, Topic.STATE, Topic.SENS_FUS,
+                        Topic.PATH, Topic.SHIP_COMMAND, Topic.VELOCITY_COMMAND, Topic.ANGLE_COMMAND,
+                        Topic.SUPERVISOR, Topic.BATTERY, Topic.ALERT, Topic.PROGRESS)
+
+
+@dataclass(frozen=True)
+class ProcessOptions:
+    """`extra.processes` of the launch config."""
+
+    zenoh_port: int = field(default=0, metadata=_r(0, 65535))  # 0: a free port on 127.0.0.1
+    core_cpu: int | None = None  # pin the core here; None: the last CPU when there are 2 or more
+    core_nice: int = field(default=-10, metadata=_r(-20, 19))  # applied when permitted
+    # SCHED_FIFO for the core when permitted (0: off). Needed, not a luxury: with the kernel's
+    # autogroups a nice value only counts inside one terminal session, so any busy program
+    # elsewhere takes half the CPU from a niced core (stalls of 0.3-0.5 s measured under load)
+    realtime_priority: int = field(default=10, metadata=_r(0, 98))
+    lock_memory: bool = True  # mlockall in the core (no page faults in the control loop)
+    recorder_nice: int = field(default=0, metadata=_r(-20, 19))
+    web_nice: int = field(default=5, metadata=_r(-20, 19))
+    watchdog_s: float = field(default=0.3, metadata=_r(0.05, 5.0))  # core loop silent this long: neutral
+    watchdog_exit_s: float = field(default=3.0, metadata=_r(0.2, 60.0))  # ... this long: the core exits
+    restart_backoff_s: float = field(default=1.0, metadata=_r(0.1, 60.0))
+    ready_timeout_s: float = field(default=60.0, metadata=_r(1.0, 600.0))
+
+
+def process_options(config: LaunchConfig) -> ProcessOptions:
+    return from_mapping(ProcessOptions, config.extra.get("processes", {}), "extra.processes")
+
+
+def ros2_config(config: LaunchConfig) -> Ros2BridgeConfig:
+    """`extra.ros2` of the launch config (present = the ROS 2 process runs). Commands from ROS 2
+    need the run's pilot token, as on the web page."""
+    data = dict(config.extra.get("ros2") or {})
+    if "pilot_token" in data:
+        raise ConfigError("extra.ros2.pilot_token: not configurable; ROS 2 commands need the run's pilot token "
+                          "(web.pilot_token or the one printed at start)")
+    data.setdefault("publish", list(ROS2_DEFAULT_PUBLISH))
+    data.setdefault("subscribe", [Topic.OPERATOR])
+    return replace(from_mapping(Ros2BridgeConfig, data, "extra.ros2"), pilot_token=config.web.pilot_token)
+
+
+def planning_budget(config: LaunchConfig) -> PlanningBudget:
+    from lotsen.planning.budget import PlanningBudget
+
+    return from_mapping(PlanningBudget, config.extra.get("planning", {}), "extra.planning")
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+# ------------------------------------------------------------------------------------------------
+# priority, CPU, memory (best effort, reported)
+# ------------------------------------------------------------------------------------------------
+def _set_nice(target: int) -> str:
+    current = os.nice(0)
+    try:
+        os.nice(target - current)
+        return f"nice {os.nice(0)}"
+    except PermissionError:
+        if target > current:
+            return f"nice {current}"
+        return f"nice {current} (wanted {target}: not permitted)"
+
+
+def _pin(cpus: set[int]) -> str:
+    try:
+        os.sched_setaffinity(0, cpus)
+        return f"CPU {','.join(map(str, sorted(cpus)))}"
+    except (AttributeError, OSError, ValueError):
+        return "CPU not pinned"
+
+
+def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:
+    try:
+        cpus = sorted(os.sched_getaffinity(0))
+    except AttributeError:
+        return None, None
+    if len(cpus) < 2:
+        return None, None
+    core = opts.core_cpu if opts.core_cpu is not None and opts.core_cpu in cpus else cpus[-1]
+    return {core}, set(cpus) - {core}
+
+
+def _threads_of_this_process() -> list[int]:
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return []
+
+
+def apply_core_priority(opts: ProcessOptions) -> list[str]:
+    """Priority, CPU and locked memory for the core, called from the control loop's thread when
+    every other thread of the process (Zenoh's, the bridge's) exists.
+
+    All threads of the core get the core CPU and SCHED_RR at `realtime_priority`, the loop one
+    level above (SCHED_FIFO): no program outside the core can delay any thread that may hold
+    the interpreter lock the loop needs (a lock holder preempted by an ordinary busy process
+    stalled the loop for 0.2 s), and no core thread can delay the loop. With the kernel's
+    autogroups, nice values alone count only within one terminal session."""
+    done = [_set_nice(opts.core_nice)]
+    core_cpus, _ = _cpu_split(opts)
+    me = threading.get_native_id()
+    tids = _threads_of_this_process()
+    if core_cpus:
+        for tid in tids:
+            if tid != me:
+                try:
+                    os.sched_setaffinity(tid, core_cpus)
+                except OSError:
+                    pass
+        done.append(_pin(core_cpus))  # this thread, and what it got
+    if opts.realtime_priority > 0:
+        try:
+            for tid in tids:
+                if tid != me:
+                    os.sched_setscheduler(tid, os.SCHED_RR, os.sched_param(opts.realtime_priority))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(opts.realtime_priority + 1))
+            done.append(f"real-time priority {opts.realtime_priority + 1} (SCHED_FIFO; other threads SCHED_RR)")
+        except (AttributeError, PermissionError, OSError):
+            done.append("real-time priority not permitted")
+    if opts.lock_memory:
+        # after the warm-up (every kernel compiled) and on fault only: the pages in use now and
+        # those the loop touches later stay in RAM; untouched pages of every mapped library
+        # (LLVM alone maps 150 MB) are not read in and pinned, as plain MCL_CURRENT would
+        try:
+            libc = ctypes.CDLL("libc.so.6", use_errno=True)
+            ok = libc.mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0
+            done.append("memory locked on fault" if ok else "memory not locked (not permitted)")
+        except OSError:
+            done.append("memory not locked (no libc)")
+    return done
+
+
+def freeze_heap() -> None:
+    """Move every object made during start-up out of the garbage collector's reach: a full
+    collection of the ~200 000 objects a core holds (numpy, scipy, OSQP, Zenoh) takes 0.3 s on
+    this machine, a stall of three control periods whenever Python decides to run one."""
+    gc.collect()
+    gc.freeze()
+
+
+def apply_edge_priority(opts: ProcessOptions, nice: int) -> list[str]:
+    done = [_set_nice(nice)]
+    _, edge_cpus = _cpu_split(opts)
+    if edge_cpus:
+        done.append(_pin(edge_cpus))
+    return done
+
+
+# ------------------------------------------------------------------------------------------------
+# the core's watchdog
+# ------------------------------------------------------------------------------------------------
+class CoreWatchdog:
+    """A thread that watches the core's control loop: when the executor has not run for
+    `stall_s`, the actuators are sent to neutral directly (not through the stalled loop); after
+    `exit_s` the process exits, so the launcher (or systemd) sees it and the ESCs' own signal
+    loss failsafe takes over."""
+
+    def __init__(self, stack: Stack, stall_s: float, exit_s: float,
+                 exit_fn: Callable[[int], None] = os._exit) -> None:
+        self.stack = stack
+        self.stall_s = stall_s
+        self.exit_s = exit_s
+        self.exit_fn = exit_fn
+        self.beat = time.monotonic()
+        self.stalls = 0
+        self.loop_thread = threading.current_thread()  # start() is called from the thread that runs the loop
+        self._stop = threading.Event()
+        stack.executor.add_timer(min(0.02, stall_s / 4), self._beat, "watchdog")
+        self._thread = threading.Thread(target=self._watch, name="core-watchdog", daemon=True)
+
+    def start(self) -> None:
+        self.loop_thread = threading.current_thread()
+        self.beat = time.monotonic()
+        self._thread.start()
+
+    def where(self) -> str:
+        """Where the control loop is now, and the other Python threads (one may hold the GIL):
+        the cause of a stall, for the log."""
+        frames = sys._current_frames()
+        names = {t.ident: t.name for t in threading.enumerate()}
+
+        def spots(frame: Any, depth: int) -> str:
+            out = []
+            while frame is not None and len(out) < depth:
+                out.append(f"{os.path.basename(frame.f_code.co_filename)}:{frame.f_lineno} {frame.f_code.co_name}")
+                frame = frame.f_back
+            return " < ".join(out)
+
+        loop = spots(frames.get(self.loop_thread.ident or -1), 4) or "unknown"
+        others = [f"{names.get(ident, ident)}: {spots(f, 2)}" for ident, f in frames.items()
+                  if ident not in (self.loop_thread.ident, threading.get_ident())]
+        return loop + ("; other threads: " + " | ".join(others) if others else "")
+
+    def _beat(self) -> None:
+        self.beat = time.monotonic()
+
+    def _watch(self) -> None:
+        try:  # above the loop it watches, so it runs even if the loop spins at real-time priority
+            if os.sched_getscheduler(0) == os.SCHED_FIFO:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(os.sched_getparam(0).sched_priority + 1))
+        except (AttributeError, OSError):
+            pass
+        stalled = False
+        while not self._stop.wait(self.stall_s / 4):
+            silent = time.monotonic() - self.beat
+            if silent > self.stall_s and not stalled:
+                stalled = True
+                self.stalls += 1
+                emergency_neutral(self.stack)
+                print(f"lotsen core: t={self.stack.executor.clock.now():.1f} s: control loop silent for {silent:.2f} s: "
+                      "actuators to neutral "
+                      f"(loop at {self.where()})", file=sys.stderr, flush=True)
+            elif silent <= self.stall_s:
+                stalled = False
+            if silent > self.exit_s:
+                print(f"lotsen core: control loop silent for {silent:.1f} s: exiting", file=sys.stderr, flush=True)
+                self.exit_fn(70)
+                return
+
+    def stop(self) -> None:
+        self._stop.set()
+
+
+def emergency_neutral(stack: Stack) -> None:
+    """Neutral at the actuators from any thread: the hardware drivers write neutral pulses now;
+    the simulated boat's guard gets a neutral command."""
+    hw = stack.services.get("hardware")
+    if hw is not None and "actuators" in getattr(hw, "drivers", {}):
+        try:
+            hw.drivers["actuators"].neutral()
+        except Exception as exc:  # noqa: BLE001 - a dead pigpiod: the ESC signal-loss failsafe remains
+            print(f"lotsen core: neutral failed: {exc!r}", file=sys.stderr, flush=True)
+    boat = stack.nodes.get("sim_boat")
+    if boat is not None:
+        boat.guard.accept(ThrustCommand.neutral(stack.executor.clock.now(), source="watchdog"),
+                          stack.executor.clock.now())
+
+
+# ------------------------------------------------------------------------------------------------
+# the roles (each the main function of one process)
+# ------------------------------------------------------------------------------------------------
+def _bridge(stack: Stack, **kw: Any) -> ZenohBridge:
+    bridge = ZenohBridge(BridgeConfig(**kw))
+    stack.add(bridge)
+    stack.on_shutdown(bridge.close)
+    return bridge
+
+
+def _edge_stack(config: LaunchConfig) -> Stack:
+    from lotsen.stack.stack import Stack, resolve_origin, vessel_model
+
+    return Stack(config=config, executor=RealtimeExecutor(), model=vessel_model(config), origin=resolve_origin(config))
+
+
+def _run_until_stopped(stack: Stack, ready: Any, info: dict, on_stop: Callable[[], None] | None = None) -> None:
+    """Serve until SIGTERM (the launcher's stop, or its death: `die_with_parent`); `on_stop` runs
+    first thing in the signal handler (the core: neutral at the actuators)."""
+
+    def stop(*_: Any) -> None:
+        if on_stop is not None:
+            on_stop()
+        stack.executor.stop()
+
+    freeze_heap()  # no 0.3 s collector pauses in the web server's or the recorder's loop either
+    signal.signal(signal.SIGTERM, stop)
+    ready.send(("ready", info))
+    ready.close()
+    try:
+        stack.executor.run()
+    finally:
+        stack.executor.stop()
+        stack.shutdown()
+
+
+# Each main imports what its role runs (see the module's docstring).
+def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+    from lotsen.stack.launch import build_stack, summary
+
+    opts = process_options(config)
+    stack = build_stack(config, realtime=True, parts=("state", "supervisor"))
+    sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
+    _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources))
+    watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
+    stack.on_shutdown(watchdog.stop)
+    stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
+    done = apply_core_priority(opts)  # this thread runs the loop
+    watchdog.start()
+    info = {"banner": [f"core: {config.mode} boat with {', '.join(stack.nodes)}; {', '.join(done)}",
+                       *stack.services.get("banner", [])]}
+    # neutral first when told to stop (by the launcher, or by its death), and again on the way out
+    _run_until_stopped(stack, ready, info, on_stop=lambda: emergency_neutral(stack))
+    emergency_neutral(stack)
+
+
+def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+    from lotsen.stack.logs import add_recorder
+
+    opts = process_options(config)
+    done = apply_edge_priority(opts, opts.recorder_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",))
+    add_recorder(stack)
+    _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
+
+
+def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
+    from lotsen.stack.planner_worker import PlannerWorker
+    from lotsen.stack.web import add_web
+
+    opts = process_options(config)
+    done = apply_edge_priority(opts, opts.web_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+            subscribe=("core/**", "recorder/log", "launcher/log"))
+    worker = PlannerWorker(planning_budget(config))
+    stack.on_shutdown(worker.close)
+    add_web(stack, run_blocking=worker.run, tls=tls)
+    # the worker after the server is up: a web process that cannot serve ends with its one error
+    threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
+    _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
+
+
+def ros2_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+    """The boat as a ROS 2 node (rmw_zenoh wire format, docs/runtime.md): the core's topics out,
+    authorised operator commands in (they reach the core as ros2/operator/command)."""
+    from lotsen.transport.ros2_bridge import Ros2Bridge
+
+    opts = process_options(config)
+    done = apply_edge_priority(opts, opts.web_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="ros2", mode="client", connect=(endpoint,), publish=(*ROS2_TOPICS, Topic.LOG),
+            subscribe=("core/**",))
+    bridge = Ros2Bridge(ros2_config(config))
+    stack.add(bridge)
+    stack.on_shutdown(bridge.close)
+    _run_until_stopped(stack, ready, {"banner": [f"ros2: namespace {bridge.namespace}, {len(bridge.config.publish)} "
+                                                 f"topics out, commands with the pilot token in; {', '.join(done)}"]})
+
+
+def foxglove_main(config: LaunchConfig, endpoint: str, ready: Any, port: int = 8765) -> None:
+    from lotsen.stack.logs import add_foxglove_server
+
+    opts = process_options(config)
+    apply_edge_priority(opts, opts.web_nice)
+    stack = _edge_stack(config)
+    _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",))
+    add_foxglove_server(stack, config.web.host, port)
+    _run_until_stopped(stack, ready, {"banner": stack.services.get("banner", [])})
+
+
+_MAINS: dict[str, Callable[..., None]] = {"core": core_main, "recorder": recorder_main, "web": web_main,
+                                         "foxglove": foxglove_main, "ros2": ros2_main}
+
+
+def child_main(role: str, config: LaunchConfig, endpoint: str, ready: Any, kwargs: dict, launcher_pid: int) -> None:
+    # no orphans: whatever ends the launcher (SIGKILL included) ends this process, through its
+    # own orderly SIGTERM path (the core's neutral, the recorder's closed file)
+    die_with_parent(launcher_pid)
+    # Ctrl-C reaches every process of the terminal's group: only the launcher acts on it, so the
+    # shutdown order stays core first, then the edge
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        _MAINS[role](config, endpoint, ready, **kwargs)
+    except LotsenError as exc:
+        print(f"lotsen {role}: error: {exc}", file=sys.stderr, flush=True)
+        try:
+            ready.send(("error", str(exc)))
+        except OSError:
+            pass
+        sys.exit(2)
+
