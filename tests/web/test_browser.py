@@ -254,7 +254,7 @@ def test_insert_a_node_undo_redo_and_numbers_are_validated_on_entry(page):
     assert page.evaluate("() => window.lotsen.route.toDict()") == before
     # a cleared or nonsensical cell is refused with the reason, never read as 0
     cell = "#nodetable tr[data-kind=node][data-i='1'] input[data-f=speed_mps]"
-    for text, why in (("", "a number is required"), ("fast", "is not a number"), ("1e308", "outside")):
+    for text, why in (("", "a number is required"), ("fast", "is not a number"), ("1e308", "exceeds the boat")):
         page.fill(cell, text)
         page.press(cell, "Enter")
         wait_js(page, f"document.querySelector('#fielderr').textContent.includes('{why}')")
