@@ -575,7 +575,7 @@ function renderTable() {
     const actions = kind === "node"
       ? `<button type="button" data-ins="${i}" title="insert a node before this one">+</button><button type="button" data-del="${i}" title="delete node">✕</button>` : "";
     rows.push(`<tr data-kind="${kind}" data-i="${i ?? ""}" class="${isSel ? "selected" : ""} ${err ? "err" : ""}">` +
-      `<td title="${ll}">${label}</td>${cell("north", p.north)}${cell("east", p.east)}${cell("heading_deg", p.heading_deg)}${speed}` +
+      `<td title="${ll}">${label}</td>${cell("north", p.north)}${cell("east", p.east)}${cell("heading_deg", Math.round(wrap360(p.heading_deg) * 1000) / 1000 % 360)}${speed}` +
       `<td>${actions}</td></tr>`);
     if (err) rows.push(`<tr class="err"><td></td><td colspan="5" class="errmsg">${esc(err.message)}</td></tr>`);
   };
