@@ -80,12 +80,12 @@ def heading_calibration(stack: Stack) -> str:
 
 
 #: raw samples sent with a fit for the operator's plot (one turn at the magnetometer's rate is more)
-MAG_PLOT_POINTS = 240
+MAG_PLOT_POINTS = 200
 
 
 def mag_calibrator(samples: list[tuple[float, float]]) -> MagCalibrationResult:
     cal = fit_mag_calibration([s[0] for s in samples], [s[1] for s in samples], units="uT")
-    step = max(1, len(samples) // MAG_PLOT_POINTS)
+    step = max(1, -(-len(samples) // MAG_PLOT_POINTS))
     return MagCalibrationResult(stamp_s=0.0, ok=True, center=tuple(cal.center), matrix=cal.matrix,
                                 residual=cal.residual_rms, coverage_deg=cal.coverage_deg,
                                 samples=tuple((round(float(x), 3), round(float(y), 3)) for x, y in samples[::step]),

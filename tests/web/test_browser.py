@@ -254,7 +254,7 @@ def test_insert_a_node_undo_redo_and_numbers_are_validated_on_entry(page):
     assert page.evaluate("() => window.lotsen.route.toDict()") == before
     # a cleared or nonsensical cell is refused with the reason, never read as 0
     cell = "#nodetable tr[data-kind=node][data-i='1'] input[data-f=speed_mps]"
-    for text, why in (("", "a number is required"), ("fast", "is not a number"), ("1e308", "outside")):
+    for text, why in (("", "a number is required"), ("fast", "is not a number"), ("1e308", "exceeds the boat")):
         page.fill(cell, text)
         page.press(cell, "Enter")
         wait_js(page, f"document.querySelector('#fielderr').textContent.includes('{why}')")
@@ -331,7 +331,7 @@ def test_edit_area_corners_and_draw_an_obstacle(page):
     wait_js(page, "window.lotsen.route.obstacles.length === 1")
     obst = page.evaluate("() => window.lotsen.route.toDict().obstacles")
     assert obst[0]["forbidden"] == "inside" and len(obst[0]["polygon"]) == 4
-    assert "obstacle 0, 4 corners" in page.inner_text("#polylist")
+    assert "obstacle 1, 4 corners" in page.inner_text("#polylist")
     page.click("[data-tool=select]")
     drag_map(page, 3, 9, 4, 10)  # its corners are edited like the area's
     wait_js(page, "window.lotsen.route.obstacles[0].polygon[2][0] > 3.5")
@@ -356,7 +356,7 @@ def test_edit_a_node_in_latitude_and_longitude(page):
     before = page.evaluate("() => window.lotsen.route.nodes[0]")
     page.click("#nodetable tr[data-kind=node][data-i='0'] td:first-child")
     wait_js(page, "!document.querySelector('#nodegeo').hidden")
-    assert page.inner_text("#nodegeo-label") == "node 0"
+    assert page.inner_text("#nodegeo-label") == "node 1"  # counted from 1, as in every message
     lat0, lon0 = float(page.input_value("#geo-lat")), float(page.input_value("#geo-lon"))
     la, lo, _ = pymap3d.ned2geodetic(before["north"], before["east"], 0.0, origin["lat"], origin["lon"], origin["h"])
     assert lat0 == pytest.approx(la, abs=2e-7) and lon0 == pytest.approx(lo, abs=2e-7)
@@ -378,7 +378,7 @@ def test_edit_a_node_in_latitude_and_longitude(page):
     wait_js(page, "document.querySelector('#fielderr').textContent === ''")
     # a polygon corner too: the obstacle's corner at N3 E6 moved to N2.5 E6.5
     click_map(page, 3, 6)
-    wait_js(page, "document.querySelector('#nodegeo-label').textContent === 'obstacle 0 corner 1'")
+    wait_js(page, "document.querySelector('#nodegeo-label').textContent === 'obstacle 1 corner 2'")
     lat, lon, _ = pymap3d.ned2geodetic(2.5, 6.5, 0.0, origin["lat"], origin["lon"], origin["h"])
     page.fill("#geo-lat", f"{lat:.8f}")
     page.fill("#geo-lon", f"{lon:.8f}")

@@ -176,8 +176,8 @@ def test_phone_hold_to_drive_stops_when_the_finger_lifts_or_the_page_goes(phone,
     assert phone.locator("[aria-label=drive]").count() == 1
     wait_js(phone, "document.querySelector('#drivestate').textContent.startsWith('hold a button')")
     ahead = "#drivepad [aria-label=ahead]"
+    assert hit(phone, ahead)  # scrolls it to the middle: measure after that, not before
     x, y = centre(phone, ahead)
-    assert hit(phone, ahead)
     on_screen(phone, ahead)
     on_screen(phone, "#estop")
     no_sideways_scroll(phone)

@@ -38,6 +38,17 @@ export class AlertCenter {
     this.render();
   }
 
+  // the cause cleared (seen by the page): the alert goes, the Events list keeps the history
+  clear(code, why = "") {
+    const it = this.items.get(code);
+    this.dismissed.delete(code);
+    if (!it) return false;
+    this.items.delete(code);
+    this.render();
+    this.opts.onCleared && this.opts.onCleared(it, why);
+    return true;
+  }
+
   dismiss(code) {
     const it = this.items.get(code);
     if (it) this.dismissed.set(code, `${it.severity}|${it.text}`);

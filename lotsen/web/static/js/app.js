@@ -21,6 +21,7 @@ const state = {
   boatRoute: null,        // the boat's read-back {route, route_id}
   upload: null,           // this page's last upload {route_id, route}
   uploadedId: null,       // the last upload seen on the bus (any page)
+  defaultSpeed: 0.5, uploadedDetours: [], uploadRefused: null, lastT: null, lastFrameMs: null, stale: true,
   viewTouched: false, fits: 0, tilesIndex: null, tileProgress: null, logList: [], lastRequest: null,
 };
 window.lotsen = state;   // for debugging and the browser tests
@@ -28,7 +29,7 @@ window.lotsen = state;   // for debugging and the browser tests
 const route = new RouteModel();
 const tiles = new TileLayer(() => map.invalidate());
 const map = new MapView($("#map"), route, {
-  defaultSpeed: () => Number($("#default-speed").value) || 0.5,
+  defaultSpeed: () => state.defaultSpeed,   // the last valid entry of "new node speed"
   onSelect: () => renderTable(),
   onInfo: ([n, e]) => {
     const ll = state.origin ? ` · ${fmtLatLon(...neToLatLon(n, e, state.origin))}` : "";
@@ -43,7 +44,10 @@ state.map = map; state.route = route; state.tiles = tiles; state.send = (msg) =>
 $("#map").addEventListener("wheel", () => { state.viewTouched = true; });
 $("#map").addEventListener("pointerdown", () => { state.viewTouched = true; });
 
-const alerts = new AlertCenter($("#alerts"), { onChange: () => renderNext() });
+const alerts = new AlertCenter($("#alerts"), {
+  onChange: () => renderNext(),
+  onCleared: (it, why) => onLog({ t: state.lastT, level: "info", source: "page", text: `cleared: ${it.text}${why ? " — " + why : ""}` }),
+});
 state.alerts = alerts;
 
 // -- connection -------------------------------------------------------------------------------
@@ -89,12 +93,14 @@ function onMessage(m) {
     case "telemetry": onTelemetry(m); break;
     case "hello": onHello(m); break;
     case "pong": if (m.t != null) state.rttMs = performance.now() - m.t; break;
-    case "auth_ok": state.pilot = true; setRole(); toast("you are the pilot"); schedulePlan(); break;
+    case "auth_ok": state.pilot = true; alerts.clear("web:seat"); alerts.clear("web:bad_token"); setRole(); toast("you are the pilot"); schedulePlan(); break;
     case "pilot":
       state.pilot = !!m.pilot;
       if (!m.pilot && m.reason !== "released") { state.token = null; alerts.push({ severity: "error", code: "web:seat", text: `controls lost: ${m.reason}` }); }
       setRole(); if (m.reason === "released") toast("controls released"); break;
-    case "path": map.activePath = m; map.invalidate(); maybeFit(); break;
+    case "path": map.activePath = m; map.activeDetours = detoursOnPath(); map.invalidate(); maybeFit(); break;
+    case "model": state.model = m; renderSettings(); break;
+    case "settings": onSettings(m); break;
     case "active_route": onReadback(m); break;
     case "uploaded": state.uploadedId = m.route_id; renderReadback(); break;
     case "alert": onAlert(m); break;
@@ -108,7 +114,12 @@ function onMessage(m) {
 }
 
 function onHello(m) {
+  alerts.clear("web:evicted");
+  if (state.hello && m.server_t + 1 < state.lastT) resetLive();   // the boat's stack restarted: old trail and plots go
   state.hello = m;
+  if (m.limits && m.limits.speed_max_mps) LIMITS.speed_mps[1] = m.limits.speed_max_mps;
+  if (m.settings) onSettings(m.settings);
+  state.uploadedDetours = m.uploaded_detours || [];
   state.origin = m.origin;
   map.origin = m.origin;
   if (m.uploaded_route_id) state.uploadedId = m.uploaded_route_id;
@@ -135,7 +146,9 @@ function onAlert(m) {
   const ever = (state.telemetry && state.telemetry.link && state.telemetry.link.ever) || (state.hello && state.hello.pilot_ever);
   if (a.code === "failsafe:link_lost" && !ever && a.active !== false) a = { ...a, severity: "info", text: "no pilot has taken the controls yet: the boat does not move by itself" };
   alerts.push(a);
-  onLog({ t: m.t, level: a.severity, source: m.source || "alert", text: `${a.active === false ? "cleared: " : ""}${m.text}` });
+  if (a.code === "refused:route") renderReadback(`the boat refused the upload: ${m.text}`);
+  // the supervisor logs each of its alerts as a log event too: listed once in Events
+  if (m.source !== "supervisor") onLog({ t: m.t, level: a.severity, source: m.source || "alert", text: `${a.active === false ? "cleared: " : ""}${m.text}` });
 }
 
 // -- telemetry --------------------------------------------------------------------------------
@@ -150,6 +163,8 @@ state.plots = plots;
 $("#plotwin").addEventListener("change", ev => { Object.values(plots).forEach(p => { p.windowS = Number(ev.target.value); }); });
 
 function onTelemetry(f) {
+  if (state.lastT != null && f.t != null && f.t + 1 < state.lastT) resetLive();   // the clock went back: a restart
+  state.lastT = f.t; state.lastFrameMs = performance.now();
   state.telemetry = f; state.framesRx++;
   const p = f.pose, c = f.ctrl, cmd = f.cmd || f.act;
   if (p) map.setBoat(p, f.truth);
@@ -157,17 +172,57 @@ function onTelemetry(f) {
   plots.xte.push(f.t, [c ? c.xte : null]);
   const speed = p ? Math.hypot(p.u, p.v) : null;
   plots.speed.push(f.t, [speed, c ? c.speed_ref : null]);
-  plots.heading.push(f.t, [p ? wrap180(p.psi * DEG) : null, c && c.hdg_err != null ? c.hdg_err * DEG : null]);
+  plots.heading.push(f.t, [p ? heading360(p.psi) : null, c && c.hdg_err != null ? c.hdg_err * DEG : null]);
   plots.props.push(f.t, [cmd ? cmd.n1 : null, cmd ? cmd.n2 : null, cmd ? cmd.nt : null, f.act && f.cmd ? (f.act.n1 + f.act.n2) / 2 : null]);
   plots.az.push(f.t, [cmd ? cmd.a1 * DEG : null, cmd ? cmd.a2 * DEG : null]);
   state.mode = f.sup ? f.sup.mode : null;
   renderHud(f);
+  clearSettledAlerts(f);
   updateButtons();
   renderNext();
   maybeFit();
 }
-function wrap180(d) { return ((d + 180) % 360 + 360) % 360 - 180; }
 function wrap360(d) { return ((d % 360) + 360) % 360; }
+// a heading as the operator reads it: whole degrees 0..359 (359.6 is 0, never 360 or negative)
+function heading360(rad) { return Math.round(wrap360(rad * DEG)) % 360; }
+state.heading360 = heading360;
+
+// stale values: every live value greys when the link to the boat is lost or no frame came for
+// STALE_MS (a half-open Wi-Fi link never closes the socket), and a value whose own stamp is older
+// than its limit greys on its own (a sensor that stopped while the rest flows)
+const STALE_MS = 2000;
+const AGE_LIMIT_S = { sup: 1.5, ctrl: 1.5, gnss: 3.0, bat: 5.0, pose: 1.5 };
+function checkStale() {
+  const silent = state.lastFrameMs == null || performance.now() - state.lastFrameMs > STALE_MS;
+  const stale = !state.connected || silent;
+  if (document.body.classList.contains("stale") !== stale) {
+    document.body.classList.toggle("stale", stale);
+    map.stale = stale; map.invalidate();
+  }
+  state.stale = stale;
+  const c = $("#conn");
+  const text = !state.connected ? "offline — reconnecting" : silent && state.lastFrameMs != null
+    ? `no data for ${((performance.now() - state.lastFrameMs) / 1000).toFixed(0)} s` : "connected";
+  if (c.textContent !== text) { c.textContent = text; c.className = "badge " + (text === "connected" ? "ok" : "bad"); }
+}
+setInterval(checkStale, 250);
+function resetLive() {
+  map.trail = []; map.activePath = null; map.activeDetours = [];
+  Object.values(plots).forEach(p => p.clear && p.clear());
+  map.invalidate();
+}
+
+// alerts whose cause has cleared: a refused request once the action is possible; the log keeps them
+function clearSettledAlerts(f) {
+  const s = f.sup;
+  if (!s) return;
+  for (const code of [...alerts.items.keys()]) {
+    const m = /^(?:refused|web:blocked):(.+)$/.exec(code);
+    if (m && (s.available.includes(m[1]) || (m[1] === "route" && s.route_id && state.upload && s.route_id === state.upload.route_id))) {
+      alerts.clear(code, `${m[1]} is possible now`);
+    }
+  }
+}
 setInterval(() => Object.values(plots).forEach(p => p.draw()), 100);
 
 // first screen: the boat and its route in view, until the operator moves the map
@@ -200,10 +255,10 @@ function renderHud(f) {
   setV("#hud-mode", s ? `${s.mode}${s.reason ? " — " + s.reason : ""}` : "no supervisor", !s ? "" : s.mode === "ESTOP" ? "bad" : "");
   const sog = p ? Math.hypot(p.u, p.v) : null;
   setV("#hud-speed", sog == null ? "-" : `${sog.toFixed(2)} m/s${c && c.speed_ref != null ? ` (ref ${c.speed_ref.toFixed(2)})` : ""}`);
-  setV("#hud-heading", p ? `${wrap360(p.psi * DEG).toFixed(0)}°` : "-");
+  setV("#hud-heading", p ? `${heading360(p.psi)}°` : "-");
   if (g) {
     const cls = g.fix === "RTK_FIXED" ? "ok" : g.fix === "RTK_FLOAT" ? "warn" : "bad";
-    setV("#hud-gnss", `${g.fix} ±${g.h_acc != null ? g.h_acc.toFixed(3) : "?"} m · ${g.sv} sats · corr ${g.corr_age != null ? g.corr_age.toFixed(1) + " s" : "-"}`, cls);
+    setV("#hud-gnss", `${g.fix} ±${g.h_acc != null ? g.h_acc.toFixed(3) : "?"} m · ${g.sv} satellites · correction age ${g.corr_age != null ? g.corr_age.toFixed(1) + " s" : "-"}`, cls);
   } else setV("#hud-gnss", "-");
   if (b) {
     const left = b.left_s != null ? ` · ${fmtDuration(b.left_s)} left` : "";
@@ -214,13 +269,17 @@ function renderHud(f) {
   setV("#hud-link", `${state.pilot ? "you are the pilot" : l.pilot ? "pilot connected" : "no pilot"} · ${l.clients} page(s)` + (state.rttMs != null ? ` · rtt ${state.rttMs.toFixed(0)} ms` : ""));
   const cur = p && p.cur;
   $("#hud-current-cell").hidden = !cur;
-  if (cur) setV("#hud-current", `${Math.hypot(cur[0], cur[1]).toFixed(2)} m/s towards ${wrap360(Math.atan2(cur[1], cur[0]) * DEG).toFixed(0)}°`);
+  if (cur) setV("#hud-current", `${Math.hypot(cur[0], cur[1]).toFixed(2)} m/s towards ${heading360(Math.atan2(cur[1], cur[0]))}°`);
   const bar = $("#hud-progress-bar span");
-  if (pr && pr.length) {
+  // progress is published while the boat follows a path: shown then, and while paused (HOLD) on the
+  // same route; otherwise the last figures would be stale
+  const following = s && MOVING.includes(s.mode), paused = s && s.mode === "HOLD" && pr && pr.route_id === s.route_id && pr.left > 0.5;
+  if (pr && pr.length && (following || paused)) {
     const frac = Math.max(0, Math.min(1, (pr.done || 0) / pr.length));
     bar.style.width = `${(frac * 100).toFixed(1)}%`;
-    const next = pr.next >= 0 ? ` · node ${pr.next} in ${pr.to_next != null ? pr.to_next.toFixed(1) : "?"} m` : "";
-    $("#hud-progress").textContent = `${Math.round(frac * 100)} % · ${pr.left != null ? pr.left.toFixed(1) : "?"} m left · ETA ${fmtDuration(pr.eta)}${next}`;
+    const next = pr.next >= 0 ? ` · node ${pr.next + 1} in ${pr.to_next != null ? pr.to_next.toFixed(1) : "?"} m` : "";
+    $("#hud-progress").textContent = `${paused ? "paused at " : ""}${Math.round(frac * 100)} % · ${pr.left != null ? pr.left.toFixed(1) : "?"} m left` +
+      (paused ? "" : ` · ETA ${fmtDuration(pr.eta)}`) + next;
   } else { bar.style.width = "0"; $("#hud-progress").textContent = "no mission running"; }
   $("#hud-ctrl-cell").hidden = !c;
   if (c) setV("#hud-ctrl", `${c.controller} ${c.status} · solve ${c.solve_ms != null ? c.solve_ms.toFixed(1) : "?"} ms · xte ${c.xte != null ? c.xte.toFixed(2) : "?"} m`, c.status === "ok" ? "" : "warn");
@@ -233,6 +292,11 @@ function renderHud(f) {
   const html = warn.map(w => `<li>${esc(w)}</li>`).join("");
   const ul = $("#warnings");
   if (ul.innerHTML !== html) ul.innerHTML = html;
+  // each value greys on its own when its stamp is older than its limit
+  const old = (x, k) => !!(x && x.t != null && f.t != null && f.t - x.t > AGE_LIMIT_S[k]);
+  const ages = { "#hud-mode": old(s, "sup"), "#hud-gnss": old(g, "gnss"), "#hud-bat": old(b, "bat"),
+                 "#hud-speed": old(p, "pose"), "#hud-heading": old(p, "pose"), "#hud-pose": old(p, "pose"), "#hud-ctrl": old(c, "ctrl") };
+  for (const [sel, isOld] of Object.entries(ages)) $(sel).classList.toggle("old", isOld);
 }
 
 // -- what the operator can do now -----------------------------------------------------------
@@ -322,7 +386,7 @@ function setRole() {
   $("#btn-auth").hidden = state.pilot; $("#token").hidden = state.pilot;
   $("#btn-release").hidden = !state.pilot;
   if (state.pilot) $("#btn-takeover").hidden = true;
-  updateButtons(); renderNext();
+  updateButtons(); renderNext(); renderSettings();
   if (!state.pilot) setPlanStatus(route.complete() ? "draft planning needs the pilot seat (the boat's route is shown in green)" : "draw a route: place the harbour, then nodes", "");
 }
 
@@ -472,13 +536,16 @@ async function plan() {
   if (res.type === "plan_result" && res.ok) {
     route.errors = [];
     map.draftPath = res.path;
-    const detours = res.segments.filter(s => s.detour).length;
-    setPlanStatus(`planned: ${res.length_m.toFixed(1)} m, about ${fmtDuration(res.duration_s)}` + (detours ? `, ${detours} detour part(s)` : ""), "ok");
+    const det = res.detours || [];
+    map.draftDetours = det;
+    const vmax = Math.max(...res.path.v);
+    setPlanStatus(`planned: ${res.length_m.toFixed(1)} m, about ${fmtDuration(res.duration_s)}, up to ${vmax.toFixed(2)} m/s` +
+      det.map(d => `\ndetour: ${d.leg} goes round an obstacle or the area edge (${d.length_m.toFixed(1)} m of path, ${d.straight_m.toFixed(1)} m in a straight line)`).join(""), "ok");
     const r = res.start_ramp;
     $("#rampinfo").textContent = r && r.speed_mps > 0 ? `leaves the harbour from rest: 0 → ${r.speed_mps} m/s in ${r.distance_m} m (${r.time_s} s at ${r.accel_mps2} m/s²), then the node speeds` : "";
   } else {
     route.errors = res.errors || [{ kind: "route", message: res.error || "planning failed" }];
-    map.draftPath = null;
+    map.draftPath = null; map.draftDetours = [];
     setPlanStatus(route.errors.map(e => e.message).join("\n"), "bad");
   }
   map.invalidate(); renderTable(); updateButtons();
@@ -493,27 +560,33 @@ function renderTable() {
   const tb = $("#nodetable tbody");
   const rows = [];
   const sel = route.selected;
-  const cell = (f, v) => `<td><input data-f="${f}" type="text" inputmode="decimal" value="${v}" aria-label="${f}"></td>`;
+  const names = { north: "north (m)", east: "east (m)", heading_deg: "bearing (°)", speed_mps: "speed (m/s)" };
   const row = (label, p, kind, i) => {
     const err = route.errorFor(kind, i);
+    // the planner's error names its field: that cell is marked
+    const cell = (f, v) => {
+      const bad = err && err.field === f;
+      return `<td><input data-f="${f}" type="text" inputmode="decimal" value="${v}" aria-label="${label === "H" ? "harbour" : "node " + label} ${names[f]}"` +
+        `${bad ? ` class="invalid" aria-invalid="true" title="${esc(err.message)}"` : ""}></td>`;
+    };
     const isSel = sel && sel.kind === kind && (kind === "harbour" || sel.index === i);
     const ll = state.origin ? fmtLatLon(...neToLatLon(p.north, p.east, state.origin)) : "";
     const speed = kind === "harbour" ? `<td class="dim" title="the harbour is a start from rest">0</td>` : cell("speed_mps", p.speed_mps);
     const actions = kind === "node"
       ? `<button type="button" data-ins="${i}" title="insert a node before this one">+</button><button type="button" data-del="${i}" title="delete node">✕</button>` : "";
     rows.push(`<tr data-kind="${kind}" data-i="${i ?? ""}" class="${isSel ? "selected" : ""} ${err ? "err" : ""}">` +
-      `<td title="${ll}">${label}</td>${cell("north", p.north)}${cell("east", p.east)}${cell("heading_deg", p.heading_deg)}${speed}` +
+      `<td title="${ll}">${label}</td>${cell("north", p.north)}${cell("east", p.east)}${cell("heading_deg", Math.round(wrap360(p.heading_deg) * 1000) / 1000 % 360)}${speed}` +
       `<td>${actions}</td></tr>`);
     if (err) rows.push(`<tr class="err"><td></td><td colspan="5" class="errmsg">${esc(err.message)}</td></tr>`);
   };
   if (route.harbour) row("H", route.harbour, "harbour");
-  route.nodes.forEach((n, i) => row(String(i), n, "node", i));
+  route.nodes.forEach((n, i) => row(String(i + 1), n, "node", i));   // counted from 1, as in every message
   const html = rows.join("");
   // keep the table while the user is typing in it (re-render would steal the focus)
   if (!tb.contains(document.activeElement) && tb.innerHTML !== html) tb.innerHTML = html;
   const polys = [];
   if (route.area) polys.push(`<div class="${route.errorFor("area") ? "err" : ""}">navigable area, ${route.area.length} corners <button type="button" data-delpoly="area" title="delete the area">✕</button></div>`);
-  route.obstacles.forEach((o, i) => polys.push(`<div class="${route.errorFor("obstacle", i) ? "err" : ""}">obstacle ${i}, ${o.polygon.length} corners, forbidden ` +
+  route.obstacles.forEach((o, i) => polys.push(`<div class="${route.errorFor("obstacle", i) ? "err" : ""}">obstacle ${i + 1}, ${o.polygon.length} corners, forbidden ` +
     `<select data-forbid="${i}"><option ${o.forbidden === "inside" ? "selected" : ""}>inside</option><option ${o.forbidden === "outside" ? "selected" : ""}>outside</option></select>` +
     ` <button type="button" data-delpoly="${i}" title="delete the obstacle">✕</button></div>`));
   if (polys.length) polys.push(`<div class="hint">corners: drag; + on an edge inserts; select and Delete (or right-click) removes</div>`);
@@ -525,11 +598,11 @@ function renderTable() {
 function geoTarget() {
   const sel = route.selected;
   const p = route.point(sel);
-  if (p) return { label: sel.kind === "harbour" ? "harbour" : `node ${sel.index}`, n: p.north, e: p.east, set: (n, e) => { p.north = n; p.east = e; } };
+  if (p) return { label: sel.kind === "harbour" ? "harbour" : `node ${sel.index + 1}`, n: p.north, e: p.east, set: (n, e) => { p.north = n; p.east = e; } };
   const poly = sel && sel.kind === "vertex" ? route.polygon(sel.poly) : null;
   const c = poly ? poly[sel.k] : null;
   if (!c) return null;
-  return { label: `${sel.poly === "area" ? "area" : "obstacle " + sel.poly} corner ${sel.k}`, n: c[0], e: c[1], set: (n, e) => { poly[sel.k] = [n, e]; } };
+  return { label: `${sel.poly === "area" ? "area" : "obstacle " + (sel.poly + 1)} corner ${sel.k + 1}`, n: c[0], e: c[1], set: (n, e) => { poly[sel.k] = [n, e]; } };
 }
 
 function renderNodeGeo() {
@@ -549,13 +622,30 @@ function fieldError(inp, text) {
   $("#fielderr").textContent = text || "";
 }
 
+// "new node speed" is checked like a table cell: a refused entry is marked and not used
+$("#default-speed").addEventListener("change", ev => {
+  const inp = ev.target, res = parseField("speed_mps", inp.value);
+  if (res.error) { fieldError(inp, `new node ${res.error} (not applied: new nodes get ${state.defaultSpeed} m/s; Esc restores it)`); return; }
+  state.defaultSpeed = res.value; fieldError(inp, "");
+});
+// Esc in a field cancels the edit: the value in use comes back
+document.addEventListener("keydown", ev => {
+  const inp = ev.target;
+  if (ev.key !== "Escape" || inp.tagName !== "INPUT") return;
+  if (inp.id === "default-speed") { inp.value = state.defaultSpeed; state.driver.editStart.set(inp, inp.value); fieldError(inp, ""); }
+  else if (inp.classList.contains("invalid")) fieldError(inp, "");
+}, true);
+
 $("#nodetable").addEventListener("change", ev => {
   const inp = ev.target, tr = inp.closest("tr");
   if (!inp.dataset.f || !tr) return;
   const p = tr.dataset.kind === "harbour" ? route.harbour : route.nodes[Number(tr.dataset.i)];
   if (!p) return;
   const res = parseField(inp.dataset.f, inp.value);
-  if (res.error) { fieldError(inp, `${tr.dataset.kind === "harbour" ? "harbour" : "node " + tr.dataset.i} ${res.error}`); inp.focus(); return; }
+  if (res.error) {
+    const keeps = tr.dataset.kind === "harbour" && inp.dataset.f === "speed_mps" ? "" : ` (not applied: the route keeps ${p[inp.dataset.f]}; Esc restores it)`;
+    fieldError(inp, `${tr.dataset.kind === "harbour" ? "harbour" : "node " + (Number(tr.dataset.i) + 1)} ${res.error}${keeps}`); inp.focus(); return;
+  }
   fieldError(inp, "");
   p[inp.dataset.f] = res.value;
   inp.blur();
@@ -603,22 +693,27 @@ async function upload() {
   const sent = route.toDict();
   $("#readback").textContent = "uploading: planning on the boat…"; $("#readback").className = "readback";
   const res = await request({ type: "route", route: sent });
+  state.uploadRefused = null;
   if (res.type === "route_ok") {
     state.upload = { route_id: res.route_id, route: res.route };
     state.uploadedId = res.route_id;
+    state.uploadedDetours = res.detours || [];
+    alerts.clear("web:upload", "a later upload was accepted");
     map.draftPath = res.path; map.invalidate();
     toast(`route uploaded (${res.length_m.toFixed(1)} m): waiting for the boat's read-back`);
     renderReadback();
   } else {
     alerts.push({ severity: "error", code: "web:upload", text: `upload refused: ${res.error || "unknown"}` });
     if (res.errors) { route.errors = res.errors; renderTable(); map.invalidate(); }
-    renderReadback();
+    renderReadback(`upload refused: ${res.error || "unknown"}`);
   }
 }
 $("#btn-use").onclick = upload;
 
 function onReadback(m) {
+  if (state.upload && m.route_id === state.upload.route_id) state.uploadRefused = null;
   state.boatRoute = m;
+  map.activeDetours = detoursOnPath();
   // first open: the editor shows what the boat holds (the demonstration route after `make run`)
   if (!route.complete() && !route.area && !route.obstacles.length && m.route) {
     route.fromDict(m.route);
@@ -627,9 +722,16 @@ function onReadback(m) {
   renderReadback(); renderNext(); maybeFit(); updateButtons();
 }
 
-function renderReadback() {
+// refused: why the last upload was refused (by this page's planner or by the boat). The boat then
+// keeps the route it held: the page says so, never silently shows the old plan as the new one.
+function renderReadback(refused) {
+  if (refused !== undefined) state.uploadRefused = refused;
   const el = $("#readback"), b = state.boatRoute, up = state.upload;
   let text = "the boat holds no route", cls = "";
+  if (state.uploadRefused) {
+    el.textContent = `${state.uploadRefused} — ${b && b.route ? `the old plan (route ${b.route_id || "?"}) is still active on the boat` : "the boat holds no route"}`;
+    el.className = "readback bad"; state.readbackMatch = false; return;
+  }
   if (b && b.route) {
     const id = b.route_id || "?";
     if (up && up.route_id === b.route_id) {
@@ -789,18 +891,99 @@ function onLog(m) {
   while (ul.children.length > 200) ul.lastChild.remove();
 }
 
-function onMagcal(m) {   // MagCalibrationResult of the one-turn manoeuvre
+// MagCalibrationResult: the fit drawn over its raw samples (SVG, unit field = 1), residuals and
+// coverage; a fresh fit is in use at once and waits for Accept / Reject (mag_accept / mag_reject)
+function onMagcal(m) {
+  state.magcal = m;
   const box = $("#magcal");
   box.hidden = false;
   const f = (x, d = 3) => (x == null ? "?" : x.toFixed(d));
-  box.textContent = m.ok
-    ? `magnetometer calibration: ${m.text}\nhard iron (centre) ${m.center.map(x => f(x, 2)).join(", ")}\n` +
-      `soft iron [${m.matrix.map(r => r.map(x => f(x, 4)).join(" ")).join("; ")}]\n` +
-      `residual ${f(m.residual, 4)} · coverage ${f(m.coverage_deg, 0)}°`
+  const decided = m.decision === "accepted" ? " — accepted" : m.decision === "rejected" ? " — rejected: the calibration in use before it is back" : m.ok ? " — in use, accept or reject it" : "";
+  $("#magcal-text").textContent = m.ok
+    ? `magnetometer calibration${decided}\nhard iron (centre) ${m.center.map(x => f(x, 2)).join(", ")} µT\n` +
+      `soft iron [${m.matrix.map(r => r.map(x => f(x, 3)).join(" ")).join("; ")}] µT\n${m.text}`
     : `magnetometer calibration failed: ${m.text}`;
-  box.style.borderLeftColor = m.ok ? "#38c172" : "#ef4c4c";
-  if (m.ok) toast("magnetometer calibrated");
-  else alerts.push({ severity: "error", code: "web:magcal", text: `magnetometer calibration failed: ${m.text}` });
+  $("#magcal-text").style.borderLeftColor = !m.ok || m.decision === "rejected" ? "#ef4c4c" : "#38c172";
+  drawMagcal(m);
+  if (m.ok && !m.decision) { toast("magnetometer calibrated: review the fit (Operate)"); alerts.clear("web:magcal", "a later calibration succeeded"); }
+  else if (!m.ok) alerts.push({ severity: "error", code: "web:magcal", text: `magnetometer calibration failed: ${m.text}` });
+  updateButtons();
+}
+
+function drawMagcal(m) {
+  const svg = $("#magcal-plot"), pts = m.samples || [];
+  if (!m.ok || !m.matrix || !pts.length) { svg.innerHTML = ""; $("#magcal-stats").textContent = ""; return; }
+  const [[a, b], [c, d]] = m.matrix, [cx, cy] = m.center;
+  const det = a * d - b * c, r = Math.sqrt(Math.abs(det)) || 1;
+  const inv = [[d / det, -b / det], [-c / det, a / det]];
+  // raw field in units of the mean field strength, centred on the fit; y up = east right
+  const P = ([x, y]) => [(y - cy) / r, -(x - cx) / r];
+  const res = pts.map(([x, y]) => { const u = x - cx, v = y - cy; return Math.hypot(inv[0][0] * u + inv[0][1] * v, inv[1][0] * u + inv[1][1] * v) - 1; });
+  const ell = [];
+  for (let k = 0; k <= 72; k++) { const t = 2 * Math.PI * k / 72; ell.push(P([cx + a * Math.cos(t) + b * Math.sin(t), cy + c * Math.cos(t) + d * Math.sin(t)])); }
+  const rms = Math.sqrt(res.reduce((acc, x) => acc + x * x, 0) / res.length), worst = Math.max(...res.map(Math.abs));
+  const dots = pts.map((p, i) => { const [x, y] = P(p); const bad = Math.abs(res[i]) > 3 * Math.max(rms, 1e-3);
+    return `<circle cx="${x.toFixed(4)}" cy="${y.toFixed(4)}" r="0.025" class="${bad ? "bad" : ""}"/>`; }).join("");
+  svg.innerHTML = `<line x1="-1.45" y1="0" x2="1.45" y2="0" class="axis"/><line x1="0" y1="-1.45" x2="0" y2="1.45" class="axis"/>` +
+    `<polyline class="fit" points="${ell.map(([x, y]) => `${x.toFixed(4)},${y.toFixed(4)}`).join(" ")}"/>` +
+    `<g class="samples">${dots}</g><text x="-1.45" y="-1.32" class="lbl">raw field / ${r.toFixed(1)} µT · fitted ellipse</text>`;
+  svg.dataset.samples = String(pts.length);
+  $("#magcal-stats").textContent = `${pts.length} samples shown · residual ${f3(m.residual)} (rms of |field| − 1, ` +
+    `${(100 * rms).toFixed(1)} % here; worst ${(100 * worst).toFixed(1)} %) · coverage ${m.coverage_deg != null ? m.coverage_deg.toFixed(0) : "?"}° of 360°`;
+}
+function f3(x) { return x == null ? "?" : x.toFixed(3); }
+
+// the detours of the active path: known when it is the route uploaded from a page of this server
+function detoursOnPath() {
+  const b = state.boatRoute, s = state.telemetry && state.telemetry.sup;
+  if (!b || !state.uploadedId || b.route_id !== state.uploadedId || (s && s.mode === "RETURN")) return [];
+  return state.uploadedDetours || [];
+}
+
+// -- parameter sheet (Settings tab): the model in use, planner limits (a few editable by the
+// pilot, checked by the server), controller and failsafes
+function onSettings(m) { state.settings = m; renderSettings(); }
+
+function renderSettings() {
+  const md = state.model;
+  if (md) {
+    const when = md.file_modified_utc ? ` (written ${md.file_modified_utc})` : "";
+    $("#set-model").textContent = `${md.source === "default coefficients" ? "default coefficients (no parameter file)" : "parameter file " + md.source + when}` +
+      (md.verdict ? ` · identification verdict: ${md.verdict}` : " · no identification verdict") +
+      (md.boat ? ` · simulated boat: ${md.boat}` : "");
+    const rows = Object.entries(md.parameters || {}).map(([k, v]) => `<tr><td>${esc(k)}</td><td>${esc(fmtVal(v))}</td><td>${md.std && md.std[k] != null ? esc(fmtVal(md.std[k])) : ""}</td></tr>`).join("");
+    const tb = $("#set-model-table tbody"); if (tb.innerHTML !== rows) tb.innerHTML = rows;
+  }
+  const st = state.settings;
+  if (!st) return;
+  $("#set-planner-why").textContent = `${state.pilot ? "You may change the marked limits (lower a speed or acceleration limit, raise the clearance)" : "Read-only: take the controls to change the marked limits"}; ` +
+    `they take effect ${st.takes_effect}.` + (st.changes.length ? ` Changed: ${st.changes.map(c => `${c.name} ${c.from} → ${c.to}`).join(", ")}.` : "");
+  const tb = $("#set-planner tbody");
+  if (!tb.contains(document.activeElement)) {
+    tb.innerHTML = Object.entries(st.planner).filter(([, r]) => r.editable).map(([k, r]) =>
+      `<tr><td>${esc(r.label)}</td><td><input type="text" inputmode="decimal" data-param="planner.${k}" value="${r.value}" aria-label="${esc(r.label)} (${esc(r.unit)})" ${state.pilot ? "" : "readonly"}> ${esc(r.unit)}</td>` +
+      `<td>${r.launch}</td><td>${r.lo}–${r.hi}</td></tr>`).join("");
+  }
+  const kv = (obj) => Object.entries(obj || {}).map(([k, v]) => `<tr><td>${esc(k)}</td><td>${esc(fmtVal(v))}</td></tr>`).join("");
+  $("#set-planner-all tbody").innerHTML = Object.entries(st.planner).map(([k, r]) => `<tr><td>${esc(k)}</td><td>${esc(fmtVal(r.value))}</td></tr>`).join("");
+  $("#set-controller tbody").innerHTML = kv(st.controller);
+  $("#set-failsafes tbody").innerHTML = kv(st.failsafes);
+}
+function fmtVal(v) { return typeof v === "number" ? String(Math.round(v * 1e6) / 1e6) : Array.isArray(v) ? v.map(fmtVal).join(", ") : v && typeof v === "object" ? JSON.stringify(v) : String(v); }
+
+$("#set-planner").addEventListener("change", async ev => {
+  const inp = ev.target, name = inp.dataset.param;
+  if (!name || !state.pilot) return;
+  const t = inp.value.trim().replace(",", ".");
+  const v = Number(t);
+  if (t === "" || !Number.isFinite(v)) { setErr(inp, `${inp.getAttribute("aria-label")}: "${t.slice(0, 20)}" is not a number (not applied)`); return; }
+  const res = await request({ type: "params", name, value: v });
+  if (res.type === "params_ok") { setErr(inp, ""); inp.blur(); toast(`${inp.getAttribute("aria-label")}: ${v} — used from the next plan`); schedulePlan(); }
+  else setErr(inp, `${res.error} (not applied)`);
+});
+function setErr(inp, text) {
+  inp.classList.toggle("invalid", !!text); inp.setAttribute("aria-invalid", String(!!text));
+  $("#set-err").textContent = text;
 }
 
 $$("#tabs .tab").forEach(b => b.addEventListener("click", () => {

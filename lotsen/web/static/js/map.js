@@ -19,6 +19,9 @@ export class MapView {
     this.trail = [];
     this.draftPath = null;            // {n: [], e: []}
     this.activePath = null;
+    this.draftDetours = [];           // [{leg, s0, s1, length_m, straight_m}] on the draft path
+    this.activeDetours = [];          // the same on the active path (when it is this page's upload)
+    this.stale = false;               // no live data: the boat is drawn grey
     this.predicted = null;
     this.tiles = null;                // TileLayer
     this.origin = null;               // {lat, lon, h}
@@ -264,13 +267,22 @@ export class MapView {
     this.drawGrid(g, w, h, this.tilesDrawn > 0);
     this.drawRegions(g);
     this.drawLine(g, this.activePath, "#38c172", 3, []);
+    this.drawDetours(g, this.activePath, this.activeDetours);
     this.drawLine(g, this.draftPath, "#3fa7ff", 2, [8, 5]);
+    this.drawDetours(g, this.draftPath, this.draftDetours);
+    this.drawSpeeds(g, this.draftPath && this.draftPath.v ? this.draftPath : this.activePath, this.draftPath ? "#9fd2ff" : "#aef0c6");
     if (this.trail.length > 1) this.drawPolyline(g, this.trail, "rgba(255,216,74,0.85)", 2.5, []);
     this.drawLine(g, this.predicted, "#ff8c2e", 2.5, []);
     this.drawPlus(g);
     this.drawNodes(g);
-    if (this.truth) this.drawBoat(g, this.truth, "rgba(255,255,255,0.35)");
-    if (this.boat) this.drawBoat(g, this.boat, "#ffd84a");
+    if (this.truth && !this.stale) this.drawBoat(g, this.truth, "rgba(255,255,255,0.35)");
+    if (this.boat) this.drawBoat(g, this.boat, this.stale ? "#7a8591" : "#ffd84a");
+    if (this.stale) {
+      g.font = "bold 13px system-ui, sans-serif";
+      const t = "no live data from the boat: positions are old";
+      g.fillStyle = "rgba(40,44,50,0.85)"; g.fillRect(8, 8, g.measureText(t).width + 12, 22);
+      g.fillStyle = "#c9d3dd"; g.fillText(t, 14, 24);
+    }
     if (this.tilesDrawn && this.tiles.attribution) {
       g.font = "11px system-ui, sans-serif";
       const t = this.tiles.attribution, tw = g.measureText(t).width;
@@ -365,6 +377,54 @@ export class MapView {
     g.strokeStyle = color; g.lineWidth = width; g.setLineDash(dash); g.stroke(); g.setLineDash([]);
   }
 
+  // arc length along a drawn path (the planner's s when it came with one)
+  static arcLength(path) {
+    if (path.s && path.s.length === path.n.length) return path.s;
+    const s = [0];
+    for (let i = 1; i < path.n.length; i++) s.push(s[i - 1] + Math.hypot(path.n[i] - path.n[i - 1], path.e[i] - path.e[i - 1]));
+    return s;
+  }
+
+  // the parts the planner routed round an obstacle or the area edge: orange over the path, labelled
+  drawDetours(g, path, detours) {
+    if (!path || !path.n || path.n.length < 2 || !detours || !detours.length) return;
+    const s = MapView.arcLength(path);
+    g.font = "bold 12px system-ui, sans-serif";
+    for (const d of detours) {
+      g.beginPath();
+      let first = true, mid = null;
+      for (let i = 0; i < s.length; i++) {
+        if (s[i] < d.s0 || s[i] > d.s1) continue;
+        const [x, y] = this.toScreen(path.n[i], path.e[i]);
+        if (first) { g.moveTo(x, y); first = false; } else g.lineTo(x, y);
+        if (mid === null && s[i] >= (d.s0 + d.s1) / 2) mid = [x, y];
+      }
+      g.strokeStyle = "#ff9f1a"; g.lineWidth = 5; g.setLineDash([6, 4]); g.stroke(); g.setLineDash([]);
+      if (mid) { g.fillStyle = "#ff9f1a"; g.strokeStyle = "#0b1a2a"; g.lineWidth = 3; g.strokeText("detour", mid[0] + 8, mid[1] + 16); g.fillText("detour", mid[0] + 8, mid[1] + 16); }
+    }
+  }
+
+  // the planned speed along the path: a label at least 90 px from the last, and where it changes
+  drawSpeeds(g, path, color) {
+    if (!path || !path.v || !path.n || path.n.length < 2) return;
+    g.font = "11px system-ui, sans-serif";
+    let last = null, lastV = null;
+    this.speedLabels = 0;
+    for (let i = 0; i < path.n.length; i++) {
+      const v = path.v[i];
+      if (v == null) continue;
+      const [x, y] = this.toScreen(path.n[i], path.e[i]);
+      const far = !last || Math.hypot(x - last[0], y - last[1]) > 90;
+      const changed = lastV !== null && Math.abs(v - lastV) > 0.1 && (!last || Math.hypot(x - last[0], y - last[1]) > 45);
+      if (!(far || changed)) continue;
+      const t = `${v.toFixed(2)} m/s`;
+      g.fillStyle = "rgba(11,26,42,0.75)"; g.fillRect(x + 4, y - 16, g.measureText(t).width + 6, 14);
+      g.fillStyle = color; g.fillText(t, x + 7, y - 5);
+      g.beginPath(); g.arc(x, y, 2, 0, 2 * Math.PI); g.fill();
+      last = [x, y]; lastV = v; this.speedLabels++;
+    }
+  }
+
   drawPolyline(g, pts, color, width, dash) {
     this.polyPath(g, pts, false);
     g.strokeStyle = color; g.lineWidth = width; g.setLineDash(dash); g.stroke(); g.setLineDash([]);
@@ -402,7 +462,7 @@ export class MapView {
       }
     };
     if (r.harbour) drawOne(r.harbour, "H", "#c58bff", sel && sel.kind === "harbour", r.errorFor("harbour"));
-    r.nodes.forEach((p, i) => drawOne(p, String(i), "#3fa7ff", sel && sel.kind === "node" && sel.index === i, r.errorFor("node", i)));
+    r.nodes.forEach((p, i) => drawOne(p, String(i + 1), "#3fa7ff", sel && sel.kind === "node" && sel.index === i, r.errorFor("node", i)));
   }
 
   drawBoat(g, b, color) {

@@ -5,14 +5,20 @@ export const LIMITS = {   // what the table accepts (the server checks again: va
 };
 const NUMBER = /^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$/;
 
-// Strict number from a table cell: {value} or {error} naming the problem (never a silent 0).
+// the operator's names of the fields (the table's heads), for messages
+export const FIELD_WORDS = { north: "north", east: "east", heading_deg: "bearing", speed_mps: "speed", lat: "latitude", lon: "longitude" };
+
+// Strict number from a table cell: {value} or {error} naming the problem in the operator's words
+// (never a silent 0). The speed limit is the boat's (the server's planner limit, set from hello).
 export function parseField(field, text) {
   const t = String(text).trim().replace(",", ".");
-  if (t === "") return { error: `${field}: a number is required` };
-  if (!NUMBER.test(t)) return { error: `${field}: "${t.slice(0, 20)}" is not a number` };
+  const name = FIELD_WORDS[field] || field;
+  if (t === "") return { error: `${name}: a number is required` };
+  if (!NUMBER.test(t)) return { error: `${name}: "${t.slice(0, 20)}" is not a number` };
   const v = Number(t);
   const [lo, hi, unit] = LIMITS[field] || [-Infinity, Infinity, ""];
-  if (!Number.isFinite(v) || v < lo || v > hi) return { error: `${field}: ${t.slice(0, 20)} outside [${lo}, ${hi}] ${unit}` };
+  if (field === "speed_mps" && Number.isFinite(v) && v > hi) return { error: `${name} ${t.slice(0, 20)} m/s exceeds the boat's ${hi} m/s` };
+  if (!Number.isFinite(v) || v < lo || v > hi) return { error: `${name}: ${t.slice(0, 20)} ${unit} is outside ${lo} to ${hi} ${unit}` };
   return { value: field === "heading_deg" ? ((v % 360) + 360) % 360 : v };
 }
 
