@@ -38,7 +38,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 ROUTE = ROOT / "examples" / "routes" / "figure_eight.yaml"
-EXPERIMENTS = ("prbs_multisine", "zigzag_20_20", "turning_circles", "bow_thruster_steps")
+EXPERIMENTS = ("prbs_multisine", "zigzag_20_20", "turning_circles", "bow_thruster_steps", "zigzag_10_10", "speed_steps")
 ENV = dict(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
 
 
@@ -143,9 +143,13 @@ def identify_on(boat, work: Path) -> tuple[object, dict]:
         logs.append(str(out))
     params = work / "identified.json"
     ant = boat.gnss_antenna_m
-    code = main(["identify", *logs, "--out", str(params), "--fix", f"m11={boat.parameters.m11}",
-                 "--gnss-antenna", f"{ant[0]},{ant[1]}", "--reverse-thrust-ratio",
-                 str(boat.geometry.reverse_thrust_ratio)])
+    hull = ["--fix", f"m11={boat.parameters.m11}", "--gnss-antenna", f"{ant[0]},{ant[1]}",
+            "--reverse-thrust-ratio", str(boat.geometry.reverse_thrust_ratio)]
+    # the broadband PRBS first, and the battery from there (`--init`) when identify accepts it: from the
+    # defaults, a boat 10-40 % away can fall into a wrong basin on the whole battery (refused, not wrong)
+    first = work / "prbs.json"
+    init = ["--init", str(first)] if main(["identify", logs[0], "--out", str(first), *hull]) == 0 else []
+    code = main(["identify", *logs, "--out", str(params), *hull, *init])
     if not params.exists():
         raise RuntimeError(f"identify wrote nothing (exit {code})")
     data = json.loads(params.read_text())

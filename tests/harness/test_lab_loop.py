@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from lotsen.cli.experiment import CORE_PARAMETERS
 from lotsen.cli.main import main
 from lotsen.model import DEFAULT_PARAMETERS
@@ -74,18 +76,21 @@ def test_the_lab_loop_refuses_a_model_the_record_does_not_support_and_accepts_on
     assert main(["mission", ROUTE, "--sim", "--params", "lake.json", "--report", "r.json"]) == 2
     assert "identification refused these coefficients" in capsys.readouterr().err
     # the same record with the geometry a lab measures on the hull (antenna position by tape, astern
-    # thrust by a bollard pull): usable, the core coefficients within 5 % of the boat's
+    # thrust by a bollard pull): the model explains the track and the core coefficients come within
+    # 5 %, but one 60-s PRBS, its correlated heading and rate weighted honestly, leaves more than four
+    # coefficients weakly determined: refused for that reason alone (the battery of the lab loop, in
+    # test_identified_parameters_track_within_20_percent_of_the_exact_model, is accepted)
     ant = DEFAULT_BOAT.gnss_antenna_m
     assert main(["identify", "lake.mcap", "--fix", f"m11={DEFAULT_BOAT.parameters.m11}", "--gnss-antenna",
                  f"{ant[0]},{ant[1]}", "--reverse-thrust-ratio", str(DEFAULT_BOAT.geometry.reverse_thrust_ratio),
-                 "--out", "measured.json"]) == 0
+                 "--out", "measured.json"]) == 1
     measured = json.loads((tmp_path / "measured.json").read_text())
-    assert measured["verdict"] in ("ok", "weak") and measured["identification"]["track_autocorr_1s"] < 0.5
+    assert measured["identification"]["track_autocorr_1s"] < 0.5
+    assert [r.split(" (")[0] for r in measured["identification"]["reasons"]] == [
+        f"{len(measured['identification']['weakly_determined'])} coefficients are weakly determined"]
     for n in CORE_PARAMETERS:
         true = getattr(DEFAULT_BOAT.parameters, n)
         assert abs(measured[n] - true) <= 0.05 * abs(true), (n, measured[n], true)
-    assert main(["mission", ROUTE, "--sim", "--estimator", "truth", "--hold", "0", "--params", "measured.json",
-                 "--report", "r.json"]) == 0
     assert main(["identify", "ideal.mcap", "--out", "ideal.json"]) == 0
     ideal = json.loads((tmp_path / "ideal.json").read_text())
     assert ideal["verdict"] in ("ok", "weak") and ideal["identification"]["track_autocorr_1s"] < 0.5
@@ -115,3 +120,29 @@ def test_the_stack_says_which_model_it_uses_and_where_it_came_from(tmp_path):
                           parts=("state", "supervisor"))
     default.executor.run_until(0.1)
     assert default.bus.latest[Topic.MODEL].source == "default coefficients"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("boat_seed", [None, 12])
+def test_identified_parameters_track_within_20_percent_of_the_exact_model(tmp_path, boat_seed):
+    """Issue 25, done-when 3: the lab loop (the battery of designed experiments recorded on the
+    simulated stack -> `lotsen identify` with the hull's measured m11, antenna and astern thrust ->
+    the parameter file as the model in use) on the lake boat and on a boat randomised 10-40 % from
+    the defaults (both with the lake boat's unmodelled effects). identify must accept the battery
+    (converged, not refused), the core coefficients within 5 %, and the figure eight in 0.1 m/s
+    current and 3 m/s wind on the EKF must track within 20 % of the exact model (mean over seeds)."""
+    import numpy as np
+
+    from bench.bench_model_chain import identify_on, mission
+    from lotsen.sim import randomised_parameters
+
+    boat = DEFAULT_BOAT if boat_seed is None else DEFAULT_BOAT.with_parameters(
+        randomised_parameters(np.random.default_rng(boat_seed), 0.10, 0.40), name=f"random boat {boat_seed}")
+    identified, ident = identify_on(boat, tmp_path)
+    assert identified is not None, (ident["verdict"], ident["identification"]["reasons"])
+    for n in CORE_PARAMETERS:
+        true = getattr(boat.parameters, n)
+        assert abs(getattr(identified, n) - true) <= 0.05 * abs(true), (n, getattr(identified, n), true)
+    exact = [mission(boat, boat.parameters, seed)["cross_track_rms_m"] for seed in (0, 1)]
+    ident_cte = [mission(boat, identified, seed)["cross_track_rms_m"] for seed in (0, 1)]
+    assert sum(ident_cte) <= 1.2 * sum(exact), (ident_cte, exact)
