@@ -232,15 +232,9 @@ def _linearise_horizon_py(xb, wb, scale, mq, dt, dfx, dfy, dfn, n_floor, cn, ce,
     """Discrete LTV matrices along the nominal trajectory (numba-compiled; see module docstring).
     `mq`: the model's `ModelArrays.packed` (M, D_L, D_NL, thrust coefficients, thruster positions)."""
     N = wb.shape[0]
-    M = mq[0]
-    thrust = mq[3]
-    arms = mq[4]
-    m11 = M[0, 0]
-    m22 = M[1, 1]
-    m33 = M[2, 2]
-    mu_az = thrust[2]
-    mu_t = thrust[3]
-    rev = thrust[4]
+    M, _, _, thrust, arms = mq
+    m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
+    _, _, mu_az, mu_t, rev = thrust
     for k in range(N):
         x = (xb[k, 0], xb[k, 1], xb[k, 2], xb[k, 3], xb[k, 4], xb[k, 5])
         q1 = wb[k, 2] * scale[2]

@@ -75,11 +75,7 @@ def _tau_py(u, v, r, inp, mq):  # type: ignore[no-untyped-def]
     """tau = [tau_X, tau_Y, tau_N] of both azimuth units and the bow thruster (seed eq. 18-20)."""
     thrust = mq[3]
     arms = mq[4]
-    kappa = thrust[0]
-    g = thrust[1]  # 1/2 rho A_r C_N
-    mu_az = thrust[2]
-    mu_t = thrust[3]
-    rev = thrust[4]
+    kappa, g, mu_az, mu_t, rev = thrust  # g = 1/2 rho A_r C_N
     X1, Y1, N1 = _azimuth_force(inp[0], inp[2], arms[0, 0], arms[0, 1], u, v, r, kappa, g, mu_az, rev)
     X2, Y2, N2 = _azimuth_force(inp[1], inp[3], arms[1, 0], arms[1, 1], u, v, r, kappa, g, mu_az, rev)
     nt = inp[4]
@@ -106,20 +102,9 @@ def _rhs_py(x, inp, mq, current_n, current_e, tau_x, tau_y, tau_n):  # type: ign
     tau_x, tau_y, tau_n add external (wind, wave) forces in the body frame.
     """
     M, D_L, D_NL, thrust, arms = mq
-    m11 = M[0, 0]
-    m22 = M[1, 1]
-    m33 = M[2, 2]
-    X_u = D_L[0, 0]
-    Y_v = D_L[1, 1]
-    Y_r = D_L[1, 2]
-    N_v = D_L[2, 1]
-    N_r = D_L[2, 2]
-    X_uu = D_NL[0]
-    Y_uv = D_NL[1]
-    Y_vv = D_NL[2]
-    Y_rv = D_NL[3]
-    N_vv = D_NL[4]
-    N_rr = D_NL[5]
+    m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
+    X_u, Y_v, Y_r, N_v, N_r = D_L[0, 0], D_L[1, 1], D_L[1, 2], D_L[2, 1], D_L[2, 2]
+    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = D_NL
     psi = x[2]
     u = x[3]
     v = x[4]
@@ -175,25 +160,10 @@ def _jacobians_py(x, inp, mq):  # type: ignore[no-untyped-def]
     Where |u|, |v|, |r| meet zero the one-sided derivative at +0 is used.
     """
     M, D_L, D_NL, thrust, arms = mq
-    m11 = M[0, 0]
-    m22 = M[1, 1]
-    m33 = M[2, 2]
-    X_u = D_L[0, 0]
-    Y_v = D_L[1, 1]
-    Y_r = D_L[1, 2]
-    N_v = D_L[2, 1]
-    N_r = D_L[2, 2]
-    X_uu = D_NL[0]
-    Y_uv = D_NL[1]
-    Y_vv = D_NL[2]
-    Y_rv = D_NL[3]
-    N_vv = D_NL[4]
-    N_rr = D_NL[5]
-    kappa = thrust[0]
-    g = thrust[1]
-    mu_az = thrust[2]
-    mu_t = thrust[3]
-    rev = thrust[4]
+    m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
+    X_u, Y_v, Y_r, N_v, N_r = D_L[0, 0], D_L[1, 1], D_L[1, 2], D_L[2, 1], D_L[2, 2]
+    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = D_NL
+    kappa, g, mu_az, mu_t, rev = thrust  # g = 1/2 rho A_r C_N
     psi = x[2]
     u = x[3]
     v = x[4]
