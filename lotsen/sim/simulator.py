@@ -174,6 +174,7 @@ class Simulator:
         self._current_ne = self.environment.current_ne
         self._buf = np.zeros(17)
         self._buf[:6] = self.x
+        self._model_arrays = self.model.arrays.packed  # M, D_L, D_NL, thrust, arms for the compiled step
         a = self.actuators
         self._consts = np.array([a._max_dalpha, a._motor_gain, a._max_dn, config.dt_s, 0.0, 0.0, 0.0, 0.0, 0.0,
                                  boat.thrust_dead_band_rps])
@@ -250,7 +251,7 @@ class Simulator:
         x0 = self.x
         buf = self._buf
         act_cmd = self.actuators
-        _plant_step(buf, act_cmd.command_array, act_cmd.active_array, self.model.arrays.packed, c)
+        _plant_step(buf, act_cmd.command_array, act_cmd.active_array, self._model_arrays, c)
         v = buf.tolist()
         x1 = tuple(v[:6])
         act = tuple(v[6:11])
@@ -332,7 +333,7 @@ class Simulator:
         xs, ks, acts = np.empty((n + 1, 6)), np.empty((n, 6)), np.empty((n, 5))
         a = self.actuators
         _plant_steps(np.array(self.x), np.array(a.state), a.command_array, a.active_array,
-                     self.model.arrays.packed, c, xs, ks, acts)
+                     self._model_arrays, c, xs, ks, acts)
         if not np.isfinite(xs[-1]).all():
             bad = int(np.argmax(~np.isfinite(xs).all(axis=1)))
             raise FloatingPointError(f"simulation diverged at t = {(self._k + bad) * self.config.dt_s:.2f} s")
