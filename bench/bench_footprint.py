@@ -31,6 +31,8 @@ from pathlib import Path
 
 import yaml
 
+from lotsen.errors import ConfigError
+from lotsen.files import read_yaml
 from lotsen.stack.processes import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,7 +102,7 @@ class Run:
 
     def __init__(self, work: Path, numba_cache: Path) -> None:
         self.port = free_port()
-        data = yaml.safe_load(CONFIG.read_text()) or {}
+        data = read_yaml(CONFIG, ConfigError, "configuration file") or {}
         if isinstance(data.get("route"), str):
             data["route"] = str((CONFIG.parent / data["route"]).resolve())
         data.setdefault("web", {}).update(port=self.port, host="127.0.0.1", enabled=True)

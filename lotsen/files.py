@@ -151,11 +151,30 @@ for _loader in (StrictYamlLoader, FastStrictYamlLoader):
     _loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping)  # type: ignore[arg-type]
 
 
-def parse_yaml(text: str, path: str | Path, error: type[LotsenError] = LotsenError) -> Any:
+class NoAliasYamlLoader(StrictYamlLoader):
+    """StrictYamlLoader without anchors/aliases, for text from outside (a route pasted into the
+    page never needs them, and nested aliases make a few kB expand into millions of nodes)."""
+
+    def compose_node(self, parent, index):  # type: ignore[no-untyped-def]  # noqa: ANN001 - PyYAML's signature
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.YAMLError(f"aliases (*{event.anchor}) are not allowed here "
+                                 f"(line {event.start_mark.line + 1})")
+        return super().compose_node(parent, index)
+
+
+def _yaml_loader(text: str, aliases: bool) -> type:
+    if aliases:
+        return StrictYamlLoader
+    # libyaml composes in C, out of reach of compose_node: only for text that cannot hold an alias
+    return FastStrictYamlLoader if "*" not in text else NoAliasYamlLoader
+
+
+def parse_yaml(text: str, path: str | Path, error: type[LotsenError] = LotsenError, aliases: bool = True) -> Any:
     """YAML with the line of a syntax error in the message; duplicate keys and hostile
-    structures refused (`check_structure`)."""
+    structures refused (`check_structure`); `aliases=False` refuses anchors and aliases too."""
     try:
-        data = yaml.load(text, Loader=StrictYamlLoader)  # noqa: S506 - a safe loader
+        data = yaml.load(text, Loader=_yaml_loader(text, aliases))  # noqa: S506 - safe loaders only
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         loc = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""

@@ -228,14 +228,13 @@ class MPCConfig:
                 raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
 
 
-def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor, cn, ce, Ad, Bd, c):  # type: ignore[no-untyped-def]
-    """Discrete LTV matrices along the nominal trajectory (numba-compiled; see module docstring)."""
+def _linearise_horizon_py(xb, wb, scale, mq, dt, dfx, dfy, dfn, n_floor, cn, ce, Ad, Bd, c):  # type: ignore[no-untyped-def]
+    """Discrete LTV matrices along the nominal trajectory (numba-compiled; see module docstring).
+    `mq`: the model's `ModelArrays.packed` (M, D_L, D_NL, thrust coefficients, thruster positions)."""
     N = wb.shape[0]
-    m11 = theta[0]
-    m22 = theta[1]
-    m33 = theta[2]
-    mu_az = theta[16]
-    mu_t = theta[17]
+    M, _, _, thrust, arms = mq
+    m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
+    _, _, mu_az, mu_t, rev = thrust
     for k in range(N):
         x = (xb[k, 0], xb[k, 1], xb[k, 2], xb[k, 3], xb[k, 4], xb[k, 5])
         q1 = wb[k, 2] * scale[2]
@@ -245,7 +244,7 @@ def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor
         n2 = math.copysign(math.sqrt(abs(q2)), q2)
         nt = math.copysign(math.sqrt(abs(qt)), qt)
         u = (wb[k, 0], wb[k, 1], n1, n2, nt)
-        A, B = _jacobians_current(x, u, theta, geom, cn, ce)
+        A, B = _jacobians_current(x, u, mq, cn, ce)
         # d/dq: the thrust is exactly linear in q (dT/dq = mu n_max^2, also at n = 0, where the
         # chain rule d/dn * dn/dq = 2 mu |n| / (2 |n|) is 0/0); only the housing force's kappa n
         # term goes through dn/dq = 1 / (2|n|), with |n| >= n_floor. (Through the floor, the whole
@@ -254,9 +253,9 @@ def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor
         for j in range(2):
             n = u[2 + j]
             a = u[j]
-            fac = 1.0 if (n >= 0.0 or geom[6] == 1.0) else geom[6]
-            lx = geom[2 * j]
-            ly = geom[2 * j + 1]
+            fac = 1.0 if (n >= 0.0 or rev == 1.0) else rev
+            lx = arms[j, 0]
+            ly = arms[j, 1]
             ex = math.cos(a)
             ey = math.sin(a)
             en = lx * ey - ly * ex
@@ -267,8 +266,8 @@ def _linearise_horizon_py(xb, wb, scale, theta, geom, dt, dfx, dfy, dfn, n_floor
             B[4, 2 + j] = (B[4, 2 + j] - dT_dn * ey / m22) * g + dT_dq * ey / m22
             B[5, 2 + j] = (B[5, 2 + j] - dT_dn * en / m33) * g + dT_dq * en / m33
         B[4, 4] = mu_t * scale[4] / m22  # bow tunnel thruster: F_t = mu_t n|n| = mu_t n_max^2 q
-        B[5, 4] = geom[4] * mu_t * scale[4] / m33
-        x1, _k1 = rk4_step(x, u, theta, geom, cn, ce, dfx, dfy, dfn, dt)
+        B[5, 4] = arms[2, 0] * mu_t * scale[4] / m33
+        x1, _k1 = rk4_step(x, u, mq, cn, ce, dfx, dfy, dfn, dt)
         AA = A @ A
         AB = A @ B
         for i in range(6):
@@ -308,7 +307,7 @@ _path_at = njit(_path_at_py)
 
 
 def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_end,  # type: ignore[no-untyped-def]
-                 scale, theta, geom, dt, dist, cur, n_floor, Qy, stage_w, R, S_rate, w_prev, dw_max,
+                 scale, mq, dt, dist, cur, n_floor, Qy, stage_w, R, S_rate, w_prev, dw_max,
                  q_trim_gain, min_speed_course, ad_i, ad_j, bd_i, bd_j, a_dyn_pos, p_state_pos, iu_i, iu_j,
                  Ad, Bd, c, Px, Ax, q, l, u, row_bounds, row_rate, ref, newton_iters):
     """One step of QP data: predicted progress, reference, LTV model, cost; written in place.
@@ -349,7 +348,7 @@ def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_e
     for k in range(N + 1):
         xr[k, 0] -= x[0]
         xr[k, 1] -= x[1]
-    _linearise_horizon(xr, wb, scale, theta, geom, dt, dist[0], dist[1], dist[2], n_floor, cur[0], cur[1], Ad, Bd, c)
+    _linearise_horizon(xr, wb, scale, mq, dt, dist[0], dist[1], dist[2], n_floor, cur[0], cur[1], Ad, Bd, c)
     na = ad_i.shape[0]
     nb = bd_i.shape[0]
     for k in range(N):
@@ -670,7 +669,7 @@ class MPCController:
         xb[:, 4:] = rng.uniform(-0.3, 0.3, (N + 1, 2))
         wb = rng.uniform(-1, 1, (N, NW)) * np.array([0.7, 0.7, 1, 1, 1])
         Ad, Bd, c = np.zeros((N, NX, NX)), np.zeros((N, NX, NW)), np.zeros((N, NX))
-        _linearise_horizon(xb, wb, self.scale, self.model.theta, self.model.geom, self.config.dt_s,
+        _linearise_horizon(xb, wb, self.scale, self.model.arrays.packed, self.config.dt_s,
                            0.1, 0.1, 0.1, self.config.n_floor_rps, 0.1, -0.1, Ad, Bd, c)
         a_mask = np.any(np.abs(Ad) > 0, axis=0) | np.eye(NX, dtype=bool)
         b_mask = np.any(np.abs(Bd) > 0, axis=0)
@@ -821,7 +820,7 @@ class MPCController:
         cfg = self.config
         if self._obs is not None and cfg.disturbance_gain > 0:
             x_prev, cmd = self._obs
-            xp, _ = rk4_step(tuple(x_prev), tuple(cmd), self.model.theta, self.model.geom,
+            xp, _ = rk4_step(tuple(x_prev), tuple(cmd), self.model.arrays.packed,
                              float(self._current[0]), float(self._current[1]),
                              float(self._dist[0]), float(self._dist[1]), float(self._dist[2]), cfg.dt_s)
             p = self.model.params
@@ -849,7 +848,7 @@ class MPCController:
             wb = np.tile(w0, (N, 1))
             cmd = self.w_to_command(w0)
             for k in range(N):
-                x1, _ = rk4_step(tuple(xb[k]), cmd, self.model.theta, self.model.geom,
+                x1, _ = rk4_step(tuple(xb[k]), cmd, self.model.arrays.packed,
                                  float(self._current[0]), float(self._current[1]),
                                  float(self._dist[0]), float(self._dist[1]), float(self._dist[2]),
                                  self.config.dt_s)
@@ -901,7 +900,7 @@ class MPCController:
             self._lag_weights(wb, prev, self._beta)
             ub = self._beta * wb + (1.0 - self._beta) * prev
             _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
-                      pr._sin_end, self.scale, self.model.theta, self.model.geom, cfg.dt_s, self._dist,
+                      pr._sin_end, self.scale, self.model.arrays.packed, cfg.dt_s, self._dist,
                       self._current, cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev,
                       self._dw_max, self._q_trim_gain, cfg.min_speed_course_mps, self._ad_idx[0],
                       self._ad_idx[1], self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos,

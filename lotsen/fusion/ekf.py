@@ -177,7 +177,6 @@ class ModelAidedEKF:
         self._I = np.eye(n)
         p = self.model.params
         self._inv_m = (1.0 / p.m11, 1.0 / p.m22, 1.0 / p.m33)
-        self._theta, self._geom = tuple(self.model.theta), tuple(self.model.geom)
         self._pending: list = []  # model inputs stamped ahead of the filter, applied when it gets there
 
     # -- model ---------------------------------------------------------------------------------
@@ -207,7 +206,7 @@ class ModelAidedEKF:
         cn, ce = (xl[self.i_cur], xl[self.i_cur + 1]) if self.i_cur is not None else (0.0, 0.0)
         # the six vessel states: the model's Jacobian with the current (heading and r columns included)
         uf = tuple(float(v) for v in u)  # canonical types: the signature VesselModel.warm_up compiled
-        A, _ = _jacobians_current((xl[0], xl[1], psi, xl[3], xl[4], r), uf, self._theta, self._geom, cn, ce)
+        A, _ = _jacobians_current((xl[0], xl[1], psi, xl[3], xl[4], r), uf, self.model.arrays.packed, cn, ce)
         J = np.zeros((6, self.n))
         J[:, :6] = A
         if self.i_cur is not None:
@@ -225,7 +224,7 @@ class ModelAidedEKF:
         """f(x, u) of the six kinematic/kinetic states (RK4's first stage with dt = 0)."""
         model = self.model
         _, k1 = rk4_step((float(x[0]), float(x[1]), float(x[2]), float(x[3]), float(x[4]), float(x[5])),
-                         u, model.theta, model.geom, *self._environment(x), 0.0)
+                         u, model.arrays.packed, *self._environment(x), 0.0)
         return k1
 
     # -- prediction ------------------------------------------------------------------------------
@@ -258,7 +257,7 @@ class ModelAidedEKF:
             J = self._dynamics_jacobian(x, u)
             xl = x.tolist()
             cn, ce, tx, ty, tn = self._environment(x)
-            x1, _ = rk4_step((xl[0], xl[1], xl[2], xl[3], xl[4], xl[5]), u, model.theta, model.geom,
+            x1, _ = rk4_step((xl[0], xl[1], xl[2], xl[3], xl[4], xl[5]), u, model.arrays.packed,
                              cn, ce, tx, ty, tn, dt)
             x = x.copy()
             x[:6] = x1

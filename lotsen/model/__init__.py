@@ -2,7 +2,7 @@
 
 from lotsen.model.angles import all_finite, wrap_angle
 from lotsen.model.dynamics import (
-    INPUT_NAMES, NU, NX, STATE_NAMES, VesselModel, geometry_tuple, jacobians, rk4_step, symbolic_rhs,
+    INPUT_NAMES, NU, NX, STATE_NAMES, VesselModel, jacobians, rk4_step, symbolic_rhs,
     thruster_forces, vessel_rhs,
 )
 from lotsen.model.environment import Environment, WindCoefficients, wind_force
@@ -10,6 +10,7 @@ from lotsen.model.linear import (
     LinearSwayYaw, StabilityReport, condition_16d, linearise, linearise_straight, stability_report,
     straight_trim,
 )
+from lotsen.model.quantities import ModelArrays, geometry_tuple
 from lotsen.model.parameters import (
     DEFAULT_GEOMETRY, DEFAULT_LIMITS, DEFAULT_PARAMETERS, ActuatorLimits, VesselGeometry,
     VesselParameters, parameter_table_markdown,
@@ -20,5 +21,5 @@ __all__ = [
     "thruster_forces", "vessel_rhs", "geometry_tuple", "rk4_step", "symbolic_rhs", "Environment", "WindCoefficients", "wind_force",
     "LinearSwayYaw", "StabilityReport", "condition_16d", "linearise", "linearise_straight",
     "stability_report", "straight_trim", "DEFAULT_GEOMETRY", "DEFAULT_LIMITS", "DEFAULT_PARAMETERS",
-    "ActuatorLimits", "VesselGeometry", "VesselParameters", "parameter_table_markdown", "all_finite", "wrap_angle",
+    "ActuatorLimits", "ModelArrays", "VesselGeometry", "VesselParameters", "parameter_table_markdown", "all_finite", "wrap_angle",
 ]

@@ -7,7 +7,9 @@ The equations are written once, on floats, in `_azimuth_force` and `_rhs`. They 
 numba when available (simulation, MPC), and the very same code objects are re-bound to CasADi's
 functions in `symbolic_rhs` (multiple-shooting identification), so no second copy can drift.
 
-`theta` is the parameter tuple of seed eq. (26); `geom` is `geometry_tuple(VesselGeometry)`.
+The compiled functions take the model as `mq`, the tuple `ModelArrays.packed` of its named
+quantities M, D_L, D_NL, thrust coefficients and thruster positions (lotsen.model.quantities);
+the float wrappers below take theta (seed eq. 26) and a `VesselGeometry`.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from lotsen.model.parameters import (
     VesselGeometry,
     VesselParameters,
 )
+from lotsen.model.quantities import ModelArrays, geometry_tuple, packed_from_theta
 
 STATE_NAMES = ("north", "east", "psi", "u", "v", "r")
 INPUT_NAMES = ("alpha1", "alpha2", "n1", "n2", "nt")
@@ -34,12 +37,6 @@ NX, NU = 6, 5
 # |w| is evaluated as sqrt(w.w + EPS_W2): smooth at w = 0 (CasADi gradients stay finite); the
 # force changes by less than 1e-6 N for any speed of this vessel.
 EPS_W2 = 1e-12
-
-
-def geometry_tuple(geom: VesselGeometry = DEFAULT_GEOMETRY) -> tuple[float, ...]:
-    """(l_x1, l_y1, l_x2, l_y2, l_xt, 1/2 rho A_r, reverse_thrust_ratio) for the compiled functions."""
-    return (geom.l_x1, geom.l_y1, geom.l_x2, geom.l_y2, geom.l_xt,
-            0.5 * geom.rho_water * geom.rudder_area_m2, geom.reverse_thrust_ratio)
 
 
 def _sign_py(x: float) -> float:
@@ -74,17 +71,16 @@ def _azimuth_force_py(a, n, lx, ly, u, v, r, kappa, g, mu_az, rev):  # type: ign
 _azimuth_force = njit(_azimuth_force_py)
 
 
-def _tau_py(u, v, r, inp, theta, geom):  # type: ignore[no-untyped-def]
+def _tau_py(u, v, r, inp, mq):  # type: ignore[no-untyped-def]
     """tau = [tau_X, tau_Y, tau_N] of both azimuth units and the bow thruster (seed eq. 18-20)."""
-    kappa = theta[14]
-    g = geom[5] * theta[15]
-    mu_az = theta[16]
-    mu_t = theta[17]
-    X1, Y1, N1 = _azimuth_force(inp[0], inp[2], geom[0], geom[1], u, v, r, kappa, g, mu_az, geom[6])
-    X2, Y2, N2 = _azimuth_force(inp[1], inp[3], geom[2], geom[3], u, v, r, kappa, g, mu_az, geom[6])
+    thrust = mq[3]
+    arms = mq[4]
+    kappa, g, mu_az, mu_t, rev = thrust  # g = 1/2 rho A_r C_N
+    X1, Y1, N1 = _azimuth_force(inp[0], inp[2], arms[0, 0], arms[0, 1], u, v, r, kappa, g, mu_az, rev)
+    X2, Y2, N2 = _azimuth_force(inp[1], inp[3], arms[1, 0], arms[1, 1], u, v, r, kappa, g, mu_az, rev)
     nt = inp[4]
     Ft = mu_t * nt * fabs(nt)  # bow tunnel thruster, seed eq. (20): pushes along +y for nt > 0
-    return X1 + X2, Y1 + Y2 + Ft, N1 + N2 + geom[4] * Ft
+    return X1 + X2, Y1 + Y2 + Ft, N1 + N2 + arms[2, 0] * Ft
 
 
 _tau = njit(_tau_py)
@@ -98,27 +94,17 @@ def _current_body_py(cos_psi, sin_psi, current_n, current_e):  # type: ignore[no
 _current_body = njit(_current_body_py)
 
 
-def _rhs_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n):  # type: ignore[no-untyped-def]
+def _rhs_py(x, inp, mq, current_n, current_e, tau_x, tau_y, tau_n):  # type: ignore[no-untyped-def]
     """x_dot = f(x, u; theta): seed eq. (7-8) and (22).
 
     With a current (earth-frame velocity of the water, constant) the kinetics act on the relative
     velocity nu_r = nu - nu_c (Fossen 2021, sec. 10.3) and the kinematics on the ground velocity.
     tau_x, tau_y, tau_n add external (wind, wave) forces in the body frame.
     """
-    m11 = theta[0]
-    m22 = theta[1]
-    m33 = theta[2]
-    X_u = theta[3]
-    X_uu = theta[4]
-    Y_v = theta[5]
-    Y_r = theta[6]
-    Y_uv = theta[7]
-    Y_vv = theta[8]
-    Y_rv = theta[9]
-    N_v = theta[10]
-    N_r = theta[11]
-    N_vv = theta[12]
-    N_rr = theta[13]
+    M, D_L, D_NL, thrust, arms = mq
+    m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
+    X_u, Y_v, Y_r, N_v, N_r = D_L[0, 0], D_L[1, 1], D_L[1, 2], D_L[2, 1], D_L[2, 2]
+    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = D_NL
     psi = x[2]
     u = x[3]
     v = x[4]
@@ -128,7 +114,7 @@ def _rhs_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n):  # 
     uc, vc = _current_body(cpsi, spsi, current_n, current_e)
     ur = u - uc
     vr = v - vc
-    tX, tY, tN = _tau(ur, vr, r, inp, theta, geom)
+    tX, tY, tN = _tau(ur, vr, r, inp, mq)
     tX = tX + tau_x
     tY = tY + tau_y
     tN = tN + tau_n
@@ -146,16 +132,16 @@ def _rhs_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n):  # 
 _rhs = njit(_rhs_py)
 
 
-def _rk4_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n, dt):  # type: ignore[no-untyped-def]
+def _rk4_py(x, inp, mq, current_n, current_e, tau_x, tau_y, tau_n, dt):  # type: ignore[no-untyped-def]
     """One classical Runge-Kutta step with the input held (zero-order hold) over dt."""
     h = 0.5 * dt
-    k1 = _rhs(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n)
+    k1 = _rhs(x, inp, mq, current_n, current_e, tau_x, tau_y, tau_n)
     x2 = (x[0] + h * k1[0], x[1] + h * k1[1], x[2] + h * k1[2], x[3] + h * k1[3], x[4] + h * k1[4], x[5] + h * k1[5])
-    k2 = _rhs(x2, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n)
+    k2 = _rhs(x2, inp, mq, current_n, current_e, tau_x, tau_y, tau_n)
     x3 = (x[0] + h * k2[0], x[1] + h * k2[1], x[2] + h * k2[2], x[3] + h * k2[3], x[4] + h * k2[4], x[5] + h * k2[5])
-    k3 = _rhs(x3, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n)
+    k3 = _rhs(x3, inp, mq, current_n, current_e, tau_x, tau_y, tau_n)
     x4 = (x[0] + dt * k3[0], x[1] + dt * k3[1], x[2] + dt * k3[2], x[3] + dt * k3[3], x[4] + dt * k3[4], x[5] + dt * k3[5])
-    k4 = _rhs(x4, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n)
+    k4 = _rhs(x4, inp, mq, current_n, current_e, tau_x, tau_y, tau_n)
     d = dt / 6.0
     return ((x[0] + d * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
              x[1] + d * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
@@ -168,30 +154,16 @@ def _rk4_py(x, inp, theta, geom, current_n, current_e, tau_x, tau_y, tau_n, dt):
 rk4_step = njit(_rk4_py)
 
 
-def _jacobians_py(x, inp, theta, geom):  # type: ignore[no-untyped-def]
+def _jacobians_py(x, inp, mq):  # type: ignore[no-untyped-def]
     """A = df/dx (6x6), B = df/du (6x5) of `_rhs` in calm water, analytic.
 
     Where |u|, |v|, |r| meet zero the one-sided derivative at +0 is used.
     """
-    m11 = theta[0]
-    m22 = theta[1]
-    m33 = theta[2]
-    X_u = theta[3]
-    X_uu = theta[4]
-    Y_v = theta[5]
-    Y_r = theta[6]
-    Y_uv = theta[7]
-    Y_vv = theta[8]
-    Y_rv = theta[9]
-    N_v = theta[10]
-    N_r = theta[11]
-    N_vv = theta[12]
-    N_rr = theta[13]
-    kappa = theta[14]
-    g = geom[5] * theta[15]
-    mu_az = theta[16]
-    mu_t = theta[17]
-    rev = geom[6]
+    M, D_L, D_NL, thrust, arms = mq
+    m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
+    X_u, Y_v, Y_r, N_v, N_r = D_L[0, 0], D_L[1, 1], D_L[1, 2], D_L[2, 1], D_L[2, 2]
+    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = D_NL
+    kappa, g, mu_az, mu_t, rev = thrust  # g = 1/2 rho A_r C_N
     psi = x[2]
     u = x[3]
     v = x[4]
@@ -218,8 +190,8 @@ def _jacobians_py(x, inp, theta, geom):  # type: ignore[no-untyped-def]
     for k in range(2):
         a = inp[k]
         n = inp[2 + k]
-        lx = geom[2 * k]
-        ly = geom[2 * k + 1]
+        lx = arms[k, 0]
+        ly = arms[k, 1]
         ca = cos(a)
         sa = sin(a)
         factor = 1.0 if (n >= 0.0 or rev == 1.0) else rev
@@ -262,7 +234,7 @@ def _jacobians_py(x, inp, theta, geom):  # type: ignore[no-untyped-def]
         Ti[2, k] = lx * dFy - ly * dFx
     dFt = 2.0 * mu_t * fabs(inp[4])
     Ti[1, 4] = dFt
-    Ti[2, 4] = geom[4] * dFt
+    Ti[2, 4] = arms[2, 0] * dFt
     # seed eq. (22) differentiated
     A[3, 3] = (-X_u + 2.0 * X_uu * au + Tn[0, 0]) / m11
     A[3, 4] = (m22 * r + Tn[0, 1]) / m11
@@ -283,7 +255,7 @@ def _jacobians_py(x, inp, theta, geom):  # type: ignore[no-untyped-def]
 _jacobians = njit(_jacobians_py)
 
 
-def _jacobians_current_py(x, inp, theta, geom, current_n, current_e):  # type: ignore[no-untyped-def]
+def _jacobians_current_py(x, inp, mq, current_n, current_e):  # type: ignore[no-untyped-def]
     """A = df/dx, B = df/du of `_rhs` with a constant earth-frame current (current_n, current_e), analytic.
 
     The kinetics act on nu_r = nu - nu_c(psi) with u_c = c_N cos psi + c_E sin psi,
@@ -297,7 +269,7 @@ def _jacobians_current_py(x, inp, theta, geom, current_n, current_e):  # type: i
     c = cos(psi)
     s = sin(psi)
     uc, vc = _current_body(c, s, current_n, current_e)
-    A, B = _jacobians((x[0], x[1], psi, u - uc, v - vc, r), inp, theta, geom)
+    A, B = _jacobians((x[0], x[1], psi, u - uc, v - vc, r), inp, mq)
     # kinematics on the ground velocity (the calm Jacobian above saw the relative one)
     A[0, 2] = -u * s - v * c
     A[1, 2] = u * c - v * s
@@ -321,19 +293,34 @@ def _as_floats(seq: Sequence[float], n: int) -> tuple[float, ...]:
     return t
 
 
+def _rhs_floats(x: Sequence[float], inp: Sequence[float], mq: tuple[np.ndarray, ...],
+                current_ne: Sequence[float], tau_ext: Sequence[float]) -> tuple[float, ...]:
+    return _rhs(_as_floats(x, NX), _as_floats(inp, NU), mq, float(current_ne[0]), float(current_ne[1]),
+                float(tau_ext[0]), float(tau_ext[1]), float(tau_ext[2]))
+
+
+def _tau_floats(nu: Sequence[float], inp: Sequence[float], mq: tuple[np.ndarray, ...]) -> tuple[float, float, float]:
+    return _tau(float(nu[0]), float(nu[1]), float(nu[2]), _as_floats(inp, NU), mq)
+
+
+def _jacobians_floats(x: Sequence[float], inp: Sequence[float], mq: tuple[np.ndarray, ...],
+                      current_ne: Sequence[float] | None) -> tuple[np.ndarray, np.ndarray]:
+    if current_ne is None:
+        return _jacobians(_as_floats(x, NX), _as_floats(inp, NU), mq)
+    return _jacobians_current(_as_floats(x, NX), _as_floats(inp, NU), mq, float(current_ne[0]), float(current_ne[1]))
+
+
 def vessel_rhs(x: Sequence[float], inp: Sequence[float], theta: Sequence[float],
                geom: VesselGeometry = DEFAULT_GEOMETRY, current_ne: tuple[float, float] = (0.0, 0.0),
                tau_ext: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[float, ...]:
     """x_dot = f(x, u; theta) on floats (seed eq. 7-8, 22)."""
-    return _rhs(_as_floats(x, NX), _as_floats(inp, NU), _as_floats(theta, 18), geometry_tuple(geom),
-                float(current_ne[0]), float(current_ne[1]), float(tau_ext[0]), float(tau_ext[1]), float(tau_ext[2]))
+    return _rhs_floats(x, inp, packed_from_theta(theta, geometry_tuple(geom)), current_ne, tau_ext)
 
 
 def thruster_forces(nu: Sequence[float], inp: Sequence[float], theta: Sequence[float],
                     geom: VesselGeometry = DEFAULT_GEOMETRY) -> tuple[float, float, float]:
     """tau = [tau_X, tau_Y, tau_N] for the velocity `nu` relative to the water."""
-    return _tau(float(nu[0]), float(nu[1]), float(nu[2]), _as_floats(inp, NU), _as_floats(theta, 18),
-                geometry_tuple(geom))
+    return _tau_floats(nu, inp, packed_from_theta(theta, geometry_tuple(geom)))
 
 
 def jacobians(x: Sequence[float], inp: Sequence[float], theta: Sequence[float],
@@ -341,10 +328,7 @@ def jacobians(x: Sequence[float], inp: Sequence[float], theta: Sequence[float],
               current_ne: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """A = df/dx (6x6) and B = df/du (6x5), analytic (MPC, EKF, identification); in calm water, or
     with a constant earth-frame current `current_ne` (north, east, m/s)."""
-    xs, us, th, g = _as_floats(x, NX), _as_floats(inp, NU), _as_floats(theta, 18), geometry_tuple(geom)
-    if current_ne is None:
-        return _jacobians(xs, us, th, g)
-    return _jacobians_current(xs, us, th, g, float(current_ne[0]), float(current_ne[1]))
+    return _jacobians_floats(x, inp, packed_from_theta(theta, geometry_tuple(geom)), current_ne)
 
 
 def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
@@ -364,14 +348,19 @@ def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
 
     def f(x: Sequence[Any], u: Sequence[Any], theta: Sequence[Any], geom: tuple[float, ...],
           current_ne: tuple[Any, Any] = (0.0, 0.0), tau_ext: tuple[Any, Any, Any] = (0.0, 0.0, 0.0)) -> list[Any]:
-        return list(rhs(x, u, theta, geom, current_ne[0], current_ne[1], tau_ext[0], tau_ext[1], tau_ext[2]))
+        mq = packed_from_theta(theta, geom, symbolic=True)
+        return list(rhs(x, u, mq, current_ne[0], current_ne[1], tau_ext[0], tau_ext[1], tau_ext[2]))
 
     return f
 
 
 @dataclass
 class VesselModel:
-    """A vessel: parameters + geometry, with numpy-facing f(t, x, u) and Jacobians."""
+    """A vessel: parameters + geometry, with numpy-facing f(t, x, u) and Jacobians.
+
+    `arrays` holds its named quantities M, D_L, D_NL, thrust coefficients and thruster positions
+    (`ModelArrays`); the compiled kernels take `arrays.packed`. `theta` and `geom` are the same
+    vessel as the parameter vector and geometry tuple of identification."""
 
     params: VesselParameters = DEFAULT_PARAMETERS
     geometry: VesselGeometry = DEFAULT_GEOMETRY
@@ -379,27 +368,25 @@ class VesselModel:
     def __post_init__(self) -> None:
         self.theta = self.params.to_vector()
         self.geom = geometry_tuple(self.geometry)
+        self.arrays = ModelArrays.build(self.params, self.geometry)
 
     def f(self, t: float, x: Sequence[float], u: Sequence[float],
           current_ne: tuple[float, float] = (0.0, 0.0),
           tau_ext: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
         """x_dot (python-control's f(t, x, u, params) signature, params bound)."""
-        return np.array(vessel_rhs(x, u, self.theta, self.geometry, current_ne, tau_ext))
+        return np.array(_rhs_floats(x, u, self.arrays.packed, current_ne, tau_ext))
 
     def tau(self, nu: Sequence[float], u: Sequence[float]) -> np.ndarray:
-        return np.array(thruster_forces(nu, u, self.theta, self.geometry))
+        return np.array(_tau_floats(nu, u, self.arrays.packed))
 
     def jacobians(self, x: Sequence[float], u: Sequence[float],
                   current_ne: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        if current_ne is None:
-            return _jacobians(_as_floats(x, NX), _as_floats(u, NU), self.theta, self.geom)
-        return _jacobians_current(_as_floats(x, NX), _as_floats(u, NU), self.theta, self.geom,
-                                  float(current_ne[0]), float(current_ne[1]))
+        return _jacobians_floats(x, u, self.arrays.packed, current_ne)
 
     def step(self, x: Sequence[float], u: Sequence[float], dt: float,
              current_ne: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
         """x(t + dt) by one RK4 step with u held."""
-        x1, _ = rk4_step(_as_floats(x, NX), _as_floats(u, NU), self.theta, self.geom,
+        x1, _ = rk4_step(_as_floats(x, NX), _as_floats(u, NU), self.arrays.packed,
                          float(current_ne[0]), float(current_ne[1]), 0.0, 0.0, 0.0, float(dt))
         return np.array(x1)
 

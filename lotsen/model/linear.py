@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lotsen.model.dynamics import VesselModel, jacobians
+from lotsen.model.dynamics import VesselModel
 
 
 @dataclass(frozen=True)
@@ -83,7 +83,7 @@ def stability_report(model: VesselModel, U_max: float | None = None, n_max_rps: 
 
 def linearise(model: VesselModel, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Full 6-state linearisation A = df/dx, B = df/du at (x, u) (analytic)."""
-    return jacobians(x, u, model.theta, model.geometry)
+    return model.jacobians(x, u)
 
 
 def straight_trim(model: VesselModel, U0: float) -> tuple[np.ndarray, np.ndarray]:

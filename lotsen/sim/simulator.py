@@ -44,20 +44,17 @@ def _thrusting_py(act, dead_band_rps):  # type: ignore[no-untyped-def]
 _thrusting = njit(_thrusting_py)
 
 
-def _plant_step_py(buf, command, active, theta, geom, c):  # type: ignore[no-untyped-def]
+def _plant_step_py(buf, command, active, mq, c):  # type: ignore[no-untyped-def]
     """Actuators then vessel, one step, in place on `buf` = [x (6), actuators (5), x_dot at start (6)].
 
     One compiled call per step: passing tuples into numba costs more than the arithmetic, so
-    the step's inputs travel as float arrays. c = [max_dalpha, motor_gain, max_dn, dt,
-    current_n, current_e, tau_x, tau_y, tau_n, thrust dead band].
+    the step's inputs travel as float arrays, the model as `ModelArrays.packed`.
+    c = [max_dalpha, motor_gain, max_dn, dt, current_n, current_e, tau_x, tau_y, tau_n, thrust dead band].
     """
     act = actuator_step((buf[6], buf[7], buf[8], buf[9], buf[10]),
                         (command[0], command[1], command[2], command[3], command[4]),
                         (active[0], active[1], active[2], active[3], active[4]), c[0], c[1], c[2])
-    th = (theta[0], theta[1], theta[2], theta[3], theta[4], theta[5], theta[6], theta[7], theta[8],
-          theta[9], theta[10], theta[11], theta[12], theta[13], theta[14], theta[15], theta[16], theta[17])
-    gm = (geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6])
-    x1, k1 = rk4_step((buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]), _thrusting(act, c[9]), th, gm,
+    x1, k1 = rk4_step((buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]), _thrusting(act, c[9]), mq,
                       c[4], c[5], c[6], c[7], c[8], c[3])
     for i in range(6):
         buf[i] = x1[i]
@@ -69,12 +66,9 @@ def _plant_step_py(buf, command, active, theta, geom, c):  # type: ignore[no-unt
 _plant_step = njit(_plant_step_py)
 
 
-def _plant_steps_py(x0, act0, command, active, theta, geom, c, xs, ks, acts):  # type: ignore[no-untyped-def]
+def _plant_steps_py(x0, act0, command, active, mq, c, xs, ks, acts):  # type: ignore[no-untyped-def]
     """K = len(ks) steps of `_plant_step` with the set-point held: fills xs (K+1 x 6, xs[0] = x0),
     ks (K x 6, x_dot at the start of each step) and acts (K x 5, actuators during each step)."""
-    th = (theta[0], theta[1], theta[2], theta[3], theta[4], theta[5], theta[6], theta[7], theta[8],
-          theta[9], theta[10], theta[11], theta[12], theta[13], theta[14], theta[15], theta[16], theta[17])
-    gm = (geom[0], geom[1], geom[2], geom[3], geom[4], geom[5], geom[6])
     cmd = (command[0], command[1], command[2], command[3], command[4])
     act_on = (active[0], active[1], active[2], active[3], active[4])
     x = (x0[0], x0[1], x0[2], x0[3], x0[4], x0[5])
@@ -83,7 +77,7 @@ def _plant_steps_py(x0, act0, command, active, theta, geom, c, xs, ks, acts):  #
         xs[0, i] = x[i]
     for k in range(ks.shape[0]):
         act = actuator_step(act, cmd, act_on, c[0], c[1], c[2])
-        x, k1 = rk4_step(x, _thrusting(act, c[9]), th, gm, c[4], c[5], c[6], c[7], c[8], c[3])
+        x, k1 = rk4_step(x, _thrusting(act, c[9]), mq, c[4], c[5], c[6], c[7], c[8], c[3])
         for i in range(6):
             xs[k + 1, i] = x[i]
             ks[k, i] = k1[i]
@@ -180,8 +174,7 @@ class Simulator:
         self._current_ne = self.environment.current_ne
         self._buf = np.zeros(17)
         self._buf[:6] = self.x
-        self._theta = np.array(self.model.theta)
-        self._geom = np.array(self.model.geom)
+        self._model_arrays = self.model.arrays.packed  # M, D_L, D_NL, thrust, arms for the compiled step
         a = self.actuators
         self._consts = np.array([a._max_dalpha, a._motor_gain, a._max_dn, config.dt_s, 0.0, 0.0, 0.0, 0.0, 0.0,
                                  boat.thrust_dead_band_rps])
@@ -258,7 +251,7 @@ class Simulator:
         x0 = self.x
         buf = self._buf
         act_cmd = self.actuators
-        _plant_step(buf, act_cmd.command_array, act_cmd.active_array, self._theta, self._geom, c)
+        _plant_step(buf, act_cmd.command_array, act_cmd.active_array, self._model_arrays, c)
         v = buf.tolist()
         x1 = tuple(v[:6])
         act = tuple(v[6:11])
@@ -339,8 +332,8 @@ class Simulator:
         c[6] = c[7] = c[8] = 0.0
         xs, ks, acts = np.empty((n + 1, 6)), np.empty((n, 6)), np.empty((n, 5))
         a = self.actuators
-        _plant_steps(np.array(self.x), np.array(a.state), a.command_array, a.active_array, self._theta,
-                     self._geom, c, xs, ks, acts)
+        _plant_steps(np.array(self.x), np.array(a.state), a.command_array, a.active_array,
+                     self._model_arrays, c, xs, ks, acts)
         if not np.isfinite(xs[-1]).all():
             bad = int(np.argmax(~np.isfinite(xs).all(axis=1)))
             raise FloatingPointError(f"simulation diverged at t = {(self._k + bad) * self.config.dt_s:.2f} s")

@@ -31,6 +31,8 @@ from typing import Any, Callable
 import numpy as np
 import yaml
 
+from lotsen.errors import ConfigError
+from lotsen.files import read_yaml
 from lotsen.logs.reader import read_log
 from lotsen.messages import Alert, EstimatorHealth, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.runtime.clock import CLOCK_ENV
@@ -192,7 +194,7 @@ def _derived_config(plan: LivePlan, work: Path, port: int, token: str) -> Path:
     """The operator's config with this run's port, token, log folder; relative paths made absolute
     (the copy lives elsewhere)."""
     src = Path(plan.config).resolve()
-    data = yaml.safe_load(src.read_text()) or {}
+    data = read_yaml(src, ConfigError, "configuration file") or {}
     if isinstance(data.get("route"), str):
         data["route"] = str((src.parent / data["route"]).resolve())
     data.setdefault("web", {}).update(port=port, host="127.0.0.1", pilot_token=token, enabled=True)

@@ -408,7 +408,7 @@ def predict_trajectory(experiment: Experiment, model: VesselModel | None = None,
     for k in range(n):
         u = gen.command(ts[k], x)
         U[k] = u
-        x, _ = rk4_step(x, u, model.theta, model.geom, 0.0, 0.0, 0.0, 0.0, 0.0, dt_s)
+        x, _ = rk4_step(x, u, model.arrays.packed, 0.0, 0.0, 0.0, 0.0, 0.0, dt_s)
         X[k + 1] = x
         if not math.isfinite(sum(x)):
             break

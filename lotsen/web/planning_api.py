@@ -11,7 +11,7 @@ import numpy as np
 import yaml
 
 from lotsen.errors import ConfigError, LotsenError
-from lotsen.files import FastStrictYamlLoader, StrictYamlLoader
+from lotsen.files import parse_json, parse_yaml
 from lotsen.planning import GeoOrigin, PlannerConfig, plan_route
 from lotsen.planning.exchange import planned_route_message, route_id
 from lotsen.planning.io import route_from_dict, route_from_geojson, route_to_dict, route_to_geojson
@@ -168,34 +168,12 @@ def export_route(route_data: dict, fmt: str, origin: GeoOrigin | None = None) ->
     return yaml.safe_dump(route_to_dict(route), sort_keys=False, default_flow_style=None)
 
 
-class _NoAliasLoader(StrictYamlLoader):
-    """Safe YAML without anchors/aliases: a route file never needs them, and nested aliases
-    ("billion laughs") would make a few kB of text expand into millions of nodes."""
-
-    def compose_node(self, parent, index):  # noqa: ANN001 - PyYAML's signature
-        if self.check_event(yaml.AliasEvent):
-            event = self.peek_event()
-            raise yaml.YAMLError(f"aliases (*{event.anchor}) are not allowed in a route file "
-                                 f"(line {event.start_mark.line + 1})")
-        return super().compose_node(parent, index)
-
-
-def _load_yaml(text: str) -> Any:
-    """libyaml's fast loader when the text cannot hold an alias (no '*'); else the Python
-    loader that refuses aliases (libyaml composes in C, out of reach of compose_node)."""
-    if "*" not in text and hasattr(yaml, "CSafeLoader"):
-        return yaml.load(text, Loader=FastStrictYamlLoader)  # noqa: S506 - a safe loader (no duplicate keys)
-    return yaml.load(text, Loader=_NoAliasLoader)  # noqa: S506
-
-
 def import_route(text: str, fmt: str) -> dict:
     """Route dict from YAML or GeoJSON text. Raises LotsenError with the location of the problem."""
-    try:
-        data = json.loads(text) if fmt == "geojson" else _load_yaml(text)
-    except RecursionError:
-        raise ConfigError(f"import: the {fmt.upper()} is nested too deeply") from None
-    except (ValueError, yaml.YAMLError) as exc:
-        raise ConfigError(f"import: not valid {fmt.upper()}: {str(exc)[:200]}") from None
+    if fmt == "geojson":
+        data = parse_json(text, "import", ConfigError)
+    else:
+        data = parse_yaml(text, "import", ConfigError, aliases=False)
     try:
         check_json_tree(data, ("import",))
     except ValidationError as exc:

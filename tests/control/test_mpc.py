@@ -221,16 +221,16 @@ def test_thrust_authority_is_kept_at_zero_propeller_speed():
     from lotsen.model.dynamics import rk4_step
 
     c = MPCController(config=NO_TIME_LIMIT)
-    th, ge = c.model.theta, c.model.geom
+    mq = c.model.arrays.packed
     xb = np.array([[0.0, 0.0, 0.3, 0.5, 0.05, 0.1]] * 2)
     w0 = np.array([0.1, -0.2, 0.0, 0.3, 0.0])  # azimuth 1 and the bow thruster at rest
     Ad, Bd, cc = np.zeros((1, 6, 6)), np.zeros((1, 6, 5)), np.zeros((1, 6))
-    _linearise_horizon(xb, w0[None, :], c.scale, th, ge, 0.1, 0.0, 0.0, 0.0, 5.0, 0.0, 0.0, Ad, Bd, cc)
+    _linearise_horizon(xb, w0[None, :], c.scale, mq, 0.1, 0.0, 0.0, 0.0, 5.0, 0.0, 0.0, Ad, Bd, cc)
 
     def step(w):
         q = w[2:] * c.scale[2:]
         n = np.sign(q) * np.sqrt(np.abs(q))
-        return np.array(rk4_step(tuple(xb[0]), (w[0], w[1], *n), th, ge, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1)[0])
+        return np.array(rk4_step(tuple(xb[0]), (w[0], w[1], *n), mq, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1)[0])
 
     for j in (2, 4):
         e = np.zeros(5)
@@ -354,7 +354,7 @@ def test_servo_and_esc_lags_make_the_prediction_match_the_simulator(command):
     from lotsen.sim import SimConfig, Simulator
 
     c = MPCController()
-    theta, geom = c.model.theta, c.model.geom
+    mq = c.model.arrays.packed
     # ideal model: the prediction's lag rule against the very equations it implements
     sim = Simulator(c.model, config=SimConfig(sensors=False), x0=[0.0, 0.0, 0.0, 0.4, 0.0, 0.0])
     previous = (0.0, 0.0, 40.0, 40.0, 0.0)
@@ -367,8 +367,8 @@ def test_servo_and_esc_lags_make_the_prediction_match_the_simulator(command):
     sim.command(command)
     sim.advance(c.config.dt_s)
     truth = np.array(sim.x[3:])
-    on_set_point, _ = rk4_step(x, command, theta, geom, 0.0, 0.0, 0.0, 0.0, 0.0, c.config.dt_s)
-    on_effective, _ = rk4_step(x, effective, theta, geom, 0.0, 0.0, 0.0, 0.0, 0.0, c.config.dt_s)
+    on_set_point, _ = rk4_step(x, command, mq, 0.0, 0.0, 0.0, 0.0, 0.0, c.config.dt_s)
+    on_effective, _ = rk4_step(x, effective, mq, 0.0, 0.0, 0.0, 0.0, 0.0, c.config.dt_s)
     err_set_point = np.linalg.norm(np.array(on_set_point[3:]) - truth)
     err_effective = np.linalg.norm(np.array(on_effective[3:]) - truth)
     assert err_effective < 0.25 * err_set_point

@@ -124,6 +124,29 @@ def test_the_page_import_refuses_duplicate_keys_too():
             import_route(text, "yaml")
 
 
+def test_the_page_import_refuses_duplicate_geojson_keys_and_yaml_aliases():
+    from lotsen.web.planning_api import import_route
+
+    with pytest.raises(ConfigError, match="import: not valid JSON: duplicate key 'harbour'"):
+        import_route('{"harbour": 1, "harbour": 2}', "geojson")
+    with pytest.raises(ConfigError, match=r"import: .*aliases \(\*a\) are not allowed"):
+        import_route("a: &a {north: 0, east: 0}\nharbour: *a\nnodes: []\n", "yaml")
+
+
+def test_yaml_and_json_text_is_parsed_only_by_lotsen_files():
+    """One loader: every other module reads YAML/JSON files and pasted text through lotsen.files
+    (encodings, duplicate keys, hostile structures); json.loads stays for messages on the wire."""
+    offenders = []
+    for path in sorted((REPO / "lotsen").rglob("*.py")) + sorted((REPO / "bench").rglob("*.py")):
+        if path.name == "files.py" and path.parent.name == "lotsen":
+            continue
+        text = path.read_text(encoding="utf-8")
+        for needle in ("yaml.safe_load(", "yaml.load(", "yaml.full_load(", "json.load("):
+            if needle in text:
+                offenders.append(f"{path.relative_to(REPO)}: {needle}")
+    assert not offenders, offenders
+
+
 def test_merge_keys_may_still_be_overridden():
     assert parse_yaml("base: &b {k: 1, j: 2}\nd:\n  <<: *b\n  k: 3\n", "f") == {"base": {"k": 1, "j": 2},
                                                                               "d": {"k": 3, "j": 2}}
