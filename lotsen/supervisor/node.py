@@ -582,7 +582,9 @@ class SupervisorNode(Node):
                 self._flag("controller", True, f"{self.follower.name}: {why}; fallback {fs.fallback_controller}",
                            "error")
                 self.fallback = self._make_follower(fs.fallback_controller)
-                self.fallback.reset(self.active_path)
+                # take over where the boat is: from 0 the fallback would re-localise from the start
+                # of the path (metres of false cross-track error, a wrong branch of a figure eight)
+                self.fallback.reset(self.active_path, progress_m=self.follower.progress_m)
             else:
                 self._flag("controller", True, f"fallback {self.fallback.name} failed too: {why}", "error")
                 self.stop("failsafe: controller and fallback failed")
