@@ -872,7 +872,7 @@ class MPCController:
             raise RuntimeError("MPCController.update before reset(path)")
         t0 = time.perf_counter()  # measurement for reporting only, not control logic
         if not state_is_finite(state):
-            return self._failure(t, state, "state not finite", t0, 0.0, 0.0, 0.0, 0.0)
+            return self._failure(t, state, "state not finite", t0, 0.0, 0.0, self._s, 0.0)
         cfg, N = self.config, self.N
         x = np.array(state.as_array_tuple(), dtype=float)
         self._current = self._current_estimate(state)
