@@ -14,8 +14,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
-from lotsen.model._jit import njit
 from lotsen.model.angles import all_finite, wrap_angle
+from lotsen.model.polyline import project_window, search_window
 
 
 @runtime_checkable
@@ -24,9 +24,17 @@ class PathFollower(Protocol):
 
     name: str
 
-    def reset(self, path: Any) -> None: ...
+    def reset(self, path: Any, progress_m: float = 0.0) -> None:
+        """Follow `path` from arc length `progress_m` on: 0 for a new path; where the vessel is
+        (the failed controller's `progress_m`) when a fallback takes over mid-path."""
+        ...
 
     def update(self, t: float, state: VesselState) -> tuple[ThrustCommand, ControllerStatus]: ...
+
+    @property
+    def progress_m(self) -> float:
+        """Arc length of the vessel's last localisation on the path (`PathReference.project`)."""
+        ...
 
     @property
     def done(self) -> bool:
@@ -94,20 +102,16 @@ class PathReference:
             k = np.where(beyond > 0, 0.0, k)
         return n, e, h, k, sp
 
-    def project(self, north: float, east: float, s_hint: float | None) -> tuple[float, float, float]:
-        """(s, cross_track_error (+ = starboard, as Path.project), path heading) of the closest
-        point; with `s_hint` only within +-window_m of it (keeps the right branch of a figure eight)."""
-        if s_hint is None:
-            p = self.path.project(north, east)
-            s, cte, hdg = p.s_m, p.cross_track_error_m, p.heading_rad
-        else:
-            lo = max(0, int(np.searchsorted(self.s, min(s_hint, self.length) - self.window_m)) - 1)
-            hi = min(len(self.s) - 1, int(np.searchsorted(self.s, s_hint + self.window_m)) + 1)
-            hi = max(hi, lo + 1)
-            # canonical argument types: one compiled signature, warmed at start (a new one compiles in the loop)
-            s, cte, hdg = _project_window(float(north), float(east), self.north, self.east, self.s, self._ds,
-                                          self.heading, self._dtable, int(lo), int(hi))
-            hdg = wrap_angle(hdg)
+    def project(self, north: float, east: float, s_hint: float) -> tuple[float, float, float]:
+        """(s, cross_track_error (+ = starboard, as Path.project), path heading) of the closest point
+        within +-window_m of `s_hint`, the last known progress (a global search would jump to the
+        other branch where a figure eight crosses itself); a vessel ahead of the window is caught up
+        window_m per call. The one path projection of `lotsen.planning.path` (`project_window`)."""
+        lo, hi = search_window(self.s, float(s_hint), self.window_m)
+        # canonical argument types: one compiled signature, warmed at start (a new one compiles in the loop)
+        s, cte, hdg, _i = project_window(float(north), float(east), self.north, self.east, self.s, self.heading,
+                                         int(lo), int(hi))
+        hdg = wrap_angle(hdg)
         if s >= self.length - 1e-9:  # past the end: along-track beyond the last point
             c, sn = self._cos_end, self._sin_end
             dn, de = north - self.north[-1], east - self.east[-1]
@@ -116,31 +120,6 @@ class PathReference:
                 s = self.length + along
                 cte = -sn * dn + c * de
         return s, cte, hdg
-
-
-def _project_window_py(north, east, pn, pe, ps, ds, heading, dtable, lo, hi):  # type: ignore[no-untyped-def]
-    """Closest point to (north, east) on the polyline segments lo .. hi-1: (s, signed distance
-    (+ = starboard), heading, not wrapped). Numba-compiled: every controller step calls it."""
-    best, j_best, t_best, q_nb, q_eb = math.inf, lo, 0.0, 0.0, 0.0
-    for i in range(lo, hi):
-        d_n = dtable[i, 0]
-        d_e = dtable[i, 1]
-        q_n = north - pn[i]
-        q_e = east - pe[i]
-        t = (q_n * d_n + q_e * d_e) / max(d_n * d_n + d_e * d_e, 1e-18)
-        t = min(max(t, 0.0), 1.0)
-        r_n = q_n - t * d_n
-        r_e = q_e - t * d_e
-        d2 = r_n * r_n + r_e * r_e
-        if d2 < best:
-            best, j_best, t_best, q_nb, q_eb = d2, i, t, q_n, q_e
-    dist = math.sqrt(best)
-    cross = dtable[j_best, 0] * q_eb - dtable[j_best, 1] * q_nb
-    cte = dist if cross >= 0 else -dist
-    return ps[j_best] + t_best * ds[j_best], cte, heading[j_best] + t_best * dtable[j_best, 2]
-
-
-_project_window = njit(_project_window_py)
 
 
 def make_status(t: float, controller: str, cte: float, heading_error: float, state: VesselState,

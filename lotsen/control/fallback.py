@@ -101,21 +101,31 @@ class _TauFollower:
         self._done = False
         self._cmd_prev: tuple[float, ...] | None = None
 
-    def reset(self, path: Any) -> None:
+    def reset(self, path: Any, progress_m: float = 0.0) -> None:
         self.path = PathReference(path, self.min_speed)
         self.failures = 0
-        self._s = 0.0
+        self._s = float(progress_m)
         self._done = False
         self._cmd_prev = None
+        self._first_update = True
         self.allocator.reset()
         self._reset_loops()
 
     def _reset_loops(self) -> None:
         pass
 
+    def _take_over(self, x: np.ndarray, cte: float, hdg: float) -> None:
+        """First update after reset with the boat already under way (a fallback taking over, a
+        return path started at speed): set the loops' integrals so the command continues what the
+        boat is doing (bumpless transfer) instead of starting from zero."""
+
     @property
     def done(self) -> bool:
         return self._done
+
+    @property
+    def progress_m(self) -> float:
+        return self._s
 
     def _surge_feedforward(self, U: float) -> float:
         p = self.model.params
@@ -138,6 +148,10 @@ class _TauFollower:
         self._s = s
         if s >= self.path.length - 0.02:
             self._done = True
+        if self._first_update:
+            self._first_update = False
+            if x[3] >= self.min_speed:
+                self._take_over(x, cte, hdg)
         tau = self._tau(t, x, s, cte, hdg)
         status = "ok"
         if not np.all(np.isfinite(tau)):
@@ -223,6 +237,16 @@ class LOSController(_TauFollower):
         self.speed_pid.reset()
         self._e_int = 0.0
         self._psi_int = 0.0
+
+    def _take_over(self, x: np.ndarray, cte: float, hdg: float) -> None:
+        """The integral e_int that makes psi_d the present heading: the crab angle the previous
+        controller held against current and wind is kept, not relearnt over metres of drift."""
+        c = self.config
+        psi = x[2] + (math.atan2(x[4], x[3]) if c.sideslip_compensation and x[3] > 0.1 else 0.0)
+        lead = wrap_angle(hdg - psi)  # psi_d = hdg - atan((e + sigma e_int) / D)
+        if abs(lead) < math.radians(45.0) and c.integral_gain > 0:
+            e_int = (c.lookahead_m * math.tan(lead) - cte) / c.integral_gain
+            self._e_int = min(max(e_int, -c.integral_limit_m), c.integral_limit_m)
 
     def _tau(self, t: float, x: np.ndarray, s: float, cte: float, hdg: float) -> np.ndarray:
         assert self.path is not None

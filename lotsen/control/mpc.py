@@ -762,16 +762,21 @@ class MPCController:
         lam = self._crossing_cost_q * np.where(self._since_flip_s < cfg.reversal_dwell_s, cfg.reversal_dwell_factor, 1.0)
         self._q[self._ti(0):] = np.tile(lam, self.N)
 
-    def reset(self, path: Any) -> None:
+    def reset(self, path: Any, progress_m: float = 0.0) -> None:
         self.path = PathReference(path, self.config.min_speed_ref_mps)
         self.failures = 0
         self.solve_times_ms = []
         self.qp_solves = 0  # QPs solved since reset (more than the steps only in transients: reiterate_dw)
         self._reset_state()
+        self._s = float(progress_m)
 
     @property
     def done(self) -> bool:
         return self._done
+
+    @property
+    def progress_m(self) -> float:
+        return self._s
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) everything a step runs, with a few steps on a short
@@ -866,7 +871,7 @@ class MPCController:
             raise RuntimeError("MPCController.update before reset(path)")
         t0 = time.perf_counter()  # measurement for reporting only, not control logic
         if not state_is_finite(state):
-            return self._failure(t, state, "state not finite", t0, 0.0, 0.0, 0.0, 0.0)
+            return self._failure(t, state, "state not finite", t0, 0.0, 0.0, self._s, 0.0)
         cfg, N = self.config, self.N
         x = np.array(state.as_array_tuple(), dtype=float)
         self._current = self._current_estimate(state)

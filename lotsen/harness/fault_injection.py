@@ -289,6 +289,12 @@ def judge(run: FaultRun, expect: tuple[dict, ...]) -> tuple[bool, float | None, 
     return ok_all, t_last, "; ".join(details)
 
 
+def _in_time(dt_s: float, within_s: float) -> bool:
+    """dt_s at or before the deadline. Simulated times are sums of float steps (the tick at 22.5 s
+    is stamped 22.50000000000005), so a tick on the deadline counts as on it, not after it."""
+    return dt_s <= within_s + 1e-9
+
+
 def _check_mode(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
     mode, part, within = step["mode"], step.get("reason_contains", ""), float(step["within_s"])
     after = run.fault_t + float(step.get("after_s", 0.0))
@@ -296,7 +302,7 @@ def _check_mode(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
     if t is None:
         return False, None, f"never reached {mode} ({part!r}); modes {run.trace.modes[-3:]}"
     dt = t - run.fault_t
-    return dt <= within, dt, f"{mode} after {dt:.2f} s (deadline {within:g} s)"
+    return _in_time(dt, within), dt, f"{mode} after {dt:.2f} s (deadline {within:g} s)"
 
 
 def _check_auto_continues(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
@@ -329,7 +335,7 @@ def _check_neutral(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
     for i, (t, c) in enumerate(cmds):
         if c.as_tuple() == (0.0,) * 5 and all(cc.as_tuple() == (0.0,) * 5 for _, cc in cmds[i:]):
             dt = t - run.fault_t
-            return dt <= within, dt, f"neutral after {dt:.2f} s"
+            return _in_time(dt, within), dt, f"neutral after {dt:.2f} s"
     return False, None, "thrusters never went (and stayed) neutral"
 
 
@@ -339,7 +345,7 @@ def _check_fallback(run: FaultRun, step: dict) -> tuple[bool, float | None, str]
     for t, c in run.trace.commands:
         if t >= run.fault_t and c.source == name:
             dt = t - run.fault_t
-            return dt <= within, dt, f"fallback {name} after {dt:.2f} s"
+            return _in_time(dt, within), dt, f"fallback {name} after {dt:.2f} s"
     return False, None, "no fallback controller"
 
 
@@ -372,7 +378,7 @@ def _check_geofence(run: FaultRun, step: dict) -> tuple[bool, float | None, str]
         return False, None, "breach without HOLD"
     target = run.supervisor.hold_target
     inside = run.supervisor.route.free_region().contains(Point(target.north_m, target.east_m))
-    return inside and t - breach[0] <= within, t - breach[0], (
+    return inside and _in_time(t - breach[0], within), t - breach[0], (
         f"breach at {breach[0]:.1f} s, HOLD at a point {'inside' if inside else 'OUTSIDE'} the area after "
         f"{t - breach[0]:.2f} s")
 
@@ -391,7 +397,7 @@ def _check_command(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
     for t, c in run.trace.commands:
         if t >= run.fault_t and c.source == source and min(c.n1_rps, c.n2_rps) >= n_min:
             dt = t - run.fault_t
-            return dt <= within, dt, f"{source} commands {c.n1_rps:.0f} rev/s after {dt:.2f} s"
+            return _in_time(dt, within), dt, f"{source} commands {c.n1_rps:.0f} rev/s after {dt:.2f} s"
     seen = sorted({c.source for t, c in run.trace.commands if t >= run.fault_t})
     return False, None, f"no command from {source} with n >= {n_min:g} rev/s (sources seen: {', '.join(seen)})"
 

@@ -2,6 +2,9 @@
 
 Headings are radians NED (0 = north, positive clockwise towards east). The cross-track error of
 ``Path.project`` is positive when the vessel is to starboard (right) of the path.
+
+Where a position lies on a path is computed in one place, `lotsen.model.polyline`:
+`Path.project` and the controllers' `lotsen.control.PathReference.project` both call it.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import numpy as np
 
 from lotsen.errors import ConfigError
 from lotsen.model.angles import wrap_angle
+from lotsen.model.polyline import project_window, search_window
 
 _FIELDS = ("north_m", "east_m", "heading_rad", "curvature_1pm", "speed_mps", "s_m")
 
@@ -72,8 +76,6 @@ class Path:
     s_m: np.ndarray
     segments: tuple[SegmentMetrics, ...] = ()
     _heading_unwrapped: np.ndarray = field(init=False, repr=False)
-    _d: np.ndarray = field(init=False, repr=False)
-    _d2: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         arrays = {}
@@ -91,10 +93,6 @@ class Path:
         if np.any(np.diff(arrays["s_m"]) <= 0):
             raise ConfigError("path: s_m must be strictly increasing")
         object.__setattr__(self, "_heading_unwrapped", np.unwrap(arrays["heading_rad"]))
-        pts = np.stack([arrays["north_m"], arrays["east_m"]], axis=1)
-        d = np.diff(pts, axis=0)
-        object.__setattr__(self, "_d", d)
-        object.__setattr__(self, "_d2", np.maximum(np.einsum("ij,ij->i", d, d), 1e-18))
 
     # -- queries used by the controller ------------------------------------------------------
     @property
@@ -124,29 +122,11 @@ class Path:
         """
         lo, hi = 0, len(self) - 1
         if s_hint_m is not None:
-            w = 10.0 if window_m is None else float(window_m)
-            lo = max(0, int(np.searchsorted(self.s_m, s_hint_m - w, side="right")) - 1)
-            hi = min(len(self) - 1, int(np.searchsorted(self.s_m, s_hint_m + w, side="left")) + 1)
-            hi = max(hi, lo + 1)
-        a_n = self.north_m[lo:hi]
-        a_e = self.east_m[lo:hi]
-        d = self._d[lo:hi]
-        dq_n = north_m - a_n
-        dq_e = east_m - a_e
-        t = np.clip((dq_n * d[:, 0] + dq_e * d[:, 1]) / self._d2[lo:hi], 0.0, 1.0)
-        r_n = dq_n - t * d[:, 0]
-        r_e = dq_e - t * d[:, 1]
-        j = int(np.argmin(r_n * r_n + r_e * r_e))
-        i = lo + j
-        dist = float(np.hypot(r_n[j], r_e[j]))
-        # sign: cross(direction, vessel - point) in the (north, east) plane; > 0 = starboard
-        cross = d[j, 0] * dq_e[j] - d[j, 1] * dq_n[j]
-        cte = dist if cross >= 0 else -dist
-        tj = float(t[j])
-        s = float(self.s_m[i] + tj * (self.s_m[i + 1] - self.s_m[i]))
-        hdg = float(wrap_angle(self._heading_unwrapped[i] + tj * (self._heading_unwrapped[i + 1]
-                                                              - self._heading_unwrapped[i])))
-        return Projection(s_m=s, cross_track_error_m=cte, index=i, heading_rad=hdg)
+            lo, hi = search_window(self.s_m, float(s_hint_m), 10.0 if window_m is None else float(window_m))
+        s, cte, hdg, i = project_window(float(north_m), float(east_m), self.north_m, self.east_m, self.s_m,
+                                        self._heading_unwrapped, lo, hi)
+        hdg = float(wrap_angle(hdg))
+        return Projection(s_m=float(s), cross_track_error_m=float(cte), index=int(i), heading_rad=hdg)
 
     # -- serialisation -----------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -177,3 +157,4 @@ class Path:
             except TypeError as exc:
                 raise ConfigError(f"path.segments[{i}]: {exc}") from None
         return cls(**arrays, segments=tuple(segs))
+

@@ -315,22 +315,38 @@ class ThrusterMonitor(Monitor):
     ramp limit; zero while the ESCs are not armed), driven by the commands as they were sent and
     stepped to each tachometer sample. A failed ESC, a fouled or lost propeller or a broken
     tachometer shows as a persistent disagreement; a propeller that is still spinning up after a
-    commanded reversal does not."""
+    commanded reversal does not. Two conditions, either declares the fault:
+
+    * sample by sample: every tachometer sample for thruster_persist_s off the band of modelled
+      speeds (over the latency window) by more than the tolerance;
+    * on average: over the last 2 x thruster_persist_s the propeller turned at less than a quarter
+      of the modelled mean speed while that mean is above thruster_mismatch_min_rps (a stopped
+      motor). In a turn the MPC drives a propeller in short pulses around zero: between the
+      pulses a stopped motor and a running one read alike, so the sample-by-sample persistence
+      restarts at every pulse and declares a dead motor late or never; the mean does not.
+    """
 
     name = "thruster"
     severity = "error"
+    _NAMES = ("azimuth 1", "azimuth 2", "bow")
+    _STOPPED_FRACTION = 0.25
 
     def __init__(self, cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> None:
-        super().__init__(cfg.thruster_persist_s, 2.0, _in(UNDER_WAY, cfg.thruster_fault_action))
+        # the persistence is in the two conditions (per sample, over the mean window), not the timer's
+        super().__init__(0.0, 2.0, _in(UNDER_WAY, cfg.thruster_fault_action))
         self.limits = limits
         self.frac = cfg.thruster_mismatch_frac
         self.min_rps = cfg.thruster_mismatch_min_rps
+        self.window_s = 2.0 * cfg.thruster_persist_s
         self.model_n = [0.0, 0.0, 0.0]
         self.latency_s = cfg.thruster_latency_s
         self._history: deque[tuple[float, list[float]]] = deque()  # (t, model_n) over the latency window
         self._t: float | None = None
         self._cmd = (0.0, 0.0, 0.0)
-        self.mismatch = ""
+        self._off = PersistentCondition(cfg.thruster_persist_s, 0.0)  # on the latest sample, at the control ticks
+        self._speeds: list[deque[tuple[float, float, float]]] = [deque() for _ in range(3)]  # (t, |meas|, |model|)
+        self.mismatch = ""  # the latest sample off the band (propellers and speeds)
+        self.stopped = ""  # a propeller stopped on average over the window
 
     def on_command(self, cmd: ThrustCommand, t: float, escs_armed: bool) -> None:
         """A command leaving the supervisor at t: advance the model to t with the previous one."""
@@ -357,20 +373,34 @@ class ThrusterMonitor(Monitor):
         return min(values), max(values)
 
     def on_rpm(self, msg: RpmSample, actuators: ActuatorState | None) -> None:
-        self._advance(msg.stamp_s)
-        bad = []
-        for j, (name, meas) in enumerate((("azimuth 1", msg.n1_rps), ("azimuth 2", msg.n2_rps), ("bow", msg.nt_rps))):
+        t = msg.stamp_s
+        self._advance(t)
+        bad, stopped = [], []
+        for j, meas in enumerate((msg.n1_rps, msg.n2_rps, msg.nt_rps)):
             if not math.isfinite(meas):
                 continue
             lo, hi = self.expected_band(j)
             want = self.model_n[j]
             off = lo - meas if meas < lo else meas - hi if meas > hi else 0.0
             if off > max(self.frac * abs(want), self.min_rps):
-                bad.append(f"{name} {meas:.0f} rev/s, expected {want:.0f}")
+                bad.append(f"{self._NAMES[j]} {meas:.0f} rev/s, expected {want:.0f}")
+            speeds = self._speeds[j]
+            speeds.append((t, abs(meas), abs(want)))
+            while speeds[0][0] < t - self.window_s:
+                speeds.popleft()
+            if t - speeds[0][0] >= self.window_s - 0.06:  # a full window (tachometers at 20 Hz or faster)
+                mean_meas = sum(s[1] for s in speeds) / len(speeds)
+                mean_model = sum(s[2] for s in speeds) / len(speeds)
+                if mean_model > self.min_rps and mean_meas < self._STOPPED_FRACTION * mean_model:
+                    stopped.append(f"{self._NAMES[j]} {mean_meas:.0f} rev/s on average over {self.window_s:g} s, "
+                                   f"expected {mean_model:.0f}")
         self.mismatch = "; ".join(bad)
+        self.stopped = "; ".join(stopped)
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
-        return bool(self.mismatch), self.mismatch
+        if self._off.update(bool(self.mismatch), t):
+            return True, self.mismatch or self.stopped
+        return bool(self.stopped), self.stopped
 
 
 class BatteryMonitor(Monitor):

@@ -585,7 +585,9 @@ class SupervisorNode(Node):
                 self.counters["controller_fallbacks"] += 1
                 self._flag(mon.name, True, f"{self.follower.name}: {mon.reason}; fallback {fallback}", mon.severity)
                 self.fallback = self._make_follower(fallback)
-                self.fallback.reset(self.active_path)
+                # take over where the boat is: from 0 the fallback would re-localise from the start
+                # of the path (metres of false cross-track error, a wrong branch of a figure eight)
+                self.fallback.reset(self.active_path, progress_m=self.follower.progress_m)
             else:
                 self._flag(mon.name, True, f"fallback {self.fallback.name} failed too: {mon.reason}", mon.severity)
                 self.stop("failsafe: controller and fallback failed")

@@ -77,3 +77,58 @@ def test_station_keeping_returns_to_the_target_and_turns_on_the_spot():
     errs, cmds = _hold(Environment(), 40.0, [1.0, -1.0, 1.0, 0.0, 0.0, 0.0], HoldTarget(0.0, 0.0, 0.0))
     assert errs[-1, 0] < 0.05 and errs[-1, 1] < math.radians(2.0)
     assert_commands_within_limits(cmds)
+
+
+def _figure_eight():
+    """The closed figure eight of the examples: it starts at its crossing (20, 20) and passes it
+    again half way, on the other branch (s ~ 48.2 m)."""
+    from lotsen.planning import plan_route
+    from lotsen.planning.io import load_route
+    from lotsen.stack.stack import example_route
+
+    return plan_route(load_route(example_route("figure_eight_loop")))
+
+
+@pytest.mark.parametrize("cls", FALLBACKS)
+def test_a_fallback_taking_over_at_the_crossing_localises_on_the_boats_branch(cls):
+    """A fallback reset with the failed controller's progress (the boat at the figure eight's
+    crossing, on its second pass) follows that branch: progress, heading and cross-track continue
+    where the boat is. From progress 0 it would take the first branch there (heading ~90 deg off)."""
+    from lotsen.messages import VesselState
+
+    path = _figure_eight()
+    s_cross = 0.5 * path.length_m
+    p = path.sample(s_cross)
+    state = VesselState(stamp_s=0.0, north_m=p.north_m, east_m=p.east_m, heading_rad=p.heading_rad,
+                        u_mps=0.5, v_mps=0.0, r_radps=0.0)
+    c = cls()
+    c.reset(path, progress_m=s_cross - 0.3)  # the last localisation, a few steps back
+    _cmd, st = c.update(0.0, state)
+    assert st.progress_m == pytest.approx(s_cross, abs=0.05)
+    assert c.progress_m == pytest.approx(s_cross, abs=0.05)
+    assert abs(st.cross_track_error_m) < 0.05
+    assert abs(st.heading_error_rad) < math.radians(2.0)
+    # and the other branch at the same point is really elsewhere: the test can tell them apart
+    first = path.project(p.north_m, p.east_m, s_hint_m=0.0, window_m=1.0)
+    assert abs(math.remainder(first.heading_rad - p.heading_rad, 2 * math.pi)) > math.radians(30.0)
+
+
+def test_los_taking_over_under_way_keeps_the_crab_angle():
+    """Bumpless transfer: the LOS integral starts at the value whose guidance heading is the one
+    the boat holds (crabbing 10 deg into a current), not at zero (which turns it down-current)."""
+    from lotsen.messages import VesselState
+
+    path = straight_path(30.0)
+    crab = math.radians(-10.0)
+    state = VesselState(stamp_s=0.0, north_m=5.0, east_m=0.0, heading_rad=crab, u_mps=0.5, v_mps=0.0,
+                        r_radps=0.0)
+    c = LOSController()
+    c.reset(path, progress_m=5.0)
+    c.update(0.0, state)
+    cfg = c.config
+    psi_d = -math.atan(cfg.integral_gain * c._e_int / cfg.lookahead_m)
+    assert psi_d == pytest.approx(crab, abs=math.radians(1.0))
+    c.reset(path)  # a route started at rest: the integral starts at zero
+    c.update(0.0, VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=crab, u_mps=0.0, v_mps=0.0,
+                              r_radps=0.0))
+    assert abs(c._e_int) < 0.01

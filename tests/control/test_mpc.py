@@ -322,8 +322,9 @@ def test_warm_up_compiles_every_signature_the_control_loop_uses():
     numba = pytest.importorskip("numba")
     from pathlib import Path
 
-    from lotsen.control import base, mpc as mpc_module
+    from lotsen.control import mpc as mpc_module
     from lotsen.model import VesselModel, dynamics
+    from lotsen.model import polyline
     from lotsen.planning import plan_route
     from lotsen.planning.io import load_route
     from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
@@ -333,9 +334,9 @@ def test_warm_up_compiles_every_signature_the_control_loop_uses():
     follower = MPCController(model, config=NO_TIME_LIMIT)
     follower.warm_up()
     assert follower.path is None and follower.solve_times_ms == []
-    jitted = {f"{m.__name__}.{n}": f for m in (mpc_module, base, dynamics) for n, f in vars(m).items()
+    jitted = {f"{m.__name__}.{n}": f for m in (mpc_module, polyline, dynamics) for n, f in vars(m).items()
               if isinstance(f, numba.core.registry.CPUDispatcher) and f.__module__ == m.__name__}
-    assert "lotsen.control.base._project_window" in jitted
+    assert "lotsen.model.polyline.project_window" in jitted
     before = {n: len(f.overloads) for n, f in jitted.items()}
     path = plan_route(load_route(Path(__file__).resolve().parents[2] / "examples" / "routes" / "figure_eight.yaml"))
     env = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)

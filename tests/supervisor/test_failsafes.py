@@ -163,3 +163,16 @@ def test_estimator_heading_loss_stops_every_mode_that_needs_a_heading():
     stops = {m for m in modes if mon.action_for(modes[m]) is FailsafeAction.STOP}
     assert stops == {m for m, mode in modes.items() if mode.requires_heading} == {"AUTO", "RETURN", "HOLD", "CALIBRATE",
                                                                                   "EXPERIMENT"}
+
+
+def test_a_dead_motor_driven_in_short_astern_pulses_is_declared():
+    """In a turn the MPC drives a propeller in short astern pulses around zero (bench azimuth_failure,
+    seed 2). Between the pulses a stopped motor reads like a running one, so the sample-by-sample
+    persistence restarts at every pulse and never declares it; the mean speed over 2 x persist_s
+    does, once the window is full, and the same pulses on a healthy motor raise nothing."""
+    persist = FailsafeConfig().thruster_persist_s
+    for pulse in ([-32.0, -18.0, 3.0, 3.0, 3.0], [-35.0, -26.0, -13.0, 3.0, 3.0]):
+        commands = pulse * 40
+        active = drive(commands, failed=(0,), delay_s=0.1)
+        assert active and active[0] <= 2.0 * persist + 0.15, (pulse, active[:1])
+        assert drive(commands, delay_s=0.1) == []
