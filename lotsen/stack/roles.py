@@ -363,12 +363,15 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
 def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
     from lotsen.stack.planner_worker import PlannerWorker
     from lotsen.stack.web import add_web
+    from lotsen.web.telemetry import TOPICS as PAGE_TOPICS
 
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
+    # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
+    # its messages, and the page shows none of them; decoding them was most of this process's CPU
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
-            subscribe=("core/**", "recorder/log", "launcher/log"))
+            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", "launcher/log"))
     worker = PlannerWorker(planning_budget(config))
     stack.on_shutdown(worker.close)
     add_web(stack, run_blocking=worker.run, tls=tls)
