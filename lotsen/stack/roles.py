@@ -334,7 +334,10 @@ def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     from lotsen.stack.launch import build_stack, summary
 
     opts = process_options(config)
-    stack = build_stack(config, realtime=True, parts=("state", "supervisor"))
+    # the loop and its watchdog start only once build_stack has every compiled kernel ready;
+    # how far that is goes to the console at once (not with the banner, sent when ready)
+    stack = build_stack(config, realtime=True, parts=("state", "supervisor"),
+                        progress=lambda line: print(f"lotsen core: {line}", flush=True))
     sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
     _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources))
     watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
@@ -355,7 +358,8 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
-    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",))
+    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",),
+            wait_for_router=True)
     add_recorder(stack)
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
@@ -368,14 +372,18 @@ def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False)
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
+    worker = PlannerWorker(planning_budget(config))
+    stack.on_shutdown(worker.close)
+    # the page first: it answers while the core is still starting (what the page publishes waits
+    # in the executor's queue until the loop below runs)
+    add_web(stack, run_blocking=worker.run, tls=tls)
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
-            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", "launcher/log"))
-    worker = PlannerWorker(planning_budget(config))
-    stack.on_shutdown(worker.close)
-    add_web(stack, run_blocking=worker.run, tls=tls)
-    # the worker after the server is up: a web process that cannot serve ends with its one error
+            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", "launcher/log"),
+            wait_for_router=True)
+    # the worker once the core is up (it would compete with the core's start for the CPU); after
+    # the server: a web process that cannot serve ends with its one error
     threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
 
@@ -389,7 +397,7 @@ def ros2_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
     _bridge(stack, vessel="ros2", mode="client", connect=(endpoint,), publish=(*ROS2_TOPICS, Topic.LOG),
-            subscribe=("core/**",))
+            subscribe=("core/**",), wait_for_router=True)
     bridge = Ros2Bridge(ros2_config(config))
     stack.add(bridge)
     stack.on_shutdown(bridge.close)
@@ -403,7 +411,8 @@ def foxglove_main(config: LaunchConfig, endpoint: str, ready: Any, port: int = 8
     opts = process_options(config)
     apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
-    _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",))
+    _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",),
+            wait_for_router=True)
     add_foxglove_server(stack, config.web.host, port)
     _run_until_stopped(stack, ready, {"banner": stack.services.get("banner", [])})
 

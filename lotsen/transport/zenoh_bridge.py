@@ -58,6 +58,9 @@ class BridgeConfig:
     # wake-up per burst (a sensor tick publishes several topics), not one per message
     send_batch_s: float = 0.01
     latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
+    # a client that starts before its router (the processes of a run start side by side): keep
+    # trying to connect (opening the session waits for the router) instead of failing at once
+    wait_for_router: bool = False
 
 
 def zenoh_config(cfg: BridgeConfig) -> Any:
@@ -75,6 +78,9 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     c.insert_json5("scouting/gossip/enabled", json.dumps(bool(cfg.gossip_scouting)))
     c.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
     c.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    if cfg.wait_for_router:
+        c.insert_json5("connect/timeout_ms", "-1")
+        c.insert_json5("connect/exit_on_failure", "false")
     # the latched topics' cache orders its samples by timestamp
     c.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return c
