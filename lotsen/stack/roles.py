@@ -334,6 +334,9 @@ def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     from lotsen.stack.launch import build_stack, summary
 
     opts = process_options(config)
+    # ahead of the edge processes, which start at the same time, while the kernels load (the
+    # real-time priority and the CPU come with apply_core_priority, once the loop is ready)
+    _set_nice(opts.core_nice)
     # the loop and its watchdog start only once build_stack has every compiled kernel ready;
     # how far that is goes to the console at once (not with the banner, sent when ready)
     stack = build_stack(config, realtime=True, parts=("state", "supervisor"),
