@@ -52,15 +52,13 @@ def build_parser(commands: tuple[str, ...] | None = None) -> argparse.ArgumentPa
     parser = argparse.ArgumentParser(prog="lotsen", description="lotsen - model-based autonomy for small surface vessels")
     parser.add_argument("--version", action="version", version=f"lotsen {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    loaded: set[str] = set()
-    for name, (module_name, help_line) in COMMANDS.items():
-        if name in sub.choices:
-            continue  # registered by a module loaded for an earlier command
-        if commands is None or name in commands:
-            if module_name not in loaded and _register(sub, module_name):
-                loaded.add(module_name)
-            continue
-        sub.add_parser(name, help=help_line, add_help=False)  # listed only; never parsed
+    wanted = COMMAND_MODULES if commands is None else \
+        tuple(dict.fromkeys(COMMANDS[c][0] for c in commands if c in COMMANDS))
+    for module_name in wanted:
+        _register(sub, module_name)
+    for name, (_, help_line) in COMMANDS.items():
+        if name not in sub.choices:  # listed only; never parsed (its module is not loaded)
+            sub.add_parser(name, help=help_line, add_help=False)
     return parser
 
 
