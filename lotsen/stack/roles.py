@@ -361,8 +361,9 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
+    # the core's whole stream (300+ messages a second): taken in batches, not one thread switch each
     _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",),
-            wait_for_router=True)
+            wait_for_router=True, receive="poll", drain_period_s=0.05)
     add_recorder(stack)
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
@@ -384,7 +385,7 @@ def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False)
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
             subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", "launcher/log"),
-            wait_for_router=True)
+            wait_for_router=True, receive="poll", drain_period_s=0.05)
     # the worker once the core is up (it would compete with the core's start for the CPU); after
     # the server: a web process that cannot serve ends with its one error
     threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
@@ -415,7 +416,7 @@ def foxglove_main(config: LaunchConfig, endpoint: str, ready: Any, port: int = 8
     apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
     _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",),
-            wait_for_router=True)
+            wait_for_router=True, receive="poll", drain_period_s=0.05)
     add_foxglove_server(stack, config.web.host, port)
     _run_until_stopped(stack, ready, {"banner": stack.services.get("banner", [])})
 

@@ -61,6 +61,12 @@ class BridgeConfig:
     # a client that starts before its router (the processes of a run start side by side): keep
     # trying to connect (opening the session waits for the router) instead of failing at once
     wait_for_router: bool = False
+    # how received samples reach the bus: "callback" (Zenoh's thread decodes each one and wakes
+    # the executor: the lowest latency, for the core's few operator commands) or "poll" (samples
+    # wait in a drop-oldest ring of queue_maxlen and the executor takes them every
+    # drain_period_s: no thread switch per sample, for a process that receives the core's
+    # whole stream, e.g. the recorder)
+    receive: Literal["callback", "poll"] = "callback"
 
 
 def zenoh_config(cfg: BridgeConfig) -> Any:
@@ -78,7 +84,7 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     c.insert_json5("scouting/gossip/enabled", json.dumps(bool(cfg.gossip_scouting)))
     c.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
     c.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
-    if cfg.wait_for_router:
+    if getattr(cfg, "wait_for_router", False):  # BridgeConfig; the ROS 2 bridge shares this function
         c.insert_json5("connect/timeout_ms", "-1")
         c.insert_json5("connect/exit_on_failure", "false")
     # the latched topics' cache orders its samples by timestamp
@@ -130,8 +136,10 @@ class ZenohBridge(Node):
             key = f"{config.key_prefix}/{pattern.strip('/')}"
             # an advanced subscriber: live samples, plus the cached last sample of every latched
             # publisher it detects (now or when that publisher appears)
+            handler = self._on_sample if config.receive == "callback" else zenoh.handlers.RingChannel(
+                config.queue_maxlen)
             self._subs.append(ext.declare_advanced_subscriber(
-                self.session, key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE,
+                self.session, key, handler, allowed_origin=zenoh.Locality.REMOTE,
                 history=ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
                 recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None)))
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
@@ -145,7 +153,8 @@ class ZenohBridge(Node):
             msg = ctx.bus.latest.get(topic)
             if msg is not None:
                 self._on_local(topic, msg)
-        self._wake = getattr(ctx.executor, "call_soon_threadsafe", None)
+        if self.config.receive == "callback":
+            self._wake = getattr(ctx.executor, "call_soon_threadsafe", None)
         ctx.add_timer(self.config.drain_period_s, self.drain)
         self._request_drain()  # what arrived before the start
 
@@ -165,6 +174,10 @@ class ZenohBridge(Node):
     def drain(self) -> int:
         """Publish received messages on the local bus (executor thread)."""
         self._drain_pending.clear()  # before taking: a message arriving now asks for another drain
+        if self.config.receive == "poll":
+            for sub in self._subs:
+                while (sample := sub.try_recv()) is not None:
+                    self._on_sample(sample)
         items = self._in.get_all()
         self.stats.dropped_in = self._in.dropped
         if not items:
