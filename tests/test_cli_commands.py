@@ -53,3 +53,9 @@ def test_help_imports_no_numerical_library():
 def test_help_lists_every_command():
     r = subprocess.run([sys.executable, "-m", "lotsen", "--help"], capture_output=True, text=True)
     assert r.returncode == 0 and "calibrate-mag" in r.stdout and "recover" in r.stdout
+
+
+def test_a_module_with_several_commands_is_loaded_for_any_of_them():
+    for command in ("replay", "export", "record"):
+        parser = build_parser((command,))
+        assert set(parser._subparsers._group_actions[0].choices) == set(COMMANDS)

@@ -54,11 +54,13 @@ def build_parser(commands: tuple[str, ...] | None = None) -> argparse.ArgumentPa
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     # the modules of the wanted commands first: a module registers all its commands (logs: export,
     # replay, record, ...), which must not meet a placeholder of the same name
-    for module_name in dict.fromkeys(m for name, (m, _) in COMMANDS.items() if commands is None or name in commands):
+    wanted = COMMAND_MODULES if commands is None else \
+        tuple(dict.fromkeys(COMMANDS[c][0] for c in commands if c in COMMANDS))
+    for module_name in wanted:
         _register(sub, module_name)
-    for name, (module_name, help_line) in COMMANDS.items():
-        if name not in sub.choices:
-            sub.add_parser(name, help=help_line, add_help=False)  # listed only; never parsed
+    for name, (_, help_line) in COMMANDS.items():
+        if name not in sub.choices:  # listed only; never parsed (its module is not loaded)
+            sub.add_parser(name, help=help_line, add_help=False)
     return parser
 
 

@@ -17,9 +17,11 @@ from pathlib import Path
 
 from lotsen.runtime.config import BoatSection, LaunchConfig, load_config
 from lotsen.runtime.lifetime import RunLock
-from lotsen.stack.logs import add_foxglove_server, recover_unclosed_logs
-from lotsen.stack.processes import Launcher, freeze_heap, run_identities, validate
-from lotsen.stack.stack import simulated_boat, vessel_model
+from lotsen.stack.identity import run_identities
+
+# Only what the run lock needs is imported above: a second run on the same boat is refused
+# before the launcher's modules (numpy, shapely, the web's options, ...) are loaded. Those are
+# imported in the functions below, after the lock is taken.
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -64,6 +66,8 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     if lock is not None:
         lock.identities = run_identities(config)
         lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
+    from lotsen.stack.processes import validate
+
     validate(config, tls=bool(getattr(args, "tls", False)))
     return config, generated
 
@@ -91,6 +95,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, lock: RunLock) -> int:
     config, generated = launch_config(args, lock)
+    from lotsen.stack import processes
+    from lotsen.stack.logs import recover_unclosed_logs
+    from lotsen.stack.stack import simulated_boat, vessel_model
+
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
     if generated and config.web.enabled:
@@ -99,9 +107,9 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         return _run_one_process(config, args, lock)
     roles = ("core", "recorder") + (("web",) if config.web.enabled else ()) + \
         (("foxglove",) if args.foxglove is not None else ()) + (("ros2",) if "ros2" in config.extra else ())
-    launcher = Launcher(config, roles, role_kwargs={"web": {"tls": bool(args.tls)},
-                                                    "foxglove": {"port": args.foxglove or 8765}},
-                        out=lambda line: print(line, flush=True), lock=lock)
+    launcher = processes.Launcher(config, roles, role_kwargs={"web": {"tls": bool(args.tls)},
+                                                              "foxglove": {"port": args.foxglove or 8765}},
+                                  out=lambda line: print(line, flush=True), lock=lock)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
@@ -121,6 +129,8 @@ def _run_one_process(config: LaunchConfig, args: argparse.Namespace, lock: RunLo
     # the whole stack only here: the launcher of the processes (the usual path) does not run it,
     # and a second run is refused (RunLock) before the control stack's libraries are loaded
     from lotsen.stack.launch import build_stack, summary
+    from lotsen.stack.logs import add_foxglove_server
+    from lotsen.stack.processes import freeze_heap
 
     stack = build_stack(config, realtime=True)
     if "web" in stack.services:

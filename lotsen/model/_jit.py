@@ -64,8 +64,12 @@ def activate() -> None:
     with _activation:
         if _active:
             return
-        for kernel in _kernels:
-            kernel.dispatcher = _numba_njit(kernel.py_func)
+        try:
+            for kernel in _kernels:
+                kernel.dispatcher = _numba_njit(kernel.py_func)
+        except ImportError:  # numba installed but unusable: the same functions as Python
+            for kernel in _kernels:
+                kernel.dispatcher = kernel.py_func
         for name, module in list(sys.modules.items()):
             if module is None or not (name == "lotsen" or name.startswith("lotsen.")):
                 continue
@@ -79,7 +83,10 @@ def njit(fn: Callable[..., Any]) -> Callable[..., Any]:
     if not JIT_ENABLED:
         return fn
     if _active:
-        return _numba_njit(fn)
+        try:
+            return _numba_njit(fn)
+        except ImportError:
+            return fn
     kernel = LazyKernel(fn)
     _kernels.append(kernel)
     return kernel

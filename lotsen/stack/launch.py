@@ -10,6 +10,7 @@ stack is the top of the package graph and nothing below imports it.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -60,19 +61,27 @@ def add_boat(stack: Stack, simulator: Simulator | None = None, truth_rate_hz: fl
 
 
 def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | None = None, *,
-                executor: Executor | None = None, harness: Harness | None = None) -> Stack:
+                executor: Executor | None = None, harness: Harness | None = None,
+                progress: Callable[[str], None] | None = None) -> Stack:
     """The whole stack for `config`. `parts` limits the optional parts (None = all). `harness`
-    replaces pieces for the closed-loop harnesses (simulator, estimator, controllers, model)."""
+    replaces pieces for the closed-loop harnesses (simulator, estimator, controllers, model).
+
+    `realtime`: every compiled kernel the loop calls is compiled (or loaded from numba's cache)
+    here, before the loop and its watchdog start; `progress` hears how far that is (the first
+    start after install compiles for about a minute, a warm start loads in about a second)."""
     h = harness or Harness()
     executor = executor or (RealtimeExecutor() if realtime else SimExecutor())
     stack = Stack(config=config, executor=executor, model=h.model or vessel_model(config),
                   origin=resolve_origin(config))
+    warm = KernelWarmUp(progress if realtime else None, 3 + (config.mode == "sim"))
     if realtime:
-        stack.model.warm_up()  # numba compiles now, not when the operator presses AUTO
-        advance_motors((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1)  # the thruster monitor's and the EKF's motor model
+        warm.step("vessel model", stack.model.warm_up)  # numba compiles now, not when the operator presses AUTO
+        # the thruster monitor's and the EKF's motor model
+        warm.step("motor model", lambda: advance_motors((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1))
     add_boat(stack, h.simulator, h.truth_rate_hz)
     if realtime and stack.simulator is not None:
-        stack.simulator.warm_up()  # the simulated boat's plant step: compiled before the loop's first tick
+        # the simulated boat's plant step: compiled before the loop's first tick
+        warm.step("simulated boat", stack.simulator.warm_up)
     for name, adder in PARTS.items():
         if parts is None or name in parts:
             if name == "state":
@@ -83,9 +92,32 @@ def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | N
                 adder(stack)
     supervisor = stack.nodes.get("supervisor")
     warm_up = getattr(getattr(supervisor, "follower", None), "warm_up", None)
-    if realtime and warm_up is not None:
-        warm_up()  # the path follower's jitted step too (the MPC's first step compiles ~0.3 s)
+    if realtime:
+        # the path follower's jitted step too (the MPC's first step compiles ~0.3 s)
+        warm.step("path follower", warm_up or (lambda: None))
     return stack
+
+
+class KernelWarmUp:
+    """Runs the warm-up steps and tells `progress` about them: one line before the first, then
+    a line per step that took long enough to be compiling (the first start after install)."""
+
+    def __init__(self, progress: Callable[[str], None] | None, steps: int, slow_s: float = 0.5) -> None:
+        self.progress = progress
+        self.steps = steps
+        self.slow_s = slow_s
+        self.done = 0
+
+    def step(self, what: str, fn: Callable[[], object]) -> None:
+        if self.progress is not None and self.done == 0:
+            self.progress(f"preparing {self.steps} groups of compiled kernels (loaded from the cache; "
+                          "the first start after install compiles them, about a minute)")
+        t0 = time.perf_counter()
+        fn()
+        self.done += 1
+        took_s = time.perf_counter() - t0
+        if self.progress is not None and took_s >= self.slow_s:
+            self.progress(f"compiled kernels {self.done}/{self.steps} ready: {what} ({took_s:.1f} s)")
 
 
 def summary(stack: Stack) -> str:

@@ -3,8 +3,8 @@
 The processes talk only through Zenoh (lotsen.transport): the core publishes every topic and
 accepts from the edge only the operator's topics coming from the web process. An edge process
 may crash, hang or be flooded; the core notices only through its link monitors and keeps its
-10 Hz and its failsafe table. The launcher starts the core first, then the edge, restarts a dead
-edge process (logged), stops everything when the core ends (neutral pulses from the launcher
+10 Hz and its failsafe table. The launcher starts every process at once (the edge connects to
+the core's router when it is up), restarts a dead edge process (logged), stops everything when the core ends (neutral pulses from the launcher
 on the hardware), and stops the core first on the way out so the recorder keeps its last words.
 Every child ends with the launcher however it ends (`die_with_parent`: SIGTERM, so the core's
 neutral and the recorder's closed file). All processes stamp on one clock (LOTSEN_CLOCK_T0).
@@ -26,7 +26,7 @@ from lotsen.messages import LogEvent
 from lotsen.runtime.clock import CLOCK_ENV
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.lifetime import RunLock
-from lotsen.sim.boat import DEFAULT_BOAT
+from lotsen.stack.identity import run_identities  # noqa: F401 - part of the launcher's interface
 from lotsen.stack.logs import recorder_config
 from lotsen.stack.roles import (  # noqa: F401 - ProcessOptions ... free_port: the options of `lotsen run`
     ROLES, ProcessOptions, apply_core_priority, child_main, free_port, freeze_heap, planning_budget,
@@ -139,13 +139,16 @@ class Launcher:
         return self._note(list(info.get("banner", [])))
 
     def start(self) -> None:
-        """The core first (the Zenoh router lives there), then the edge processes side by side."""
-        for line in self._spawn(self.children["core"]):
+        """Every process at once: the edge processes connect to the core's Zenoh router when it
+        is up (the web page answers while the core still prepares its kernels). The core's
+        banner first, then the edge's; a core that fails to start stops the run (`stop`)."""
+        conns = {role: self._launch(child) for role, child in self.children.items()}
+        for line in self._wait_ready(self.children["core"], conns["core"]):
             self.out(line)
-        edges = [(c, self._launch(c)) for r, c in self.children.items() if r != "core"]
-        for child, conn in edges:
-            for line in self._wait_ready(child, conn):
-                self.out(line)
+        for role, child in self.children.items():
+            if role != "core":
+                for line in self._wait_ready(child, conns[role]):
+                    self.out(line)
         self._open_log()
 
     def _open_log(self) -> None:
@@ -226,28 +229,6 @@ class Launcher:
 
     def pids(self) -> dict[str, int]:
         return {r: c.proc.pid for r, c in self.children.items() if c.proc is not None}
-
-
-def run_identities(config: LaunchConfig) -> list[str]:
-    """What makes two runs the same boat (one run per boat, `RunLock`): in simulation the
-    simulated boat's name; on the hardware every device the run would open (serial ports, I2C
-    addresses, pigpiod's pins). Emulated devices live in the run's core: their runs are told
-    apart by the same names under "emulated"."""
-    if config.mode == "sim":
-        b = config.sim.boat
-        return [f"sim boat {b.name or ('ideal model' if b.ideal else DEFAULT_BOAT.name)}"]
-    hw = hardware_config_from_launch(config.extra)
-    kind = "emulated" if config.extra.get("emulated") else "hardware"
-    ids = []
-    if hw.gnss.enabled:
-        ids += [f"{kind} serial {port}" for port in (hw.gnss.port, hw.gnss.rtcm_port, hw.gnss.base_port) if port]
-    if hw.imu.enabled:
-        ids.append(f"{kind} i2c {hw.imu.bus} 0x{hw.imu.address:02x}")
-    if hw.battery.enabled:
-        ids.append(f"{kind} i2c {hw.battery.bus} 0x{hw.battery.address:02x}")
-    if hw.actuators.enabled:
-        ids.append(f"{kind} pigpio {hw.actuators.pigpio_host}:{hw.actuators.pigpio_port}")
-    return ids or [f"{kind} boat"]
 
 
 def validate(config: LaunchConfig, tls: bool = False) -> None:

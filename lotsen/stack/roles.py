@@ -50,6 +50,8 @@ OPERATOR_TOPICS = (Topic.OPERATOR, Topic.MANUAL, Topic.LINK, Topic.ROUTE)
 #: ... and from the ROS 2 process: operator commands that passed its token gate (CommandGate)
 ROS2_TOPICS = (Topic.OPERATOR,)
 ROLES = ("core", "recorder", "web", "foxglove", "ros2")
+#: how long the core's bridge gathers outgoing messages before it sends them (see core_main)
+CORE_SEND_BATCH_S = 0.05
 #: what the ROS 2 process publishes to ROS 2 by default (the seed's Table 3 and the status)
 ROS2_DEFAULT_PUBLISH = (Topic.IMU_RAW, Topic.IMU_MAG, Topic.GNSS, Topic.RPM, Topic.STATE, Topic.SENS_FUS,
                         Topic.PATH, Topic.SHIP_COMMAND, Topic.VELOCITY_COMMAND, Topic.ANGLE_COMMAND,
@@ -334,9 +336,19 @@ def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     from lotsen.stack.launch import build_stack, summary
 
     opts = process_options(config)
-    stack = build_stack(config, realtime=True, parts=("state", "supervisor"))
+    # ahead of the edge processes, which start at the same time, while the kernels load (the
+    # real-time priority and the CPU come with apply_core_priority, once the loop is ready)
+    _set_nice(opts.core_nice)
+    # the loop and its watchdog start only once build_stack has every compiled kernel ready;
+    # how far that is goes to the console at once (not with the banner, sent when ready)
+    stack = build_stack(config, realtime=True, parts=("state", "supervisor"),
+                        progress=lambda line: print(f"lotsen core: {line}", flush=True))
     sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
-    _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources))
+    # every topic out in 50 ms batches: Zenoh then packs a batch into few frames (the core's
+    # sending thread and the edge's receiving threads wake 20 times a second, not 100 and more);
+    # the edge sees the telemetry up to 50 ms later, its stamps are the core's
+    _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources),
+            send_batch_s=CORE_SEND_BATCH_S)
     watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
     stack.on_shutdown(watchdog.stop)
     stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
@@ -355,7 +367,9 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
-    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",))
+    # the core's whole stream (300+ messages a second): taken in batches, not one thread switch each
+    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",),
+            wait_for_router=True, receive="poll", drain_period_s=0.05)
     add_recorder(stack)
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
@@ -363,16 +377,23 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
 def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
     from lotsen.stack.planner_worker import PlannerWorker
     from lotsen.stack.web import add_web
+    from lotsen.web.telemetry import TOPICS as PAGE_TOPICS
 
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
-    _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
-            subscribe=("core/**", "recorder/log", "launcher/log"))
     worker = PlannerWorker(planning_budget(config))
     stack.on_shutdown(worker.close)
+    # the page first: it answers while the core is still starting (what the page publishes waits
+    # in the executor's queue until the loop below runs)
     add_web(stack, run_blocking=worker.run, tls=tls)
-    # the worker after the server is up: a web process that cannot serve ends with its one error
+    # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
+    # its messages, and the page shows none of them; decoding them was most of this process's CPU
+    _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", "launcher/log"),
+            wait_for_router=True, receive="poll", drain_period_s=0.05)
+    # the worker once the core is up (it would compete with the core's start for the CPU); after
+    # the server: a web process that cannot serve ends with its one error
     threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
 
@@ -386,7 +407,7 @@ def ros2_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
     _bridge(stack, vessel="ros2", mode="client", connect=(endpoint,), publish=(*ROS2_TOPICS, Topic.LOG),
-            subscribe=("core/**",))
+            subscribe=("core/**",), wait_for_router=True)
     bridge = Ros2Bridge(ros2_config(config))
     stack.add(bridge)
     stack.on_shutdown(bridge.close)
@@ -400,7 +421,8 @@ def foxglove_main(config: LaunchConfig, endpoint: str, ready: Any, port: int = 8
     opts = process_options(config)
     apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
-    _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",))
+    _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",),
+            wait_for_router=True, receive="poll", drain_period_s=0.05)
     add_foxglove_server(stack, config.web.host, port)
     _run_until_stopped(stack, ready, {"banner": stack.services.get("banner", [])})
 

@@ -51,8 +51,22 @@ class BridgeConfig:
     multicast_scouting: bool = False  # never scout by multicast unless explicitly enabled
     gossip_scouting: bool = False
     queue_maxlen: int = 2000
-    drain_period_s: float = 0.005  # how often the node moves received messages onto the bus
+    # received messages reach the bus at once (the receiving thread wakes the executor); this
+    # timer is only a backstop. A 5 ms poll woke every process of a run 200 times a second.
+    drain_period_s: float = 0.1
+    # the sender takes what arrives within this long after a first message in one go: one
+    # wake-up per burst (a sensor tick publishes several topics), not one per message
+    send_batch_s: float = 0.01
     latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
+    # a client that starts before its router (the processes of a run start side by side): keep
+    # trying to connect (opening the session waits for the router) instead of failing at once
+    wait_for_router: bool = False
+    # how received samples reach the bus: "callback" (Zenoh's thread decodes each one and wakes
+    # the executor: the lowest latency, for the core's few operator commands) or "poll" (samples
+    # wait in a drop-oldest ring of queue_maxlen and the executor takes them every
+    # drain_period_s: no thread switch per sample, for a process that receives the core's
+    # whole stream, e.g. the recorder)
+    receive: Literal["callback", "poll"] = "callback"
 
 
 def zenoh_config(cfg: BridgeConfig) -> Any:
@@ -70,6 +84,9 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     c.insert_json5("scouting/gossip/enabled", json.dumps(bool(cfg.gossip_scouting)))
     c.insert_json5("listen/endpoints", json.dumps(list(cfg.listen)))
     c.insert_json5("connect/endpoints", json.dumps(list(cfg.connect)))
+    if getattr(cfg, "wait_for_router", False):  # BridgeConfig; the ROS 2 bridge shares this function
+        c.insert_json5("connect/timeout_ms", "-1")
+        c.insert_json5("connect/exit_on_failure", "false")
     # the latched topics' cache orders its samples by timestamp
     c.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return c
@@ -109,6 +126,8 @@ class ZenohBridge(Node):
         self._publishers: dict[str, Any] = {}
         self._stop = threading.Event()
         self._unsubscribe: Any = None
+        self._wake: Any = None  # the executor's call_soon_threadsafe, once started
+        self._drain_pending = threading.Event()
         self.session = zenoh.open(zenoh_config(config))
         self._subs = []
         from zenoh import ext
@@ -117,8 +136,10 @@ class ZenohBridge(Node):
             key = f"{config.key_prefix}/{pattern.strip('/')}"
             # an advanced subscriber: live samples, plus the cached last sample of every latched
             # publisher it detects (now or when that publisher appears)
+            handler = self._on_sample if config.receive == "callback" else zenoh.handlers.RingChannel(
+                config.queue_maxlen)
             self._subs.append(ext.declare_advanced_subscriber(
-                self.session, key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE,
+                self.session, key, handler, allowed_origin=zenoh.Locality.REMOTE,
                 history=ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
                 recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None)))
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
@@ -132,7 +153,10 @@ class ZenohBridge(Node):
             msg = ctx.bus.latest.get(topic)
             if msg is not None:
                 self._on_local(topic, msg)
+        if self.config.receive == "callback":
+            self._wake = getattr(ctx.executor, "call_soon_threadsafe", None)
         ctx.add_timer(self.config.drain_period_s, self.drain)
+        self._request_drain()  # what arrived before the start
 
     def _on_local(self, topic: str, msg: Any) -> None:
         inj = self._injecting
@@ -141,8 +165,19 @@ class ZenohBridge(Node):
         if self._publish_all or topic in self._publish:
             self._out.put(topic, msg)
 
+    def _request_drain(self) -> None:
+        """From the receiving thread: one drain on the executor thread, unless one is pending."""
+        if self._wake is not None and not self._drain_pending.is_set():
+            self._drain_pending.set()
+            self._wake(self.drain)
+
     def drain(self) -> int:
         """Publish received messages on the local bus (executor thread)."""
+        self._drain_pending.clear()  # before taking: a message arriving now asks for another drain
+        if self.config.receive == "poll":
+            for sub in self._subs:
+                while (sample := sub.try_recv()) is not None:
+                    self._on_sample(sample)
         items = self._in.get_all()
         self.stats.dropped_in = self._in.dropped
         if not items:
@@ -169,6 +204,8 @@ class ZenohBridge(Node):
             item = self._out.get(timeout=0.1)
             if item is None:
                 continue
+            if self.config.send_batch_s > 0:
+                self._stop.wait(self.config.send_batch_s)
             for topic, msg in [item, *self._out.get_all()]:
                 try:
                     data = codec.encode(msg, self.config.encoding, origin=self.origin)
@@ -221,6 +258,7 @@ class ZenohBridge(Node):
         topic = self.config.local_prefix + parts[2]
         self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
         self._in.put(topic, msg)
+        self._request_drain()
 
     def close(self) -> None:
         if self._stop.is_set():

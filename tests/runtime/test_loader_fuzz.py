@@ -214,11 +214,12 @@ from lotsen.cli.main import main  # noqa: E402
 def _run_refused(monkeypatch, capsys, config_text: str, tmp_path) -> str:
     """`lotsen run CONFIG` must refuse before anything starts; the error line it printed."""
     import lotsen.cli.run as run_cli
+    import lotsen.stack.processes as processes
 
     def launched(*a, **k):
         raise AssertionError("the stack was started with a bad config")
 
-    monkeypatch.setattr(run_cli, "Launcher", launched)
+    monkeypatch.setattr(processes, "Launcher", launched)
     monkeypatch.setattr(run_cli, "_run_one_process", launched)
     cfg = tmp_path / "bad.yaml"
     cfg.write_text(config_text)
