@@ -14,7 +14,9 @@ the process touched during the idle window (Referenced after clear_refs).
 Start-up: seconds from the command to the web page answering (HTTP 200 on /) and to the core's
 control loop running (its banner; the watchdog starts then); "cold" with an empty compiled-kernel
 cache (NUMBA_CACHE_DIR), "warm" with the cache the cold start left. Watchdog events: "control
-loop silent" lines in the run's console.
+loop silent" lines in the run's console. Repeated warm starts: 10 in a row, then 20 with two CPU
+burners (`while True: pass`, one per core of this machine) running, each up to the page and the
+control loop and 2 s of running; every start must come up with no watchdog event.
 Targets (issue: what a Raspberry Pi carries): total PSS <= 400 MB, core <= 200 MB, locked
 <= 256 MB, idle CPU <= 12 %, AUTO CPU <= 15 %, warm start page <= 3 s and control <= 5 s, no
 watchdog event.
@@ -25,6 +27,7 @@ from __future__ import annotations
 import os
 import secrets
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -201,6 +204,47 @@ def _start(work: Path, cache: Path, label: str) -> tuple[Run, dict]:
     return run, row
 
 
+def _burners(n: int) -> list[subprocess.Popen]:
+    """`n` processes that keep one core each busy (the "CPU burners" of the start-up check)."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL)
+            for _ in range(n)]
+
+
+def repeated_start_rows(work: Path, cache: Path, starts: int, burners: int) -> list[dict]:
+    """`starts` consecutive warm starts of `lotsen run --sim` with `burners` CPU burners running:
+    each waits for the page and the control loop, lets the loop run 2 s, stops; the watchdog's
+    "control loop silent" lines of every start are counted."""
+    hogs = _burners(burners)
+    page, control, events, failed = [], [], 0, []
+    try:
+        for i in range(starts):
+            d = work / f"start-{burners}-{i}"
+            d.mkdir()
+            run = Run(d, cache)
+            try:
+                page_s = run.wait_page()
+                run.wait_up()
+                time.sleep(2.0)
+            except RuntimeError as exc:
+                failed.append(str(exc).splitlines()[0])
+                continue
+            finally:
+                run.stop()
+                events += run.watchdog_events()
+            page.append(page_s)
+            control.append(run.control_s)
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    return [{"table": "repeated warm starts", "burners": burners, "starts": starts, "started": len(page),
+             "watchdog_events": events, "page_s_median": round(statistics.median(page), 2) if page else None,
+             "page_s_max": round(max(page), 2) if page else None,
+             "control_ready_s_max": round(max(control), 2) if control else None,
+             "failures": "; ".join(failed)[:200], "target": "every start up, 0 watchdog events",
+             "pass": bool(len(page) == starts and events == 0)}]
+
+
 def run(quick: bool = False) -> list[dict]:
     idle_s = 10.0 if quick else 20.0
     rows: list[dict] = []
@@ -263,4 +307,6 @@ def run(quick: bool = False) -> list[dict]:
         warm_row["pass"] = bool(warm_row["page_s"] <= 3.0 and warm_row["control_ready_s"] <= 5.0
                                 and warm_row["watchdog_events"] == 0 and cold_row["watchdog_events"] == 0)
         rows += [cold_row, warm_row] + mem_rows
+        for burners, starts in ((0, 3 if quick else 10), (2, 3 if quick else 20)):
+            rows += repeated_start_rows(Path(tmp), cache, starts, burners)
     return rows
