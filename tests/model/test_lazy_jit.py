@@ -36,6 +36,6 @@ def test_lazy_and_compiled_kernels_give_the_same_step():
                "m = VesselModel()\n"
                "x, u = (0.3, -0.2, 0.1, 0.5, 0.05, 0.02), (0.1, -0.1, 20.0, 22.0, 3.0)\n"
                "a = m.step(x, u, 0.1)\n"
-               "b, _ = _rk4_py(_as_floats(x, NX), _as_floats(u, NU), m.theta, m.geom, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1)\n"
+               "b, _ = _rk4_py(_as_floats(x, NX), _as_floats(u, NU), m.arrays.packed, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1)\n"
                "print(max(abs(p - q) for p, q in zip(a, b)))")
     assert float(out) < 1e-9

@@ -255,7 +255,7 @@ def test_a_client_waits_for_its_router_and_a_received_message_wakes_the_executor
     up; what it receives is published on its bus at once, not at the next backstop drain."""
     from lotsen.runtime import RealtimeExecutor
 
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     opened: list = []
     client_thread = threading.Thread(target=lambda: opened.append(ZenohBridge(BridgeConfig(
         vessel="b", mode="client", connect=(ep,), subscribe=("a/**",), wait_for_router=True,
@@ -289,7 +289,7 @@ def test_a_client_waits_for_its_router_and_a_received_message_wakes_the_executor
 
 
 def test_a_polling_bridge_takes_what_arrived_at_its_drain():
-    ep = f"tcp/127.0.0.1:{_free_port()}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
     ex_a, ex_b = SimExecutor(), SimExecutor()
     a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",)))
     b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=("a/**",), receive="poll",
