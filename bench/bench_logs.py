@@ -24,10 +24,11 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from lotsen.stack.processes import free_port  # noqa: E402  (after the path set-up above)
+
 RECEIVER = r"""
 import json, sys, threading, time
 from lotsen.runtime import RealtimeExecutor
-from lotsen.stack.processes import free_port
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
 ex = RealtimeExecutor()
 br = ZenohBridge(BridgeConfig(vessel="rx", connect=(sys.argv[1],), subscribe=("tx/**",), drain_period_s=0.0005,
