@@ -128,6 +128,41 @@ class StepKernels:
     def run_sens(self) -> None:
         self._ev_sens()
 
+    def run_record(self, theta: Sequence[float], h: np.ndarray, U: np.ndarray, reset: np.ndarray,
+                   reset_step: np.ndarray, reset_states: np.ndarray, need: np.ndarray,
+                   sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """A whole grid of steps (h, U: n_steps x 5, reset) chunk by chunk: the state starts from
+        `reset_states[i]` at step `reset_step[i]` (sorted), and the states (and with `sens` the
+        sensitivities, len(need) x nx x ns) after the steps `need` (sorted) are returned."""
+        L, n_steps = self.chunk, len(h)
+        X = np.empty((len(need), self.nx))
+        S = np.empty((len(need), self.nx, self.ns)) if sens else None
+        self.x0[:] = 0.0
+        self.S0[:] = 0.0
+        self.TH[:] = np.asarray(theta, float)[None, :]
+        for a in range(0, n_steps, L):
+            b = min(a + L, n_steps)
+            n = b - a
+            self.H[:n] = h[a:b]
+            self.H[n:] = 0.0
+            self.U[:n] = U[a:b]
+            self.RS[:n] = reset[a:b]
+            self.RS[n:] = 0.0
+            self.XR[:] = 0.0
+            lo, hi = np.searchsorted(reset_step, [a, b])
+            self.XR[reset_step[lo:hi] - a] = reset_states[lo:hi]
+            i0, i1 = np.searchsorted(need, [a, b])
+            cols = need[i0:i1] - a
+            if sens:
+                self.run_sens()
+                S[i0:i1] = self.S[cols].transpose(0, 2, 1)
+                self.S0[:] = self.S[n - 1]
+            else:
+                self.run_sim()
+            X[i0:i1] = self.X[cols]
+            self.x0[:] = self.X[n - 1]
+        return X, S
+
 
 def step_kernels(geom: tuple[float, ...], chunk: int = CHUNK, lake: bool = False) -> StepKernels:
     """The kernels of a geometry (one set per process, geometry and model; not thread-safe);
@@ -149,42 +184,12 @@ class WindowSimulator:
         self.windows = list(windows)
         self.geom = geometry_tuple(geometry)
         self.grid = make_grid(self.windows, h_max)
-        self.n_steps = len(self.grid.h)
         self.k = step_kernels(self.geom)
 
     def _run(self, theta: Sequence[float], x0s: np.ndarray, sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        g, k = self.grid, self.k
-        L = k.chunk
-        need = g.sample_step
-        X = np.empty((len(need), 6))
-        S = np.empty((len(need), 6, NS)) if sens else None
-        x0s = np.asarray(x0s, dtype=float).reshape(-1, 6)
-        k.x0[:] = 0.0
-        k.S0[:] = 0.0
-        k.TH[:] = np.asarray(theta, float)[None, :]
-        UT = g.U.T  # 5 x n -> n x 5 view
-        for a in range(0, self.n_steps, L):
-            b = min(a + L, self.n_steps)
-            n = b - a
-            k.H[:n] = g.h[a:b]
-            k.H[n:] = 0.0
-            k.U[:n] = UT[a:b]
-            k.RS[:n] = g.reset[a:b]
-            k.RS[n:] = 0.0
-            k.XR[:] = 0.0
-            lo, hi = np.searchsorted(g.window_start_step, [a, b])
-            k.XR[g.window_start_step[lo:hi] - a] = x0s[lo:hi]
-            i0, i1 = np.searchsorted(need, [a, b])
-            cols = need[i0:i1] - a
-            if sens:
-                k.run_sens()
-                S[i0:i1] = k.S[cols].transpose(0, 2, 1)
-                k.S0[:] = k.S[n - 1]
-            else:
-                k.run_sim()
-            X[i0:i1] = k.X[cols]
-            k.x0[:] = k.X[n - 1]
-        return X, S
+        g = self.grid
+        return self.k.run_record(theta, g.h, g.U.T, g.reset, g.window_start_step,  # U: 5 x n -> n x 5 view
+                                 np.asarray(x0s, dtype=float).reshape(-1, 6), g.sample_step, sens)
 
     def simulate(self, theta: Sequence[float], x0s: np.ndarray) -> np.ndarray:
         """States at every sample (n_samples x 6), windows concatenated."""

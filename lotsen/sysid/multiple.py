@@ -187,35 +187,8 @@ class ShootingSimulator:
 
     def run(self, theta: np.ndarray, nodes: np.ndarray, sens: bool) -> tuple[np.ndarray, ...]:
         """(X at measurements, X at interval ends[, S at measurements, S at ends]); S: n x nx x (nx + ntheta)."""
-        g, k = self.g, self.k
-        L = k.chunk
-        X_need = np.empty((len(self.need), k.nx))
-        S_need = np.empty((len(self.need), k.nx, k.ns)) if sens else None
-        k.x0[:] = 0.0
-        k.S0[:] = 0.0
-        k.TH[:] = np.asarray(theta, float)[None, :]
-        for a in range(0, g.n_steps, L):
-            b = min(a + L, g.n_steps)
-            n = b - a
-            k.H[:n] = g.h[a:b]
-            k.H[n:] = 0.0
-            k.U[:n] = g.U[a:b]
-            k.RS[:n] = g.reset[a:b]
-            k.RS[n:] = 0.0
-            k.XR[:] = 0.0
-            lo, hi = np.searchsorted(g.node_step, [a, b])
-            k.XR[g.node_step[lo:hi] - a] = nodes[lo:hi]
-            i0, i1 = np.searchsorted(self.need, [a, b])
-            cols = self.need[i0:i1] - a
-            if sens:
-                k.run_sens()
-                X_need[i0:i1] = k.X[cols]
-                S_need[i0:i1] = k.S[cols].transpose(0, 2, 1)
-                k.S0[:] = k.S[n - 1]
-            else:
-                k.run_sim()
-                X_need[i0:i1] = k.X[cols]
-            k.x0[:] = k.X[n - 1]
+        g = self.g
+        X_need, S_need = self.k.run_record(theta, g.h, g.U, g.reset, g.node_step, nodes, self.need, sens)
         out = (X_need[self._meas_pos], X_need[self._end_pos])
         if sens:
             out += (S_need[self._meas_pos], S_need[self._end_pos])
