@@ -46,7 +46,6 @@ class FailsafeAction(StrEnum):
     FALLBACK = "fallback"  # the fallback path follower; stop when that fails too
 
 
-Action = FailsafeAction
 FOLLOWING = (ModeName.AUTO, ModeName.RETURN)  # the modes that follow a path
 UNDER_WAY = FOLLOWING + (ModeName.EXPERIMENT,)  # the modes in which the boat moves by itself
 #: pre-arm checks an expert may skip (lotsen.supervisor.prearm; the ESCs are always checked)
