@@ -36,18 +36,16 @@ def format_table(rows: list, extra: dict[str, str]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from lotsen.drivers import hardware_config_from_launch
     from lotsen.stack.hardware import add_hardware_boat
     from lotsen.errors import ConfigError
-    from lotsen.runtime.config import load_config
+    from lotsen.stack.config import load_stack_config
     from lotsen.runtime.executor import RealtimeExecutor
     from lotsen.stack.stack import Stack, vessel_model
 
     if not args.duration > 0:
         raise ConfigError(f"--duration: must be > 0, got {args.duration}")
-    config = load_config(args.config)
-    config = replace(config, mode="hardware")
-    hw = hardware_config_from_launch(config.extra)
+    config = replace(load_stack_config(args.config), mode="hardware")
+    hw = config.extra.hardware
     stack = Stack(config=config, executor=RealtimeExecutor(), model=vessel_model(config))
     boat = add_hardware_boat(stack, emulated=args.emulated, config=hw)
     print(f"lotsen check: reading {'emulated ' if args.emulated else ''}devices for {args.duration:.1f} s "

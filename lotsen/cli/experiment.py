@@ -247,11 +247,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
 
-        from lotsen.runtime.config import load_config
+        from lotsen.stack.config import load_stack_config
         from lotsen.cli.run import with_model_and_boat
         from lotsen.stack.stack import simulated_boat
 
-        config = with_model_and_boat(replace(load_config(args.config), seed=args.seed), args.params, args.boat)
+        config = with_model_and_boat(replace(load_stack_config(args.config), seed=args.seed), args.params, args.boat)
         node = record_on_simulated_stack(exp, out, config)
         print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {simulated_boat(config).describe(model.params)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
@@ -259,11 +259,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.hardware:
         from dataclasses import replace
 
-        from lotsen.runtime.config import load_config
+        from lotsen.stack.config import load_stack_config
 
-        config = load_config(args.config)
+        config = load_stack_config(args.config)
         config = replace(config, mode="hardware", seed=args.seed,
-                         extra={**config.extra, "emulated": bool(args.emulated)})
+                         extra=replace(config.extra, emulated=bool(args.emulated)))
         node = run_on_stack(exp, config, realtime=not args.emulated)
         record = node.record()
         save_csv(record, args.out)

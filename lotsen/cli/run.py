@@ -15,13 +15,14 @@ import threading
 from dataclasses import replace
 from pathlib import Path
 
-from lotsen.runtime.config import BoatSection, LaunchConfig, load_config
+from lotsen.runtime.config import BoatSection
 from lotsen.runtime.lifetime import RunLock
+from lotsen.stack.config import StackConfig, load_stack_config
 from lotsen.stack.identity import run_identities
 
-# Only what the run lock needs is imported above: a second run on the same boat is refused
-# before the launcher's modules (numpy, shapely, the web's options, ...) are loaded. Those are
-# imported in the functions below, after the lock is taken.
+# Only what the run lock needs is imported above (the typed config: the sections' dataclasses):
+# a second run on the same boat is refused before the launcher's heavy modules (numba, scipy,
+# osqp, FastAPI, ...) are loaded. Those are imported in the functions below, after the lock is taken.
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,14 +48,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[LaunchConfig, bool]:
+def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[StackConfig, bool]:
     """The config with the command line's overrides; a generated pilot token for this run (the
     same for every process and every restart of the web process). Returns (config, generated).
     With `lock`: the boat is locked for this run (`RunRefused` when another run has it) before
     the config is validated, so a second run is refused before anything else happens."""
-    config = load_config(args.config)
+    config = load_stack_config(args.config)  # every section typed and checked (lotsen.stack.config)
     if args.hardware:
-        config = replace(config, mode="hardware", extra={**config.extra, "emulated": bool(args.emulated)})
+        config = replace(config, mode="hardware", extra=replace(config.extra, emulated=bool(args.emulated)))
     web = config.web
     if args.host is not None or args.port is not None:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
@@ -72,7 +73,7 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     return config, generated
 
 
-def with_model_and_boat(config: LaunchConfig, params: str | None, boat: str | None) -> LaunchConfig:
+def with_model_and_boat(config: StackConfig, params: str | None, boat: str | None) -> StackConfig:
     """`--params FILE` sets the model in use; `--boat FILE|ideal` the simulated boat (its file's
     coefficients replace the config's `sim.boat.parameters`; its unmodelled effects stay)."""
     if params:
@@ -106,7 +107,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     if args.one_process:
         return _run_one_process(config, args, lock)
     roles = ("core", "recorder") + (("web",) if config.web.enabled else ()) + \
-        (("foxglove",) if args.foxglove is not None else ()) + (("ros2",) if "ros2" in config.extra else ())
+        (("foxglove",) if args.foxglove is not None else ()) + (("ros2",) if config.extra.ros2 is not None else ())
     launcher = processes.Launcher(config, roles, role_kwargs={"web": {"tls": bool(args.tls)},
                                                               "foxglove": {"port": args.foxglove or 8765}},
                                   out=lambda line: print(line, flush=True), lock=lock)
@@ -125,7 +126,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         launcher.stop()
 
 
-def _run_one_process(config: LaunchConfig, args: argparse.Namespace, lock: RunLock) -> int:
+def _run_one_process(config: StackConfig, args: argparse.Namespace, lock: RunLock) -> int:
     # the whole stack only here: the launcher of the processes (the usual path) does not run it,
     # and a second run is refused (RunLock) before the control stack's libraries are loaded
     from lotsen.stack.launch import build_stack, summary

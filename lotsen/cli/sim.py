@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 from lotsen.messages import Topic
-from lotsen.runtime.config import load_config
+from lotsen.stack.config import load_stack_config
 from lotsen.stack.launch import build_stack
 from lotsen.stack.schedule import DEMO_SCHEDULE, ScheduleNode, load_schedule
 from lotsen.runtime.executor import SimExecutor
@@ -32,7 +32,7 @@ COLUMNS = ("t", "north", "east", "psi", "u", "v", "r", "alpha1", "alpha2", "n1",
 
 
 def run(args: argparse.Namespace) -> int:
-    config = load_config(args.config)
+    config = load_stack_config(args.config)
     if args.seed is not None:
         from dataclasses import replace
 

@@ -1,11 +1,9 @@
 """Hardware configuration: pin map, ports, buses, calibrations and gains of the real boat, and the
 RC transmitter's channel map.
 
-Defaults follow the seed's pin map (section 1, Table 2 of the design specification). Load it from the launch
-config's ``extra["hardware"]`` mapping with the project's strict loader::
-
-    from lotsen.runtime.config import from_mapping
-    hw = from_mapping(HardwareConfig, config.extra.get("hardware", {}), "extra.hardware")
+Defaults follow the seed's pin map (section 1, Table 2 of the design specification). It is the
+launch config's ``extra.hardware`` section, typed when the config is loaded
+(`lotsen.stack.config.load_stack_config`; the stack reads ``config.extra.hardware``).
 
 Every field is a plain number, text or list, so `deploy/hardware.yaml` documents all of them.
 """
@@ -252,9 +250,3 @@ class HardwareConfig:
     rc: RcSection = field(default_factory=RcSection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 
-
-def hardware_config_from_launch(extra: dict) -> HardwareConfig:
-    """The `hardware:` section of a launch config's `extra` (absent -> defaults)."""
-    from lotsen.runtime.config import from_mapping
-
-    return from_mapping(HardwareConfig, extra.get("hardware") or {}, "extra.hardware")

@@ -16,7 +16,7 @@ from typing import Any
 from lotsen.drivers.actuators import ActuatorNode, pigpio_opener
 from lotsen.drivers.base import DriverNode
 from lotsen.drivers.battery import BatteryNode
-from lotsen.drivers.config import HardwareConfig, hardware_config_from_launch
+from lotsen.drivers.config import HardwareConfig
 from lotsen.drivers.gnss import GnssNode, serial_opener
 from lotsen.drivers.imu import ImuNode
 from lotsen.drivers.rc import RcReceiverNode, sbus_opener
@@ -49,7 +49,7 @@ def _smbus_opener(bus: int) -> Any:
 
 def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None = None) -> HardwareBoat:
     """Add the driver nodes (and, if `emulated`, the twins and the simulator stepping them)."""
-    hw = config or hardware_config_from_launch(stack.config.extra)
+    hw = config or stack.config.extra.hardware
     threaded = isinstance(stack.executor, RealtimeExecutor)
     deadline = stack.config.nodes.command_deadline_s
     boat = HardwareBoat(hw, emulated)

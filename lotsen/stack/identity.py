@@ -6,8 +6,8 @@ second run is refused at once.
 
 from __future__ import annotations
 
-from lotsen.drivers import hardware_config_from_launch
 from lotsen.runtime.config import LaunchConfig
+from lotsen.stack.config import stack_config
 from lotsen.sim.boat import DEFAULT_BOAT
 
 
@@ -19,8 +19,9 @@ def run_identities(config: LaunchConfig) -> list[str]:
     if config.mode == "sim":
         b = config.sim.boat
         return [f"sim boat {b.name or ('ideal model' if b.ideal else DEFAULT_BOAT.name)}"]
-    hw = hardware_config_from_launch(config.extra)
-    kind = "emulated" if config.extra.get("emulated") else "hardware"
+    extra = stack_config(config).extra
+    hw = extra.hardware
+    kind = "emulated" if extra.emulated else "hardware"
     ids = []
     if hw.gnss.enabled:
         ids += [f"{kind} serial {port}" for port in (hw.gnss.port, hw.gnss.rtcm_port, hw.gnss.base_port) if port]

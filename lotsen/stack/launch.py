@@ -1,4 +1,4 @@
-"""Wire nodes into a running stack from a validated `LaunchConfig`.
+"""Wire nodes into a running stack from a validated launch config (`lotsen.stack.config`).
 
 `build_stack` creates the executor (simulated time or wall clock), the boat (the simulated boat,
 or the hardware drivers with real or emulated devices), and the parts the config asks for, in
@@ -18,6 +18,7 @@ from lotsen.messages import Topic
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Executor, RealtimeExecutor, SimExecutor
 from lotsen.model.actuators import advance_motors
+from lotsen.stack.config import stack_config
 from lotsen.stack.parts import add_recorder, add_state, add_supervisor, add_web, add_zenoh
 from lotsen.stack.sim_boat import SimulatedBoatNode
 from lotsen.model import VesselModel
@@ -57,7 +58,7 @@ def add_boat(stack: Stack, simulator: Simulator | None = None, truth_rate_hz: fl
     else:
         from lotsen.stack.hardware import add_hardware_boat  # pigpio/serial openers only on this path
 
-        add_hardware_boat(stack, emulated=bool(config.extra.get("emulated", False)))
+        add_hardware_boat(stack, emulated=config.extra.emulated)
 
 
 def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | None = None, *,
@@ -69,6 +70,7 @@ def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | N
     `realtime`: every compiled kernel the loop calls is compiled (or loaded from numba's cache)
     here, before the loop and its watchdog start; `progress` hears how far that is (the first
     start after install compiles for about a minute, a warm start loads in about a second)."""
+    config = stack_config(config)  # the extra sections typed (as loaded: unchanged)
     h = harness or Harness()
     executor = executor or (RealtimeExecutor() if realtime else SimExecutor())
     stack = Stack(config=config, executor=executor, model=h.model or vessel_model(config),

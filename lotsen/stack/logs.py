@@ -6,9 +6,9 @@ Wiring (by the lead, in lotsen/runtime/nodes/parts.py or launch):
     register_part("logs", add_recorder)                      # records when config.logging.enabled
     # `lotsen run --foxglove [PORT]`:  add_foxglove_server(stack, "127.0.0.1", port)
 
-Settings beyond `logging: {enabled, directory}` are read from `extra["logs"]` (keys of
-`RecorderConfig`, e.g. `{flush_period_s: 0.5, fsync: true, compression: zstd}`) until the config
-gets a proper section.
+Settings beyond `logging: {enabled, directory}` are `extra.logs` (keys of `RecorderConfig`, e.g.
+`{flush_period_s: 0.5, fsync: true, compression: zstd}`), typed with the rest of the config
+(`lotsen.stack.config.ExtraConfig.logs`).
 """
 
 from __future__ import annotations
@@ -17,13 +17,12 @@ import dataclasses
 import json
 from typing import Any
 
-from lotsen.errors import ConfigError
 from lotsen.logs.live import FoxgloveLive
 from lotsen.logs.recorder import McapRecorder, RecorderConfig, ensure_log_directory
 from lotsen.logs.recover import recover_directory
 from lotsen.messages import OperatorCommand, Topic
 from lotsen.planning import GeoOrigin
-from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.stack.config import StackConfig
 from lotsen.runtime.executor import Node, NodeContext
 
 
@@ -66,14 +65,10 @@ class LoggingControlNode(Node):
         self.recorder.close()
 
 
-def recorder_config(config: LaunchConfig, origin: GeoOrigin | None = None) -> RecorderConfig:
-    """`extra.logs` over `logging.directory`, with the local frame's origin for the map views."""
-    section = config.extra.get("logs", {}) or {}
-    if not isinstance(section, dict):
-        raise ConfigError(f"extra.logs: expected a mapping of recorder settings, got {section!r:.60}")
-    extra = dict(section)
-    extra.setdefault("directory", config.logging.directory)
-    rc: RecorderConfig = from_mapping(RecorderConfig, extra, "extra.logs")
+def recorder_config(config: StackConfig, origin: GeoOrigin | None = None) -> RecorderConfig:
+    """`extra.logs` (else the defaults in `logging.directory`), with the local frame's origin for
+    the map views."""
+    rc = config.extra.logs or RecorderConfig(directory=config.logging.directory)
     if rc.geo_origin is None and origin is not None:
         rc = dataclasses.replace(rc, geo_origin=(origin.lat_deg, origin.lon_deg, origin.height_m))
     return rc
@@ -118,7 +113,7 @@ def add_foxglove_server(stack: Any, host: str = "127.0.0.1", port: int = 8765) -
     return live
 
 
-def recover_unclosed_logs(config: LaunchConfig) -> list[str]:
+def recover_unclosed_logs(config: StackConfig) -> list[str]:
     """At the start of a run: recover the log directory's files a killed run left unclosed
     (lotsen.logs.recover), and say what was done, one line per file. With logging enabled, a
     log directory that cannot be created or written is a ConfigError naming it, here in the

@@ -19,7 +19,7 @@ from lotsen.planning.io import load_route
 from lotsen.stack.fusion_node import FusionNode, TruthStateNode
 from lotsen.stack.logs import add_recorder as _add_recorder
 from lotsen.runtime.executor import Node, NodeContext
-from lotsen.stack.stack import Stack, failsafe_config, model_info, planner_config
+from lotsen.stack.stack import Stack, model_info
 from lotsen.stack.web import add_web as _add_web
 from lotsen.stack.zenoh import add_bridge
 from lotsen.supervisor.node import SupervisorConfig, SupervisorNode
@@ -114,12 +114,12 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
     sup = SupervisorNode(stack.model, DEFAULT_LIMITS,
                          SupervisorConfig(control_rate_hz=cfg.nodes.control_rate_hz,
                                           controller=cfg.nodes.controller,
-                                          failsafes=failsafe_config(cfg), planner=planner_config(cfg)),
+                                          failsafes=cfg.extra.failsafes, planner=cfg.extra.planner),
                          mag_calibrator=mag_calibrator, follower=follower, station_keeper=station_keeper,
                          heading_calibration=heading_calibration(stack))
     if cfg.route:
         route = load_route(cfg.route)
-        msg = planned_route_message(route, plan_route(route, planner_config(cfg)), source="config")
+        msg = planned_route_message(route, plan_route(route, cfg.extra.planner), source="config")
         sup.set_route(route, path_from_message(msg), msg.route_id, msg.node_s_m)
     stack.add(sup)
     stack.add(ModelInfoNode(model_info(cfg, stack.model)))

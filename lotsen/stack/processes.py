@@ -19,35 +19,33 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from lotsen.drivers import hardware_config_from_launch
 from lotsen.drivers.actuators import pigpio_opener
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.messages import LogEvent
 from lotsen.runtime.clock import CLOCK_ENV
 from lotsen.runtime.config import LaunchConfig
+from lotsen.stack.config import ProcessOptions, StackConfig, stack_config  # noqa: F401 - ProcessOptions: of `lotsen run`
 from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.identity import run_identities  # noqa: F401 - part of the launcher's interface
 from lotsen.stack.logs import recorder_config
-from lotsen.stack.roles import (  # noqa: F401 - ProcessOptions ... free_port: the options of `lotsen run`
-    ROLES, ProcessOptions, apply_core_priority, child_main, free_port, freeze_heap, planning_budget,
-    process_options, ros2_config,
+from lotsen.stack.roles import (  # noqa: F401 - apply_core_priority ... free_port: of `lotsen run`
+    ROLES, apply_core_priority, child_main, free_port, freeze_heap,
 )
-from lotsen.stack.stack import failsafe_config, load_parameters, planner_config, resolve_origin, simulated_boat
+from lotsen.stack.stack import load_parameters, resolve_origin, simulated_boat
 from lotsen.stack.web import check_web_host, tls_certificate
-from lotsen.stack.zenoh import bridge_config
 from lotsen.transport import codec
 from lotsen.transport.zenoh_bridge import BridgeConfig, zenoh_config
 from lotsen.web.options import WebOptions
 
 
-def launcher_neutral(config: LaunchConfig) -> str:
+def launcher_neutral(config: StackConfig) -> str:
     """Neutral pulses from outside the core, when the core ended without saying goodbye (killed,
     or its watchdog's hard exit): pigpiod keeps sending the last pulse widths it was given, so
     without this an ESC would keep its last thrust. Nothing to do for the simulated boat or the
     emulated devices (they lived in the core). Returns what was done, for the log."""
-    if config.mode != "hardware" or config.extra.get("emulated"):
+    if config.mode != "hardware" or config.extra.emulated:
         return "no actuators outside the core"
-    act = hardware_config_from_launch(config.extra).actuators
+    act = config.extra.hardware.actuators
     if not act.enabled:
         return "actuators disabled"
     try:
@@ -84,8 +82,8 @@ class Launcher:
         unknown = set(roles) - set(ROLES)
         if unknown or "core" not in roles:
             raise ConfigError(f"processes: roles must include 'core' and be among {ROLES}, got {roles}")
-        self.config = config
-        self.opts = process_options(config)
+        self.config = stack_config(config)
+        self.opts = self.config.extra.processes
         self.port = self.opts.zenoh_port or free_port()
         self.endpoint = f"tcp/127.0.0.1:{self.port}"
         self.out = out
@@ -231,29 +229,20 @@ class Launcher:
         return {r: c.proc.pid for r, c in self.children.items() if c.proc is not None}
 
 
-def validate(config: LaunchConfig, tls: bool = False) -> None:
-    """Every section a run uses, built once before any process starts: a bad value is an error
-    naming the key, at once, not a traceback in a child process (restarted again and again).
-    With `tls` the certificate is made here too (once, before the web process needs it)."""
-    process_options(config)
-    planning_budget(config)
-    planner_config(config)
+def validate(config: LaunchConfig, tls: bool = False) -> StackConfig:
+    """Every section a run uses, checked once before any process starts: a bad value is an error
+    naming the key, at once, not a traceback in a child process (restarted again and again). The
+    sections' values are typed when the config is loaded (`lotsen.stack.config`); here what needs
+    more than the values: the parameter files, the simulated boat, the web host, the pilot token,
+    the certificate (with `tls` made here, once, before the web process needs it). Returns the
+    typed config."""
+    config = stack_config(config)
     load_parameters(config.vessel.parameters_file)
     if config.mode == "sim":
         simulated_boat(config)  # sim.boat and its parameter file
-    failsafe = failsafe_config(config)
     recorder_config(config, resolve_origin(config))
-    web = WebOptions.from_config(config, failsafe.link_timeout_s)
+    web = WebOptions.from_config(config, config.extra.web, config.extra.failsafes.link_timeout_s)
     if config.web.enabled:
         check_web_host(config.web.host)
         tls_certificate(web, tls)
-    bridge_config(config)
-    if "ros2" in config.extra:
-        ros2_config(config)
-    if config.mode == "hardware":
-        hardware_config_from_launch(config.extra)
-    known = {"processes", "planning", "planner", "failsafes", "logs", "web", "zenoh", "hardware", "emulated", "ros2"}
-    unknown = set(config.extra) - known
-    if unknown:
-        raise ConfigError(f"extra: unknown section(s) {sorted(unknown)} (known: {', '.join(sorted(known))})")
-
+    return config

@@ -28,20 +28,18 @@ import socket
 import sys
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Callable
 
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.messages import ThrustCommand, Topic
-from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.stack.config import ProcessOptions, StackConfig
 from lotsen.runtime.executor import RealtimeExecutor
 from lotsen.runtime.lifetime import die_with_parent
-from lotsen.settings import value_range as _r
 from lotsen.transport.ros2_bridge import Ros2BridgeConfig
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
 
 if TYPE_CHECKING:
-    from lotsen.planning.budget import PlanningBudget
     from lotsen.stack.stack import Stack
 
 MCL_CURRENT, MCL_FUTURE, MCL_ONFAULT = 1, 2, 4  # mlockall(2) flags (Linux >= 4.4 for MCL_ONFAULT)
@@ -52,52 +50,13 @@ ROS2_TOPICS = (Topic.OPERATOR,)
 ROLES = ("core", "recorder", "web", "foxglove", "ros2")
 #: how long the core's bridge gathers outgoing messages before it sends them (see core_main)
 CORE_SEND_BATCH_S = 0.05
-#: what the ROS 2 process publishes to ROS 2 by default (the seed's Table 3 and the status)
-ROS2_DEFAULT_PUBLISH = (Topic.IMU_RAW, Topic.IMU_MAG, Topic.GNSS, Topic.RPM, Topic.STATE, Topic.SENS_FUS,
-                        Topic.PATH, Topic.SHIP_COMMAND, Topic.VELOCITY_COMMAND, Topic.ANGLE_COMMAND,
-                        Topic.SUPERVISOR, Topic.BATTERY, Topic.ALERT, Topic.PROGRESS)
 
 
-@dataclass(frozen=True)
-class ProcessOptions:
-    """`extra.processes` of the launch config."""
-
-    zenoh_port: int = field(default=0, metadata=_r(0, 65535))  # 0: a free port on 127.0.0.1
-    core_cpu: int | None = None  # pin the core here; None: the last CPU when there are 2 or more
-    core_nice: int = field(default=-10, metadata=_r(-20, 19))  # applied when permitted
-    # SCHED_FIFO for the core when permitted (0: off). Needed, not a luxury: with the kernel's
-    # autogroups a nice value only counts inside one terminal session, so any busy program
-    # elsewhere takes half the CPU from a niced core (stalls of 0.3-0.5 s measured under load)
-    realtime_priority: int = field(default=10, metadata=_r(0, 98))
-    lock_memory: bool = True  # mlockall in the core (no page faults in the control loop)
-    recorder_nice: int = field(default=0, metadata=_r(-20, 19))
-    web_nice: int = field(default=5, metadata=_r(-20, 19))
-    watchdog_s: float = field(default=0.3, metadata=_r(0.05, 5.0))  # core loop silent this long: neutral
-    watchdog_exit_s: float = field(default=3.0, metadata=_r(0.2, 60.0))  # ... this long: the core exits
-    restart_backoff_s: float = field(default=1.0, metadata=_r(0.1, 60.0))
-    ready_timeout_s: float = field(default=60.0, metadata=_r(1.0, 600.0))
-
-
-def process_options(config: LaunchConfig) -> ProcessOptions:
-    return from_mapping(ProcessOptions, config.extra.get("processes", {}), "extra.processes")
-
-
-def ros2_config(config: LaunchConfig) -> Ros2BridgeConfig:
-    """`extra.ros2` of the launch config (present = the ROS 2 process runs). Commands from ROS 2
-    need the run's pilot token, as on the web page."""
-    data = dict(config.extra.get("ros2") or {})
-    if "pilot_token" in data:
-        raise ConfigError("extra.ros2.pilot_token: not configurable; ROS 2 commands need the run's pilot token "
-                          "(web.pilot_token or the one printed at start)")
-    data.setdefault("publish", list(ROS2_DEFAULT_PUBLISH))
-    data.setdefault("subscribe", [Topic.OPERATOR])
-    return replace(from_mapping(Ros2BridgeConfig, data, "extra.ros2"), pilot_token=config.web.pilot_token)
-
-
-def planning_budget(config: LaunchConfig) -> PlanningBudget:
-    from lotsen.planning.budget import PlanningBudget
-
-    return from_mapping(PlanningBudget, config.extra.get("planning", {}), "extra.planning")
+def ros2_config(config: StackConfig) -> Ros2BridgeConfig:
+    """`extra.ros2` with the run's pilot token (commands from ROS 2 need it, as on the web page)."""
+    if config.extra.ros2 is None:
+        raise ConfigError("extra.ros2: no ROS 2 section in the launch config (add `extra: {ros2: {}}`)")
+    return replace(config.extra.ros2, pilot_token=config.web.pilot_token)
 
 
 def free_port() -> int:
@@ -305,7 +264,7 @@ def _bridge(stack: Stack, **kw: Any) -> ZenohBridge:
     return bridge
 
 
-def _edge_stack(config: LaunchConfig) -> Stack:
+def _edge_stack(config: StackConfig) -> Stack:
     from lotsen.stack.stack import Stack, resolve_origin, vessel_model
 
     return Stack(config=config, executor=RealtimeExecutor(), model=vessel_model(config), origin=resolve_origin(config))
@@ -332,10 +291,10 @@ def _run_until_stopped(stack: Stack, ready: Any, info: dict, on_stop: Callable[[
 
 
 # Each main imports what its role runs (see the module's docstring).
-def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+def core_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     from lotsen.stack.launch import build_stack, summary
 
-    opts = process_options(config)
+    opts = config.extra.processes
     # ahead of the edge processes, which start at the same time, while the kernels load (the
     # real-time priority and the CPU come with apply_core_priority, once the loop is ready)
     _set_nice(opts.core_nice)
@@ -361,10 +320,10 @@ def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     emergency_neutral(stack)
 
 
-def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+def recorder_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     from lotsen.stack.logs import add_recorder
 
-    opts = process_options(config)
+    opts = config.extra.processes
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
     # the core's whole stream (300+ messages a second): taken in batches, not one thread switch each
@@ -374,15 +333,15 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
 
-def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
+def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
     from lotsen.stack.planner_worker import PlannerWorker
     from lotsen.stack.web import add_web
     from lotsen.web.telemetry import TOPICS as PAGE_TOPICS
 
-    opts = process_options(config)
+    opts = config.extra.processes
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
-    worker = PlannerWorker(planning_budget(config))
+    worker = PlannerWorker(config.extra.planning)
     stack.on_shutdown(worker.close)
     # the page first: it answers while the core is still starting (what the page publishes waits
     # in the executor's queue until the loop below runs)
@@ -398,12 +357,12 @@ def web_main(config: LaunchConfig, endpoint: str, ready: Any, tls: bool = False)
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"web: {', '.join(done)}"]})
 
 
-def ros2_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
+def ros2_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     """The boat as a ROS 2 node (rmw_zenoh wire format, docs/runtime.md): the core's topics out,
     authorised operator commands in (they reach the core as ros2/operator/command)."""
     from lotsen.transport.ros2_bridge import Ros2Bridge
 
-    opts = process_options(config)
+    opts = config.extra.processes
     done = apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
     _bridge(stack, vessel="ros2", mode="client", connect=(endpoint,), publish=(*ROS2_TOPICS, Topic.LOG),
@@ -415,10 +374,10 @@ def ros2_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
                                                  f"topics out, commands with the pilot token in; {', '.join(done)}"]})
 
 
-def foxglove_main(config: LaunchConfig, endpoint: str, ready: Any, port: int = 8765) -> None:
+def foxglove_main(config: StackConfig, endpoint: str, ready: Any, port: int = 8765) -> None:
     from lotsen.stack.logs import add_foxglove_server
 
-    opts = process_options(config)
+    opts = config.extra.processes
     apply_edge_priority(opts, opts.web_nice)
     stack = _edge_stack(config)
     _bridge(stack, vessel="foxglove", mode="client", connect=(endpoint,), publish=(), subscribe=("*/**",),
@@ -431,7 +390,7 @@ _MAINS: dict[str, Callable[..., None]] = {"core": core_main, "recorder": recorde
                                          "foxglove": foxglove_main, "ros2": ros2_main}
 
 
-def child_main(role: str, config: LaunchConfig, endpoint: str, ready: Any, kwargs: dict, launcher_pid: int) -> None:
+def child_main(role: str, config: StackConfig, endpoint: str, ready: Any, kwargs: dict, launcher_pid: int) -> None:
     # no orphans: whatever ends the launcher (SIGKILL included) ends this process, through its
     # own orderly SIGTERM path (the core's neutral, the recorder's closed file)
     die_with_parent(launcher_pid)

@@ -13,12 +13,12 @@ from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.messages import ModelInfo
 from lotsen.model import Environment, VesselGeometry, VesselModel, VesselParameters
-from lotsen.planning import GeoOrigin, PlannerConfig
+from lotsen.planning import GeoOrigin
 from lotsen.runtime.bus import Bus
-from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Executor, Node
 from lotsen.sim import DEFAULT_BOAT, GnssConfig, ImuConfig, SimConfig, SimulatedBoat, Simulator
-from lotsen.supervisor.failsafes import FailsafeConfig
+from lotsen.stack.config import StackConfig, stack_config
 
 #: the repository's examples (demonstration routes for `make run` and the harnesses)
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -111,38 +111,31 @@ def simulator_from_config(config: LaunchConfig, model: VesselModel | None = None
     return Simulator(simulated_boat(config, model), config=sim_config(config), x0=config.sim.initial_state)
 
 
-def resolve_origin(config: LaunchConfig) -> GeoOrigin | None:
+def resolve_origin(config: StackConfig) -> GeoOrigin | None:
     """The geodetic origin of the local frame, resolved once for every part of a stack: the
     config's `origin`, else the simulated receiver's origin in simulation, else None (the
     estimator takes the first usable fix on the boat)."""
     if config.origin is not None:
         o = config.origin
         return GeoOrigin(o.lat_deg, o.lon_deg, o.height_m)
-    if config.mode == "sim" or config.extra.get("emulated"):
+    if config.mode == "sim" or config.extra.emulated:
         g = sim_config(config).gnss
         return GeoOrigin(g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m)
     return None
 
 
-def failsafe_config(config: LaunchConfig) -> FailsafeConfig:
-    return from_mapping(FailsafeConfig, config.extra.get("failsafes", {}), "extra.failsafes")
-
-
-def planner_config(config: LaunchConfig) -> PlannerConfig:
-    """`extra.planner`: the one PlannerConfig of a run (the planner worker's plans for the page
-    and the upload, the config's route, the supervisor's return to the harbour)."""
-    return from_mapping(PlannerConfig, config.extra.get("planner", {}), "extra.planner")
-
-
 @dataclass
 class Stack:
-    config: LaunchConfig
+    config: StackConfig
     executor: Executor
     model: VesselModel
     origin: GeoOrigin | None = None
     simulator: Simulator | None = None
     nodes: dict[str, Node] = field(default_factory=dict)
     services: dict[str, Any] = field(default_factory=dict)  # web server, recorder, ... (non-node parts)
+
+    def __post_init__(self) -> None:
+        self.config = stack_config(self.config)  # a LaunchConfig's extra sections typed (a StackConfig as it is)
 
     @property
     def bus(self) -> Bus:

@@ -12,7 +12,7 @@ import socket
 from typing import TYPE_CHECKING, Any
 
 from lotsen.errors import ConfigError
-from lotsen.stack.stack import Stack, failsafe_config, planner_config
+from lotsen.stack.stack import Stack
 from lotsen.web.options import WebOptions
 from lotsen.web.tls import Certificate, ensure_certificate, fingerprint
 
@@ -70,7 +70,7 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     config = stack.config
     if not config.web.enabled:
         return None
-    options = WebOptions.from_config(config, failsafe_config(config).link_timeout_s)
+    options = WebOptions.from_config(config, config.extra.web, config.extra.failsafes.link_timeout_s)
     bus, executor = stack.bus, stack.executor
 
     def publish(topic: str, msg: Any) -> None:
@@ -78,8 +78,8 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
 
     cert = tls_certificate(options, tls)
     hub = Hub(bus, executor.clock.now, publish, options, origin=stack.origin)
-    hub.handler.planner_config = planner_config(config)  # the run's one PlannerConfig
-    fs = failsafe_config(config)
+    hub.handler.planner_config = config.extra.planner  # the run's one PlannerConfig
+    fs = config.extra.failsafes
     hub.handler.settings = Settings(hub.handler.planner_config, fs, controller={
         "controller": config.nodes.controller, "control_rate_hz": config.nodes.control_rate_hz,
         "command_deadline_s": config.nodes.command_deadline_s, "fallback_controller": fs.fallback_controller,

@@ -1,11 +1,11 @@
 """Attach the Zenoh bridge to a `lotsen.stack.launch.Stack`.
 
     from lotsen.stack.zenoh import add_bridge
-    register_part("zenoh", add_bridge)   # active when config.extra["zenoh"] is present and enabled
+    register_part("zenoh", add_bridge)   # active when the config's extra.zenoh is present and enabled
 
-Configuration until the launch config gets a section: `extra: {zenoh: {enabled: true, vessel: boat,
-listen: [tcp/192.168.4.1:7447], publish: [state/estimate, gps_chatter, ...], subscribe: ["shore/**"]}}`
-(keys of `BridgeConfig`, plus `enabled`).
+Configured as `extra: {zenoh: {enabled: true, vessel: boat, listen: [tcp/192.168.4.1:7447],
+publish: [state/estimate, gps_chatter, ...], subscribe: ["shore/**"]}}` (keys of `BridgeConfig`,
+plus `enabled`), typed with the rest of the config (`lotsen.stack.config.ExtraConfig.zenoh`).
 """
 
 from __future__ import annotations
@@ -13,21 +13,12 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-from lotsen.runtime.config import LaunchConfig, from_mapping
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
-
-
-def bridge_config(config: LaunchConfig) -> BridgeConfig | None:
-    """`extra.zenoh` (a bridge to other machines, e.g. a shore station); None when absent/disabled."""
-    section = dict(config.extra.get("zenoh", {}) or {})
-    if not section or not section.pop("enabled", True):
-        return None
-    return from_mapping(BridgeConfig, section, "extra.zenoh")
 
 
 def add_bridge(stack: Any, config: BridgeConfig | None = None) -> ZenohBridge | None:
     """Bridge `stack`'s bus to Zenoh; with no `config`, read `extra.zenoh` (absent: nothing added)."""
-    cfg = config or bridge_config(stack.config)
+    cfg = config or stack.config.extra.zenoh
     if cfg is None:
         return None
     bridge = ZenohBridge(cfg)

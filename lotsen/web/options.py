@@ -1,4 +1,5 @@
-"""Web server options: `LaunchConfig.web` plus the optional `extra: {web: {...}}` keys."""
+"""Web server options: `LaunchConfig.web` plus the optional `extra: {web: {...}}` keys (`WebExtra`,
+typed with the rest of the launch config by `lotsen.stack.config`)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import secrets
 from dataclasses import dataclass, field
 
 from lotsen.errors import ConfigError
-from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.config import LaunchConfig
 from lotsen.web.auth import check_token_strength
 
 OSM_TILE_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png"
@@ -53,6 +54,12 @@ class WebExtra:
             if not _HOST_NAME.fullmatch(name):
                 raise ConfigError(f"extra.web.allowed_hosts[{i}]: {name[:80]!r} is not a bare host name "
                                   "(letters, digits, '-' and '.'; no scheme, port, path or '*')")
+        if not all(k in self.tile_url for k in ("{z}", "{x}", "{y}")) or not self.tile_url.startswith(
+                ("http://", "https://")):
+            raise ConfigError(f"extra.web.tile_url: {self.tile_url[:80]!r} must be an http(s) URL with "
+                              "{z}, {x} and {y}")
+        if (self.tls_certfile is None) != (self.tls_keyfile is None):
+            raise ConfigError("extra.web: tls_certfile and tls_keyfile go together")
 
 
 @dataclass(frozen=True)
@@ -79,10 +86,12 @@ class WebOptions:
     allowed_hosts: tuple[str, ...] = ()
 
     @classmethod
-    def from_config(cls, config: LaunchConfig, failsafe_link_timeout_s: float = 1.5) -> "WebOptions":
-        """`failsafe_link_timeout_s`: the supervisor's link timeout, the default of ours so both agree.
-        A configured `web.pilot_token` weaker than 128 bits is refused here (ConfigError)."""
-        extra = from_mapping(WebExtra, config.extra.get("web"), "extra.web")
+    def from_config(cls, config: LaunchConfig, extra: WebExtra | None = None,
+                    failsafe_link_timeout_s: float = 1.5) -> "WebOptions":
+        """`config.web` with `extra` (`extra.web` of the launch config); `failsafe_link_timeout_s`:
+        the supervisor's link timeout, the default of ours so both agree. A configured
+        `web.pilot_token` weaker than 128 bits is refused here (ConfigError)."""
+        extra = extra or WebExtra()
         web = config.web
         token = web.pilot_token
         generated = not token
@@ -90,12 +99,6 @@ class WebOptions:
             token = secrets.token_urlsafe(16)  # 128 random bits, 22 characters
         else:
             check_token_strength(token)
-        if not all(k in extra.tile_url for k in ("{z}", "{x}", "{y}")) or not extra.tile_url.startswith(
-                ("http://", "https://")):
-            raise ConfigError(f"extra.web.tile_url: {extra.tile_url[:80]!r} must be an http(s) URL with "
-                              "{z}, {x} and {y}")
-        if (extra.tls_certfile is None) != (extra.tls_keyfile is None):
-            raise ConfigError("extra.web: tls_certfile and tls_keyfile go together")
         return cls(host=web.host, port=web.port, pilot_token=token, token_generated=generated,
                    telemetry_rate_hz=web.telemetry_rate_hz,
                    link_timeout_s=extra.link_timeout_s or failsafe_link_timeout_s,

@@ -6,16 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from lotsen.cli.main import main
-from lotsen.drivers import HardwareConfig, hardware_config_from_launch
+from lotsen.drivers import HardwareConfig
 from lotsen.stack.hardware import add_hardware_boat
 from lotsen.errors import ConfigError
 from lotsen.messages import ThrustCommand, Topic
 from lotsen.model import VesselModel
-from lotsen.runtime.config import LaunchConfig, from_mapping
+from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import SimExecutor
+from lotsen.stack.config import load_stack_config, stack_config
 from lotsen.stack.stack import Stack
 
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy" / "hardware.yaml"
@@ -158,13 +158,13 @@ def test_rtk_needs_corrections_forwarded_from_the_bus():
 
 
 def test_deploy_config_loads_and_typos_are_named():
-    data = yaml.safe_load(DEPLOY.read_text())
-    hw = hardware_config_from_launch(data["extra"])
+    config = load_stack_config(DEPLOY)
+    hw = config.extra.hardware
     assert hw.actuators.esc_pins == (16, 20, 21) and hw.actuators.servo_pins == (19, 26)
     assert hw.actuators.tacho_pins == (17, 27, 22) and hw.imu.address == 0x68 and hw.battery.address == 0x40
-    assert from_mapping(LaunchConfig, data).mode == "hardware"
+    assert config.mode == "hardware"
     with pytest.raises(ConfigError, match=r"extra.hardware.gnss.baudrat: unknown key \(did you mean 'baudrate'"):
-        hardware_config_from_launch({"hardware": {"gnss": {"baudrat": 9600}}})
+        stack_config(LaunchConfig(extra={"hardware": {"gnss": {"baudrat": 9600}}}))
 
 
 @pytest.mark.live  # the twins run at wall-clock pace: their rates in a 0.6 s window are the check

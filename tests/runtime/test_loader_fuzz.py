@@ -295,8 +295,7 @@ def test_launch_configs_of_point_8_are_refused_with_a_message_or_are_sane(data):
     from lotsen.stack.processes import validate
 
     try:
-        cfg = from_mapping(LaunchConfig, data)
-        validate(cfg)
+        cfg = validate(from_mapping(LaunchConfig, data))
         rc = recorder_config(cfg)
     except LotsenError as exc:
         assert str(exc).strip()
@@ -304,4 +303,3 @@ def test_launch_configs_of_point_8_are_refused_with_a_message_or_are_sane(data):
     assert 0 <= cfg.seed < 2**32 and rc.queue_maxlen >= 1 and rc.flush_period_s > 0
     if cfg.origin is not None:
         assert -90 <= cfg.origin.lat_deg <= 90 and -180 <= cfg.origin.lon_deg <= 180
-    assert "origin" not in cfg.extra

@@ -32,6 +32,7 @@ def test_one_planner_config_for_the_route_the_return_and_the_page():
     ({"planner": {"min_turn_radius": 2}}, "extra.planner.min_turn_radius: unknown key (did you mean 'min_turn_radius_m'?)"),
     ({"planner": {"speed_max_mps": "fast"}}, "extra.planner.speed_max_mps"),
     ({"planer": {}}, "extra: unknown section(s) ['planer']"),
+    ({"planer": {}}, "did you mean 'planner'?"),
 ])
 def test_bad_sections_are_refused_naming_the_key(extra, message):
     with pytest.raises(ConfigError) as err:

@@ -13,6 +13,7 @@ from websockets.sync.client import connect
 
 from lotsen.errors import ConfigError
 from lotsen.runtime.config import LaunchConfig
+from lotsen.stack.config import stack_config
 from lotsen.web.options import WebOptions
 from lotsen.web.server import HostGuard
 
@@ -60,13 +61,14 @@ def test_served_names_include_the_configured_host_and_this_machines_addresses():
 
 
 def test_configured_extra_names_are_served_and_bad_ones_refused_at_start():
-    options = WebOptions.from_config(LaunchConfig(extra={"web": {"allowed_hosts": ["boat.lab.example", "Proxy.LAN"]}}))
+    config = stack_config(LaunchConfig(extra={"web": {"allowed_hosts": ["boat.lab.example", "Proxy.LAN"]}}))
+    options = WebOptions.from_config(config, config.extra.web)
     guard = HostGuard(lambda *a: None, "0.0.0.0", options.allowed_hosts)
     assert guard.allows("boat.lab.example:8080") and guard.allows("proxy.lan")
     assert not guard.allows("evil.example") and not guard.allows("lab.example")
     for bad in ("http://boat.lab", "boat.lab:8080", "*.lab", "boat/x", ""):
         with pytest.raises(ConfigError, match=r"extra.web.allowed_hosts\[0\]"):
-            WebOptions.from_config(LaunchConfig(extra={"web": {"allowed_hosts": [bad]}}))
+            stack_config(LaunchConfig(extra={"web": {"allowed_hosts": [bad]}}))
 
 
 @settings(max_examples=300, deadline=None)

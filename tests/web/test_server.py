@@ -16,7 +16,8 @@ from websockets.sync.client import connect
 from lotsen.errors import ConfigError
 from lotsen.messages import LinkStatus, ManualCommand, OperatorCommand, Topic
 from lotsen.runtime.config import LaunchConfig
-from lotsen.web.options import WebOptions
+from lotsen.stack.config import stack_config
+from lotsen.web.options import WebExtra, WebOptions
 
 from .conftest import TOKEN, recv_until
 
@@ -160,10 +161,10 @@ def test_options_default_to_loopback_and_generate_a_token():
     assert o.link_timeout_s == 1.5
     o = WebOptions.from_config(LaunchConfig(), failsafe_link_timeout_s=3.0)
     assert o.link_timeout_s == 3.0
-    o = WebOptions.from_config(LaunchConfig(extra={"web": {"link_timeout_s": 0.8}}))
+    o = WebOptions.from_config(LaunchConfig(), WebExtra(link_timeout_s=0.8), failsafe_link_timeout_s=3.0)
     assert o.link_timeout_s == 0.8
     with pytest.raises(ConfigError, match="extra.web.link_timeot_s: unknown key"):
-        WebOptions.from_config(LaunchConfig(extra={"web": {"link_timeot_s": 0.8}}))
+        stack_config(LaunchConfig(extra={"web": {"link_timeot_s": 0.8}}))
 
 
 def test_banner_shows_url_and_token_and_the_token_is_never_in_a_url(running):
