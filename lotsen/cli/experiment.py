@@ -5,7 +5,7 @@ writes the measured data as the identification CSV (docs/sysid.md, "Simulated ru
   - rows at the command ticks (20 Hz default) and at every GNSS fix; the inputs of a row are the
     mean achieved actuator values over the interval to the next row (what a tachometer's pulse
     count over its window measures), so the identification's zero-order hold sees no lag error;
-  - north/east: the GNSS fix converted to local NED around the GnssConfig origin (pymap3d),
+  - north/east: the GNSS fix converted to local NED around the GnssConfig origin (model.geodetic),
     only on rows with a fix (8 Hz); psi: the true heading plus white noise (`psi_noise_rad`,
     default 0.01 rad, a calibrated compass / fused heading), r: the gyro's z rate minus its bias
     estimated over a 2 s rest before the run (the residual bias walk stays in the data);
@@ -48,9 +48,8 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
     """Run `experiment` on the simulated boat with sensors; returns the measured record. `model`: the
     simulated boat (a `SimulatedBoat`, or a `VesselModel` for a boat exactly that model; default the
     default model)."""
-    import pymap3d
-
     from lotsen.messages import GnssFix, ImuSample
+    from lotsen.model.geodetic import LocalFrame
     from lotsen.sim import SimConfig, SimulatedBoat, Simulator
 
     cfg = SimConfig(seed=seed, sensors=True) if environment is None else SimConfig(
@@ -59,6 +58,7 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
     sim = Simulator(boat, None if isinstance(boat, SimulatedBoat) else DEFAULT_LIMITS, cfg,
                     x0=(0.0, 0.0, experiment.start_heading_rad, 0.0, 0.0, 0.0))
     g = cfg.gnss
+    frame = LocalFrame(g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m)  # the simulated receiver's
     rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
     # gyro bias calibration at rest before the run
     gyro = [m.gyro_radps[2] for m in sim.advance(preroll_s) if isinstance(m, ImuSample)]
@@ -91,8 +91,7 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
         if tick or fix is not None:
             y = [math.nan] * 4
             if fix is not None:
-                n, e, _ = pymap3d.geodetic2ned(fix.lat_deg, fix.lon_deg, fix.height_m,
-                                               g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m)
+                n, e = frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m)
                 y = [float(n), float(e), math.remainder(psi_meas, 2 * math.pi), last_gyro - bias]
             rows_t.append(t)
             rows_u.append(np.zeros(5))

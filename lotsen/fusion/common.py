@@ -1,4 +1,5 @@
-"""Pieces shared by the seed filters and the EKF: local NED frame, GNSS noise, counters, checks."""
+"""Pieces shared by the seed filters and the EKF: GNSS noise, counters, checks (the local NED
+frame of the fixes is `lotsen.model.geodetic`)."""
 
 from __future__ import annotations
 
@@ -12,22 +13,6 @@ from lotsen.model.angles import all_finite as finite, wrap_angle  # the project'
 TWO_PI = 2.0 * math.pi
 
 
-
-
-class LocalFrame:
-    """Geodetic -> local NED at a fixed origin (pymap3d.geodetic2ned, WGS84)."""
-
-    def __init__(self, lat0_deg: float, lon0_deg: float, h0_m: float = 0.0) -> None:
-        if not finite(lat0_deg, lon0_deg, h0_m):
-            raise ValueError(f"local frame origin must be finite, got {(lat0_deg, lon0_deg, h0_m)}")
-        self.origin = (float(lat0_deg), float(lon0_deg), float(h0_m))
-
-    def to_ne(self, lat_deg: float, lon_deg: float, height_m: float | None = None) -> tuple[float, float]:
-        import pymap3d
-
-        h = self.origin[2] if height_m is None or not math.isfinite(height_m) else height_m
-        n, e, _ = pymap3d.geodetic2ned(lat_deg, lon_deg, h, *self.origin)
-        return float(n), float(e)
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,8 @@ water; the difference, seen at several headings, is the current.
 
 Measurements (each gated by its squared Mahalanobis distance against a chi-square quantile;
 NaN / non-finite samples are skipped and counted, never used):
-- GNSS position (lat/lon -> NED with pymap3d.geodetic2ned at a fixed origin), R per fix type
+- GNSS position (lat/lon -> NED in `lotsen.model.geodetic.FixFrame`: the configured origin, else
+  the first usable fix), R per fix type
   from h_acc_m (`GnssNoise`); optionally the receiver's NED velocity.
 - Gyro z: r + b_g, every IMU sample.
 - Accelerometer x, y (averaged over `accel_decimation` samples): the model's specific force
@@ -56,7 +57,8 @@ from statistics import NormalDist
 
 import numpy as np
 
-from lotsen.fusion.common import Counters, GnssNoise, LocalFrame, finite, wrap_angle
+from lotsen.fusion.common import Counters, GnssNoise, finite, wrap_angle
+from lotsen.model.geodetic import FixFrame
 from lotsen.fusion.inputs import ActuatorInputFilter, InputConfig
 from lotsen.fusion.integrity import IntegrityConfig, IntegrityMonitor
 from lotsen.fusion.magcal import MagCalibration
@@ -168,7 +170,7 @@ class ModelAidedEKF:
                 self.x[self.i_tau:self.i_tau + 3] = initial.disturbance_tau
             self.t = initial.stamp_s
         self.inputs = ActuatorInputFilter(c.inputs)
-        self.frame = LocalFrame(*c.origin) if c.origin else None
+        self.frame = FixFrame(c.origin)
         self.counters = Counters()
         self.monitor = IntegrityMonitor(c.integrity)
         self._rejects: dict[str, int] = {}
@@ -597,8 +599,6 @@ class ModelAidedEKF:
             self.counters.count("skipped", "gnss")
             self.counters.count("skipped", "gnss_vel")
             return
-        if self.frame is None:
-            self.frame = LocalFrame(fix.lat_deg, fix.lon_deg, fix.height_m if math.isfinite(fix.height_m) else 0.0)
         n, e = self.frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m)
         noise = self.config.gnss_noise
         s = noise.position_sigma_m(fix)

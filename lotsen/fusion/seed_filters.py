@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lotsen.fusion.common import Counters, GnssNoise, LocalFrame, finite, wrap_angle
+from lotsen.fusion.common import Counters, GnssNoise, finite, wrap_angle
+from lotsen.model.geodetic import FixFrame
 from lotsen.fusion.integrity import IntegrityConfig, IntegrityMonitor
 from lotsen.fusion.magcal import MagCalibration
 from lotsen.messages import (
@@ -179,7 +180,7 @@ class SeedFilters:
         self.calibration = calibration or MagCalibration.identity()
         self.yaw = YawKalmanFilter(config.yaw, initial.heading_rad if initial else 0.0, heading_std_rad ** 2)
         self.vel = VelocityKalmanFilter(config.velocity)
-        self.frame = LocalFrame(*config.origin) if config.origin else None
+        self.frame = FixFrame(config.origin)
         self.counters = Counters()
         self.t = -math.inf  # time of the state (last IMU sample)
         self.r = 0.0
@@ -274,8 +275,6 @@ class SeedFilters:
         if not fix.usable or not finite(fix.stamp_s, fix.lat_deg, fix.lon_deg):
             self.counters.count("skipped", "gnss")
             return
-        if self.frame is None:
-            self.frame = LocalFrame(fix.lat_deg, fix.lon_deg, fix.height_m if math.isfinite(fix.height_m) else 0.0)
         p = np.array(self.frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m))
         sigma = self.config.gnss_noise.position_sigma_m(fix)
         status = "used"

@@ -27,6 +27,7 @@ from lotsen.fusion.magcal import MagCalibration, fit_mag_calibration
 from lotsen.fusion.seed_filters import SeedFilters, SeedFiltersConfig, YawFilterConfig
 from lotsen.messages import GnssFix, ImuSample, MagSample, VesselState
 from lotsen.model import DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
+from lotsen.model.geodetic import LocalFrame
 from lotsen.sim import SimConfig, Simulator
 
 DEG = math.pi / 180.0
@@ -334,7 +335,13 @@ def run_fault_case(name: str, seed: int = 1, ekf_config: EkfConfig | None = None
                           heading_std_rad=0.2)
     t0, t1 = case.start_s, case.start_s + case.duration_s
     t_end = t1 + after_s
-    deg_per_m = (1.0 / 111_320.0, 1.0 / (111_320.0 * math.cos(math.radians(g.origin_lat_deg))))
+    frame = LocalFrame(*cfg.origin)  # the receiver's: a fix moved by metres in it
+
+    def shifted(fix: GnssFix, north_m: float, east_m: float) -> GnssFix:
+        n, e = frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m)
+        lat, lon, _ = frame.to_geodetic(n + north_m, e + east_m)
+        return replace(fix, lat_deg=lat, lon_deg=lon)
+
     held: dict[str, Any] = {}
     frozen_psi: list[float] = []
     every = max(1, int(round(1.0 / (health_hz * sim.config.dt_s))))
@@ -352,9 +359,9 @@ def run_fault_case(name: str, seed: int = 1, ekf_config: EkfConfig | None = None
         if not (t0 <= t < t1) and name != "future_stamp_5s":
             return m
         if name == "gnss_offset_20m_10s" and isinstance(m, GnssFix):
-            return replace(m, lat_deg=m.lat_deg + 20.0 * deg_per_m[0])
+            return shifted(m, 20.0, 0.0)
         if name == "gnss_offset_10m_120s" and isinstance(m, GnssFix):
-            return replace(m, lon_deg=m.lon_deg + 10.0 * deg_per_m[1])
+            return shifted(m, 0.0, 10.0)
         if name == "gnss_frozen_10s" and isinstance(m, GnssFix):
             return _freeze(held.setdefault("gnss", m), m.stamp_s)
         if name in ("gyro_stuck_30s", "accel_stuck_30s") and isinstance(m, ImuSample):

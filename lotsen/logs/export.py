@@ -26,7 +26,7 @@ from typing import Any, Iterable, Literal
 import numpy as np
 
 from lotsen.errors import DataError, LotsenError
-from lotsen.fusion.common import LocalFrame
+from lotsen.model.geodetic import FixFrame
 from lotsen.model.angles import lever_arm_ne
 from lotsen.logs.reader import LogReader
 from lotsen.messages import Topic
@@ -175,7 +175,7 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
     nan = float("nan")
     rows: list[tuple[float, ...]] = []  # (t, 5 inputs, ny outputs)
     blank_u, blank_y = (nan,) * 5, (nan,) * ny
-    frame = None
+    frame = FixFrame()  # the identification record's frame: at the first usable fix
     bias = 0.0
     psi_last = nan
     arm = (float(gnss_antenna_m[0]), float(gnss_antenna_m[1]))
@@ -186,8 +186,6 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
         elif outputs == "raw" and topic == Topic.GNSS:
             if not msg.usable:
                 continue
-            if frame is None:
-                frame = LocalFrame(msg.lat_deg, msg.lon_deg, msg.height_m if math.isfinite(msg.height_m) else 0.0)
             n, e = frame.to_ne(msg.lat_deg, msg.lon_deg, msg.height_m)
             if any(arm):
                 if not math.isfinite(psi_last):

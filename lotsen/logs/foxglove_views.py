@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from lotsen.messages import GnssFixType, Topic
+from lotsen.model.geodetic import LocalFrame
 
 try:  # foxglove-sdk is a declared dependency; without it the views are simply absent
     import foxglove.messages as fm
@@ -88,6 +89,7 @@ class ViewMaker:
 
     def __init__(self, geo_origin: tuple[float, float, float] | None = None) -> None:
         self.geo_origin = geo_origin
+        self._frame = LocalFrame(*geo_origin) if geo_origin is not None else None
         self._last_hull_ns = -10**18
         self._handlers: dict[str, Callable[[Any, int], list[View]]] = {
             Topic.GNSS: self._gnss, Topic.STATE: self._state, Topic.TRUTH: self._truth,
@@ -167,10 +169,7 @@ class ViewMaker:
         return out
 
     def _estimate_fix(self, msg: Any, t_ns: int) -> View:
-        import pymap3d
-
-        lat0, lon0, h0 = self.geo_origin  # type: ignore[misc]
-        lat, lon, h = pymap3d.ned2geodetic(msg.north_m, msg.east_m, 0.0, lat0, lon0, h0)
+        lat, lon, h = self._frame.to_geodetic(msg.north_m, msg.east_m)  # type: ignore[union-attr]
         fix = fm.LocationFix(timestamp=_ts(t_ns), frame_id="boat", latitude=float(lat), longitude=float(lon),
                              altitude=float(h), heading=msg.heading_rad % (2 * math.pi),
                              color=fm.Color(r=0.1, g=0.4, b=0.9, a=1.0))

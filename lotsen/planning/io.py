@@ -14,7 +14,7 @@ YAML schema (local NED metres, degrees in the file, radians in memory)::
 GeoJSON (RFC 7946, [lon, lat]): a FeatureCollection of Points (``role``: harbour / node, with
 ``heading_deg``, ``speed_mps``, ``index``) and Polygons (``role``: area / obstacle, with
 ``forbidden``); the local origin is kept in the foreign member ``lotsen_origin``.
-Conversions use pymap3d (geodetic2ned / ned2geodetic, WGS84).
+Conversions use the one geodetic frame (`lotsen.model.geodetic.LocalFrame`, WGS84).
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ import math
 from pathlib import Path as FilePath
 from typing import Any
 
-import pymap3d
 import yaml
 
 from lotsen.errors import ConfigError
 from lotsen.files import parse_json, parse_yaml, read_text
+from lotsen.model.geodetic import LocalFrame
 from lotsen.planning.route import GeoOrigin, HarbourNode, Region, Route, RouteNode, validate_route
 
 _TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin"}
@@ -190,7 +190,7 @@ def save_route(route: Route, path: str | FilePath) -> None:
 # GeoJSON
 # --------------------------------------------------------------------------------------------
 def _to_lonlat(north: float, east: float, o: GeoOrigin) -> list[float]:
-    lat, lon, _ = pymap3d.ned2geodetic(north, east, 0.0, o.lat_deg, o.lon_deg, o.height_m)
+    lat, lon, _ = LocalFrame(o.lat_deg, o.lon_deg, o.height_m).to_geodetic(north, east)
     return [float(lon), float(lat)]
 
 
@@ -198,8 +198,7 @@ def _to_ne(lonlat: Any, o: GeoOrigin, where: str) -> tuple[float, float]:
     if not isinstance(lonlat, (list, tuple)) or len(lonlat) < 2:
         raise ConfigError(f"{where}: expected [longitude, latitude], got {_short(lonlat)}")
     lon, lat = _number(lonlat[0], f"{where}[0]"), _number(lonlat[1], f"{where}[1]")
-    n, e, _ = pymap3d.geodetic2ned(lat, lon, o.height_m, o.lat_deg, o.lon_deg, o.height_m)
-    return float(n), float(e)
+    return LocalFrame(o.lat_deg, o.lon_deg, o.height_m).to_ne(lat, lon)
 
 
 def route_to_geojson(route: Route, origin: GeoOrigin | None = None) -> dict:

@@ -15,6 +15,7 @@ from typing import Iterator, Sequence
 import numpy as np
 
 from lotsen.messages import GnssFix, GnssFixType, ImuSample, MagSample, RpmSample
+from lotsen.model.geodetic import LocalFrame
 
 GRAVITY_MPS2 = 9.81
 
@@ -146,14 +147,12 @@ class MagnetometerModel:
 class GnssModel:
     """RTK GNSS fixes at the antenna (at the body origin), with fix-type dependent noise.
 
-    Latitude/longitude come from the local NED position through the tangent-plane Jacobian of
-    the geodetic conversion at the origin, computed once with pymap3d: below 1e-7 m of error
-    within a few hundred metres, and no geodesy call per fix.
+    Latitude, longitude and height come from the local NED position through the one geodetic
+    frame (`lotsen.model.geodetic.LocalFrame`, exact WGS84), the frame the estimator places the
+    fixes in again: no flat-Earth error between the simulated receiver and the estimator.
     """
 
     def __init__(self, config: GnssConfig, rng: np.random.Generator) -> None:
-        import pymap3d
-
         self.config = config
         self.rng = rng
         self._noise = NoiseBlock(rng, 6)
@@ -161,10 +160,7 @@ class GnssModel:
         self.outage = False  # fault injection: no fixes at all
         self.offset_ne_m = (0.0, 0.0)  # fault injection: a wrong position (multipath, a wrong RTK fix)
         self._bias = [0.0, 0.0]
-        lat0, lon0, h0 = config.origin_lat_deg, config.origin_lon_deg, config.origin_height_m
-        lat1, _, _ = pymap3d.ned2geodetic(1.0, 0.0, 0.0, lat0, lon0, h0)
-        _, lon1, _ = pymap3d.ned2geodetic(0.0, 1.0, 0.0, lat0, lon0, h0)
-        self._deg_per_m = (lat1 - lat0, lon1 - lon0)
+        self.frame = LocalFrame(config.origin_lat_deg, config.origin_lon_deg, config.origin_height_m)
 
     def sample(self, t: float, north: float, east: float, vel_n: float, vel_e: float,
                dt_since_last: float) -> GnssFix | None:
@@ -182,11 +178,12 @@ class GnssModel:
         self._bias[1] += walk * w[3]
         n = north + self._bias[0] + sigma * w[0] + self.offset_ne_m[0]
         e = east + self._bias[1] + sigma * w[1] + self.offset_ne_m[1]
+        lat, lon, h = self.frame.to_geodetic(n, e)
         return GnssFix(
             stamp_s=t,
-            lat_deg=c.origin_lat_deg + n * self._deg_per_m[0],
-            lon_deg=c.origin_lon_deg + e * self._deg_per_m[1],
-            height_m=c.origin_height_m + 2.0 * sigma * w[4],
+            lat_deg=lat,
+            lon_deg=lon,
+            height_m=h + 2.0 * sigma * w[4],
             fix_type=ft, h_acc_m=1.4 * sigma, v_acc_m=2.0 * sigma,
             vel_n_mps=vel_n + c.velocity_noise_mps * w[5], vel_e_mps=vel_e + c.velocity_noise_mps * w[4],
             num_sv=24, correction_age_s=1.0 if ft >= GnssFixType.RTK_FLOAT else float("nan"),

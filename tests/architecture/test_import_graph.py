@@ -122,7 +122,7 @@ ALLOWED: dict[str, set[str]] = {
     "runtime": {"model"},
     "supervisor": {"runtime", "model", "control", "planning"},
     "drivers": {"runtime", "model", "sim"},
-    "logs": {"runtime", "model", "transport", "sysid", "fusion"},
+    "logs": {"runtime", "model", "transport", "sysid"},
     "transport": {"runtime"},
     "web": {"runtime", "planning", "logs"},
 }

@@ -62,8 +62,7 @@ def test_gnss_fixes_are_the_simulators_through_ubx(run20):
     # and the truth: the last fix within RTK noise + quantisation of the simulated position
     sim = stack.simulator
     g = sim.gnss
-    n = (fixes[-1].lat_deg - sim.config.gnss.origin_lat_deg) / g._deg_per_m[0]
-    e = (fixes[-1].lon_deg - sim.config.gnss.origin_lon_deg) / g._deg_per_m[1]
+    n, e = g.frame.to_ne(fixes[-1].lat_deg, fixes[-1].lon_deg, fixes[-1].height_m)
     truth = [m for m in got[Topic.TRUTH] if abs(m.stamp_s - fixes[-1].stamp_s) < 0.06][0]
     assert math.hypot(n - truth.north_m, e - truth.east_m) < 0.06 + 0.05  # noise + <= 50 ms of motion
 

@@ -117,12 +117,12 @@ def test_gnss_noise_by_fix_type_and_outage():
     sim = Simulator(config=SimConfig(seed=4))
     fixes = [m for m in sim.advance(20.0) if isinstance(m, GnssFix)]
     gnss = sim.gnss
-    north = (np.array([f.lat_deg for f in fixes]) - sim.config.gnss.origin_lat_deg) / gnss._deg_per_m[0]
+    north = np.array([gnss.frame.to_ne(f.lat_deg, f.lon_deg, f.height_m)[0] for f in fixes])
     assert 0.005 < np.std(north) < 0.02  # RTK fixed: about 1 cm
     assert all(f.fix_type == GnssFixType.RTK_FIXED for f in fixes)
     sim.set_gnss_fix_type(GnssFixType.FIX_3D)
     fixes = [m for m in sim.advance(20.0) if isinstance(m, GnssFix)]
-    north = (np.array([f.lat_deg for f in fixes]) - sim.config.gnss.origin_lat_deg) / gnss._deg_per_m[0]
+    north = np.array([gnss.frame.to_ne(f.lat_deg, f.lon_deg, f.height_m)[0] for f in fixes])
     assert np.std(north) > 0.3
     sim.gnss.outage = True
     assert not [m for m in sim.advance(5.0) if isinstance(m, GnssFix)]

@@ -1,5 +1,5 @@
 // Geographic coordinates for the page: WGS84 geodetic <-> local NED around the stack's origin,
-// the same formulas as the server's pymap3d (geodetic -> ECEF -> local tangent plane and back),
+// the same formulas as the server's lotsen.model.geodetic (geodetic -> ECEF -> local NED and back),
 // so a node's lat/lon here equals the one in an exported GeoJSON to ~1e-9 degrees; and the Web
 // Mercator tile maths of lotsen/web/tiles.py.
 const A = 6378137.0, F = 1 / 298.257223563, E2 = F * (2 - F);
