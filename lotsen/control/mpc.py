@@ -834,6 +834,7 @@ class MPCController:
 
     def reset(self, path: Any, progress_m: float = 0.0) -> None:
         self.path = PathReference(path, self.config.min_speed_ref_mps)
+        self._path_table = path_table(self.path)
         self.failures = 0
         self.solve_times_ms = []
         self.qp_solves = 0  # QPs solved since reset (more than the steps only in transients: reiterate_dw)
@@ -961,7 +962,6 @@ class MPCController:
             s_pred = np.concatenate([self._s_pred[1:], self._s_pred[-1:]])
             s_pred[0] = s0
             np.maximum(s_pred, s0, out=s_pred)
-        table = path_table(self.path)
         qa = self._q_achieved()
         origin = x[:2].copy()
         newton = 2 if cfg.progress_reference == "predicted" else 0
@@ -974,7 +974,7 @@ class MPCController:
             prev = np.concatenate([w_before[None, :], wb[:-1]])
             self._lag_weights(wb, prev, self._beta)
             ub = self._beta * wb + (1.0 - self._beta) * prev
-            _assemble(x, xb, ub, s_pred, table, self.scale, self.model.arrays.packed, cfg.dt_s, self._dist,
+            _assemble(x, xb, ub, s_pred, self._path_table, self.scale, self.model.arrays.packed, cfg.dt_s, self._dist,
                       self._current, cfg.n_floor_rps, self._w_prev, self._weights, self._pattern, self._qp, newton)
             _input_lag_block(self._Bd, self._bd_idx[0], self._bd_idx[1], self._beta, w_before, self._Ax,
                              self._a_b_pos, self._a_lag_pos, self._l, self._u)
