@@ -36,12 +36,8 @@ import time
 import urllib.request
 from pathlib import Path
 
-import yaml
-
-from lotsen.errors import ConfigError
-from lotsen.files import read_yaml
 from lotsen.stack.processes import free_port
-from lotsen.stack.soak import PilotSocket, _Clock
+from lotsen.stack.soak import PilotSocket, _Clock, derive_run_config
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config" / "sim.yaml"
@@ -110,14 +106,8 @@ class Run:
 
     def __init__(self, work: Path, numba_cache: Path) -> None:
         self.port = free_port()
-        data = read_yaml(CONFIG, ConfigError, "configuration file") or {}
-        if isinstance(data.get("route"), str):
-            data["route"] = str((CONFIG.parent / data["route"]).resolve())
         self.token = secrets.token_urlsafe(16)
-        data.setdefault("web", {}).update(port=self.port, host="127.0.0.1", enabled=True, pilot_token=self.token)
-        data.setdefault("logging", {}).update(enabled=True, directory=str(work / "logs"))
-        config = work / "launch.yaml"
-        config.write_text(yaml.safe_dump(data, sort_keys=False))
+        config = derive_run_config(CONFIG, work, self.port, self.token)
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "NUMBA_CACHE_DIR": str(numba_cache)}
         self.output: list[str] = []
         self.t0 = time.monotonic()

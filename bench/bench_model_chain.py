@@ -13,7 +13,7 @@ the truth, the verdicts; and the issue's case (10 min, 0.08 m/s current, 4 m/s g
 
 Tracking with three models on the same boat: the defaults (the prior), the boat's exact
 coefficients, and the coefficients `lotsen identify` finds from designed experiments recorded on
-that boat (the lab loop: `lotsen experiment run --sim --out RUN.mcap`, then `lotsen identify
+that boat (the lab loop, `lotsen.harness.lab_loop`: `lotsen experiment run --sim --out RUN.mcap`, then `lotsen identify
 RUN.mcap`, the scale fixed by m11 as a lab would from the weighed hull, the antenna position and
 the astern/ahead thrust ratio given as measured on the hull) — unless identify refuses
 them (its verdict: the record does not support the model), then the chain has no identified row. Missions: the figure
@@ -26,37 +26,31 @@ defaults; the identified model within 20 % of the exact model's cross-track RMS.
 
 from __future__ import annotations
 
-import json
 import statistics
 import sys
 import tempfile
-from pathlib import Path
-
 import time
+from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-ROUTE = ROOT / "examples" / "routes" / "figure_eight.yaml"
-EXPERIMENTS = ("prbs_multisine", "zigzag_20_20", "turning_circles", "bow_thruster_steps", "zigzag_10_10", "speed_steps")
-ENV = dict(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
-
-
+from lotsen.harness.lab_loop import identify_on, track_with_model as mission
 
 
 def _identify(lake):  # type: ignore[no-untyped-def]
-    from lotsen.cli.identify import _at_bounds, identification_verdict
+    from lotsen.sysid.identify import identification_verdict, parameters_at_bounds
     from lotsen.sysid.multiple import estimate_lake
 
     c0 = time.process_time()
     res = estimate_lake([lake.run.record], fixed={"m11": 14.0})
     cpu = time.process_time() - c0
-    v = identification_verdict(res, _at_bounds(res))
+    v = identification_verdict(res, parameters_at_bounds(res))
     return res, v.verdict, v.reasons, v.weakly_determined, cpu
 
 
 def identification_rows(quick: bool = False) -> list[dict]:
-    from lotsen.cli.experiment import CORE_PARAMETERS, lake_run
+    from lotsen.cli.experiment import lake_run
+    from lotsen.sysid.verdict import CORE_PARAMETERS
 
     rows: list[dict] = []
     n_seeds = 3 if quick else 20
@@ -115,60 +109,6 @@ def boats(quick: bool) -> list:
         params = randomised_parameters(np.random.default_rng(seed), 0.10, 0.40)
         out.append(DEFAULT_BOAT.with_parameters(params, name=f"random boat {seed} (10-40 %)"))
     return out
-
-
-def identify_on(boat, work: Path) -> tuple[object, dict]:
-    """The lab loop on `boat`: designed experiments recorded on the simulated stack, identified
-    together; m11 fixed as the weighed hull gives it, and the geometry a lab measures on the hull
-    given (the GNSS antenna's position; astern/ahead thrust from a bollard pull). Returns
-    (parameters, identify's JSON); the parameters are None when identify refused them (its verdict
-    and reasons are in the JSON)."""
-    from dataclasses import replace
-
-    from lotsen.cli.experiment import record_on_simulated_stack
-    from lotsen.cli.main import main
-    from lotsen.runtime.config import BoatSection, LaunchConfig
-    from lotsen.sysid.experiment import load_experiment
-    from lotsen.stack.stack import load_parameters
-
-    boat_file = work / "boat.json"
-    boat_file.write_text(json.dumps(boat.parameters.to_dict()))
-    config = LaunchConfig(mode="sim")
-    config = replace(config, sim=replace(config.sim, boat=BoatSection(parameters_file=str(boat_file))))
-    logs = []
-    for i, name in enumerate(EXPERIMENTS):
-        exp = load_experiment(ROOT / "examples" / "experiments" / f"{name}.yaml")
-        out = work / f"{name}.mcap"
-        record_on_simulated_stack(exp, out, replace(config, seed=100 + i))
-        logs.append(str(out))
-    params = work / "identified.json"
-    ant = boat.gnss_antenna_m
-    hull = ["--fix", f"m11={boat.parameters.m11}", "--gnss-antenna", f"{ant[0]},{ant[1]}",
-            "--reverse-thrust-ratio", str(boat.geometry.reverse_thrust_ratio)]
-    # the broadband PRBS first, and the battery from there (`--init`) when identify accepts it: from the
-    # defaults, a boat 10-40 % away can fall into a wrong basin on the whole battery (refused, not wrong)
-    first = work / "prbs.json"
-    init = ["--init", str(first)] if main(["identify", logs[0], "--out", str(first), *hull]) == 0 else []
-    code = main(["identify", *logs, "--out", str(params), *hull, *init])
-    if not params.exists():
-        raise RuntimeError(f"identify wrote nothing (exit {code})")
-    data = json.loads(params.read_text())
-    return (load_parameters(str(params)) if code == 0 else None), data
-
-
-def mission(boat, params, seed: int) -> dict:
-    from lotsen.control import ControlConfig, make_path_follower
-    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
-    from lotsen.model import Environment, VesselModel
-    from lotsen.planning import plan_route
-    from lotsen.planning.io import load_route
-
-    model = VesselModel(params)
-    path = plan_route(load_route(str(ROUTE)))
-    cfg = MissionConfig(environment=Environment(**ENV), sensors=True, seed=seed)
-    r = run_mission(path, make_path_follower(ControlConfig(), model), cfg, model=model, boat=boat,
-                    estimator=make_sim_ekf(cfg, path, model, boat=boat))
-    return r.metrics
 
 
 def tracking_rows(quick: bool = False) -> list[dict]:

@@ -20,7 +20,6 @@ import argparse
 import dataclasses
 import json
 import math
-import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +31,7 @@ from lotsen.errors import ConfigError, LotsenError
 from lotsen.model import DEFAULT_LIMITS, DEFAULT_PARAMETERS, VesselModel, VesselParameters
 from lotsen.sysid.data import IdRecord, save_csv
 from lotsen.sysid.experiment import Experiment, InputGenerator, check_experiment, load_experiment
+from lotsen.sysid.verdict import CORE_PARAMETERS
 
 
 @dataclass
@@ -106,9 +106,6 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
     rec = IdRecord(np.array(rows_t), U, np.array(rows_y), source=f"sim:{experiment.name}")
     return SimulatedRun(rec, np.array(truth_t), np.array(truth_x).reshape(-1, 6), bias)
 
-
-# the parameters a real hull is least sure of differ most from the textbook prior
-CORE_PARAMETERS = ("m22", "m33", "X_u", "X_uu", "Y_v", "N_r", "mu_az", "mu_t")
 
 LAKE_EXPERIMENT = {
     "name": "lake_prbs", "area": {"size_m": [400, 400]},
@@ -189,50 +186,6 @@ def parse_area(text: str) -> tuple[float, float]:
     return a, b
 
 
-def run_on_stack(experiment: Experiment, config: Any, realtime: bool) -> Any:
-    """Run `experiment` through the runtime on the boat the config names (hardware, or its emulated
-    twin): drivers, the state estimate, the supervisor and the recorder run; the experiment node
-    is the supervisor's command source in EXPERIMENT mode. Returns the ExperimentNode (its
-    `record()` and `aborted`)."""
-    from lotsen.stack.launch import build_stack
-    from lotsen.stack.experiment import ExperimentNode
-
-    stack = build_stack(config, realtime=realtime, parts=("state", "supervisor", "logs"))
-    node = stack.add(ExperimentNode(experiment))
-    deadline = experiment.duration_s + node.preroll_s + 10.0
-    try:
-        if realtime:
-            stack.executor.add_timer(0.2, lambda: stack.executor.stop() if node.done else None, "experiment-end")
-            stack.executor.run(deadline)
-        else:
-            stack.executor.run_until(deadline, stop=lambda: node.done)
-            stack.executor.shutdown()
-    finally:
-        for close in stack.services.get("on_shutdown", []):
-            close()
-    return node
-
-
-def record_on_simulated_stack(experiment: Experiment, out: Path, config: Any) -> Any:
-    """Run `experiment` on the stack with the simulated boat of `config` (its `sim.boat`), on
-    simulated time, recording every topic as the boat's recorder does; the MCAP lands at `out`
-    (what `lotsen identify RUN.mcap` reads). Returns the ExperimentNode."""
-    import tempfile
-    from dataclasses import replace
-
-    from lotsen.runtime.config import LoggingSection, WebSection
-
-    with tempfile.TemporaryDirectory(prefix="lotsen-experiment-") as tmp:
-        config = replace(config, mode="sim", logging=LoggingSection(enabled=True, directory=tmp),
-                         web=WebSection(enabled=False))
-        node = run_on_stack(experiment, config, realtime=False)
-        logs = sorted(Path(tmp).glob("*.mcap"))
-        if not logs:
-            raise LotsenError("the experiment ran but the recorder wrote no log")
-        shutil.move(str(logs[-1]), out)
-    return node
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
     if not args.sim and not args.hardware:
@@ -246,8 +199,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
 
-        from lotsen.stack.config import load_stack_config
         from lotsen.cli.run import with_model_and_boat
+        from lotsen.harness.lab_loop import record_on_simulated_stack
+        from lotsen.stack.config import load_stack_config
         from lotsen.stack.stack import simulated_boat
 
         config = with_model_and_boat(replace(load_stack_config(args.config), seed=args.seed), args.params, args.boat)
@@ -259,6 +213,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from dataclasses import replace
 
         from lotsen.stack.config import load_stack_config
+        from lotsen.stack.experiment import run_on_stack
 
         config = load_stack_config(args.config)
         config = replace(config, mode="hardware", seed=args.seed,

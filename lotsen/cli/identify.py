@@ -35,13 +35,12 @@ from typing import Any
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS
 from lotsen.runtime.config import VesselSection
-from lotsen.sysid.verdict import Verdict, judge
+from lotsen.sysid.identify import estimate_records, judge_identification, split_holdout
 
 SCALE_DEFAULT = ("m11", 14.0)
 # Parameters that anchor the scale well when known (a fixed damping term such as Y_rv formally
 # fixes it too, but is itself poorly known, so it does not stop the default m11).
 SCALE_ANCHORS = ("m11", "m22", "m33", "mu_az", "mu_t")
-NAMES_INDEX = {n: i for i, n in enumerate(DEFAULT_PARAMETERS.names())}
 
 
 def _ratio(text: str) -> float:
@@ -102,23 +101,12 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
     return out
 
 
-def _split_holdout(records: list, holdout: float) -> tuple[list, list]:
-    est, val = [], []
-    for r in records:
-        t_split = r.t[0] + (1 - holdout) * r.duration_s
-        est.append(r.slice(r.t[0], t_split))
-        val.append(r.slice(t_split, r.t[-1] + 1))
-    return est, val
-
-
 def _cmd_identify(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from lotsen.cli.experiment import load_params
     from lotsen.logs.export import sysid_record
     from lotsen.sysid.data import load_record, register_loader
-    from lotsen.sysid.estimate import estimate
-    from lotsen.sysid.multiple import check_identifiable, estimate_lake, estimate_multiple_shooting
 
     antenna = _parse_antenna(args.gnss_antenna) if args.gnss_antenna else (0.0, 0.0)
     # the project's own run logs (the same path as `lotsen export`), the fixes moved to the hull's origin
@@ -147,7 +135,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     elif args.holdout > 0:
         if not 0 < args.holdout < 0.9:
             raise ConfigError("--holdout must be between 0 and 0.9")
-        est_records, val_records = _split_holdout(records, args.holdout)
+        est_records, val_records = split_holdout(records, args.holdout)
     else:
         est_records = val_records = records
         warnings.append("validation on the estimation data (--holdout 0): fit figures are optimistic")
@@ -159,40 +147,26 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         bar.set_postfix(V=f"{cost:.5g}")
 
     try:
-        if args.method == "single":
-            res = estimate(est_records, theta0, fixed, window_s=args.window, gap_s=args.gap, noise_std=noise,
-                           geometry=geometry, max_iterations=args.max_iter, progress=progress)
-        elif args.lake:
-            res = estimate_lake(est_records, theta0, fixed, gust_std=args.gust_std, gap_s=args.gap, noise_std=noise,
-                                geometry=geometry, node_s=args.node, max_iterations=args.max_iter, estimate_noise=not args.fixed_noise,
-                                progress=progress)
-        else:
-            res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
-                                             geometry=geometry, node_s=args.node, max_iterations=args.max_iter,
-                                             estimate_noise=not args.fixed_noise, progress=progress)
+        res = estimate_records(est_records, theta0, fixed, method=args.method, lake=args.lake, geometry=geometry,
+                               noise_std=noise, window_s=args.window, gap_s=args.gap, node_s=args.node,
+                               max_iterations=args.max_iter, gust_std=args.gust_std,
+                               estimate_noise=not args.fixed_noise, progress=progress)
     finally:
         bar.close()
     for d in res.identifiability.directions:
         print(f"identifiability: {d}", file=sys.stderr)
-    check_identifiable(res)  # refuses (exit 2) rather than writing numbers the data do not determine
+    ident = judge_identification(res)  # refuses (exit 2) rather than writing numbers the data do not determine
     if res.identifiability.poorly_determined:
         warnings.append("poorly determined (95 % relative error above 5 %): "
                         + ", ".join(res.identifiability.poorly_determined))
-    lo_hi = _at_bounds(res)
-    if lo_hi:
-        msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(lo_hi))
+    if ident.at_bounds:
+        msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(ident.at_bounds))
         print(msg, file=sys.stderr)
         warnings.append(msg)
-    verdict = identification_verdict(res, lo_hi)
-    out = res.to_json_dict()
-    v = verdict.to_json_dict()
-    out.update(verdict=v.pop("verdict"), identification=v)  # non-numbers: the loaders skip them
+    verdict = ident.verdict
+    out = ident.to_json_dict()
     env = getattr(res.details, "environment", None)
     if env is not None:
-        out["environment"] = {"values": env.values, "std": env.std,
-                              "gust_factor_mean": float(env.gust_factor.mean()),
-                              "gust_factor_std": float(env.gust_factor.std()),
-                              "autocorrelation_factor": env.autocorrelation_factor}
         cn, ce = env.current_ne
         wn, we = env.wind_ne
         print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
@@ -218,30 +192,6 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     else:
         print("verdict: ok", file=sys.stderr)
     return 0
-
-
-def identification_verdict(res, at_bounds: list[str]) -> Verdict:  # type: ignore[no-untyped-def]
-    """The verdict on an identification result (lotsen.sysid.verdict.judge); the core coefficients
-    a controller leans on may not be weakly determined."""
-    from lotsen.cli.experiment import CORE_PARAMETERS
-
-    rel_sigma = {n: res.std[n] / abs(getattr(res.params, n)) if getattr(res.params, n) else math.inf
-                 for n in res.free_names}
-    return judge(res.converged, res.iterations, [b.split(" = ")[0] for b in at_bounds], rel_sigma,
-                 getattr(res.details, "residual_autocorr", None), core=CORE_PARAMETERS)
-
-
-def _at_bounds(res) -> list[str]:  # type: ignore[no-untyped-def]
-    from lotsen.sysid.estimate import parameter_bounds
-
-    lo, hi = parameter_bounds()
-    out = []
-    for n in res.free_names:
-        i = NAMES_INDEX[n]
-        v = getattr(res.params, n)
-        if v <= lo[i] or v >= hi[i]:
-            out.append(f"{n} = {v:g}")
-    return out
 
 
 def _write_report(args: argparse.Namespace, res, est_records: list, val_records: list, warnings: list[str],

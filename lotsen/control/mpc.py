@@ -98,7 +98,7 @@ import math
 import time
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import osqp
@@ -306,16 +306,80 @@ def _path_at_py(s, S, table, dtable, ds, length, cos_end, sin_end, out):  # type
 _path_at = njit(_path_at_py)
 
 
-def _assemble_py(x, xb, wb, s_pred, S, table, dtable, ds, length, cos_end, sin_end,  # type: ignore[no-untyped-def]
-                 scale, mq, dt, dist, cur, n_floor, Qy, stage_w, R, S_rate, w_prev, dw_max,
-                 q_trim_gain, min_speed_course, ad_i, ad_j, bd_i, bd_j, a_dyn_pos, p_state_pos, iu_i, iu_j,
-                 Ad, Bd, c, Px, Ax, q, l, u, row_bounds, row_rate, ref, newton_iters):
-    """One step of QP data: predicted progress, reference, LTV model, cost; written in place.
+class PathTable(NamedTuple):
+    """The reference path as the compiled kernels read it (PathReference's interpolation tables)."""
 
-    xb: nominal states (absolute), s_pred: progress guess per stage (refined here by `newton_iters`
-    foot-point steps, 0 keeps it: the time-parameterised reference; s_pred[0] fixed).
-    ref (N, 5) receives the reference (north, east, heading, curvature, speed) of stages 1..N.
+    s_m: np.ndarray  # arc length of the table's rows
+    table: np.ndarray  # (rows, 5): north, east, heading, curvature, speed
+    dtable: np.ndarray  # row-to-row differences of `table`
+    ds_m: np.ndarray  # row-to-row arc length
+    end: np.ndarray  # (length_m, cos, sin of the heading at the end): straight beyond the end
+
+
+def path_table(ref: PathReference) -> PathTable:
+    return PathTable(ref.s, ref._table, ref._dtable, ref._ds, np.array([ref.length, ref._cos_end, ref._sin_end]))
+
+
+class QpPattern(NamedTuple):
+    """Where the kernel writes: the structural non-zeros of Ad and Bd, the upper triangle of
+    C^T Q C, and their positions in the data arrays of A and P (set up once)."""
+
+    ad_i: np.ndarray  # Ad[k] entries (row, column) in A, per stage at a_dyn_pos[k, :len(ad_i)]
+    ad_j: np.ndarray
+    bd_i: np.ndarray  # Bd[k] entries, at a_dyn_pos[k, len(ad_i):]
+    bd_j: np.ndarray
+    a_dyn_pos: np.ndarray  # (N, entries of Ad and Bd): positions in A's data
+    p_state_pos: np.ndarray  # (N, entries of C^T Q C): positions in P's data
+    p_i: np.ndarray  # the (row, column) of those entries
+    p_j: np.ndarray
+
+
+class QpWeights(NamedTuple):
+    """The cost and the rate bound of the first input (scaled units, set up once)."""
+
+    q_y: np.ndarray  # outputs: cross-track, course, heading, speed, yaw rate
+    stage: np.ndarray  # per stage (the terminal factor on the last)
+    r_input: np.ndarray  # input weights R
+    s_rate: np.ndarray  # input-rate weights S
+    q_trim_gain: np.ndarray  # trim thrust of each azimuth at speed v: [0] v + [1] |v| v
+    dw_max: np.ndarray  # largest input change in one step
+    min_speed_course_mps: float
+    row_rate: int  # first row of the rate bounds in A
+
+
+class QpData(NamedTuple):
+    """What the kernel writes, in place: the LTV model of the horizon, the data arrays of P and A,
+    q, l, u, and the reference (north, east, heading, curvature, speed) of stages 1..N."""
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    c: np.ndarray
+    Px: np.ndarray
+    Ax: np.ndarray
+    q: np.ndarray
+    l: np.ndarray
+    u: np.ndarray
+    ref: np.ndarray
+
+
+def _assemble_py(x, xb, wb, s_pred, path, scale, mq, dt, dist, cur, n_floor, w_prev,  # type: ignore[no-untyped-def]
+                 weights, pattern, qp, newton_iters):
+    """One step of QP data: predicted progress, reference, LTV model, cost; written in place into
+    `qp` (QpData) at the positions of `pattern` (QpPattern), with `weights` (QpWeights).
+
+    xb: nominal states (absolute), wb: the inputs of the linearisation, s_pred: progress guess per
+    stage (refined here by `newton_iters` foot-point steps, 0 keeps it: the time-parameterised
+    reference; s_pred[0] fixed), path: PathTable, mq: the model's ModelArrays.packed, w_prev: the
+    last applied input (scaled).
     """
+    S, table, dtable, ds = path.s_m, path.table, path.dtable, path.ds_m
+    length, cos_end, sin_end = path.end[0], path.end[1], path.end[2]
+    Qy, stage_w, R, S_rate = weights.q_y, weights.stage, weights.r_input, weights.s_rate
+    q_trim_gain, dw_max = weights.q_trim_gain, weights.dw_max
+    min_speed_course, row_rate = weights.min_speed_course_mps, weights.row_rate
+    ad_i, ad_j, bd_i, bd_j = pattern.ad_i, pattern.ad_j, pattern.bd_i, pattern.bd_j
+    a_dyn_pos, p_state_pos, iu_i, iu_j = pattern.a_dyn_pos, pattern.p_state_pos, pattern.p_i, pattern.p_j
+    Ad, Bd, c, Px, Ax, q, l, u, ref = qp.Ad, qp.Bd, qp.c, qp.Px, qp.Ax, qp.q, qp.l, qp.u, qp.ref
     N = wb.shape[0]
     nx = 6
     nw = 5
@@ -656,6 +720,12 @@ class MPCController:
         p = self.model.params
         self._q_trim_gain = np.array([p.X_u, -p.X_uu]) / (2.0 * p.mu_az * self.scale[2])
         self._Qy = np.array([cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate])
+        # the compiled assembly's view of the above (the same arrays, grouped)
+        self._pattern = QpPattern(self._ad_idx[0], self._ad_idx[1], self._bd_idx[0], self._bd_idx[1],
+                                  self._a_dyn_pos, self._p_state_pos, self._iu[0], self._iu[1])
+        self._weights = QpWeights(self._Qy, self._ones_stage, self._R, self._S, self._q_trim_gain, self._dw_max,
+                                  float(cfg.min_speed_course_mps), int(self._row_rate))
+        self._qp = QpData(self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q, self._l, self._u, self._ref)
 
     def _dynamics_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Structural non-zeros of Ad and Bd: the union over random operating points (the
@@ -764,6 +834,7 @@ class MPCController:
 
     def reset(self, path: Any, progress_m: float = 0.0) -> None:
         self.path = PathReference(path, self.config.min_speed_ref_mps)
+        self._path_table = path_table(self.path)
         self.failures = 0
         self.solve_times_ms = []
         self.qp_solves = 0  # QPs solved since reset (more than the steps only in transients: reiterate_dw)
@@ -891,7 +962,6 @@ class MPCController:
             s_pred = np.concatenate([self._s_pred[1:], self._s_pred[-1:]])
             s_pred[0] = s0
             np.maximum(s_pred, s0, out=s_pred)
-        pr = self.path
         qa = self._q_achieved()
         origin = x[:2].copy()
         newton = 2 if cfg.progress_reference == "predicted" else 0
@@ -904,13 +974,8 @@ class MPCController:
             prev = np.concatenate([w_before[None, :], wb[:-1]])
             self._lag_weights(wb, prev, self._beta)
             ub = self._beta * wb + (1.0 - self._beta) * prev
-            _assemble(x, xb, ub, s_pred, pr.s, pr._table, pr._dtable, pr._ds, pr.length, pr._cos_end,
-                      pr._sin_end, self.scale, self.model.arrays.packed, cfg.dt_s, self._dist,
-                      self._current, cfg.n_floor_rps, self._Qy, self._ones_stage, self._R, self._S, self._w_prev,
-                      self._dw_max, self._q_trim_gain, cfg.min_speed_course_mps, self._ad_idx[0],
-                      self._ad_idx[1], self._bd_idx[0], self._bd_idx[1], self._a_dyn_pos, self._p_state_pos,
-                      self._iu[0], self._iu[1], self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q,
-                      self._l, self._u, self._row_bounds, self._row_rate, self._ref, newton)
+            _assemble(x, xb, ub, s_pred, self._path_table, self.scale, self.model.arrays.packed, cfg.dt_s, self._dist,
+                      self._current, cfg.n_floor_rps, self._w_prev, self._weights, self._pattern, self._qp, newton)
             _input_lag_block(self._Bd, self._bd_idx[0], self._bd_idx[1], self._beta, w_before, self._Ax,
                              self._a_b_pos, self._a_lag_pos, self._l, self._u)
             self._s_pred = s_pred

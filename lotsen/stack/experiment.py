@@ -26,7 +26,9 @@ import numpy as np
 from lotsen.messages import (
     Alert, ModeName, OperatorCommand, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
+from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Node, NodeContext
+from lotsen.stack.launch import build_stack
 
 
 class ExperimentNode(Node):
@@ -143,3 +145,24 @@ class ExperimentNode(Node):
         return IdRecord(data[:, 0], data[:, 1:6], data[:, 6:12],
                         output_names=("north", "east", "psi", "r", "u", "v"),
                         source=f"runtime:{self.experiment.name}")
+
+
+def run_on_stack(experiment: Any, config: LaunchConfig, realtime: bool) -> ExperimentNode:
+    """Run `experiment` through the runtime on the boat the config names (hardware, its emulated
+    twin, or the simulated boat): drivers, the state estimate, the supervisor and the recorder
+    run; the experiment node is the supervisor's command source in EXPERIMENT mode. Returns the
+    ExperimentNode (its `record()` and `aborted`)."""
+    stack = build_stack(config, realtime=realtime, parts=("state", "supervisor", "logs"))
+    node = stack.add(ExperimentNode(experiment))
+    deadline = experiment.duration_s + node.preroll_s + 10.0
+    try:
+        if realtime:
+            stack.executor.add_timer(0.2, lambda: stack.executor.stop() if node.done else None, "experiment-end")
+            stack.executor.run(deadline)
+        else:
+            stack.executor.run_until(deadline, stop=lambda: node.done)
+            stack.executor.shutdown()
+    finally:
+        for close in stack.services.get("on_shutdown", []):
+            close()
+    return node

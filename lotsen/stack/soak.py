@@ -190,22 +190,26 @@ def _left(mode: str) -> Callable[[dict], bool]:
     return lambda f: bool(f.get("sup")) and _mode(f)[0] != mode
 
 
-def _derived_config(plan: LivePlan, work: Path, port: int, token: str) -> Path:
-    """The operator's config with this run's port, token, log folder; relative paths made absolute
-    (the copy lives elsewhere)."""
-    src = Path(plan.config).resolve()
+def derive_run_config(config: Path, work: Path, port: int, token: str, *, seed: int | None = None,
+                      environment: dict | None = None, extra: dict | None = None) -> Path:
+    """The operator's launch config `config` for one run of `lotsen run` started by a harness:
+    the page on 127.0.0.1:`port` with pilot token `token`, the recorder writing to work/logs,
+    relative paths made absolute (the copy lives in `work`, as work/launch.yaml); `seed` and
+    `environment` (sim.environment) replace the file's when given, `extra` is merged into its
+    `extra` section (one level deep). Returns the copy's path."""
+    src = Path(config).resolve()
     data = read_yaml(src, ConfigError, "configuration file") or {}
     if isinstance(data.get("route"), str):
         data["route"] = str((src.parent / data["route"]).resolve())
     data.setdefault("web", {}).update(port=port, host="127.0.0.1", pilot_token=token, enabled=True)
     data.setdefault("logging", {}).update(enabled=True, directory=str(work / "logs"))
-    data["seed"] = plan.seed
-    if plan.environment is not None:
-        data.setdefault("sim", {})["environment"] = dict(plan.environment)
-    if plan.extra_config:
-        extra = data.setdefault("extra", {})
-        for k, v in plan.extra_config.items():
-            extra[k] = {**extra.get(k, {}), **v} if isinstance(v, dict) else v
+    if seed is not None:
+        data["seed"] = seed
+    if environment is not None:
+        data.setdefault("sim", {})["environment"] = dict(environment)
+    for k, v in (extra or {}).items():
+        section = data.setdefault("extra", {})
+        section[k] = {**section.get(k, {}), **v} if isinstance(v, dict) else v
     out = work / "launch.yaml"
     out.write_text(yaml.safe_dump(data, sort_keys=False))
     return out
@@ -290,7 +294,8 @@ class LiveProcess:
         self.work = work
         self.port, self.token = free_port(), secrets.token_urlsafe(24)
         self.url = f"ws://127.0.0.1:{self.port}{WS_PATH}"
-        config = _derived_config(plan, work, self.port, self.token)
+        config = derive_run_config(plan.config, work, self.port, self.token, seed=plan.seed,
+                                   environment=plan.environment, extra=plan.extra_config)
         self.clock = _Clock()
         # its own run-lock directory: a harness run is its own boat, whatever else runs here
         env = {**os.environ, CLOCK_ENV: repr(self.clock.t0), "PYTHONUNBUFFERED": "1",

@@ -24,6 +24,9 @@ MAX_WEAK = 4  # more weakly determined coefficients than this: refused
 # project's records (a boat equal to its model); an unmodelled drive gives 0.7-1.0
 MAX_TRACK_AUTOCORR = 0.5
 TRACK_OUTPUTS = ("north", "east")
+#: the coefficients a controller leans on (and a real hull is least sure of: they differ most from
+#: the textbook prior); none of them may be weakly determined
+CORE_PARAMETERS = ("m22", "m33", "X_u", "X_uu", "Y_v", "N_r", "mu_az", "mu_t")
 
 
 @dataclass

@@ -8,11 +8,12 @@ from lotsen.control import (
     StationKeeper, StationKeepingController, make_path_follower,
 )
 from lotsen.errors import ConfigError
+from lotsen.harness.controller_loop import control_ticks, follow_path
 from lotsen.model import Environment
 from lotsen.sim import SimConfig, Simulator
 
 from .conftest import circle_path, straight_path
-from .helpers import assert_commands_within_limits, closed_loop
+from .helpers import assert_commands_within_limits
 
 FALLBACKS = [PurePursuitController, LOSController, LQController]
 
@@ -24,7 +25,8 @@ FALLBACKS = [PurePursuitController, LOSController, LQController]
 def test_straight_line_from_an_offset(cls, tail_m):
     c = cls()
     assert isinstance(c, PathFollower)
-    cte, cmds, statuses, _ = closed_loop(c, straight_path(30.0), 35.0, x0=[0.0, 0.5, 0.0, 0.0, 0.0, 0.0])
+    run = follow_path(c, straight_path(30.0), 35.0, x0=[0.0, 0.5, 0.0, 0.0, 0.0, 0.0])
+    cte, cmds, statuses = run.cross_track_m, run.commands, run.statuses
     assert np.max(np.abs(cte)) < 0.8
     assert np.max(np.abs(cte[-50:])) < tail_m
     assert_commands_within_limits(cmds)
@@ -33,7 +35,8 @@ def test_straight_line_from_an_offset(cls, tail_m):
 @pytest.mark.parametrize("cls,bound", [(PurePursuitController, 0.15), (LOSController, 0.25), (LQController, 0.1)])
 def test_curve_bounded_error(cls, bound):
     c = cls()
-    cte, cmds, _, _ = closed_loop(c, circle_path(), 60.0)
+    run = follow_path(c, circle_path(), 60.0)
+    cte, cmds = run.cross_track_m, run.commands
     assert c.done
     assert np.max(np.abs(cte)) < bound
     assert_commands_within_limits(cmds)
@@ -51,14 +54,11 @@ def _hold(env: Environment, duration_s: float, x0, target: HoldTarget):
     assert isinstance(k, StationKeeper)
     sim = Simulator(config=SimConfig(sensors=False, environment=env), x0=x0)
     errs, cmds = [], []
-    while sim.t < duration_s:
-        cmd, st = k.update(sim.t, sim.truth(), target)
-        sim.command(cmd)
-        sim.advance(0.1)
+    for tick in control_ticks(sim, lambda t, s: k.update(t, s, target), until_s=duration_s):
         x = sim.x
         errs.append((math.hypot(x[0] - target.north_m, x[1] - target.east_m),
                      abs((x[2] - target.heading_rad + math.pi) % (2 * math.pi) - math.pi)))
-        cmds.append(cmd.as_tuple())
+        cmds.append(tick.command.as_tuple())
     return np.array(errs), np.array(cmds)
 
 

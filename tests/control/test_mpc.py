@@ -1,3 +1,4 @@
+import itertools
 import math
 from types import SimpleNamespace
 
@@ -6,11 +7,12 @@ import osqp
 import pytest
 
 from lotsen.control import MPCConfig, MPCController, PathFollower
+from lotsen.harness.controller_loop import control_ticks, follow_path
 from lotsen.messages import VesselState
 from lotsen.model import Environment, VesselModel
 
 from .conftest import circle_path, straight_path
-from .helpers import assert_commands_within_limits, closed_loop, rms
+from .helpers import assert_commands_within_limits, rms
 
 
 # OSQP's wall-clock time limit is a product safeguard; in unit tests it would make the outcome depend on
@@ -37,7 +39,8 @@ def test_follows_the_path_follower_protocol(mpc):
 
 def test_straight_line_converges_from_an_offset(mpc):
     path = straight_path(30.0)
-    cte, cmds, statuses, _ = closed_loop(mpc, path, 30.0, x0=[0.0, 0.6, 0.0, 0.0, 0.0, 0.0])
+    run = follow_path(mpc, path, 30.0, x0=[0.0, 0.6, 0.0, 0.0, 0.0, 0.0])
+    cte, cmds, statuses = run.cross_track_m, run.commands, run.statuses
     assert abs(cte[0]) == pytest.approx(0.6, abs=1e-6)
     assert np.max(np.abs(cte)) <= 0.61  # no overshoot beyond the start offset
     assert np.max(np.abs(cte[-50:])) < 0.01  # converged after 25 s
@@ -48,7 +51,8 @@ def test_straight_line_converges_from_an_offset(mpc):
 
 def test_curve_is_tracked_closely(mpc):
     path = circle_path()
-    cte, cmds, statuses, _ = closed_loop(mpc, path, 60.0)
+    run = follow_path(mpc, path, 60.0)
+    cte, cmds, statuses = run.cross_track_m, run.commands, run.statuses
     assert mpc.done
     assert rms(cte) < 0.03
     assert np.max(np.abs(cte)) < 0.08
@@ -59,7 +63,8 @@ def test_curve_is_tracked_closely(mpc):
 
 def test_current_and_wind_are_compensated(mpc):
     env = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
-    cte, cmds, _, _ = closed_loop(mpc, straight_path(25.0), 45.0, env=env)
+    run = follow_path(mpc, straight_path(25.0), 45.0, environment=env)
+    cte, cmds = run.cross_track_m, run.commands
     assert np.max(np.abs(cte[100:])) < 0.03  # offset-free after the disturbance observer settled
     assert_commands_within_limits(cmds)
 
@@ -73,14 +78,9 @@ def test_prediction_matches_the_simulated_motion():
 
     errs = []
     sim = Simulator(config=SimConfig(sensors=False), x0=[0, 0, 0, 0, 0, 0])
-    xs = []
-    preds = []
-    for k in range(120):
-        cmd, st = c.update(sim.t, sim.truth())
-        preds.append((st.predicted_north_m[10], st.predicted_east_m[10]))
-        xs.append(sim.x)
-        sim.command(cmd)
-        sim.advance(0.1)
+    ticks = list(itertools.islice(control_ticks(sim, c.update), 120))
+    xs = [tick.x for tick in ticks]
+    preds = [(tick.status.predicted_north_m[10], tick.status.predicted_east_m[10]) for tick in ticks]
     for k in range(40, 110):
         errs.append(math.hypot(preds[k][0] - xs[k + 10][0], preds[k][1] - xs[k + 10][1]))
     assert max(errs) < 0.05
@@ -105,22 +105,18 @@ def test_solver_failure_never_reaches_the_actuators(monkeypatch, kind):
     from lotsen.sim import SimConfig, Simulator
 
     sim = Simulator(config=SimConfig(sensors=False), x0=[0, 0.2, 0, 0, 0, 0])
-    for _ in range(30):  # healthy start
-        cmd, st = c.update(sim.t, sim.truth())
-        sim.command(cmd)
-        sim.advance(0.1)
+    ticks = control_ticks(sim, c.update)
+    for _ in itertools.islice(ticks, 30):  # healthy start
+        pass
     plan = c._plan.copy()
     solve = _failing_solve(kind)
     solve.nz = c.nz
     monkeypatch.setattr(c.solver, "solve", solve)
     statuses, cmds = [], []
-    for _ in range(8):
-        cmd, st = c.update(sim.t, sim.truth())
-        assert cmd.is_finite()
-        cmds.append(cmd.as_tuple())
-        statuses.append(st.status)
-        sim.command(cmd)
-        sim.advance(0.1)
+    for tick in itertools.islice(ticks, 8):
+        assert tick.command.is_finite()
+        cmds.append(tick.command.as_tuple())
+        statuses.append(tick.status.status)
     assert all(s.startswith("fallback_plan") for s in statuses[:4])
     assert all(s.startswith("safe_stop") for s in statuses[4:])
     assert cmds[-1] == (0.0, 0.0, 0.0, 0.0, 0.0)
@@ -130,10 +126,8 @@ def test_solver_failure_never_reaches_the_actuators(monkeypatch, kind):
     assert cmds[0][0] == pytest.approx(expected[0], abs=1e-9)
     # recovery once the solver works again
     monkeypatch.undo()
-    for _ in range(10):
-        cmd, st = c.update(sim.t, sim.truth())
-        sim.command(cmd)
-        sim.advance(0.1)
+    for tick in itertools.islice(ticks, 10):
+        st = tick.status
     assert st.status == "ok"
     assert st.failures == 8
 
@@ -170,7 +164,8 @@ def test_sparsity_pattern_is_fixed_and_data_updated_in_place(mpc):
 def test_stabilises_the_open_loop_unstable_yaw_at_high_speed(mpc):
     """Above ~0.52 m/s the sway-yaw dynamics are unstable (model stability report); at 1.4 m/s the
     MPC converges from an offset and keeps the speed."""
-    cte, cmds, _, sim = closed_loop(mpc, straight_path(60.0, speed_mps=1.4), 40.0, x0=[0.0, 0.3, 0.0, 0.0, 0.0, 0.0])
+    run = follow_path(mpc, straight_path(60.0, speed_mps=1.4), 40.0, x0=[0.0, 0.3, 0.0, 0.0, 0.0, 0.0])
+    cte, cmds, sim = run.cross_track_m, run.commands, run.sim
     assert np.max(np.abs(cte[-30:])) < 0.01
     assert sim.x[3] == pytest.approx(1.4, abs=0.05)
     assert_commands_within_limits(cmds)
@@ -194,10 +189,7 @@ def test_modelled_esc_speed_follows_the_simulated_propellers():
     # ideal model: this checks the ESC model's implementation against the same equations
     sim = Simulator(c.model, config=SimConfig(sensors=False), x0=[0, 0, 0, 0, 0, 0])
     errs = []
-    for _ in range(60):
-        cmd, _st = c.update(sim.t, sim.truth())
-        sim.command(cmd)
-        sim.advance(0.1)
+    for _ in itertools.islice(control_ticks(sim, c.update), 60):
         errs.append(np.max(np.abs(np.array(sim.actuators.state[2:]) - c._n_achieved)))
     assert max(errs) < 0.5  # rev/s, of up to 100
 
@@ -209,7 +201,8 @@ def test_reversal_penalty_switches_off():
     assert off._esc_beta == 1.0
     on = MPCController(config=NO_TIME_LIMIT)
     assert 0.3 < on._esc_beta < 0.6
-    cte, cmds, statuses, _ = closed_loop(off, straight_path(10.0), 10.0)
+    run = follow_path(off, straight_path(10.0), 10.0)
+    cte, cmds, statuses = run.cross_track_m, run.commands, run.statuses
     assert all(s.status == "ok" for s in statuses)
 
 
@@ -255,14 +248,12 @@ def test_the_estimated_current_enters_the_prediction():
         # ideal model: this checks the prediction's current terms against the same equations
         sim = Simulator(SimulatedBoat.ideal_for(c.model), config=SimConfig(sensors=False, environment=env),
                         x0=[0, 0, 0, 0, 0, 0])
-        preds, xs, cte = [], [], []
-        for _ in range(120):
-            cmd, st = c.update(sim.t, dataclasses.replace(sim.truth(), current_ne_mps=env.current_ne))
-            preds.append((st.predicted_north_m[10], st.predicted_east_m[10]))
-            xs.append(sim.x)
-            cte.append(st.cross_track_error_m)
-            sim.command(cmd)
-            sim.advance(0.1)
+        # the current as the EKF estimates it, here perfect
+        ticks = list(itertools.islice(control_ticks(
+            sim, lambda t, s: c.update(t, dataclasses.replace(s, current_ne_mps=env.current_ne))), 120))
+        preds = [(tick.status.predicted_north_m[10], tick.status.predicted_east_m[10]) for tick in ticks]
+        xs = [tick.x for tick in ticks]
+        cte = [tick.status.cross_track_error_m for tick in ticks]
         errs_by[use] = max(math.hypot(preds[k][0] - xs[k + 10][0], preds[k][1] - xs[k + 10][1]) for k in range(40, 110))
         cte_by[use] = rms(cte[50:])
     assert errs_by[True] < 0.01
@@ -299,7 +290,8 @@ def test_time_reference_and_second_qp_iteration_track_a_curve(progress, iteratio
     """The bench's variants beside do-mpc (the time-parameterised reference, a second QP per step
     re-linearised along the first solution) are working controllers, not only benchmark settings."""
     c = MPCController(config=MPCConfig(time_limit_s=0.0, progress_reference=progress, qp_iterations=iterations))
-    cte, cmds, statuses, _ = closed_loop(c, circle_path(), 60.0)
+    run = follow_path(c, circle_path(), 60.0)
+    cte, cmds, statuses = run.cross_track_m, run.commands, run.statuses
     assert c.done and c.failures == 0
     assert rms(cte) < 0.03 and np.max(np.abs(cte)) < 0.08
     assert_commands_within_limits(cmds)
@@ -388,7 +380,8 @@ def test_adaptive_second_qp_runs_in_transients_not_in_steady_tracking():
     costs, solves = {}, {}
     for iterations in (1, 2):
         c = MPCController(config=MPCConfig(time_limit_s=0.0, qp_iterations=iterations))
-        cte, cmds, _statuses, _ = closed_loop(c, path, 30.0, x0=x0)
+        run = follow_path(c, path, 30.0, x0=x0)
+        cte, cmds, _statuses = run.cross_track_m, run.commands, run.statuses
         assert c.failures == 0
         assert_commands_within_limits(cmds)
         costs[iterations] = float(np.sum(np.square(cte)))

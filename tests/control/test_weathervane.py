@@ -1,6 +1,7 @@
 """Issue 19: station keeping that points into the disturbance (weathervaning)."""
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -12,6 +13,7 @@ from lotsen.control.weathervane import (
     WeathervaneConfig, steady_hold_thrust, weathervane_heading,
 )
 from lotsen.errors import ConfigError
+from lotsen.harness.controller_loop import control_ticks
 from lotsen.model import Environment
 from lotsen.model.parameters import DEFAULT_PARAMETERS
 from lotsen.sim import SimConfig, Simulator
@@ -29,15 +31,15 @@ def _hold(env, weathervane, estimate=True, duration_s=60.0, **config):
     k = StationKeepingController(config=StationKeepingConfig(weathervane=weathervane, **config))
     sim = Simulator(config=SimConfig(sensors=False, environment=env), x0=[0.0] * 6)
     target, errs, cmds = HoldTarget(0.0, 0.0, 0.0), [], []
-    while sim.t < duration_s:
-        st = sim.truth()
+
+    def step(t, st):
         if estimate:  # what the EKF publishes (its current states), here perfect
             st = dataclasses.replace(st, current_ne_mps=env.current_ne)
-        cmd, _ = k.update(sim.t, st, target)
-        sim.command(cmd)
-        sim.advance(0.1)
+        return k.update(t, st, target)
+
+    for tick in control_ticks(sim, step, until_s=duration_s):
         errs.append(math.hypot(sim.x[0], sim.x[1]))
-        cmds.append(cmd.as_tuple())
+        cmds.append(tick.command.as_tuple())
     return np.array(errs), np.array(cmds), sim
 
 
@@ -92,11 +94,12 @@ def _choices_with_noisy_estimate(vane: WeathervaneConfig, noise_mps: float = 0.0
     k = StationKeepingController(config=StationKeepingConfig(weathervane=True, vane=vane))
     sim = Simulator(config=SimConfig(sensors=False, environment=env), x0=[0.0, 0.0, -math.pi / 2, 0.0, 0.0, 0.0])
     choices, errs = [], []
-    while sim.t < 60.0:
+
+    def step(t, st):
         cur = tuple(np.asarray(env.current_ne) + rng.normal(0.0, noise_mps, 2))
-        cmd, _ = k.update(sim.t, dataclasses.replace(sim.truth(), current_ne_mps=cur), HoldTarget(0.0, 0.0, 0.0))
-        sim.command(cmd)
-        sim.advance(0.1)
+        return k.update(t, dataclasses.replace(st, current_ne_mps=cur), HoldTarget(0.0, 0.0, 0.0))
+
+    for _ in control_ticks(sim, step, until_s=60.0):
         choices.append(k._vane_choice)
         errs.append(math.hypot(sim.x[0], sim.x[1]))
     return np.count_nonzero(np.abs(np.diff(choices)) > 1e-9), np.array(errs)
@@ -156,11 +159,10 @@ def test_hold_turning_into_a_beam_current_brakes_on_a_hull_with_weak_reverse_thr
     keeper = StationKeepingController()
     target = HoldTarget(26.4, 31.3, -math.pi / 2)
     worst_east = -math.inf
-    for _ in range(1200):
-        state = dataclasses.replace(sim.truth(), current_ne_mps=env.current_ne)
-        cmd, _ = keeper.update(sim.t, state, target)
-        sim.command(cmd)
-        sim.advance(0.1)
+    def step(t, state):
+        return keeper.update(t, dataclasses.replace(state, current_ne_mps=env.current_ne), target)
+
+    for _ in itertools.islice(control_ticks(sim, step), 1200):
         worst_east = max(worst_east, sim.x[1])
     assert worst_east < 33.1  # never more than 0.2 m further down-current than where it started
     assert math.hypot(sim.x[0] - target.north_m, sim.x[1] - target.east_m) < 0.1

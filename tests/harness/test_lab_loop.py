@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from lotsen.cli.experiment import CORE_PARAMETERS
 from lotsen.cli.main import main
 from lotsen.model import DEFAULT_PARAMETERS
 from lotsen.runtime.config import load_config
 from lotsen.sim import DEFAULT_BOAT, LAKE_BOAT_PARAMETERS
 from lotsen.cli.run import with_model_and_boat
 from lotsen.stack.stack import simulated_boat, vessel_model
+from lotsen.sysid.verdict import CORE_PARAMETERS
 
 ROOT = Path(__file__).resolve().parents[2]
 ROUTE = str(ROOT / "examples" / "routes" / "harbour_approach.yaml")
@@ -133,7 +133,7 @@ def test_identified_parameters_track_within_20_percent_of_the_exact_model(tmp_pa
     current and 3 m/s wind on the EKF must track within 20 % of the exact model (mean over seeds)."""
     import numpy as np
 
-    from bench.bench_model_chain import identify_on, mission
+    from lotsen.harness.lab_loop import identify_on, track_with_model as mission
     from lotsen.sim import randomised_parameters
 
     boat = DEFAULT_BOAT if boat_seed is None else DEFAULT_BOAT.with_parameters(

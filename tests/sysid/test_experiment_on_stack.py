@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from lotsen.cli.experiment import run_on_stack
+from lotsen.stack.experiment import run_on_stack
 from lotsen.runtime.config import LaunchConfig, LoggingSection
 from lotsen.sysid.data import load_csv, save_csv
 from lotsen.sysid.experiment import parse_experiment

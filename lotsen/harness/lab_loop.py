@@ -1,0 +1,122 @@
+"""The lab loop on simulated time: designed experiments recorded on the stack -> identification ->
+a mission with the identified model, on a simulated boat that is not its model.
+
+    identified, report = identify_on(boat, work_dir)      # None when identification refused
+    metrics = track_with_model(boat, identified, seed=0)  # figure eight on the EKF, current + wind
+
+`record_on_simulated_stack` is what `lotsen experiment run --sim --out RUN.mcap` does: the
+experiment node drives the stack's supervisor, the recorder writes every topic. `identify_logs`
+is what `lotsen identify RUN.mcap ... --out params.json` does with the hull's measured geometry
+(the same estimator and verdict, lotsen.sysid.identify). A lab knows the scale from the weighed
+hull (m11 fixed), the GNSS antenna's position from a tape, and the astern/ahead thrust ratio from a
+bollard pull: `identify_on` gives those, nothing else of the boat.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from lotsen.control import ControlConfig, make_path_follower
+from lotsen.errors import LotsenError
+from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+from lotsen.logs.export import sysid_record
+from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
+from lotsen.planning import plan_route
+from lotsen.planning.io import load_route
+from lotsen.runtime.config import BoatSection, LaunchConfig, LoggingSection, WebSection
+from lotsen.sim import SimulatedBoat
+from lotsen.stack.experiment import ExperimentNode, run_on_stack
+from lotsen.stack.stack import EXAMPLES, example_route
+from lotsen.sysid.experiment import Experiment, load_experiment
+from lotsen.sysid.identify import Identification, estimate_records, judge_identification, split_holdout
+
+#: the battery of designed experiments (examples/experiments), the broadband PRBS first
+EXPERIMENTS = ("prbs_multisine", "zigzag_20_20", "turning_circles", "bow_thruster_steps", "zigzag_10_10",
+               "speed_steps")
+#: the mission's water and air: 0.1 m/s current towards 90 deg, 3 m/s wind from 45 deg
+LAB_ENVIRONMENT = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
+
+
+def record_on_simulated_stack(experiment: Experiment, out: Path, config: LaunchConfig) -> ExperimentNode:
+    """Run `experiment` on the stack with the simulated boat of `config` (its `sim.boat`), on
+    simulated time, recording every topic as the boat's recorder does; the MCAP lands at `out`
+    (what `lotsen identify RUN.mcap` reads). Returns the ExperimentNode."""
+    with tempfile.TemporaryDirectory(prefix="lotsen-experiment-") as tmp:
+        config = dataclasses.replace(config, mode="sim", logging=LoggingSection(enabled=True, directory=tmp),
+                                     web=WebSection(enabled=False))
+        node = run_on_stack(experiment, config, realtime=False)
+        logs = sorted(Path(tmp).glob("*.mcap"))
+        if not logs:
+            raise LotsenError("the experiment ran but the recorder wrote no log")
+        shutil.move(str(logs[-1]), out)
+    return node
+
+
+def identify_logs(logs: Sequence[str | Path], out: Path | None = None, *, fixed: Mapping[str, float],
+                  gnss_antenna_m: tuple[float, float] = (0.0, 0.0), reverse_thrust_ratio: float = 1.0,
+                  init: VesselParameters | None = None, holdout: float = 0.2) -> Identification:
+    """`lotsen identify LOGS --fix ... --gnss-antenna X,Y --reverse-thrust-ratio R [--init] --out OUT`
+    with its defaults (multiple shooting, the last `holdout` of each record held out): the run
+    logs' fixes moved to the hull's origin, estimated from `init` (default: the defaults), judged;
+    the parameter file written to `out` when given (marked refused when the verdict is). Raises
+    IdentifiabilityError when the data leave a direction undetermined (nothing written)."""
+    records = [sysid_record(p, gnss_antenna_m=gnss_antenna_m) for p in logs]
+    est_records, _ = split_holdout(records, holdout) if holdout > 0 else (records, records)
+    geometry = dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=reverse_thrust_ratio)
+    ident = judge_identification(estimate_records(est_records, init or DEFAULT_PARAMETERS, fixed,
+                                                  geometry=geometry))
+    if out is not None:
+        Path(out).write_text(json.dumps(ident.to_json_dict(), indent=2) + "\n")
+    return ident
+
+
+def lab_experiments() -> list[Experiment]:
+    return [load_experiment(EXAMPLES / "experiments" / f"{name}.yaml") for name in EXPERIMENTS]
+
+
+def identify_on(boat: SimulatedBoat, work: Path, experiments: Sequence[Experiment] | None = None,
+                base_seed: int = 100) -> tuple[VesselParameters | None, dict[str, Any]]:
+    """The lab loop on `boat`: the designed experiments (default the battery `EXPERIMENTS`) recorded
+    on the simulated stack (seeds `base_seed` + i) into `work`, identified together; m11 fixed as the
+    weighed hull gives it, and the geometry a lab measures on the hull given (the GNSS antenna's
+    position; astern/ahead thrust from a bollard pull). Returns (parameters, the parameter file's
+    content, also written to work/identified.json); the parameters are None when identification
+    refused them (its verdict and reasons are in the content)."""
+    boat_file = work / "boat.json"
+    boat_file.write_text(json.dumps(boat.parameters.to_dict()))
+    config = LaunchConfig(mode="sim")
+    config = dataclasses.replace(config, sim=dataclasses.replace(
+        config.sim, boat=BoatSection(parameters_file=str(boat_file))))
+    logs = []
+    for i, exp in enumerate(experiments if experiments is not None else lab_experiments()):
+        out = work / f"{exp.name}.mcap"
+        record_on_simulated_stack(exp, out, dataclasses.replace(config, seed=base_seed + i))
+        logs.append(out)
+    hull = dict(fixed={"m11": boat.parameters.m11}, gnss_antenna_m=tuple(boat.gnss_antenna_m),
+                reverse_thrust_ratio=boat.geometry.reverse_thrust_ratio)
+    # the broadband record first, and the battery from there when identification accepts it: from the
+    # defaults, a boat 10-40 % away can fall into a wrong basin on the whole battery (refused, not wrong)
+    try:
+        first = identify_logs(logs[:1], work / "first.json", **hull)
+        init = None if first.refused else first.result.params
+    except LotsenError:
+        init = None
+    ident = identify_logs(logs, work / "identified.json", init=init, **hull)
+    return (None if ident.refused else ident.result.params), ident.to_json_dict()
+
+
+def track_with_model(boat: SimulatedBoat, params: VesselParameters, seed: int, route: str | None = None,
+                     environment: Environment = LAB_ENVIRONMENT) -> dict[str, Any]:
+    """A mission on `boat` with `params` as the controllers' and the EKF's model: the route (default
+    the figure eight) followed on the EKF, with sensors, in `environment`. Returns the metrics."""
+    model = VesselModel(params)
+    path = plan_route(load_route(route or example_route("figure_eight")))
+    cfg = MissionConfig(environment=environment, sensors=True, seed=seed)
+    r = run_mission(path, make_path_follower(ControlConfig(), model), cfg, model=model, boat=boat,
+                    estimator=make_sim_ekf(cfg, path, model, boat=boat))
+    return r.metrics
