@@ -1,6 +1,7 @@
 """The MPC's QP data on a fixed case, against a recording (data/mpc_qp_reference.npz, written by
 the assembly as it was before its arguments were grouped into PathTable, QpWeights, QpPattern and
-QpData): any change to what the compiled assembly writes shows here, bit for bit."""
+QpData): any change to what the compiled assembly writes shows here. Compared to 1e-9 relative, not
+bit for bit: another CPU or numba version may fuse or reorder floating-point operations."""
 
 from pathlib import Path
 
@@ -31,4 +32,5 @@ def test_assembled_qp_matches_the_recording(name, config):
         for a in ARRAYS:
             want = reference[f"{name}{k}{a}"]
             got = getattr(c, a)
-            assert got.shape == want.shape and np.array_equal(got, want), (name, k, a, np.max(np.abs(got - want)))
+            assert got.shape == want.shape, (name, k, a)
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12, err_msg=f"{name} update {k} {a}")
