@@ -77,7 +77,8 @@ def tables_markdown(rows: list[dict]) -> str:
     for title, group in grouped(rows):
         t = targets(group)
         out.append(f"### {title}\n\n" + (f"Target: {t}. " if t else "") + f"Verdict: **{verdict(group)}**.\n\n"
-                   + markdown_table(group, skip=("table",)))
+                   # a target shared by every row is in the title already
+                   + markdown_table(group, skip=("table",) + (("target",) if len({str(r.get("target")) for r in group}) == 1 else ())))
     return "\n".join(out)
 
 

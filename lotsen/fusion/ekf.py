@@ -94,7 +94,9 @@ class EkfConfig:
     sigma_gyro_bias_walk: float = 0.0005  # rad/s/sqrt(s)
     sigma_accel_bias_walk: float = 0.002  # m/s^2/sqrt(s)
     sigma_current_walk_mps: float = 0.003  # m/s/sqrt(s): 0.03 m/s in 100 s
-    sigma_tau_walk: tuple[float, float, float] = (0.02, 0.04, 0.01)  # N, N, N m per sqrt(s)
+    # N, N, N m per sqrt(s), with disturbance_states: fast enough to follow the force error of a hull
+    # 10-20 % off its model through a speed change, slow enough to leave the current observable in turns
+    sigma_tau_walk: tuple[float, float, float] = (0.3, 0.5, 0.08)
     # measurement noise
     sigma_gyro_radps: float = 0.005
     sigma_accel_mps2: float = 0.08  # of the decimated mean: noise, vibration, model's force error
@@ -112,7 +114,8 @@ class EkfConfig:
     use_accel: bool = True
     accel_bias_states: bool = True
     current_states: bool = True  # water current north / east
-    disturbance_states: bool = False  # body force X, Y and moment N (wind): see docs/fusion.md
+    # body force X, Y and moment N (wind and the model's force error); off by default: docs/fusion.md
+    disturbance_states: bool = False
     max_current_mps: float = 1.0  # the current estimate is clipped to this (a safety net, not a model)
     accel_decimation: int = 5
     # gating

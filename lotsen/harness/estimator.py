@@ -29,6 +29,7 @@ from lotsen.messages import GnssFix, ImuSample, MagSample, VesselState
 from lotsen.model import DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
 from lotsen.model.geodetic import LocalFrame
 from lotsen.sim import SimConfig, Simulator
+from lotsen.sim.boat import SimulatedBoat
 
 DEG = math.pi / 180.0
 
@@ -69,6 +70,7 @@ class EvaluationConfig:
     compare_imufusion: bool = True
     filters: tuple[str, ...] = ("seed_kf", "ekf")  # which estimators to run (imufusion: compare_imufusion)
     sample_hz: float = 10.0
+    boat: SimulatedBoat | None = None  # the simulated boat; None: the lake boat (not the filters' model)
 
 
 def perturbed_parameters(rel: float, params: VesselParameters = DEFAULT_PARAMETERS) -> VesselParameters:
@@ -161,7 +163,7 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
 
     cal_samples = simulate_calibration_turn(config.seed, config.calibration_turn_s)
     cal = calibrate_from_turn(cal_samples)
-    sim = Simulator(config=SimConfig(seed=config.seed, environment=config.environment))
+    sim = Simulator(config.boat, config=SimConfig(seed=config.seed, environment=config.environment))
     imu_cfg = sim.config.imu
     S, b = np.array(imu_cfg.soft_iron), np.array(imu_cfg.hard_iron_uT)
     calib_report = {
