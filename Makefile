@@ -8,7 +8,7 @@ PY := $(VENV)/bin/python
 PIP := $(PY) -m pip --disable-pip-version-check
 RUN_ARGS ?=
 
-.PHONY: run test bench bench-quick venv venv-dev browser clean pi-check
+.PHONY: run test test-under-load bench bench-quick venv venv-dev browser clean pi-check
 
 $(VENV)/.run-installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -35,6 +35,13 @@ run: venv
 test: venv-dev browser
 	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live"
 	$(PY) -m pytest -q -m live || $(PY) -m pytest -q -m live --last-failed
+
+# The default suite 10 times in a row with two CPU burners running (RUNS=, BURNERS=); writes
+# bench/results/under_load.md. About an hour and a half on a 2-core machine.
+RUNS ?= 10
+BURNERS ?= 2
+test-under-load: venv-dev browser
+	$(PY) tools/test_under_load.py --runs $(RUNS) --burners $(BURNERS)
 
 bench: venv-dev
 	$(PY) bench/run.py

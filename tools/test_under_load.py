@@ -1,0 +1,89 @@
+"""The default test suite, N times in a row, on a busy machine: two CPU burners (`while True: pass`,
+one per core of a 2-core machine) run for the whole time. Writes bench/results/under_load.{md,json}.
+
+    .venv/bin/python tools/test_under_load.py [--runs 10] [--burners 2] [--live]
+
+Each run is the first step of `make test` (everything on simulated time: `pytest -n 2 --dist
+loadfile -m "not live"`); with --live also its second step (the wall-clock tests, with the one
+retry `make test` allows). A run counts as green only when pytest exits 0. The suite is meant to
+be deterministic: a red run under load is a bug to fix, not noise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results"
+SUMMARY = re.compile(r"(\d+) (passed|failed|error|errors|skipped|deselected|xfailed|xpassed)")
+
+
+def _pytest(args: list[str]) -> tuple[int, dict[str, int], float, str]:
+    t0 = time.monotonic()
+    p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args], cwd=ROOT,
+                       capture_output=True, text=True)
+    counts: dict[str, int] = {}
+    tail = p.stdout.strip().splitlines()[-1] if p.stdout.strip() else ""
+    for n, what in SUMMARY.findall(tail):
+        counts[what] = int(n)
+    failed = [ln for ln in p.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))]
+    return p.returncode, counts, time.monotonic() - t0, "; ".join(failed[:5])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=10)
+    ap.add_argument("--burners", type=int, default=2)
+    ap.add_argument("--live", action="store_true", help="also the wall-clock step of make test")
+    args = ap.parse_args()
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)]
+    rows = []
+    started = datetime.now()
+    try:
+        for k in range(1, args.runs + 1):
+            rc, counts, wall, failed = _pytest(["-n", "2", "--dist", "loadfile", "-m", "not live"])
+            row = {"run": k, "step": "simulated time (-m 'not live', -n 2)", "exit": rc, **counts,
+                   "wall_s": round(wall, 1), "failed_tests": failed, "pass": rc == 0}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+            if args.live:
+                rc, counts, wall, failed = _pytest(["-m", "live"])
+                if rc != 0:  # make test's one retry of the live step
+                    rc, counts, wall2, failed = _pytest(["-m", "live", "--last-failed"])
+                    wall += wall2
+                row = {"run": k, "step": "live (wall clock, one retry)", "exit": rc, **counts,
+                       "wall_s": round(wall, 1), "failed_tests": failed, "pass": rc == 0}
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+    finally:
+        for b in burners:
+            b.kill()
+    green = sum(1 for r in rows if r["pass"])
+    meta = {"date": started.strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs",
+            "python": platform.python_version(), "burners": args.burners, "runs": args.runs,
+            "green": green, "of": len(rows)}
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "under_load.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    cols = ["run", "step", "exit", "passed", "failed", "skipped", "deselected", "wall_s", "failed_tests"]
+    md = ["# under load", "",
+          f"The default test suite run {args.runs} times in a row with {args.burners} CPU burners "
+          "(`while True: pass`) running the whole time (`tools/test_under_load.py`).", "",
+          f"Measured {meta['date']} on {meta['machine']}, Python {meta['python']}: "
+          f"**{green} of {len(rows)} green**.", "",
+          "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    md += ["| " + " | ".join(str(r.get(c, "")) for c in cols) + " |" for r in rows]
+    (RESULTS / "under_load.md").write_text("\n".join(md) + "\n")
+    return 0 if green == len(rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
