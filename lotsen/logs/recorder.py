@@ -6,6 +6,9 @@ a bounded queue (drop-oldest, counted), and a writer thread encodes, writes and 
 `flush_period_s` (0.5 s) the writer closes the MCAP chunk in progress and flushes (and by default
 fsyncs) the file, so a killed process or a power cut loses at most about the last second; such a
 file has no summary/footer and `LogReader` still reads it. Files: `<dir>/<date>_<time>_runNNN.mcap`.
+Messages received from another process (`on_envelope`, the recorder process of `lotsen run`) are
+written as they came: the envelope's JSON payload is the channel's data (the bytes `encode_json`
+makes of the message), and it is decoded only for a Foxglove view.
 
 Times: MCAP `log_time` is the receipt time on the runtime's clock mapped to Unix epoch
 nanoseconds (epoch at start + clock seconds), `publish_time` the message's `stamp_s` mapped the
@@ -149,22 +152,38 @@ class _Session:
         return cid
 
     def _write(self, topic: str, t_s: float, msg: Any) -> None:
-        log_ns = self.epoch0_ns + int(round(t_s * 1e9))
-        stamp = getattr(msg, "stamp_s", math.nan)
-        pub_ns = self.epoch0_ns + int(round(stamp * 1e9)) if isinstance(stamp, float) and math.isfinite(stamp) else log_ns
         cls = type(msg)
         if cls.__name__ not in codec.MESSAGE_TYPES:
             self.stats.encode_errors += 1
             self.stats.last_error = f"{topic}: {cls.__name__} is not a lotsen message; not recorded"
             return
-        data = codec.encode_json(msg)
+        stamp = getattr(msg, "stamp_s", math.nan)
+        self._add(topic, t_s, cls, codec.encode_json(msg), stamp if isinstance(stamp, float) else math.nan,
+                  lambda: msg)
+
+    def _write_envelope(self, topic: str, t_s: float, env: codec.Envelope) -> None:
+        """A message as it came over the wire: its JSON payload is the channel's data as it is
+        (the same bytes `codec.encode_json` makes of the message); decoded only for a Foxglove
+        view. A CDR payload is decoded and written as JSON."""
+        if env.encoding != codec.ENC_JSON:
+            self._write(topic, t_s, codec.decode_envelope(env))
+            return
+        cls = codec.message_class(env.type_name)
+        payload = env.payload
+        self._add(topic, t_s, cls, payload, codec.json_stamp_s(payload), lambda: codec.decode_json(cls, payload))
+
+    def _add(self, topic: str, t_s: float, cls: type, data: bytes, stamp_s: float, message: Callable[[], Any]) -> None:
+        """Write one message's JSON `data` on its channel, and its Foxglove views (`message()`
+        gives the message itself, asked for only when the topic has a view)."""
+        log_ns = self.epoch0_ns + int(round(t_s * 1e9))
+        pub_ns = self.epoch0_ns + int(round(stamp_s * 1e9)) if math.isfinite(stamp_s) else log_ns
         cid = self._channel_id(topic, codec.schema_name(cls), "jsonschema",
                                lambda: json.dumps(codec.json_schema(cls)).encode(), "json")
         self._writer.add_message(cid, log_time=log_ns, data=data, publish_time=pub_ns)
         self.stats.written += 1
         self.stats.per_topic[topic] = self.stats.per_topic.get(topic, 0) + 1
-        if self._views is not None:
-            for v in self._views.views(topic, msg, log_ns):
+        if self._views is not None and self._views.handles(topic):
+            for v in self._views.views(topic, message(), log_ns):
                 cid = self._channel_id(v.topic, v.schema_name, *_schema_args(v.schema_name), v.encoding)
                 self._writer.add_message(cid, log_time=log_ns, data=v.data, publish_time=log_ns)
                 self.stats.views_written += 1
@@ -190,7 +209,10 @@ class _Session:
             batch += self.queue.get_all()
             for topic, (t_s, msg) in batch:
                 try:
-                    self._write(topic, t_s, msg)
+                    if isinstance(msg, codec.Envelope):
+                        self._write_envelope(topic, t_s, msg)
+                    else:
+                        self._write(topic, t_s, msg)
                     dirty = True
                 except Exception as exc:  # noqa: BLE001 - one bad message must not end the recording
                     self.stats.encode_errors += 1
@@ -301,6 +323,14 @@ class McapRecorder:
         if session is None or (self._topics is not None and topic not in self._topics):
             return
         session.put(topic, self._clock(), msg)
+
+    def on_envelope(self, topic: str, env: codec.Envelope) -> None:
+        """A message as received from another process (`ZenohBridge.forward_encoded`), recorded
+        without decoding it (any thread; as cheap as `on_message`)."""
+        session = self._session
+        if session is None or (self._topics is not None and topic not in self._topics):
+            return
+        session.put(topic, self._clock(), env)
 
     def attach(self, bus: Bus) -> "McapRecorder":
         if self._unsubscribe is None:

@@ -81,6 +81,11 @@ class Bus:
         self._subs[topic].append(callback)
         return lambda: self._subs[topic].remove(callback)
 
+    def subscribed_topics(self) -> frozenset[str]:
+        """The topics that have a subscriber of their own (`subscribe`, `queue` with topics)."""
+        queued = {t for topics, _ in self._queues if topics is not None for t in topics}
+        return frozenset(t for t, cbs in self._subs.items() if cbs) | queued
+
     def subscribe_all(self, callback: AnyCallback) -> Callable[[], None]:
         """Every message of every topic (recorders, bridges)."""
         self._all.append(callback)

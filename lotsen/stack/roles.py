@@ -346,9 +346,13 @@ def core_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
     # every topic out in 50 ms batches: Zenoh then packs a batch into few frames (the core's
     # sending thread and the edge's receiving threads wake 20 times a second, not 100 and more);
-    # the edge sees the telemetry up to 50 ms later, its stamps are the core's
+    # the edge sees the telemetry up to 50 ms later, its stamps are the core's. JSON for every
+    # type, not ROS 2 CDR where one fits: the router listens on loopback only (ROS 2 tools get CDR
+    # from the ros2 process), JSON costs the core less to encode and the edge less to decode, the
+    # recorder writes the received JSON as it is (no decode and re-encode), and what is recorded
+    # is exactly what was published (CDR rounds stamps to nanoseconds and the field to tesla)
     _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources),
-            send_batch_s=CORE_SEND_BATCH_S)
+            send_batch_s=CORE_SEND_BATCH_S, encoding="json")
     watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
     stack.on_shutdown(watchdog.stop)
     stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
@@ -368,9 +372,12 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
     # the core's whole stream (300+ messages a second): taken in batches, not one thread switch each
-    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",),
-            wait_for_router=True, receive="poll", drain_period_s=0.05)
-    add_recorder(stack)
+    bridge = _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,),
+                     subscribe=("*/**",), wait_for_router=True, receive="poll", drain_period_s=0.05)
+    recorder = add_recorder(stack)
+    # ... and recorded as it came (the JSON on the wire is the log's JSON): decoded only for the
+    # Foxglove views and for what this process acts on (logging on / off)
+    bridge.forward_encoded(recorder.on_envelope, decoded=stack.bus.subscribed_topics())
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
 

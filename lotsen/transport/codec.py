@@ -41,6 +41,7 @@ import enum
 import functools
 import json
 import math
+import re
 import struct
 import types
 import typing
@@ -512,13 +513,39 @@ def parse_envelope(data: bytes) -> Envelope:
 def decode(data: bytes) -> tuple[Any, Envelope]:
     """(message, envelope) from envelope bytes; DecodeError names what is wrong."""
     env = parse_envelope(data)
+    return decode_envelope(env), env
+
+
+def decode_envelope(env: Envelope) -> Any:
+    """The message an envelope carries; DecodeError names what is wrong."""
     if env.encoding == ENC_JSON:
-        return decode_json(env.type_name, env.payload), env
+        return decode_json(env.type_name, env.payload)
     if env.encoding == ENC_CDR:
         try:
             ext = json.loads(env.extension) if env.extension else {}
         except ValueError as exc:
             raise DecodeError(f"{env.type_name}: bad extension JSON: {exc}") from None
         message_class(env.type_name)
-        return decode_cdr(env.type_name, env.ros_type, env.payload, ext), env
+        return decode_cdr(env.type_name, env.ros_type, env.payload, ext)
     raise DecodeError(f"unknown envelope encoding {env.encoding}")
+
+
+_FIRST_STAMP = re.compile(rb'\{"stamp_s":([^,}]*)')
+
+
+def json_stamp_s(payload: bytes) -> float:
+    """`stamp_s` of a message's JSON form without decoding the rest; NaN when it has none or it is
+    not finite (its JSON form is then null, "inf" or "-inf"). Every message's first field is its
+    stamp, so this reads only the first value; any other layout is parsed in full."""
+    first = _FIRST_STAMP.match(payload)
+    if first is None:
+        try:
+            value = json.loads(payload).get("stamp_s")
+        except (ValueError, AttributeError):
+            return math.nan
+        return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+    token = first.group(1)
+    try:
+        return float(token)  # null, "inf" and "-inf" are not float literals
+    except ValueError:
+        return math.nan

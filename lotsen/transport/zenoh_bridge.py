@@ -28,7 +28,7 @@ import json
 import threading
 import uuid
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Callable, Iterable, Literal
 
 from lotsen.errors import ConfigError
 from lotsen.messages import LATCHED_TOPICS
@@ -128,6 +128,8 @@ class ZenohBridge(Node):
         self._unsubscribe: Any = None
         self._wake: Any = None  # the executor's call_soon_threadsafe, once started
         self._drain_pending = threading.Event()
+        self._encoded_sink: Callable[[str, codec.Envelope], None] | None = None
+        self._decoded_topics: frozenset[str] = frozenset()
         self.session = zenoh.open(zenoh_config(config))
         self._subs = []
         from zenoh import ext
@@ -144,6 +146,15 @@ class ZenohBridge(Node):
                 recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None)))
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
         self._sender.start()
+
+    def forward_encoded(self, sink: Callable[[str, codec.Envelope], None], decoded: Iterable[str] = ()) -> None:
+        """Received messages go to `sink(topic, envelope)` as they came, not decoded and not on the
+        local bus (a recorder writes the JSON payload as it is); those of the `decoded` topics
+        (what a node of this process subscribes to) still reach the local bus, and only it. The
+        sink is called where received samples are handled: the executor thread with
+        `receive="poll"`, Zenoh's thread with "callback"."""
+        self._decoded_topics = frozenset(decoded)
+        self._encoded_sink = sink
 
     # ---------------------------------------------------------------- node side (executor thread)
     def start(self, ctx: NodeContext) -> None:
@@ -247,7 +258,7 @@ class ZenohBridge(Node):
             self.stats.echoes_ignored += 1
             return
         try:
-            msg, env = codec.decode(sample.payload.to_bytes())
+            env = codec.parse_envelope(sample.payload.to_bytes())
         except Exception as exc:  # noqa: BLE001 - bad data from the network is counted, not raised
             self.stats.decode_errors += 1
             self.stats.last_error = f"{key}: {exc}"
@@ -256,6 +267,17 @@ class ZenohBridge(Node):
             self.stats.echoes_ignored += 1
             return
         topic = self.config.local_prefix + parts[2]
+        sink = self._encoded_sink
+        if sink is not None and topic not in self._decoded_topics:
+            self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
+            sink(topic, env)
+            return
+        try:
+            msg = codec.decode_envelope(env)
+        except Exception as exc:  # noqa: BLE001
+            self.stats.decode_errors += 1
+            self.stats.last_error = f"{key}: {exc}"
+            return
         self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
         self._in.put(topic, msg)
         self._request_drain()
