@@ -128,9 +128,45 @@ def _fields(cls: type) -> tuple[tuple[str, Any], ...]:
     return tuple((f.name, hints[f.name]) for f in dataclasses.fields(cls) if f.init)
 
 
+def _float_field(v: Any) -> Any:
+    """`_value_out` of a float field, without its type tests for the usual finite float."""
+    return v if type(v) is float and v - v == 0.0 else _value_out(v)  # v - v: NaN for NaN and +-inf
+
+
+def _floats_field(v: Any) -> Any:
+    """`_value_out` of a tuple-of-floats field, likewise."""
+    if type(v) is not tuple:
+        return _value_out(v)
+    return [x if type(x) is float and x - x == 0.0 else _value_out(x) for x in v]
+
+
+def _str_field(v: Any) -> Any:
+    return v if type(v) is str else _value_out(v)
+
+
+@functools.lru_cache(maxsize=None)
+def _field_encoders(cls: type) -> tuple[tuple[str, Any], ...]:
+    """Per field, a function giving the JSON form of its value: `_value_out`, with a shortcut for
+    the value the type hint names (floats, tuples of floats, text); any other value takes the
+    general path, so the JSON is the same whatever a publisher put in the field."""
+    out = []
+    for name, tp in _fields(cls):
+        args = typing.get_args(tp)
+        if tp is float:
+            enc = _float_field
+        elif tp is str:
+            enc = _str_field
+        elif typing.get_origin(tp) is tuple and args and all(a is float or a is Ellipsis for a in args):
+            enc = _floats_field
+        else:
+            enc = _value_out
+        out.append((name, enc))
+    return tuple(out)
+
+
 def to_jsonable(msg: Any) -> dict:
     """The JSON form of a message dataclass (see module docstring)."""
-    return {name: _value_out(getattr(msg, name)) for name, _ in _fields(type(msg))}
+    return {name: enc(getattr(msg, name)) for name, enc in _field_encoders(type(msg))}
 
 
 def _ident(v: Any) -> Any:

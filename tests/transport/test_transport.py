@@ -342,3 +342,16 @@ def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_w
     finally:
         a.close()
         b.close()
+
+
+def test_the_shortcut_field_encoders_give_the_general_json_form():
+    import numpy as np
+
+    odd = [M.ImuSample(stamp_s=np.float64(1.5), gyro_radps=[0.1, float("nan"), np.float64(3.0)],
+                       accel_mps2=(np.float32(0.5), 1, float("-inf"))),
+           M.VesselState(stamp_s=float("inf"), north_m=True, east_m=2, heading_rad=np.float64("nan"), u_mps=0.0,
+                         v_mps=-0.0, r_radps=1e308, source=np.str_("ekf"), std=[0.1, None]),
+           M.MagSample(stamp_s=1.0, field_uT=(1.0, 2.0)), *SAMPLES]
+    for msg in odd:
+        general = {name: codec._value_out(getattr(msg, name)) for name, _ in codec._fields(type(msg))}
+        assert json.dumps(codec.to_jsonable(msg)) == json.dumps(general)
