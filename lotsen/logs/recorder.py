@@ -6,7 +6,7 @@ a bounded queue (drop-oldest, counted), and a writer thread encodes, writes and 
 `flush_period_s` (0.5 s) the writer closes the MCAP chunk in progress and flushes (and by default
 fsyncs) the file, so a killed process or a power cut loses at most about the last second; such a
 file has no summary/footer and `LogReader` still reads it. Files: `<dir>/<date>_<time>_runNNN.mcap`.
-Messages received from another process (`on_envelope`, the recorder process of `lotsen run`) are
+Messages received from another process (`on_envelopes`, the recorder process of `lotsen run`) are
 written as they came: the envelope's JSON payload is the channel's data (the bytes `encode_json`
 makes of the message), and it is decoded only for a Foxglove view.
 
@@ -233,6 +233,10 @@ class _Session:
         self.stats.received += 1
         self.queue.put(topic, (t_s, msg))
 
+    def put_many(self, t_s: float, items: list[tuple[str, Any]]) -> None:
+        self.stats.received += len(items)
+        self.queue.put_many([(topic, (t_s, msg)) for topic, msg in items])
+
     def close(self, timeout_s: float = 10.0) -> RecorderStats:
         self._stop.set()
         self._thread.join(timeout_s)
@@ -324,13 +328,16 @@ class McapRecorder:
             return
         session.put(topic, self._clock(), msg)
 
-    def on_envelope(self, topic: str, env: codec.Envelope) -> None:
-        """A message as received from another process (`ZenohBridge.forward_encoded`), recorded
-        without decoding it (any thread; as cheap as `on_message`)."""
+    def on_envelopes(self, items: list[tuple[str, codec.Envelope]]) -> None:
+        """Messages as received from another process, (topic, envelope) each
+        (`ZenohBridge.forward_encoded`): recorded without decoding them, with one receipt time
+        and one queue operation for the lot (any thread)."""
         session = self._session
-        if session is None or (self._topics is not None and topic not in self._topics):
+        if session is None:
             return
-        session.put(topic, self._clock(), env)
+        if self._topics is not None:
+            items = [item for item in items if item[0] in self._topics]
+        session.put_many(self._clock(), items)
 
     def attach(self, bus: Bus) -> "McapRecorder":
         if self._unsubscribe is None:

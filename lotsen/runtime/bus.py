@@ -37,6 +37,16 @@ class BoundedQueue:
             self._q.append((topic, msg))
             self._ready.notify()
 
+    def put_many(self, items: list[tuple[str, Any]]) -> None:
+        """`put` of each (topic, message), with one lock and one wake-up for the lot."""
+        if not items:
+            return
+        with self._lock:
+            room = self._q.maxlen - len(self._q) if self._q.maxlen is not None else len(items)
+            self.dropped += max(0, len(items) - room)
+            self._q.extend(items)
+            self._ready.notify()
+
     def get_all(self) -> list[tuple[str, Any]]:
         with self._lock:
             items = list(self._q)

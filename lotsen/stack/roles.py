@@ -377,7 +377,7 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     recorder = add_recorder(stack)
     # ... and recorded as it came (the JSON on the wire is the log's JSON): decoded only for the
     # Foxglove views and for what this process acts on (logging on / off)
-    bridge.forward_encoded(recorder.on_envelope, decoded=stack.bus.subscribed_topics())
+    bridge.forward_encoded(recorder.on_envelopes, decoded=stack.bus.subscribed_topics())
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
 

@@ -128,7 +128,7 @@ class ZenohBridge(Node):
         self._unsubscribe: Any = None
         self._wake: Any = None  # the executor's call_soon_threadsafe, once started
         self._drain_pending = threading.Event()
-        self._encoded_sink: Callable[[str, codec.Envelope], None] | None = None
+        self._encoded_sink: Callable[[list[tuple[str, codec.Envelope]]], None] | None = None
         self._decoded_topics: frozenset[str] = frozenset()
         self.session = zenoh.open(zenoh_config(config))
         self._subs = []
@@ -147,12 +147,13 @@ class ZenohBridge(Node):
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
         self._sender.start()
 
-    def forward_encoded(self, sink: Callable[[str, codec.Envelope], None], decoded: Iterable[str] = ()) -> None:
-        """Received messages go to `sink(topic, envelope)` as they came, not decoded and not on the
-        local bus (a recorder writes the JSON payload as it is); those of the `decoded` topics
-        (what a node of this process subscribes to) still reach the local bus, and only it. The
-        sink is called where received samples are handled: the executor thread with
-        `receive="poll"`, Zenoh's thread with "callback"."""
+    def forward_encoded(self, sink: Callable[[list[tuple[str, codec.Envelope]]], None],
+                        decoded: Iterable[str] = ()) -> None:
+        """Received messages go to `sink([(topic, envelope), ...])` as they came, not decoded and
+        not on the local bus (a recorder writes the JSON payload as it is); those of the `decoded`
+        topics (what a node of this process subscribes to) still reach the local bus, and only
+        it. The sink is called where received samples are handled: on the executor thread once
+        per drain with what it took (`receive="poll"`), or on Zenoh's thread per sample."""
         self._decoded_topics = frozenset(decoded)
         self._encoded_sink = sink
 
@@ -186,9 +187,12 @@ class ZenohBridge(Node):
         """Publish received messages on the local bus (executor thread)."""
         self._drain_pending.clear()  # before taking: a message arriving now asks for another drain
         if self.config.receive == "poll":
+            forwarded: list[tuple[str, codec.Envelope]] = []
             for sub in self._subs:
                 while (sample := sub.try_recv()) is not None:
-                    self._on_sample(sample)
+                    self._on_sample(sample, forwarded)
+            if forwarded and self._encoded_sink is not None:
+                self._encoded_sink(forwarded)
         items = self._in.get_all()
         self.stats.dropped_in = self._in.dropped
         if not items:
@@ -250,7 +254,9 @@ class ZenohBridge(Node):
                 self.stats.last_error = f"{topic}: not latched: {exc}"
         return self.session.declare_publisher(self._key(topic), congestion_control=cc)
 
-    def _on_sample(self, sample: Any) -> None:
+    def _on_sample(self, sample: Any, forwarded: list[tuple[str, codec.Envelope]] | None = None) -> None:
+        """A received sample: decoded into the queue the executor drains, or its envelope to the
+        encoded sink (collected in `forwarded` when given)."""
         self.stats.received += 1
         key = str(sample.key_expr)
         parts = key.split("/", 2)  # lotsen / vessel / topic
@@ -270,7 +276,10 @@ class ZenohBridge(Node):
         sink = self._encoded_sink
         if sink is not None and topic not in self._decoded_topics:
             self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
-            sink(topic, env)
+            if forwarded is not None:
+                forwarded.append((topic, env))
+            else:
+                sink([(topic, env)])
             return
         try:
             msg = codec.decode_envelope(env)

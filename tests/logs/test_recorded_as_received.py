@@ -47,7 +47,7 @@ def _record(path, feed) -> list[tuple]:
 
 
 def _as_received(rec: McapRecorder, topic: str, msg) -> None:
-    rec.on_envelope(topic, codec.parse_envelope(codec.encode(msg, "json", origin="core:1")))
+    rec.on_envelopes([(topic, codec.parse_envelope(codec.encode(msg, "json", origin="core:1")))])
 
 
 def test_received_bytes_make_the_file_the_messages_make(tmp_path):
@@ -77,7 +77,7 @@ def test_a_cdr_envelope_is_decoded_and_recorded_as_json(tmp_path):
     rec = McapRecorder(RecorderConfig(directory=str(tmp_path), fsync=False, foxglove_views=False),
                        clock=lambda: float(next(steps)))
     path = rec.start(tmp_path / "cdr.mcap")
-    rec.on_envelope(Topic.IMU_RAW, codec.parse_envelope(codec.encode(imu, "cdr")))
+    rec.on_envelopes([(Topic.IMU_RAW, codec.parse_envelope(codec.encode(imu, "cdr")))])
     rec.close()
     (msg,) = [m for m in LogReader(path).read()]
     assert (msg.schema, msg.encoding) == ("lotsen.ImuSample", "json")
@@ -88,8 +88,8 @@ def test_an_unknown_type_is_counted_not_recorded(tmp_path):
     rec = McapRecorder(RecorderConfig(directory=str(tmp_path), fsync=False, foxglove_views=False))
     rec.start(tmp_path / "bad.mcap")
     good = codec.parse_envelope(codec.encode(PUBLISHED[0][1], "json"))
-    rec.on_envelope("x", codec.Envelope(1, codec.ENC_JSON, "NoSuchMessage", "", "", b'{"stamp_s":1.0}', b""))
-    rec.on_envelope(Topic.IMU_RAW, good)
+    rec.on_envelopes([("x", codec.Envelope(1, codec.ENC_JSON, "NoSuchMessage", "", "", b'{"stamp_s":1.0}', b""))])
+    rec.on_envelopes([(Topic.IMU_RAW, good)])
     stats = rec.stop()
     assert (stats.written, stats.encode_errors) == (1, 1) and "NoSuchMessage" in stats.last_error
 

@@ -149,3 +149,21 @@ def test_rtk_on_and_off_in_simulation():
     assert fixes[-1].fix_type == GnssFixType.RTK_FLOAT
     stack.executor.run_until(11.0)
     assert fixes[-1].fix_type == GnssFixType.RTK_FIXED
+
+
+def test_a_queue_takes_a_batch_with_drop_oldest_and_a_bus_names_its_subscribed_topics():
+    from lotsen.runtime.bus import BoundedQueue
+
+    q = BoundedQueue(maxlen=4)
+    q.put("a", 0)
+    q.put_many([("b", i) for i in range(1, 6)])
+    assert q.get_all() == [("b", 2), ("b", 3), ("b", 4), ("b", 5)] and q.dropped == 2
+    q.put_many([])
+    assert q.get(timeout=0.0) is None and q.dropped == 2
+
+    bus = Bus()
+    bus.subscribe("x", lambda m: None)
+    bus.subscribe_all(lambda t, m: None)
+    bus.queue(["y"])
+    bus.queue(None)
+    assert bus.subscribed_topics() == {"x", "y"}

@@ -326,7 +326,7 @@ def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_w
         on_bus: list = []
         ex_b.bus.subscribe_all(lambda topic, msg: on_bus.append(topic))
         encoded: list = []
-        b.forward_encoded(lambda topic, env: encoded.append((topic, env)), decoded=ex_b.bus.subscribed_topics())
+        b.forward_encoded(encoded.extend, decoded=ex_b.bus.subscribed_topics())
         command = M.OperatorCommand(stamp_s=2.0, action="arm")
         deadline = time.monotonic() + 10
         while not (encoded and commands) and time.monotonic() < deadline:
