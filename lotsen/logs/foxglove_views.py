@@ -82,6 +82,58 @@ def _fin(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
+class NedToGeodetic:
+    """`pymap3d.ned2geodetic(north, east, 0, lat0, lon0, h0)` (WGS84, degrees) of one point, with
+    the same numpy operations on scalars instead of pymap3d's 0-d arrays, masks and isclose
+    tests: the same bits (tested) in 1/15 of the time (the recorder makes one per estimate, 20 a
+    second). The origin's ECEF position and trigonometry are computed once; a point near the
+    Earth's axis or centre (pymap3d's special cases) goes to pymap3d itself."""
+
+    def __init__(self, lat0_deg: float, lon0_deg: float, h0_m: float) -> None:
+        import numpy as np
+        import pymap3d
+        from pymap3d.ellipsoid import Ellipsoid
+
+        self._np = np
+        self._origin = (lat0_deg, lon0_deg, h0_m)
+        ell = Ellipsoid.from_name("wgs84")
+        self._a, self._b = ell.semimajor_axis, ell.semiminor_axis
+        self._x0, self._y0, self._z0 = pymap3d.geodetic2ecef(lat0_deg, lon0_deg, h0_m)
+        lat0, lon0 = np.radians(lat0_deg), np.radians(lon0_deg)
+        self._sin_lat0, self._cos_lat0 = np.sin(lat0), np.cos(lat0)
+        self._sin_lon0, self._cos_lon0 = np.sin(lon0), np.cos(lon0)
+        self._e = np.sqrt(self._a ** 2 - self._b ** 2)
+
+    def __call__(self, north_m: float, east_m: float) -> tuple[float, float, float]:
+        np = self._np
+        a, b, E = self._a, self._b, self._e
+        # pymap3d.enu2ecef(east, north, up = -down = -0.0): enu2uvw, then the origin added
+        up = -0.0
+        t = self._cos_lat0 * up - self._sin_lat0 * north_m
+        w = self._sin_lat0 * up + self._cos_lat0 * north_m
+        x = self._x0 + (self._cos_lon0 * t - self._sin_lon0 * east_m)
+        y = self._y0 + (self._sin_lon0 * t + self._cos_lon0 * east_m)
+        z = self._z0 + w
+        # pymap3d.ecef2geodetic (You 2000, eqns. 4a-c, 7, 13)
+        r = np.sqrt(x ** 2 + y ** 2 + z ** 2)
+        u = np.sqrt(0.5 * (r ** 2 - E ** 2) + 0.5 * np.hypot(r ** 2 - E ** 2, 2 * E * z))
+        hxy = np.hypot(x, y)
+        if not (u > 1.0 and hxy > 1.0):  # near the centre or the axis (or not finite): pymap3d's branches
+            import pymap3d
+
+            lat, lon, h = pymap3d.ned2geodetic(north_m, east_m, 0.0, *self._origin)
+            return float(lat), float(lon), float(h)
+        huE = np.hypot(u, E)
+        beta = np.arctan(huE / u * z / hxy)
+        beta += ((b * u - a * huE + E ** 2) * np.sin(beta)) / (a * huE * 1 / np.cos(beta) - E ** 2 * np.cos(beta))
+        lat = np.arctan(a / b * np.tan(beta))
+        lon = np.arctan2(y, x)
+        alt = np.hypot(z - b * np.sin(beta), hxy - a * np.cos(beta))
+        if x ** 2 / a ** 2 + y ** 2 / a ** 2 + z ** 2 / b ** 2 < 1:  # inside the ellipsoid
+            alt = -alt
+        return float(np.degrees(lat)), float(np.degrees(lon)), float(alt)
+
+
 class ViewMaker:
     """Turns (topic, message, time) into Foxglove views. Holds a little state (the boat hull is sent
     once per second; the last path is kept to redraw with the predicted path)."""
@@ -89,6 +141,7 @@ class ViewMaker:
     def __init__(self, geo_origin: tuple[float, float, float] | None = None) -> None:
         self.geo_origin = geo_origin
         self._last_hull_ns = -10**18
+        self._geodetic: NedToGeodetic | None = None
         self._handlers: dict[str, Callable[[Any, int], list[View]]] = {
             Topic.GNSS: self._gnss, Topic.STATE: self._state, Topic.TRUTH: self._truth,
             Topic.PATH: self._path, Topic.CONTROL_STATUS: self._control, Topic.LOG: self._log,
@@ -171,10 +224,9 @@ class ViewMaker:
         return out
 
     def _estimate_fix(self, msg: Any, t_ns: int) -> View:
-        import pymap3d
-
-        lat0, lon0, h0 = self.geo_origin  # type: ignore[misc]
-        lat, lon, h = pymap3d.ned2geodetic(msg.north_m, msg.east_m, 0.0, lat0, lon0, h0)
+        if self._geodetic is None:
+            self._geodetic = NedToGeodetic(*self.geo_origin)  # type: ignore[misc]
+        lat, lon, h = self._geodetic(msg.north_m, msg.east_m)
         fix = fm.LocationFix(timestamp=_ts(t_ns), frame_id="boat", latitude=float(lat), longitude=float(lon),
                              altitude=float(h), heading=msg.heading_rad % (2 * math.pi),
                              color=fm.Color(r=0.1, g=0.4, b=0.9, a=1.0))
