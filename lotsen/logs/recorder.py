@@ -100,8 +100,10 @@ def next_log_path(directory: str | os.PathLike, when: float | None = None) -> Pa
     return d / f"{stamp}_run{max(runs, default=0) + 1:03d}.mcap"
 
 
-#: how long the writer thread lets messages gather before it writes them (at most this late on disk)
-WRITE_BATCH_S = 0.05
+#: how long the writer thread lets messages gather before it writes them: a wake-up of the writer
+#: costs more than writing a message, and the file is flushed only every flush period anyway
+#: (0.5 s by default: a message reaches the disk at most about WRITE_BATCH_S + flush_period_s late)
+WRITE_BATCH_S = 0.2
 
 
 class _Session:
@@ -200,7 +202,7 @@ class _Session:
         dirty = False
         while True:
             stopping = self._stop.is_set()
-            item = self.queue.get(timeout=0.05)
+            item = self.queue.get(timeout=WRITE_BATCH_S)
             if item is not None and not stopping:
                 # a moment for the rest of the burst: one wake-up per WRITE_BATCH_S, not one per
                 # message (300+ a second from the core, each a thread switch with the bus)

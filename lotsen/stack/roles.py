@@ -371,9 +371,10 @@ def recorder_main(config: LaunchConfig, endpoint: str, ready: Any) -> None:
     opts = process_options(config)
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
-    # the core's whole stream (300+ messages a second): taken in batches, not one thread switch each
+    # the core's whole stream (300+ messages a second): taken in batches, not one thread switch
+    # each; every 0.1 s (the writer writes every 0.2 s, and logging on / off may wait that long)
     bridge = _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,),
-                     subscribe=("*/**",), wait_for_router=True, receive="poll", drain_period_s=0.05)
+                     subscribe=("*/**",), wait_for_router=True, receive="poll", drain_period_s=0.1)
     recorder = add_recorder(stack)
     # ... and recorded as it came (the JSON on the wire is the log's JSON): decoded only for the
     # Foxglove views and for what this process acts on (logging on / off)
