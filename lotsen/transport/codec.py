@@ -263,8 +263,11 @@ def from_jsonable(cls: type | str, data: dict) -> Any:
         raise DecodeError(f"{cls.__name__}: {exc}") from None
 
 
+_JSON_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)  # json.dumps's, made once
+
+
 def encode_json(msg: Any) -> bytes:
-    return json.dumps(to_jsonable(msg), separators=(",", ":"), allow_nan=False).encode("utf-8")
+    return _JSON_ENCODER.encode(to_jsonable(msg)).encode("utf-8")
 
 
 def decode_json(cls: type | str, data: bytes | str) -> Any:
@@ -518,9 +521,15 @@ def encode(msg: Any, encoding: str = "auto", origin: str = "") -> bytes:
                            allow_nan=False).encode() if ext else b""
     else:
         rtype, payload, ext_b = "", encode_json(msg), b""
-    return b"".join([MAGIC, bytes([FORMAT_VERSION, ENC_CDR if use_cdr else ENC_JSON, 0]),
-                     _short(name, "type name"), _short(rtype, "ROS type"), _short(origin, "origin"),
+    return b"".join([_envelope_head(ENC_CDR if use_cdr else ENC_JSON, name, rtype, origin),
                      struct.pack("<I", len(payload)), payload, ext_b])
+
+
+@functools.lru_cache(maxsize=1024)
+def _envelope_head(encoding: int, name: str, rtype: str, origin: str) -> bytes:
+    """The envelope up to the payload length: the same for every message of a type from a sender."""
+    return b"".join([MAGIC, bytes([FORMAT_VERSION, encoding, 0]), _short(name, "type name"),
+                     _short(rtype, "ROS type"), _short(origin, "origin")])
 
 
 def parse_envelope(data: bytes) -> Envelope:
