@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 import queue
 import threading
 from dataclasses import dataclass
@@ -172,6 +173,8 @@ class RealtimeExecutor(Executor):
         super().__init__(bus, clock or WallClock())
         self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._stop = threading.Event()
+        #: when the loop last finished a timer (clock seconds): a watchdog's proof of life
+        self.beat_s = -math.inf
 
     def call_soon_threadsafe(self, fn: Callable[[], None]) -> None:
         self._calls.put(fn)
@@ -218,5 +221,7 @@ class RealtimeExecutor(Executor):
             if timer.cancelled:
                 continue
             self._run_timer(timer)
-            self._reschedule(timer, self.clock.now())
+            now = self.clock.now()
+            self.beat_s = now
+            self._reschedule(timer, now)
         self.shutdown()

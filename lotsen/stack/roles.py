@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import math
 import os
 import signal
 import socket
 import sys
 import threading
-import time
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -220,17 +220,26 @@ class CoreWatchdog:
         self.stall_s = stall_s
         self.exit_s = exit_s
         self.exit_fn = exit_fn
-        self.beat = time.monotonic()
+        self.clock = stack.executor.clock
+        self.beat = self.clock.now()
         self.stalls = 0
         self.loop_thread = threading.current_thread()  # start() is called from the thread that runs the loop
         self._stop = threading.Event()
-        stack.executor.add_timer(min(0.02, stall_s / 4), self._beat, "watchdog")
+        # every timer the loop finishes is a beat (RealtimeExecutor.beat_s: the 100 Hz simulated
+        # boat or drivers, 20 Hz fusion, 10 Hz supervisor); this timer only makes sure there is
+        # one at least every stall_s / 4 (a 50 Hz timer of its own woke the loop 50 times a
+        # second more than its work does)
+        stack.executor.add_timer(stall_s / 4, self._beat, "watchdog")
         self._thread = threading.Thread(target=self._watch, name="core-watchdog", daemon=True)
 
     def start(self) -> None:
         self.loop_thread = threading.current_thread()
-        self.beat = time.monotonic()
+        self.beat = self.clock.now()
         self._thread.start()
+
+    def silent_s(self) -> float:
+        """How long the control loop has not finished a timer."""
+        return self.clock.now() - max(self.beat, getattr(self.stack.executor, "beat_s", -math.inf))
 
     def where(self) -> str:
         """Where the control loop is now, and the other Python threads (one may hold the GIL):
@@ -251,7 +260,7 @@ class CoreWatchdog:
         return loop + ("; other threads: " + " | ".join(others) if others else "")
 
     def _beat(self) -> None:
-        self.beat = time.monotonic()
+        self.beat = self.clock.now()
 
     def _watch(self) -> None:
         try:  # above the loop it watches, so it runs even if the loop spins at real-time priority
@@ -261,7 +270,7 @@ class CoreWatchdog:
             pass
         stalled = False
         while not self._stop.wait(self.stall_s / 4):
-            silent = time.monotonic() - self.beat
+            silent = self.silent_s()
             if silent > self.stall_s and not stalled:
                 stalled = True
                 self.stalls += 1
