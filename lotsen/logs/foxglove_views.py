@@ -96,6 +96,10 @@ class ViewMaker:
             Topic.PATH: self._path, Topic.CONTROL_STATUS: self._control, Topic.LOG: self._log,
         }
 
+    def handles(self, topic: str) -> bool:
+        """Whether `topic` has views (the others' messages need not be decoded for them)."""
+        return fm is not None and topic in self._handlers
+
     def views(self, topic: str, msg: Any, t_ns: int) -> list[View]:
         if fm is None:
             return []

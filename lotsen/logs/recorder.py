@@ -6,6 +6,9 @@ a bounded queue (drop-oldest, counted), and a writer thread encodes, writes and 
 `flush_period_s` (0.5 s) the writer closes the MCAP chunk in progress and flushes (and by default
 fsyncs) the file, so a killed process or a power cut loses at most about the last second; such a
 file has no summary/footer and `LogReader` still reads it. Files: `<dir>/<date>_<time>_runNNN.mcap`.
+Messages received from another process (`on_envelopes`, the recorder process of `lotsen run`) are
+written as they came: the envelope's JSON payload is the channel's data (the bytes `encode_json`
+makes of the message), and it is decoded only for a Foxglove view.
 
 Times: MCAP `log_time` is the receipt time on the runtime's clock mapped to Unix epoch
 nanoseconds (epoch at start + clock seconds), `publish_time` the message's `stamp_s` mapped the
@@ -97,8 +100,10 @@ def next_log_path(directory: str | os.PathLike, when: float | None = None) -> Pa
     return d / f"{stamp}_run{max(runs, default=0) + 1:03d}.mcap"
 
 
-#: how long the writer thread lets messages gather before it writes them (at most this late on disk)
-WRITE_BATCH_S = 0.05
+#: how long the writer thread lets messages gather before it writes them: a wake-up of the writer
+#: costs more than writing a message, and the file is flushed only every flush period anyway
+#: (0.5 s by default: a message reaches the disk at most about WRITE_BATCH_S + flush_period_s late)
+WRITE_BATCH_S = 0.2
 
 
 class _Session:
@@ -149,22 +154,38 @@ class _Session:
         return cid
 
     def _write(self, topic: str, t_s: float, msg: Any) -> None:
-        log_ns = self.epoch0_ns + int(round(t_s * 1e9))
-        stamp = getattr(msg, "stamp_s", math.nan)
-        pub_ns = self.epoch0_ns + int(round(stamp * 1e9)) if isinstance(stamp, float) and math.isfinite(stamp) else log_ns
         cls = type(msg)
         if cls.__name__ not in codec.MESSAGE_TYPES:
             self.stats.encode_errors += 1
             self.stats.last_error = f"{topic}: {cls.__name__} is not a lotsen message; not recorded"
             return
-        data = codec.encode_json(msg)
+        stamp = getattr(msg, "stamp_s", math.nan)
+        self._add(topic, t_s, cls, codec.encode_json(msg), stamp if isinstance(stamp, float) else math.nan,
+                  lambda: msg)
+
+    def _write_envelope(self, topic: str, t_s: float, env: codec.Envelope) -> None:
+        """A message as it came over the wire: its JSON payload is the channel's data as it is
+        (the same bytes `codec.encode_json` makes of the message); decoded only for a Foxglove
+        view. A CDR payload is decoded and written as JSON."""
+        if env.encoding != codec.ENC_JSON:
+            self._write(topic, t_s, codec.decode_envelope(env))
+            return
+        cls = codec.message_class(env.type_name)
+        payload = env.payload
+        self._add(topic, t_s, cls, payload, codec.json_stamp_s(payload), lambda: codec.decode_json(cls, payload))
+
+    def _add(self, topic: str, t_s: float, cls: type, data: bytes, stamp_s: float, message: Callable[[], Any]) -> None:
+        """Write one message's JSON `data` on its channel, and its Foxglove views (`message()`
+        gives the message itself, asked for only when the topic has a view)."""
+        log_ns = self.epoch0_ns + int(round(t_s * 1e9))
+        pub_ns = self.epoch0_ns + int(round(stamp_s * 1e9)) if math.isfinite(stamp_s) else log_ns
         cid = self._channel_id(topic, codec.schema_name(cls), "jsonschema",
                                lambda: json.dumps(codec.json_schema(cls)).encode(), "json")
         self._writer.add_message(cid, log_time=log_ns, data=data, publish_time=pub_ns)
         self.stats.written += 1
         self.stats.per_topic[topic] = self.stats.per_topic.get(topic, 0) + 1
-        if self._views is not None:
-            for v in self._views.views(topic, msg, log_ns):
+        if self._views is not None and self._views.handles(topic):
+            for v in self._views.views(topic, message(), log_ns):
                 cid = self._channel_id(v.topic, v.schema_name, *_schema_args(v.schema_name), v.encoding)
                 self._writer.add_message(cid, log_time=log_ns, data=v.data, publish_time=log_ns)
                 self.stats.views_written += 1
@@ -181,7 +202,7 @@ class _Session:
         dirty = False
         while True:
             stopping = self._stop.is_set()
-            item = self.queue.get(timeout=0.05)
+            item = self.queue.get(timeout=WRITE_BATCH_S)
             if item is not None and not stopping:
                 # a moment for the rest of the burst: one wake-up per WRITE_BATCH_S, not one per
                 # message (300+ a second from the core, each a thread switch with the bus)
@@ -190,7 +211,10 @@ class _Session:
             batch += self.queue.get_all()
             for topic, (t_s, msg) in batch:
                 try:
-                    self._write(topic, t_s, msg)
+                    if isinstance(msg, codec.Envelope):
+                        self._write_envelope(topic, t_s, msg)
+                    else:
+                        self._write(topic, t_s, msg)
                     dirty = True
                 except Exception as exc:  # noqa: BLE001 - one bad message must not end the recording
                     self.stats.encode_errors += 1
@@ -210,6 +234,10 @@ class _Session:
     def put(self, topic: str, t_s: float, msg: Any) -> None:
         self.stats.received += 1
         self.queue.put(topic, (t_s, msg))
+
+    def put_many(self, t_s: float, items: list[tuple[str, Any]]) -> None:
+        self.stats.received += len(items)
+        self.queue.put_many([(topic, (t_s, msg)) for topic, msg in items])
 
     def close(self, timeout_s: float = 10.0) -> RecorderStats:
         self._stop.set()
@@ -301,6 +329,17 @@ class McapRecorder:
         if session is None or (self._topics is not None and topic not in self._topics):
             return
         session.put(topic, self._clock(), msg)
+
+    def on_envelopes(self, items: list[tuple[str, codec.Envelope]]) -> None:
+        """Messages as received from another process, (topic, envelope) each
+        (`ZenohBridge.forward_encoded`): recorded without decoding them, with one receipt time
+        and one queue operation for the lot (any thread)."""
+        session = self._session
+        if session is None:
+            return
+        if self._topics is not None:
+            items = [item for item in items if item[0] in self._topics]
+        session.put_many(self._clock(), items)
 
     def attach(self, bus: Bus) -> "McapRecorder":
         if self._unsubscribe is None:

@@ -37,6 +37,16 @@ class BoundedQueue:
             self._q.append((topic, msg))
             self._ready.notify()
 
+    def put_many(self, items: list[tuple[str, Any]]) -> None:
+        """`put` of each (topic, message), with one lock and one wake-up for the lot."""
+        if not items:
+            return
+        with self._lock:
+            room = self._q.maxlen - len(self._q) if self._q.maxlen is not None else len(items)
+            self.dropped += max(0, len(items) - room)
+            self._q.extend(items)
+            self._ready.notify()
+
     def get_all(self) -> list[tuple[str, Any]]:
         with self._lock:
             items = list(self._q)
@@ -80,6 +90,11 @@ class Bus:
     def subscribe(self, topic: str, callback: Callback) -> Callable[[], None]:
         self._subs[topic].append(callback)
         return lambda: self._subs[topic].remove(callback)
+
+    def subscribed_topics(self) -> frozenset[str]:
+        """The topics that have a subscriber of their own (`subscribe`, `queue` with topics)."""
+        queued = {t for topics, _ in self._queues if topics is not None for t in topics}
+        return frozenset(t for t, cbs in self._subs.items() if cbs) | queued
 
     def subscribe_all(self, callback: AnyCallback) -> Callable[[], None]:
         """Every message of every topic (recorders, bridges)."""

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 import queue
 import threading
-import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -162,6 +162,10 @@ class SimExecutor(Executor):
         self.run_until(self.clock.now() + duration_s, stop)
 
 
+#: the longest the real-time loop sleeps when no timer is due sooner (it wakes at once for calls)
+IDLE_WAIT_S = 1.0
+
+
 class RealtimeExecutor(Executor):
     """Wall-clock pace, one thread."""
 
@@ -169,6 +173,8 @@ class RealtimeExecutor(Executor):
         super().__init__(bus, clock or WallClock())
         self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._stop = threading.Event()
+        #: when the loop last finished a timer (clock seconds): a watchdog's proof of life
+        self.beat_s = -math.inf
 
     def call_soon_threadsafe(self, fn: Callable[[], None]) -> None:
         self._calls.put(fn)
@@ -198,13 +204,13 @@ class RealtimeExecutor(Executor):
             if end is not None and now >= end:
                 break
             self._drain_calls()
-            if not self._heap:
-                time.sleep(0.01)
-                continue
-            t_next = self._heap[0][0]
+            t_next = self._heap[0][0] if self._heap else now + IDLE_WAIT_S
             if t_next > now:
-                try:  # sleep until the next timer, but wake for external calls
-                    fn = self._calls.get(timeout=min(t_next - now, 0.05))
+                # sleep until the next timer (or the end), but wake for external calls: stop()
+                # and call_soon_threadsafe put one, so no polling in between
+                wait = min(t_next - now, IDLE_WAIT_S) if end is None else max(0.0, min(t_next, end) - now)
+                try:
+                    fn = self._calls.get(timeout=wait)
                 except queue.Empty:
                     continue
                 # run it now: putting it back would queue it behind calls that arrived later
@@ -215,5 +221,7 @@ class RealtimeExecutor(Executor):
             if timer.cancelled:
                 continue
             self._run_timer(timer)
-            self._reschedule(timer, self.clock.now())
+            now = self.clock.now()
+            self.beat_s = now
+            self._reschedule(timer, now)
         self.shutdown()

@@ -22,13 +22,14 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import math
 import os
 import signal
 import socket
 import sys
 import threading
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Callable
 
 from lotsen.errors import ConfigError, LotsenError
@@ -179,17 +180,26 @@ class CoreWatchdog:
         self.stall_s = stall_s
         self.exit_s = exit_s
         self.exit_fn = exit_fn
-        self.beat = time.monotonic()
+        self.clock = stack.executor.clock
+        self.beat = self.clock.now()
         self.stalls = 0
         self.loop_thread = threading.current_thread()  # start() is called from the thread that runs the loop
         self._stop = threading.Event()
-        stack.executor.add_timer(min(0.02, stall_s / 4), self._beat, "watchdog")
+        # every timer the loop finishes is a beat (RealtimeExecutor.beat_s: the 100 Hz simulated
+        # boat or drivers, 20 Hz fusion, 10 Hz supervisor); this timer only makes sure there is
+        # one at least every stall_s / 4 (a 50 Hz timer of its own woke the loop 50 times a
+        # second more than its work does)
+        stack.executor.add_timer(stall_s / 4, self._beat, "watchdog")
         self._thread = threading.Thread(target=self._watch, name="core-watchdog", daemon=True)
 
     def start(self) -> None:
         self.loop_thread = threading.current_thread()
-        self.beat = time.monotonic()
+        self.beat = self.clock.now()
         self._thread.start()
+
+    def silent_s(self) -> float:
+        """How long the control loop has not finished a timer."""
+        return self.clock.now() - max(self.beat, getattr(self.stack.executor, "beat_s", -math.inf))
 
     def where(self) -> str:
         """Where the control loop is now, and the other Python threads (one may hold the GIL):
@@ -210,7 +220,7 @@ class CoreWatchdog:
         return loop + ("; other threads: " + " | ".join(others) if others else "")
 
     def _beat(self) -> None:
-        self.beat = time.monotonic()
+        self.beat = self.clock.now()
 
     def _watch(self) -> None:
         try:  # above the loop it watches, so it runs even if the loop spins at real-time priority
@@ -220,7 +230,7 @@ class CoreWatchdog:
             pass
         stalled = False
         while not self._stop.wait(self.stall_s / 4):
-            silent = time.monotonic() - self.beat
+            silent = self.silent_s()
             if silent > self.stall_s and not stalled:
                 stalled = True
                 self.stalls += 1
@@ -305,9 +315,13 @@ def core_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
     # every topic out in 50 ms batches: Zenoh then packs a batch into few frames (the core's
     # sending thread and the edge's receiving threads wake 20 times a second, not 100 and more);
-    # the edge sees the telemetry up to 50 ms later, its stamps are the core's
+    # the edge sees the telemetry up to 50 ms later, its stamps are the core's. JSON for every
+    # type, not ROS 2 CDR where one fits: the router listens on loopback only (ROS 2 tools get CDR
+    # from the ros2 process), JSON costs the core less to encode and the edge less to decode, the
+    # recorder writes the received JSON as it is (no decode and re-encode), and what is recorded
+    # is exactly what was published (CDR rounds stamps to nanoseconds and the field to tesla)
     _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources),
-            send_batch_s=CORE_SEND_BATCH_S)
+            send_batch_s=CORE_SEND_BATCH_S, encoding="json")
     watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
     stack.on_shutdown(watchdog.stop)
     stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
@@ -326,10 +340,14 @@ def recorder_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     opts = config.extra.processes
     done = apply_edge_priority(opts, opts.recorder_nice)
     stack = _edge_stack(config)
-    # the core's whole stream (300+ messages a second): taken in batches, not one thread switch each
-    _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,), subscribe=("*/**",),
-            wait_for_router=True, receive="poll", drain_period_s=0.05)
-    add_recorder(stack)
+    # the core's whole stream (300+ messages a second): taken in batches, not one thread switch
+    # each; every 0.1 s (the writer writes every 0.2 s, and logging on / off may wait that long)
+    bridge = _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,),
+                     subscribe=("*/**",), wait_for_router=True, receive="poll", drain_period_s=0.1)
+    recorder = add_recorder(stack)
+    # ... and recorded as it came (the JSON on the wire is the log's JSON): decoded only for the
+    # Foxglove views and for what this process acts on (logging on / off)
+    bridge.forward_encoded(recorder.on_envelopes, decoded=stack.bus.subscribed_topics())
     _run_until_stopped(stack, ready, {"banner": [*stack.services.get("banner", []), f"recorder: {', '.join(done)}"]})
 
 

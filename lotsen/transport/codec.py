@@ -41,6 +41,7 @@ import enum
 import functools
 import json
 import math
+import re
 import struct
 import types
 import typing
@@ -127,9 +128,45 @@ def _fields(cls: type) -> tuple[tuple[str, Any], ...]:
     return tuple((f.name, hints[f.name]) for f in dataclasses.fields(cls) if f.init)
 
 
+def _float_field(v: Any) -> Any:
+    """`_value_out` of a float field, without its type tests for the usual finite float."""
+    return v if type(v) is float and v - v == 0.0 else _value_out(v)  # v - v: NaN for NaN and +-inf
+
+
+def _floats_field(v: Any) -> Any:
+    """`_value_out` of a tuple-of-floats field, likewise."""
+    if type(v) is not tuple:
+        return _value_out(v)
+    return [x if type(x) is float and x - x == 0.0 else _value_out(x) for x in v]
+
+
+def _str_field(v: Any) -> Any:
+    return v if type(v) is str else _value_out(v)
+
+
+@functools.lru_cache(maxsize=None)
+def _field_encoders(cls: type) -> tuple[tuple[str, Any], ...]:
+    """Per field, a function giving the JSON form of its value: `_value_out`, with a shortcut for
+    the value the type hint names (floats, tuples of floats, text); any other value takes the
+    general path, so the JSON is the same whatever a publisher put in the field."""
+    out = []
+    for name, tp in _fields(cls):
+        args = typing.get_args(tp)
+        if tp is float:
+            enc = _float_field
+        elif tp is str:
+            enc = _str_field
+        elif typing.get_origin(tp) is tuple and args and all(a is float or a is Ellipsis for a in args):
+            enc = _floats_field
+        else:
+            enc = _value_out
+        out.append((name, enc))
+    return tuple(out)
+
+
 def to_jsonable(msg: Any) -> dict:
     """The JSON form of a message dataclass (see module docstring)."""
-    return {name: _value_out(getattr(msg, name)) for name, _ in _fields(type(msg))}
+    return {name: enc(getattr(msg, name)) for name, enc in _field_encoders(type(msg))}
 
 
 def _ident(v: Any) -> Any:
@@ -226,8 +263,11 @@ def from_jsonable(cls: type | str, data: dict) -> Any:
         raise DecodeError(f"{cls.__name__}: {exc}") from None
 
 
+_JSON_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)  # json.dumps's, made once
+
+
 def encode_json(msg: Any) -> bytes:
-    return json.dumps(to_jsonable(msg), separators=(",", ":"), allow_nan=False).encode("utf-8")
+    return _JSON_ENCODER.encode(to_jsonable(msg)).encode("utf-8")
 
 
 def decode_json(cls: type | str, data: bytes | str) -> Any:
@@ -481,9 +521,15 @@ def encode(msg: Any, encoding: str = "auto", origin: str = "") -> bytes:
                            allow_nan=False).encode() if ext else b""
     else:
         rtype, payload, ext_b = "", encode_json(msg), b""
-    return b"".join([MAGIC, bytes([FORMAT_VERSION, ENC_CDR if use_cdr else ENC_JSON, 0]),
-                     _short(name, "type name"), _short(rtype, "ROS type"), _short(origin, "origin"),
+    return b"".join([_envelope_head(ENC_CDR if use_cdr else ENC_JSON, name, rtype, origin),
                      struct.pack("<I", len(payload)), payload, ext_b])
+
+
+@functools.lru_cache(maxsize=1024)
+def _envelope_head(encoding: int, name: str, rtype: str, origin: str) -> bytes:
+    """The envelope up to the payload length: the same for every message of a type from a sender."""
+    return b"".join([MAGIC, bytes([FORMAT_VERSION, encoding, 0]), _short(name, "type name"),
+                     _short(rtype, "ROS type"), _short(origin, "origin")])
 
 
 def parse_envelope(data: bytes) -> Envelope:
@@ -512,13 +558,39 @@ def parse_envelope(data: bytes) -> Envelope:
 def decode(data: bytes) -> tuple[Any, Envelope]:
     """(message, envelope) from envelope bytes; DecodeError names what is wrong."""
     env = parse_envelope(data)
+    return decode_envelope(env), env
+
+
+def decode_envelope(env: Envelope) -> Any:
+    """The message an envelope carries; DecodeError names what is wrong."""
     if env.encoding == ENC_JSON:
-        return decode_json(env.type_name, env.payload), env
+        return decode_json(env.type_name, env.payload)
     if env.encoding == ENC_CDR:
         try:
             ext = json.loads(env.extension) if env.extension else {}
         except ValueError as exc:
             raise DecodeError(f"{env.type_name}: bad extension JSON: {exc}") from None
         message_class(env.type_name)
-        return decode_cdr(env.type_name, env.ros_type, env.payload, ext), env
+        return decode_cdr(env.type_name, env.ros_type, env.payload, ext)
     raise DecodeError(f"unknown envelope encoding {env.encoding}")
+
+
+_FIRST_STAMP = re.compile(rb'\{"stamp_s":([^,}]*)')
+
+
+def json_stamp_s(payload: bytes) -> float:
+    """`stamp_s` of a message's JSON form without decoding the rest; NaN when it has none or it is
+    not finite (its JSON form is then null, "inf" or "-inf"). Every message's first field is its
+    stamp, so this reads only the first value; any other layout is parsed in full."""
+    first = _FIRST_STAMP.match(payload)
+    if first is None:
+        try:
+            value = json.loads(payload).get("stamp_s")
+        except (ValueError, AttributeError):
+            return math.nan
+        return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+    token = first.group(1)
+    try:
+        return float(token)  # null, "inf" and "-inf" are not float literals
+    except ValueError:
+        return math.nan

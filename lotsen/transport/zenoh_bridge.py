@@ -28,7 +28,7 @@ import json
 import threading
 import uuid
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Callable, Iterable, Literal
 
 from lotsen.errors import ConfigError
 from lotsen.messages import LATCHED_TOPICS
@@ -128,6 +128,8 @@ class ZenohBridge(Node):
         self._unsubscribe: Any = None
         self._wake: Any = None  # the executor's call_soon_threadsafe, once started
         self._drain_pending = threading.Event()
+        self._encoded_sink: Callable[[list[tuple[str, codec.Envelope]]], None] | None = None
+        self._decoded_topics: frozenset[str] = frozenset()
         self.session = zenoh.open(zenoh_config(config))
         self._subs = []
         from zenoh import ext
@@ -144,6 +146,16 @@ class ZenohBridge(Node):
                 recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None)))
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
         self._sender.start()
+
+    def forward_encoded(self, sink: Callable[[list[tuple[str, codec.Envelope]]], None],
+                        decoded: Iterable[str] = ()) -> None:
+        """Received messages go to `sink([(topic, envelope), ...])` as they came, not decoded and
+        not on the local bus (a recorder writes the JSON payload as it is); those of the `decoded`
+        topics (what a node of this process subscribes to) still reach the local bus, and only
+        it. The sink is called where received samples are handled: on the executor thread once
+        per drain with what it took (`receive="poll"`), or on Zenoh's thread per sample."""
+        self._decoded_topics = frozenset(decoded)
+        self._encoded_sink = sink
 
     # ---------------------------------------------------------------- node side (executor thread)
     def start(self, ctx: NodeContext) -> None:
@@ -175,9 +187,12 @@ class ZenohBridge(Node):
         """Publish received messages on the local bus (executor thread)."""
         self._drain_pending.clear()  # before taking: a message arriving now asks for another drain
         if self.config.receive == "poll":
+            forwarded: list[tuple[str, codec.Envelope]] = []
             for sub in self._subs:
                 while (sample := sub.try_recv()) is not None:
-                    self._on_sample(sample)
+                    self._on_sample(sample, forwarded)
+            if forwarded and self._encoded_sink is not None:
+                self._encoded_sink(forwarded)
         items = self._in.get_all()
         self.stats.dropped_in = self._in.dropped
         if not items:
@@ -239,7 +254,9 @@ class ZenohBridge(Node):
                 self.stats.last_error = f"{topic}: not latched: {exc}"
         return self.session.declare_publisher(self._key(topic), congestion_control=cc)
 
-    def _on_sample(self, sample: Any) -> None:
+    def _on_sample(self, sample: Any, forwarded: list[tuple[str, codec.Envelope]] | None = None) -> None:
+        """A received sample: decoded into the queue the executor drains, or its envelope to the
+        encoded sink (collected in `forwarded` when given)."""
         self.stats.received += 1
         key = str(sample.key_expr)
         parts = key.split("/", 2)  # lotsen / vessel / topic
@@ -247,7 +264,7 @@ class ZenohBridge(Node):
             self.stats.echoes_ignored += 1
             return
         try:
-            msg, env = codec.decode(sample.payload.to_bytes())
+            env = codec.parse_envelope(sample.payload.to_bytes())
         except Exception as exc:  # noqa: BLE001 - bad data from the network is counted, not raised
             self.stats.decode_errors += 1
             self.stats.last_error = f"{key}: {exc}"
@@ -256,6 +273,20 @@ class ZenohBridge(Node):
             self.stats.echoes_ignored += 1
             return
         topic = self.config.local_prefix + parts[2]
+        sink = self._encoded_sink
+        if sink is not None and topic not in self._decoded_topics:
+            self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
+            if forwarded is not None:
+                forwarded.append((topic, env))
+            else:
+                sink([(topic, env)])
+            return
+        try:
+            msg = codec.decode_envelope(env)
+        except Exception as exc:  # noqa: BLE001
+            self.stats.decode_errors += 1
+            self.stats.last_error = f"{key}: {exc}"
+            return
         self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
         self._in.put(topic, msg)
         self._request_drain()

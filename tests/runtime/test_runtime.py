@@ -149,3 +149,41 @@ def test_rtk_on_and_off_in_simulation():
     assert fixes[-1].fix_type == GnssFixType.RTK_FLOAT
     stack.executor.run_until(11.0)
     assert fixes[-1].fix_type == GnssFixType.RTK_FIXED
+
+
+def test_a_queue_takes_a_batch_with_drop_oldest_and_a_bus_names_its_subscribed_topics():
+    from lotsen.runtime.bus import BoundedQueue
+
+    q = BoundedQueue(maxlen=4)
+    q.put("a", 0)
+    q.put_many([("b", i) for i in range(1, 6)])
+    assert q.get_all() == [("b", 2), ("b", 3), ("b", 4), ("b", 5)] and q.dropped == 2
+    q.put_many([])
+    assert q.get(timeout=0.0) is None and q.dropped == 2
+
+    bus = Bus()
+    bus.subscribe("x", lambda m: None)
+    bus.subscribe_all(lambda t, m: None)
+    bus.queue(["y"])
+    bus.queue(None)
+    assert bus.subscribed_topics() == {"x", "y"}
+
+
+@pytest.mark.live
+def test_the_realtime_loop_sleeps_until_its_next_timer_and_wakes_for_a_call_at_once():
+    import threading
+    import time
+
+    from lotsen.runtime import RealtimeExecutor
+
+    ex = RealtimeExecutor()
+    ticks: list[float] = []
+    ex.add_timer(0.25, lambda: ticks.append(time.monotonic()))
+    calls: list[float] = []
+    threading.Timer(0.1, lambda: ex.call_soon_threadsafe(lambda: calls.append(time.monotonic()))).start()
+    t0, cpu0 = time.monotonic(), time.process_time()
+    ex.run(duration_s=1.0)
+    wall, cpu = time.monotonic() - t0, time.process_time() - cpu0
+    assert 0.95 <= wall < 1.3 and len(ticks) in (4, 5)  # at 0, 0.25, ... s
+    assert calls and calls[0] - t0 < 0.2  # the call ran when it came, not at the next timer
+    assert cpu < 0.05  # ~6 wake-ups, no polling between them (a 20 Hz poll alone took ~1.5 ms / s)

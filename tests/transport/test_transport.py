@@ -310,3 +310,48 @@ def test_a_polling_bridge_takes_what_arrived_at_its_drain():
     finally:
         a.close()
         b.close()
+
+
+def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_what_is_subscribed(same):
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    ex_a, ex_b = SimExecutor(), SimExecutor()
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), encoding="json"))
+    b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=("a/**",), receive="poll",
+                                 drain_period_s=0.05))
+    try:
+        ex_a.add_node(a)
+        ex_b.add_node(b)
+        commands: list = []
+        ex_b.bus.subscribe(M.Topic.OPERATOR, commands.append)
+        on_bus: list = []
+        ex_b.bus.subscribe_all(lambda topic, msg: on_bus.append(topic))
+        encoded: list = []
+        b.forward_encoded(encoded.extend, decoded=ex_b.bus.subscribed_topics())
+        command = M.OperatorCommand(stamp_s=2.0, action="arm")
+        deadline = time.monotonic() + 10
+        while not (encoded and commands) and time.monotonic() < deadline:
+            ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])
+            ex_a.bus.publish(M.Topic.OPERATOR, command)
+            time.sleep(0.1)
+            ex_b.run_for(0.06)
+        assert encoded and commands, "nothing crossed the bridge"
+        assert {t for t, _ in encoded} == {M.Topic.STATE} and set(on_bus) == {M.Topic.OPERATOR}
+        topic, env = encoded[0]
+        assert env.encoding == codec.ENC_JSON and env.payload == codec.encode_json(SAMPLES[4])
+        assert same(codec.decode_envelope(env), SAMPLES[4]) and same(commands[0], command)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_the_shortcut_field_encoders_give_the_general_json_form():
+    import numpy as np
+
+    odd = [M.ImuSample(stamp_s=np.float64(1.5), gyro_radps=[0.1, float("nan"), np.float64(3.0)],
+                       accel_mps2=(np.float32(0.5), 1, float("-inf"))),
+           M.VesselState(stamp_s=float("inf"), north_m=True, east_m=2, heading_rad=np.float64("nan"), u_mps=0.0,
+                         v_mps=-0.0, r_radps=1e308, source=np.str_("ekf"), std=[0.1, None]),
+           M.MagSample(stamp_s=1.0, field_uT=(1.0, 2.0)), *SAMPLES]
+    for msg in odd:
+        general = {name: codec._value_out(getattr(msg, name)) for name, _ in codec._fields(type(msg))}
+        assert json.dumps(codec.to_jsonable(msg)) == json.dumps(general)
