@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -11,11 +12,14 @@ import yaml
 
 from lotsen.errors import LotsenError
 
+_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
+
 
 def decode_text(data: bytes, path: str | Path, error: type[LotsenError] = LotsenError, what: str = "file") -> str:
     """UTF-8 text (a UTF-8 byte-order mark is dropped); anything else is `error` naming the file
-    and, for UTF-16 (what some Windows editors save), the fix. A NUL character is refused too:
-    UTF-16 text without a byte-order mark is valid UTF-8 with a NUL after every letter."""
+    and, for UTF-16 (what some Windows editors save), the fix. Control characters other than tab,
+    line feed and carriage return are refused too (YAML and JSON allow none): UTF-16 text without
+    a byte-order mark is often valid UTF-8 with a NUL or another control byte beside each letter."""
     if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
         raise error(f"{path}: the {what} is UTF-16 text; save it as UTF-8")
     try:
@@ -24,10 +28,13 @@ def decode_text(data: bytes, path: str | Path, error: type[LotsenError] = Lotsen
         line = data[:exc.start].count(b"\n") + 1
         raise error(f"{path}: the {what} is not UTF-8 text (byte 0x{data[exc.start]:02x} at line {line}); "
                     "save it as UTF-8") from None
-    if "\x00" in text:
-        line = text[:text.index("\x00")].count("\n") + 1
-        utf16 = " (UTF-16 without a byte-order mark?)" if text.count("\x00") * 3 > len(text) else ""
-        raise error(f"{path}: the {what} holds a NUL character at line {line}: not a text file{utf16}; "
+    bad = _CONTROL.search(text)
+    if bad:
+        line = text[:bad.start()].count("\n") + 1
+        name = "a NUL character" if bad.group() == "\x00" else f"the control character 0x{ord(bad.group()):02x}"
+        controls = len(_CONTROL.findall(text))
+        utf16 = " (UTF-16 without a byte-order mark?)" if controls * 3 > len(text) else ""
+        raise error(f"{path}: the {what} holds {name} at line {line}: not a text file{utf16}; "
                     "save it as UTF-8")
     return text
 
