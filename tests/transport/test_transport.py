@@ -1,3 +1,4 @@
+import contextlib
 import json
 import math
 import os
@@ -288,15 +289,26 @@ def test_a_client_waits_for_its_router_and_a_received_message_wakes_the_executor
             opened[0].close()
 
 
-def test_a_polling_bridge_takes_what_arrived_at_its_drain():
+@contextlib.contextmanager
+def _polling_pair(encoding: str = "auto"):
+    """Bridge a (listening, publishing everything) and bridge b (client, polling every 0.05 s),
+    each on its own simulated-time executor."""
     ep = f"tcp/127.0.0.1:{free_port()}"
     ex_a, ex_b = SimExecutor(), SimExecutor()
-    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",)))
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), encoding=encoding))
     b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=("a/**",), receive="poll",
                                  drain_period_s=0.05))
     try:
         ex_a.add_node(a)
         ex_b.add_node(b)
+        yield ex_a, ex_b, b
+    finally:
+        a.close()
+        b.close()
+
+
+def test_a_polling_bridge_takes_what_arrived_at_its_drain():
+    with _polling_pair() as (ex_a, ex_b, b):
         got: list = []
         ex_b.bus.subscribe(M.Topic.STATE, got.append)
         deadline = time.monotonic() + 10
@@ -307,20 +319,10 @@ def test_a_polling_bridge_takes_what_arrived_at_its_drain():
             ex_b.run_for(0.06)
         assert got and got[0] == SAMPLES[4]
         assert b.stats.received >= 1 and b.stats.published_locally == len(got)
-    finally:
-        a.close()
-        b.close()
 
 
 def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_what_is_subscribed(same):
-    ep = f"tcp/127.0.0.1:{free_port()}"
-    ex_a, ex_b = SimExecutor(), SimExecutor()
-    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), encoding="json"))
-    b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=("a/**",), receive="poll",
-                                 drain_period_s=0.05))
-    try:
-        ex_a.add_node(a)
-        ex_b.add_node(b)
+    with _polling_pair(encoding="json") as (ex_a, ex_b, b):
         commands: list = []
         ex_b.bus.subscribe(M.Topic.OPERATOR, commands.append)
         on_bus: list = []
@@ -339,9 +341,6 @@ def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_w
         topic, env = encoded[0]
         assert env.encoding == codec.ENC_JSON and env.payload == codec.encode_json(SAMPLES[4])
         assert same(codec.decode_envelope(env), SAMPLES[4]) and same(commands[0], command)
-    finally:
-        a.close()
-        b.close()
 
 
 def test_the_shortcut_field_encoders_give_the_general_json_form():
