@@ -86,7 +86,7 @@ and the observer's prediction.
 Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
 from the one-step prediction error of the model (with the ESC lag's effective thrust) and adds it to f_d.
 
-Safety (issue item 6): a solver status other than solved, a time-limit hit (OSQP `time_limit`)
+Safety: a solver status other than solved, a time-limit hit (OSQP `time_limit`)
 or a non-finite solution never reaches the actuators. The controller then plays the previous
 feasible plan, shifted, for at most `max_fallback_steps`, then commands neutral (safe stop);
 `ControllerStatus.failures` counts the failures and `status` says which mode is active.

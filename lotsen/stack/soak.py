@@ -1,4 +1,4 @@
-"""The live stack the way an operator meets it (issues 14 and 15): `lotsen run` at wall-clock pace.
+"""The live stack the way an operator meets it: `lotsen run` at wall-clock pace.
 
 `run_live` starts `python -m lotsen run CONFIG` as a separate program from another working
 directory, lets it idle, then does what the operator does through the WebSocket: authenticate as
