@@ -197,7 +197,14 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         wn, we = env.wind_ne
         print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
               f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
-              f"covariance inflated x{env.autocorrelation_factor:.1f} for autocorrelated residuals", file=sys.stderr)
+              f"intervals from the residuals' own correlation (sandwich; residuals correlated over up to "
+              f"{env.autocorrelation_factor:.0f} samples)", file=sys.stderr)
+    bias = getattr(res.details, "gyro_bias", None)
+    if bias is not None:
+        out["gyro_bias_radps"] = {"values": [float(b) for b in bias],
+                                  "std": [float(b) for b in res.details.gyro_bias_std]}
+        print("gyro offset per record (rad/s): " + ", ".join(
+            f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(bias, res.details.gyro_bias_std)), file=sys.stderr)
     Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
           f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
