@@ -302,8 +302,8 @@ class MultipleShootingProblem:
         self.segments = segs
         self.lake = lake
         self.gust_std = gust_std
-        self.nz = 7 if lake else 6
-        self.xscale = np.append(X_SCALE, GUST_SCALE) if lake else X_SCALE
+        self.nz = 8 if lake else 6
+        self.xscale = np.append(X_SCALE, [GUST_SCALE, GUST_SCALE]) if lake else X_SCALE
         self.prior_mean = np.concatenate([np.zeros(NTHETA), ENV_START]) if lake else np.zeros(NTHETA)
         env_std = ENV_PRIOR_STD.copy()
         env_std[4:] *= wind_coefficient_spread
@@ -390,8 +390,8 @@ class MultipleShootingProblem:
         if np.any(jt > 0):
             lin.pt = (theta[free] - self.prior_mean[free]) / self.prior_std[free]
             lin.jt = jt
-        if self.lake:
-            lin.pg = (nodes[:, 6] - 1.0) / self.gust_std
+        if self.lake:  # along: 1 +- gust_std; across: 0 +- gust_std (both relative to the mean wind)
+            lin.pg = np.column_stack([nodes[:, 6] - 1.0, nodes[:, 7]]) / self.gust_std
         if sens:
             nz, xs = self.nz, self.xscale
             Sm, Se = out[2], out[3]
@@ -420,10 +420,11 @@ class MultipleShootingProblem:
         Hpp = np.einsum("kji,kjl->il", Jp, Jp)
         gs = np.add.reduceat(np.einsum("kji,kj->ki", Jx, e), b, axis=0)
         gp = np.einsum("kji,kj->i", Jp, e)
-        if lin.pg is not None:  # the gust factors' prior: 1 +- gust_std, independent per interval
+        if lin.pg is not None:  # the gust factors' prior: independent per interval
             jg = self.xscale[6] / self.gust_std
-            Hss[:, 6, 6] += jg * jg
-            gs[:, 6] += jg * lin.pg
+            for q in (6, 7):
+                Hss[:, q, q] += jg * jg
+                gs[:, q] += jg * lin.pg[:, q - 6]
         if lin.pt is not None:
             Hpp[np.diag_indices_from(Hpp)] += lin.jt ** 2
             gp += lin.jt * lin.pt
@@ -576,7 +577,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
         tscale = np.concatenate([tscale, ENV_SCALE])
         lo, hi = np.concatenate([lo, ENV_LO]), np.concatenate([hi, ENV_HI])
         if nodes.shape[1] == 6:
-            nodes = np.column_stack([nodes, np.ones(len(nodes))])
+            nodes = np.column_stack([nodes, np.ones(len(nodes)), np.zeros(len(nodes))])
     if prob.n_bias:
         b0 = prob.initial_gyro_bias() if gyro_bias0 is None else np.asarray(gyro_bias0, float)
         if nodes0 is None:  # the nodes' r from the measured r, less its offset
@@ -739,12 +740,13 @@ def autocorrelation_factor(prob: MultipleShootingProblem, lin: _Lin, max_lag: in
 
 @dataclass
 class EnvironmentEstimate:
-    """The lake model's environment: values and 1-sigma (ENV_NAMES order), gust factor per interval."""
+    """The lake model's environment: values and 1-sigma (ENV_NAMES order), gust factors per interval."""
 
     values: dict[str, float]
     std: dict[str, float]
     gust_factor: np.ndarray
     autocorrelation_factor: float
+    crosswind_factor: np.ndarray | None = None  # per interval, the wind's turn (radians, small)
 
     @property
     def current_ne(self) -> tuple[float, float]:
@@ -801,7 +803,7 @@ def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, 
         sd_env = sd_all[nv:nv + len(ENV_NAMES)]
         res.details.environment = EnvironmentEstimate(
             {n: float(v) for n, v in zip(ENV_NAMES, theta[NTHETA:])}, {n: float(v) for n, v in zip(ENV_NAMES, sd_env)},
-            nodes[:, 6].copy(), autocorrelation_factor(prob, lin))
+            nodes[:, 6].copy(), autocorrelation_factor(prob, lin), nodes[:, 7].copy())
     return res
 
 
