@@ -169,7 +169,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         else:
             res = estimate_multiple_shooting(est_records, theta0, fixed, gap_s=args.gap, noise_std=noise,
                                              geometry=geometry, node_s=args.node, max_iterations=args.max_iter,
-                                             estimate_noise=not args.fixed_noise, progress=progress)
+                                             estimate_noise=not args.fixed_noise, progress=progress,
+                                             gyro_bias=args.gyro_offset)
     finally:
         bar.close()
     for d in res.identifiability.directions:
@@ -319,6 +320,9 @@ def register(subparsers: Any) -> None:
                    help="single shooting and validation: simulation window length, s (default 10)")
     p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
     p.add_argument("--max-iter", type=int, default=60)
+    p.add_argument("--gyro-offset", action="store_true",
+                   help="estimate a constant offset of the yaw rate (r) per record with the coefficients "
+                        "(always on with --lake)")
     p.add_argument("--lake", action="store_true",
                    help="estimate a constant current, the wind (air velocity and drag coefficients) and a gust "
                         "factor per shooting interval with the parameters (records taken outside calm water)")
