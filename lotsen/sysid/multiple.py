@@ -942,7 +942,7 @@ def check_identifiable(result: IdentificationResult) -> None:
 
 def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
                   fixed: Mapping[str, float] | None = None, gust_std: float = 0.3,
-                  wind_coefficient_spread: float = 0.01, max_iterations: int = 25,
+                  wind_coefficient_spread: float = 0.01, max_iterations: int = 60,
                   progress: Callable[[int, float], None] | None = None, **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
     """The lake model in stages (a homotopy): the current and a steady wind with the parameters held
     at `theta0`; then the parameters too (gust factors held at 1); then from there with the gust
