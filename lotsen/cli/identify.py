@@ -150,7 +150,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         res = estimate_records(est_records, theta0, fixed, method=args.method, lake=args.lake, geometry=geometry,
                                noise_std=noise, window_s=args.window, gap_s=args.gap, node_s=args.node,
                                max_iterations=args.max_iter, gust_std=args.gust_std,
-                               estimate_noise=not args.fixed_noise, progress=progress)
+                               estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
+                               progress=progress)
     finally:
         bar.close()
     for d in res.identifiability.directions:
@@ -171,7 +172,14 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         wn, we = env.wind_ne
         print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
               f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
-              f"covariance inflated x{env.autocorrelation_factor:.1f} for autocorrelated residuals", file=sys.stderr)
+              f"intervals from the residuals' own correlation (sandwich; residuals correlated over up to "
+              f"{env.autocorrelation_factor:.0f} samples)", file=sys.stderr)
+    bias = getattr(res.details, "gyro_bias", None)
+    if bias is not None:
+        out["gyro_bias_radps"] = {"values": [float(b) for b in bias],
+                                  "std": [float(b) for b in res.details.gyro_bias_std]}
+        print("gyro offset per record (rad/s): " + ", ".join(
+            f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(bias, res.details.gyro_bias_std)), file=sys.stderr)
     Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
           f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
@@ -262,6 +270,9 @@ def register(subparsers: Any) -> None:
                    help="single shooting and validation: simulation window length, s (default 10)")
     p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
     p.add_argument("--max-iter", type=int, default=60)
+    p.add_argument("--gyro-offset", action="store_true",
+                   help="estimate a constant offset of the yaw rate (r) per record with the coefficients "
+                        "(always on with --lake)")
     p.add_argument("--lake", action="store_true",
                    help="estimate a constant current, the wind (air velocity and drag coefficients) and a gust "
                         "factor per shooting interval with the parameters (records taken outside calm water)")

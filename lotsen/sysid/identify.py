@@ -37,10 +37,11 @@ def estimate_records(records: Sequence[IdRecord], theta0: VesselParameters = DEF
                      fixed: Mapping[str, float] | None = None, *, method: str = "multiple", lake: bool = False,
                      geometry: VesselGeometry = DEFAULT_GEOMETRY, noise_std: Mapping[str, float] | None = None,
                      window_s: float = 10.0, gap_s: float = 1.0, node_s: float = 2.0, max_iterations: int = 60,
-                     gust_std: float = 0.3, estimate_noise: bool = True,
+                     gust_std: float = 0.3, estimate_noise: bool = True, gyro_offset: bool = False,
                      progress: Callable[[int, float], None] | None = None) -> Any:
     """The estimate on `records` from `theta0` with `fixed` held: single shooting in `window_s`
-    windows (`method="single"`), the lake model (`lake=True`), or multiple shooting."""
+    windows (`method="single"`), the lake model (`lake=True`, always with a yaw-rate offset per
+    record), or multiple shooting (`gyro_offset`: a constant yaw-rate offset per record too)."""
     fixed = dict(fixed or {})
     noise = dict(noise_std or {})
     if method == "single":
@@ -52,7 +53,7 @@ def estimate_records(records: Sequence[IdRecord], theta0: VesselParameters = DEF
                              estimate_noise=estimate_noise, progress=progress)
     return estimate_multiple_shooting(records, theta0, fixed, gap_s=gap_s, noise_std=noise, geometry=geometry,
                                       node_s=node_s, max_iterations=max_iterations,
-                                      estimate_noise=estimate_noise, progress=progress)
+                                      estimate_noise=estimate_noise, progress=progress, gyro_bias=gyro_offset)
 
 
 def parameters_at_bounds(res: Any) -> list[str]:

@@ -59,7 +59,7 @@ from lotsen.sysid.estimate import (
 )
 from lotsen.model.environment import wind_drag_coefficients
 from lotsen.sysid.kernels import step_kernels
-from lotsen.sysid.sensitivity import ENV_NAMES, NTHETA
+from lotsen.sysid.sensitivity import ENV_NAMES, NTHETA, NTHETA_LAKE
 
 # continuity defects below this (noise units) are negligible: the trajectory is one simulation
 CONTINUITY_TOL = 1e-3
@@ -78,6 +78,15 @@ ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *wind_drag_coefficients()])
 ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *wind_drag_coefficients()])  # x wind_coefficient_spread
 ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0])
 ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0])
+# The yaw-rate output's constant offset, one per record (`gyro_bias=True`): r_measured = r + b. A gyro
+# bias calibrated "at rest" is wrong by the yaw rate the boat had then (on a lake the wind turns a
+# drifting boat: 0.02-0.06 rad/s on the lake records, 7-20 x the gyro noise), and the stack's records
+# carry the estimator's bias error. Unmodelled, the offset contradicts the heading's slope, and the
+# fit bends the yaw coefficients to share the difference (m33 1-2 % off at 4-5 sigma on lake records).
+# Scale, weak prior and bounds in rad/s.
+GYRO_BIAS_SCALE = 0.01
+GYRO_BIAS_PRIOR_STD = 0.2
+GYRO_BIAS_LIMIT = 0.5
 
 
 @dataclass
@@ -276,11 +285,14 @@ class MultipleShootingProblem:
     def __init__(self, records: Sequence[IdRecord], node_s: float = 2.0, gap_s: float = 1.0,
                  noise_std: Mapping[str, float] | None = None, geometry: VesselGeometry = DEFAULT_GEOMETRY,
                  h_max: float = 0.0625, lake: bool = False, gust_std: float = 0.3,
-                 wind_coefficient_spread: float = 0.01) -> None:
+                 wind_coefficient_spread: float = 0.01, gyro_bias: bool = False) -> None:
         segs: list[Segment] = []
-        for r in records:
+        seg_record: list[int] = []
+        for q, r in enumerate(records):
             check_record(r)
-            segs.extend(split_segments(r, gap_s))
+            pieces = split_segments(r, gap_s)
+            segs.extend(pieces)
+            seg_record.extend([q] * len(pieces))
         if not segs:
             raise EstimationError("no usable data: no gap-free piece with at least 8 measurement rows after every "
                                   "input column has a value")
@@ -290,13 +302,19 @@ class MultipleShootingProblem:
         self.segments = segs
         self.lake = lake
         self.gust_std = gust_std
-        self.nz = 7 if lake else 6
-        self.xscale = np.append(X_SCALE, GUST_SCALE) if lake else X_SCALE
+        self.nz = 8 if lake else 6
+        self.xscale = np.append(X_SCALE, [GUST_SCALE, GUST_SCALE]) if lake else X_SCALE
         self.prior_mean = np.concatenate([np.zeros(NTHETA), ENV_START]) if lake else np.zeros(NTHETA)
         env_std = ENV_PRIOR_STD.copy()
         env_std[4:] *= wind_coefficient_spread
         self.prior_std = np.concatenate([np.full(NTHETA, np.inf), env_std]) if lake else np.full(NTHETA, np.inf)
+        # the kernel's parameters (vessel [+ environment]); measurement parameters follow them
+        self.n_kernel = NTHETA_LAKE if lake else NTHETA
+        self.n_bias = len(records) if gyro_bias and "r" in names else 0
+        self.prior_mean = np.concatenate([self.prior_mean, np.zeros(self.n_bias)])
+        self.prior_std = np.concatenate([self.prior_std, np.full(self.n_bias, GYRO_BIAS_PRIOR_STD)])
         self.grid = build_grid(segs, node_s, h_max)
+        self.seg_record = np.array(seg_record, int)
         self.sim = ShootingSimulator(self.grid, geometry, lake)
         noise = dict(DEFAULT_NOISE_STD)
         noise.update(noise_std or {})
@@ -311,7 +329,37 @@ class MultipleShootingProblem:
         self.n_nodes = g.n_nodes
         self.n_con = len(self.con)
         self.meas_bounds = np.searchsorted(g.meas_node, np.arange(self.n_nodes + 1))
+        self.meas_record = self.seg_record[g.node_seg[g.meas_node]]
+        self.r_col = names.index("r") if "r" in names else None
         self._pattern_cache: dict = {}
+
+    def initial_gyro_bias(self) -> np.ndarray:
+        """Per record, the yaw-rate offset from the data alone: (integral of the measured r - the
+        heading's change) / duration over its segments. A start for the estimate, no more."""
+        b = np.zeros(self.n_bias)
+        if not self.n_bias or self.psi_col is None:
+            return b
+        num, den = np.zeros(self.n_bias), np.zeros(self.n_bias)
+        for seg, q in zip(self.segments, self.seg_record):
+            ip, ir = self.psi_col, self.r_col
+            okp, okr = np.isfinite(seg.outputs[:, ip]), np.isfinite(seg.outputs[:, ir])
+            if okp.sum() < 2 or okr.sum() < 2:
+                continue
+            tp, psi = seg.t[okp], np.unwrap(seg.outputs[okp, ip])
+            tr, r = seg.t[okr], seg.outputs[okr, ir]
+            t0, t1 = max(tp[0], tr[0]), min(tp[-1], tr[-1])
+            if t1 - t0 <= 0:
+                continue
+            w = (tr >= t0) & (tr <= t1)
+            if w.sum() < 2:
+                continue
+            int_r = float(np.sum(0.5 * (r[w][1:] + r[w][:-1]) * np.diff(tr[w])))
+            dpsi = float(np.interp(tr[w][-1], tp, psi) - np.interp(tr[w][0], tp, psi))
+            num[q] += int_r - dpsi
+            den[q] += float(tr[w][-1] - tr[w][0])
+        ok = den > 0
+        b[ok] = num[ok] / den[ok]
+        return np.clip(b, -GYRO_BIAS_LIMIT, GYRO_BIAS_LIMIT)
 
     @property
     def sqrt_w(self) -> np.ndarray:
@@ -323,10 +371,13 @@ class MultipleShootingProblem:
 
     def linearise(self, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray, tscale: np.ndarray,
                   sens: bool) -> _Lin:
-        out = self.sim.run(theta, nodes, sens)
+        nk = self.n_kernel
+        out = self.sim.run(theta[:nk], nodes, sens)
         Xm, Xe = out[0], out[1]
         sw = self.sqrt_w
         e = self.Y - Xm[:, self.out_idx]
+        if self.n_bias:
+            e[:, self.r_col] -= theta[nk:nk + self.n_bias][self.meas_record]
         if self.psi_col is not None:
             e[:, self.psi_col] = wrap_angle(e[:, self.psi_col])
         e = np.where(self.mask, e, 0.0) * sw
@@ -339,17 +390,24 @@ class MultipleShootingProblem:
         if np.any(jt > 0):
             lin.pt = (theta[free] - self.prior_mean[free]) / self.prior_std[free]
             lin.jt = jt
-        if self.lake:
-            lin.pg = (nodes[:, 6] - 1.0) / self.gust_std
+        if self.lake:  # along: 1 +- gust_std; across: 0 +- gust_std (both relative to the mean wind)
+            lin.pg = np.column_stack([nodes[:, 6] - 1.0, nodes[:, 7]]) / self.gust_std
         if sens:
             nz, xs = self.nz, self.xscale
             Sm, Se = out[2], out[3]
             W = (sw[None, :] * self.mask)[:, :, None]
             Sy = Sm[:, self.out_idx, :]
+            fk = free[free < nk]  # the kernel's parameters; the measurement parameters follow them
             lin.Jx = -Sy[:, :, :nz] * xs[None, None, :] * W
-            lin.Jp = -Sy[:, :, nz + free] * tscale[free][None, None, :] * W
+            lin.Jp = -Sy[:, :, nz + fk] * tscale[fk][None, None, :] * W
             lin.Gx = Se[:, :6, :nz] * xs[None, None, :] / X_SCALE[None, :, None]
-            lin.Gp = Se[:, :6, nz + free] * tscale[free][None, None, :] / X_SCALE[None, :, None]
+            lin.Gp = Se[:, :6, nz + fk] * tscale[fk][None, None, :] / X_SCALE[None, :, None]
+            fb = free[free >= nk] - nk
+            if len(fb):  # d e_r / d b_q = -1 on record q's rows
+                Jb = np.zeros((len(e), len(sw), len(fb)))
+                Jb[:, self.r_col, :] = -(self.meas_record[:, None] == fb[None, :]).astype(float) * tscale[nk + fb][None, :]
+                lin.Jp = np.concatenate([lin.Jp, Jb * W], axis=2)
+                lin.Gp = np.concatenate([lin.Gp, np.zeros((len(lin.Gp), 6, len(fb)))], axis=2)
         return lin
 
     # -- the structured KKT system -------------------------------------------------------------
@@ -362,10 +420,11 @@ class MultipleShootingProblem:
         Hpp = np.einsum("kji,kjl->il", Jp, Jp)
         gs = np.add.reduceat(np.einsum("kji,kj->ki", Jx, e), b, axis=0)
         gp = np.einsum("kji,kj->i", Jp, e)
-        if lin.pg is not None:  # the gust factors' prior: 1 +- gust_std, independent per interval
+        if lin.pg is not None:  # the gust factors' prior: independent per interval
             jg = self.xscale[6] / self.gust_std
-            Hss[:, 6, 6] += jg * jg
-            gs[:, 6] += jg * lin.pg
+            for q in (6, 7):
+                Hss[:, q, q] += jg * jg
+                gs[:, q] += jg * lin.pg[:, q - 6]
         if lin.pt is not None:
             Hpp[np.diag_indices_from(Hpp)] += lin.jt ** 2
             gp += lin.jt * lin.pt
@@ -437,6 +496,8 @@ class MultipleShootingResult:
     # per output: the normalised autocorrelation of its residuals at lags 1..K measurements
     residual_autocorr: dict[str, np.ndarray] | None = None
     environment: "EnvironmentEstimate | None" = None  # the lake model's current, wind and gusts
+    gyro_bias: np.ndarray | None = None  # per record, the yaw-rate output's offset (rad/s), if estimated
+    gyro_bias_std: np.ndarray | None = None
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
@@ -479,7 +540,8 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                problem: MultipleShootingProblem | None = None,
                                nodes0: np.ndarray | None = None, lake: bool = False,
                                gust_std: float = 0.3, env0: Sequence[float] | None = None,
-                               wind_coefficient_spread: float = 0.01) -> IdentificationResult:
+                               wind_coefficient_spread: float = 0.01, gyro_bias: bool | None = None,
+                               gyro_bias0: Sequence[float] | None = None) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
@@ -491,6 +553,10 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     velocity and drag coefficients, lotsen.model.environment.apparent_wind_force) and a gust factor
     per shooting interval (prior 1 +- `gust_std`); the covariance is then also inflated for the
     residuals' autocorrelation (`autocorrelation_factor`). Results in `details.environment`.
+
+    `gyro_bias` (default: with `lake`): estimate a constant offset of the yaw-rate output per record
+    (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from the data
+    (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
     """
     fixed = dict(fixed or {})
     unknown = [n for n in fixed if n not in NAMES]
@@ -500,7 +566,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     prob = problem
     if prob is None:
         prob = MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max, lake, gust_std,
-                                       wind_coefficient_spread)
+                                       wind_coefficient_spread, lake if gyro_bias is None else gyro_bias)
         check_excitation(prob.segments)
     theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
@@ -511,7 +577,16 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
         tscale = np.concatenate([tscale, ENV_SCALE])
         lo, hi = np.concatenate([lo, ENV_LO]), np.concatenate([hi, ENV_HI])
         if nodes.shape[1] == 6:
-            nodes = np.column_stack([nodes, np.ones(len(nodes))])
+            nodes = np.column_stack([nodes, np.ones(len(nodes)), np.zeros(len(nodes))])
+    if prob.n_bias:
+        b0 = prob.initial_gyro_bias() if gyro_bias0 is None else np.asarray(gyro_bias0, float)
+        if nodes0 is None:  # the nodes' r from the measured r, less its offset
+            nodes[:, 5] -= b0[prob.seg_record[prob.grid.node_seg]]
+        theta = np.concatenate([theta, b0])
+        free = np.concatenate([free, prob.n_kernel + np.arange(prob.n_bias)])
+        tscale = np.concatenate([tscale, np.full(prob.n_bias, GYRO_BIAS_SCALE)])
+        lo = np.concatenate([lo, np.full(prob.n_bias, -GYRO_BIAS_LIMIT)])
+        hi = np.concatenate([hi, np.full(prob.n_bias, GYRO_BIAS_LIMIT)])
     history: list[float] = []
     total_it = 0
     converged = False
@@ -546,7 +621,9 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     s2 = float(np.sum(np.sum(lin.e ** 2, axis=0) * _weight_correlation_times(prob, lin))) / max(m - p_eff, 1)
     factor = s2 if estimate_noise else max(1.0, s2)
     if prob.lake:
-        factor *= autocorrelation_factor(prob, lin)
+        # honest intervals for correlated residuals: the sandwich covariance F^-1 M F^-1, the score's
+        # covariance M estimated from the residuals (Newey-West); expressed as the equivalent information
+        F_rel, factor = sandwich_information(prob, lin, blocks, F_rel), 1.0
     return _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, total_it,
                    converged, history, passes, lin)
 
@@ -559,6 +636,59 @@ def _fisher_from(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple) -> np.
     lu = prob.factor_A(Hss, lin.Gx, Ds, 1e-12)  # a whisper of damping: motionless data keep A regular
     F, _ = prob.reduced(lu, Hsp, lin.Gp, Hpp, None, None)
     return F
+
+
+def sandwich_information(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, F: np.ndarray) -> np.ndarray:
+    """The information equivalent to the sandwich covariance F^-1 M F^-1 (scaled parameters).
+
+    The least-squares covariance F^-1 assumes white residuals of the weighted noise level. Gusts a
+    piecewise-constant factor does not follow, the wind direction's wander and a wandering gyro bias
+    leave residuals correlated over seconds: F^-1 is then too small, by a different factor for
+    every parameter direction. Each measurement row k contributes the score s_k = J_k^T e_k, with
+    J_k = d e_k / d p the residuals' total derivative, every node state eliminated under continuity
+    (d s / d p = -A^-1 B, as in F = H_pp - B^T A^-1 B). The score's covariance is estimated from the
+    residuals themselves, with the lagged products Bartlett-weighted (Newey & West 1987; within each
+    segment): M_data = sum_L w_L (G_L + G_L^T), G_L = sum_k s_k s_{k+L}^T, w_L = 1 - L / (K + 1).
+    The bandwidth K is twice the longest residual correlation time (`residual_correlation_times`;
+    gusts 3-10 s, a wandering gyro bias longer), at most a tenth of the rows: the scores sum to zero
+    at the optimum, so a bandwidth near the record's length shrinks M towards zero. The priors keep
+    their own information: M = F - F_data + M_data, with F_data = sum_k J_k^T J_k the information of
+    the measurements; white residuals at the weighted noise level give M_data ~ F_data and the
+    sandwich reduces to F^-1.
+    """
+    Hss, Hsp, Hpp, _, _ = blocks
+    nf = Hpp.shape[0]
+    if nf == 0:
+        return F
+    Ds = np.maximum(np.einsum("kii->ki", Hss), 0.0)
+    lu = prob.factor_A(Hss, lin.Gx, Ds, 1e-12)
+    _, AinvB = prob.reduced(lu, Hsp, lin.Gp, Hpp, None, None)
+    g = prob.grid
+    dsdp = -AinvB[: prob.nz * prob.n_nodes].reshape(prob.n_nodes, prob.nz, nf)
+    J = lin.Jp + np.einsum("kjz,kzf->kjf", lin.Jx, dsdp[g.meas_node])
+    S = np.einsum("kjf,kj->kf", J, lin.e)
+    F_data = np.einsum("kjf,kjg->fg", J, J)
+    seg = g.node_seg[g.meas_node]
+    tau = float(np.max(residual_correlation_times(prob, lin)))
+    L = int(max(1, min(round(2.0 * tau), len(S) // 10)))
+    M = S.T @ S
+    for lag in range(1, L + 1):
+        same = (seg[lag:] == seg[:-lag]).astype(float)
+        G = (S[:-lag] * same[:, None]).T @ S[lag:]
+        M += (1.0 - lag / (L + 1.0)) * (G + G.T)
+    M = F - F_data + M
+    M = 0.5 * (M + M.T)
+    try:
+        Finv = np.linalg.inv(F)
+    except np.linalg.LinAlgError:
+        Finv = np.linalg.pinv(F)
+    cov = Finv @ M @ Finv
+    cov = 0.5 * (cov + cov.T)
+    try:
+        out = np.linalg.inv(cov)
+    except np.linalg.LinAlgError:
+        out = np.linalg.pinv(cov)
+    return 0.5 * (out + out.T)
 
 
 def residual_correlation_times(prob: MultipleShootingProblem, lin: _Lin, max_lag: int = 200) -> np.ndarray:
@@ -610,12 +740,13 @@ def autocorrelation_factor(prob: MultipleShootingProblem, lin: _Lin, max_lag: in
 
 @dataclass
 class EnvironmentEstimate:
-    """The lake model's environment: values and 1-sigma (ENV_NAMES order), gust factor per interval."""
+    """The lake model's environment: values and 1-sigma (ENV_NAMES order), gust factors per interval."""
 
     values: dict[str, float]
     std: dict[str, float]
     gust_factor: np.ndarray
     autocorrelation_factor: float
+    crosswind_factor: np.ndarray | None = None  # per interval, the wind's turn (radians, small)
 
     @property
     def current_ne(self) -> tuple[float, float]:
@@ -638,7 +769,7 @@ def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, 
     except np.linalg.LinAlgError:
         cov_all = np.linalg.pinv(F_rel) * factor
     nv = len(free_names)
-    cov_rel = cov_all[:nv, :nv]  # the vessel parameters, the environment marginalised
+    cov_rel = cov_all[:nv, :nv]  # the vessel parameters, the environment and the gyro bias marginalised
     ts = tscale[free][:nv]
     F_m = F_rel  # the information of the vessel parameters (the environment eliminated)
     if nv < len(free):
@@ -663,11 +794,16 @@ def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, 
     res.details = MultipleShootingResult(nodes, g.node_time, dict(prob.noise),
                                          float(np.max(np.abs(lin.c))) * 1.0 if lin.c.size else 0.0,
                                          g.n_nodes, g.n_steps, passes, residual_autocorr(lin.e, prob.mask, prob.names))
+    sd_all = np.sqrt(np.clip(np.diag(cov_all), 0, None)) * tscale[free]
+    if prob.n_bias:
+        nk = prob.n_kernel
+        res.details.gyro_bias = theta[nk:nk + prob.n_bias].copy()
+        res.details.gyro_bias_std = sd_all[-prob.n_bias:].copy()
     if prob.lake:
-        sd_env = np.sqrt(np.clip(np.diag(cov_all)[nv:], 0, None)) * tscale[free][nv:]
+        sd_env = sd_all[nv:nv + len(ENV_NAMES)]
         res.details.environment = EnvironmentEstimate(
             {n: float(v) for n, v in zip(ENV_NAMES, theta[NTHETA:])}, {n: float(v) for n, v in zip(ENV_NAMES, sd_env)},
-            nodes[:, 6].copy(), autocorrelation_factor(prob, lin))
+            nodes[:, 6].copy(), autocorrelation_factor(prob, lin), nodes[:, 7].copy())
     return res
 
 
@@ -806,7 +942,7 @@ def check_identifiable(result: IdentificationResult) -> None:
 
 def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
                   fixed: Mapping[str, float] | None = None, gust_std: float = 0.3,
-                  wind_coefficient_spread: float = 0.01, max_iterations: int = 25,
+                  wind_coefficient_spread: float = 0.01, max_iterations: int = 60,
                   progress: Callable[[int, float], None] | None = None, **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
     """The lake model in stages (a homotopy): the current and a steady wind with the parameters held
     at `theta0`; then the parameters too (gust factors held at 1); then from there with the gust
@@ -819,9 +955,10 @@ def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAUL
     env = zero.details.environment
     first = estimate_multiple_shooting(records, theta0, fixed, lake=True, gust_std=1e-3, max_iterations=max_iterations,
                                        wind_coefficient_spread=wind_coefficient_spread, progress=progress,
-                                       env0=list(env.values.values()), nodes0=zero.details.nodes, **kwargs)
+                                       env0=list(env.values.values()), nodes0=zero.details.nodes,
+                                       gyro_bias0=zero.details.gyro_bias, **kwargs)
     env = first.details.environment
     return estimate_multiple_shooting(records, first.params, fixed, lake=True, gust_std=gust_std,
                                       max_iterations=max_iterations, env0=list(env.values.values()),
                                       nodes0=first.details.nodes, wind_coefficient_spread=wind_coefficient_spread,
-                                      progress=progress, **kwargs)
+                                      gyro_bias0=first.details.gyro_bias, progress=progress, **kwargs)

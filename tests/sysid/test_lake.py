@@ -38,19 +38,20 @@ def test_lake_step_matches_the_float_model_and_finite_differences():
     theta = np.array(DEFAULT_PARAMETERS.to_vector())
     env = np.array([0.05, -0.07, 2.0, -3.0, *wind_drag_coefficients()])
     th = np.concatenate([theta, env])
-    x = np.array([1.0, 2.0, 0.4, 0.6, 0.05, 0.1, 1.2])  # gust factor 1.2
+    x = np.array([1.0, 2.0, 0.4, 0.6, 0.05, 0.1, 1.2, 0.15])  # gust factors 1.2 along, 0.15 across
+    wn, we = 1.2 * 2.0 + 0.15 * 3.0, 1.2 * -3.0 + 0.15 * 2.0  # g w + h (-w_E, w_N)
     u = np.array([0.1, 0.1, 60.0, 55.0, 20.0])
     h = 0.01
-    x1 = np.array(step(x, u, th, h, 0.0, np.zeros(7))).ravel()
+    x1 = np.array(step(x, u, th, h, 0.0, np.zeros(8))).ravel()
     # the float model: current through vessel_rhs, wind through apparent_wind_force with g * w
-    tau = apparent_wind_force(x[2], x[3], x[4], 1.2 * env[2], 1.2 * env[3], *env[4:])
+    tau = apparent_wind_force(x[2], x[3], x[4], wn, we, *env[4:])
 
     def f(xx):
         return np.array(vessel_rhs(xx, u, theta, current_ne=(env[0], env[1]), tau_ext=tau))
 
     # one RK4 step with the wind force re-evaluated at the stages
     def rhs(xx):
-        t = apparent_wind_force(xx[2], xx[3], xx[4], 1.2 * env[2], 1.2 * env[3], *env[4:])
+        t = apparent_wind_force(xx[2], xx[3], xx[4], wn, we, *env[4:])
         return np.array(vessel_rhs(xx, u, theta, current_ne=(env[0], env[1]), tau_ext=t))
 
     x6 = x[:6]
@@ -60,19 +61,19 @@ def test_lake_step_matches_the_float_model_and_finite_differences():
     k4 = rhs(x6 + h * k3)
     ref = x6 + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     assert np.allclose(x1[:6], ref, rtol=1e-10, atol=1e-12)
-    assert x1[6] == 1.2 and np.all(np.isfinite(f(x6)))
+    assert x1[6] == 1.2 and x1[7] == 0.15 and np.all(np.isfinite(f(x6)))
     # sensitivities of 50 steps against central differences, for state, gust factor and environment
-    S = np.zeros((7, 7 + len(th)))
+    S = np.zeros((8, 8 + len(th)))
     xs = x.copy()
     xs_, S_ = xs, S
     for _ in range(50):
-        a, b = step_sens(xs_, S_, u, th, h, 0.0, np.zeros(7))
+        a, b = step_sens(xs_, S_, u, th, h, 0.0, np.zeros(8))
         xs_, S_ = np.array(a).ravel(), np.array(b)
     # S starts at zero here (reset 0), so compare d x_50 / d theta with differences of the simulation
     def sim(thv, x0):
         xx = x0.copy()
         for _ in range(50):
-            xx = np.array(step(xx, u, thv, h, 0.0, np.zeros(7))).ravel()
+            xx = np.array(step(xx, u, thv, h, 0.0, np.zeros(8))).ravel()
         return xx
 
     for j in (18, 19, 20, 21, 22, 23, 24, 5, 11):
@@ -81,18 +82,19 @@ def test_lake_step_matches_the_float_model_and_finite_differences():
         tp[j] += d
         tm[j] -= d
         fd = (sim(tp, x) - sim(tm, x)) / (2 * d)
-        assert np.allclose(S_[:, 7 + j], fd, rtol=1e-4, atol=1e-8), j
-    # the gust factor as a state: d x / d g
-    a, b = step_sens(x, np.zeros((7, 7 + len(th))), u, th, h, 1.0, x)  # reset: S = [I, 0]
+        assert np.allclose(S_[:, 8 + j], fd, rtol=1e-4, atol=1e-8), j
+    # the gust factors as states: d x / d g, d x / d h
+    a, b = step_sens(x, np.zeros((8, 8 + len(th))), u, th, h, 1.0, x)  # reset: S = [I, 0]
     xs_, S_ = np.array(a).ravel(), np.array(b)
     for _ in range(49):
-        a, b = step_sens(xs_, S_, u, th, h, 0.0, np.zeros(7))
+        a, b = step_sens(xs_, S_, u, th, h, 0.0, np.zeros(8))
         xs_, S_ = np.array(a).ravel(), np.array(b)
-    xp, xm = x.copy(), x.copy()
-    xp[6] += 1e-6
-    xm[6] -= 1e-6
-    fd = (sim(th, xp) - sim(th, xm)) / 2e-6
-    assert np.allclose(S_[:, 6], fd, rtol=1e-4, atol=1e-8)
+    for q in (6, 7):
+        xp, xm = x.copy(), x.copy()
+        xp[q] += 1e-6
+        xm[q] -= 1e-6
+        fd = (sim(th, xp) - sim(th, xm)) / 2e-6
+        assert np.allclose(S_[:, q], fd, rtol=1e-4, atol=1e-8), q
     assert ca is not None
 
 
