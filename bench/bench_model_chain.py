@@ -6,7 +6,7 @@ ESCs and servos, an offset GNSS antenna) and boats with coefficients randomised 
 the defaults (seeded), with the lake boat's unmodelled effects.
 
 Identification on lake records (`identification_rows`): `lotsen identify --lake` on 10-min PRBS
-records (`lotsen.cli.experiment.lake_run`: a boat 5-40 % off the defaults, m11 kept as the scale, a
+records (`lotsen.harness.identification.lake_run`: a boat 5-40 % off the defaults, m11 kept as the scale, a
 constant current up to 0.1 m/s, gusty wind up to 5 m/s, the simulator's noisy asynchronous
 sensors), 20 seeds (3 quick): per coefficient the error and the share of 3-sigma intervals holding
 the truth, the verdicts; and the issue's case (10 min, 0.08 m/s current, 4 m/s gusty wind).
@@ -49,7 +49,7 @@ def _identify(lake):  # type: ignore[no-untyped-def]
 
 
 def identification_rows(quick: bool = False) -> list[dict]:
-    from lotsen.cli.experiment import lake_run
+    from lotsen.harness.identification import lake_run
     from lotsen.sysid.verdict import CORE_PARAMETERS
 
     rows: list[dict] = []

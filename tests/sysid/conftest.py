@@ -27,6 +27,6 @@ def short_experiment():
 
 @pytest.fixture(scope="session")
 def short_run(short_experiment):
-    from lotsen.cli.experiment import run_on_simulator
+    from lotsen.harness.identification import run_on_simulator
 
     return run_on_simulator(short_experiment, seed=5, keep_truth=True)

@@ -112,7 +112,7 @@ def test_a_short_lake_record_is_refused_not_answered(tmp_path, capsys):
     """60 s in current and gusty wind: too little to separate boat, current and wind; exit 1, refused."""
     import json
 
-    from lotsen.cli.experiment import lake_run
+    from lotsen.harness.identification import lake_run
 
     lake = lake_run(7, duration_s=60.0, current_mps=0.08, wind_mps=4.0)
     rc, out = _identify_cli(lake, tmp_path, "--lake")
@@ -122,7 +122,7 @@ def test_a_short_lake_record_is_refused_not_answered(tmp_path, capsys):
 
 
 def test_lake_record_without_bow_thruster_is_refused(tmp_path, capsys):
-    from lotsen.cli.experiment import lake_run
+    from lotsen.harness.identification import lake_run
     from lotsen.sysid.experiment import parse_experiment
 
     exp = parse_experiment({"name": "no_bow", "area": {"size_m": [400, 400]}, "pieces": [
@@ -141,7 +141,8 @@ def test_done_when_lake_record_is_answered_within_bounds_or_refused(tmp_path, ca
     with or without the lake model."""
     import json
 
-    from lotsen.cli.experiment import CORE_PARAMETERS, lake_run
+    from lotsen.harness.identification import lake_run
+    from lotsen.sysid.verdict import CORE_PARAMETERS
 
     lake = lake_run(2500, current_mps=0.08, wind_mps=4.0)
     rc, out = _identify_cli(lake, tmp_path, *(["--lake"] if lake_flag else []))
