@@ -102,6 +102,9 @@ def extra_sections(raw: Any, config: LaunchConfig) -> ExtraConfig:
     data = dict(raw)
     logs = data.get("logs")
     if isinstance(logs, Mapping):
+        if "geo_origin" in logs:  # one origin for every part of a stack (lotsen.stack.stack.resolve_origin)
+            raise ConfigError("extra.logs.geo_origin: not configurable; the log's map views use the local frame's "
+                              "origin, set by the config's `origin` (else the simulated receiver's, or the first fix)")
         data["logs"] = {"directory": config.logging.directory, **logs}
     zenoh = data.get("zenoh")
     if isinstance(zenoh, Mapping):

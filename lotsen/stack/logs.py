@@ -66,12 +66,11 @@ class LoggingControlNode(Node):
 
 
 def recorder_config(config: StackConfig, origin: GeoOrigin | None = None) -> RecorderConfig:
-    """`extra.logs` (else the defaults in `logging.directory`), with the local frame's origin for
-    the map views."""
+    """`extra.logs` (else the defaults in `logging.directory`), with the stack's one local-frame
+    origin for the map views (none on a boat without a configured `origin`: no map views)."""
     rc = config.extra.logs or RecorderConfig(directory=config.logging.directory)
-    if rc.geo_origin is None and origin is not None:
-        rc = dataclasses.replace(rc, geo_origin=(origin.lat_deg, origin.lon_deg, origin.height_m))
-    return rc
+    geo = (origin.lat_deg, origin.lon_deg, origin.height_m) if origin is not None else None
+    return dataclasses.replace(rc, geo_origin=geo)
 
 
 def _redacted(config: dict) -> dict:

@@ -101,3 +101,15 @@ def test_every_shipped_config_loads(path):
     assert isinstance(config.extra, ExtraConfig)
     raw = yaml.safe_load(path.read_text()) or {}
     assert set(raw.get("extra") or {}) <= set(SECTIONS)
+
+
+def test_the_logs_map_origin_is_the_stacks_one_origin(tmp_path):
+    from lotsen.stack.logs import recorder_config
+    from lotsen.stack.stack import resolve_origin
+
+    with pytest.raises(ConfigError, match="extra.logs.geo_origin: not configurable.*`origin`"):
+        load_stack_config(_write(tmp_path, {"extra": {"logs": {"geo_origin": [57.0, 11.0, 0.0]}}}))
+    config = load_stack_config(_write(tmp_path, {"mode": "sim", "origin": {"lat_deg": 57.7, "lon_deg": 11.9},
+                                                 "extra": {"logs": {"flush_period_s": 1.0}}}))
+    assert recorder_config(config, resolve_origin(config)).geo_origin == (57.7, 11.9, 0.0)
+    assert recorder_config(config, None).geo_origin is None  # a boat without a configured origin: no map views
