@@ -17,17 +17,17 @@ binary packages for Jazzy) documents it in its docs/design.md (rmw_zenoh 0.2+ on
   form, fields left empty where they equal rmw_zenoh's defaults (reliable, volatile, keep last 42,
   infinite deadline / lifespan / lease, automatic liveliness).
 
-The GID rmw_zenoh puts in the attachment is a 128-bit hash of the entity's liveliness key
-expression (XXH3-128); any 16 bytes unique to the publisher serve the same purpose (receivers use
-it to tell publishers apart), so lotsen uses the first 16 bytes of BLAKE2b of the same key
-expression (no xxhash dependency).
+The GID in the attachment is, as rmw_zenoh makes it, XXH3-128 of the entity's liveliness key
+expression, its low 64 bits then its high 64 bits, each little endian: a ROS 2 tool that
+compares the GID with the one it derives from the liveliness token sees the same publisher.
 """
 
 from __future__ import annotations
 
-import hashlib
 import struct
 from dataclasses import dataclass
+
+import xxhash
 
 from lotsen.transport.ros2_types import dds_type_name, type_hash
 
@@ -127,8 +127,9 @@ def parse_token(key: str) -> TokenInfo:
 
 
 def gid_for(token_key: str) -> bytes:
-    """16 bytes identifying a publisher (see module docstring)."""
-    return hashlib.blake2b(token_key.encode("utf-8"), digest_size=GID_SIZE).digest()
+    """The publisher's 16-byte GID: XXH3-128 of its liveliness key, low then high half, little
+    endian (see module docstring)."""
+    return xxhash.xxh3_128_intdigest(token_key.encode("utf-8")).to_bytes(GID_SIZE, "little")
 
 
 def encode_attachment(sequence_number: int, source_timestamp_ns: int, gid: bytes) -> bytes:

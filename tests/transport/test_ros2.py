@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import xxhash
 import pytest
 
 from lotsen import messages as M
@@ -114,6 +115,16 @@ def test_attachment_is_the_zenoh_serialization_of_seq_stamp_gid():
     assert W.decode_attachment(None) is None and W.decode_attachment(data[:-1]) is None
     assert W.decode_attachment(data[:16] + b"\x08" + data[17:]) is None
     assert W.gid_for("a") != W.gid_for("b") and len(W.gid_for("a")) == 16
+
+
+def test_the_gid_is_xxh3_128_of_the_liveliness_key_low_half_first_as_rmw_zenoh():
+    # xxHash's reference value of XXH3-128 of no bytes: high64 0x99AA06D3014798D8, low64
+    # 0x6001C324468D497F; rmw_zenoh copies low64 then high64 in the machine's (little) byte order
+    assert W.gid_for("") == bytes.fromhex("7f498d4624c30160" "d8984701d306aa99")
+    key = ("@ros2_lv/0/" + "ab" * 16 + "/0/11/MP/%/%/lotsen_core/%cmd_vel/geometry_msgs::msg::dds_::Twist_/RIHS01_"
+           + "0" * 64 + "/::,10:,:,:,,")
+    for k in (key, key + "/%" * 40):  # XXH3's 129-240 byte path (a real key) and its long-input path
+        assert W.gid_for(k) == xxhash.xxh3_128(k.encode()).digest()[::-1]
 
 
 # ---------------------------------------------------------------- mapping
