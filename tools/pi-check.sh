@@ -76,7 +76,7 @@ if [ ! -e "$ROOTFS/.lotsen-complete" ]; then
         --include=python3,python3-venv,python3-dev,make,ca-certificates bookworm "$ROOTFS" "$MIRROR"
     touch "$ROOTFS/.lotsen-complete"
 else
-    STEPS+=("| debootstrap bookworm arm64 | cached ($ROOTFS) | 0 |")
+    STEPS+=("| debootstrap bookworm arm64 | cached (${ROOTFS/#$HOME/\~}) | 0 |")
 fi
 
 MOUNTS=()
