@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from lotsen.model import DEFAULT_LIMITS, DEFAULT_PARAMETERS, VesselModel, VesselParameters
+from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import IdRecord
 from lotsen.sysid.experiment import Experiment, InputGenerator
 from lotsen.sysid.verdict import CORE_PARAMETERS
@@ -77,7 +78,7 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
             y = [math.nan] * 4
             if fix is not None:
                 n, e = frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m)
-                y = [float(n), float(e), math.remainder(psi_meas, 2 * math.pi), last_gyro - bias]
+                y = [float(n), float(e), wrap_angle(psi_meas), last_gyro - bias]
             rows_t.append(t)
             rows_u.append(np.zeros(5))
             rows_n.append(0)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-_TWO_PI = 2.0 * math.pi
+from lotsen.model.angles import TWO_PI as _TWO_PI, wrap_angle
 
 
 def _mod(x: float) -> float:
@@ -83,7 +83,7 @@ def dubins_words(start: tuple[float, float, float], goal: tuple[float, float, fl
         x, y, th = x0, y0, th0
         for kind, amount in zip(word, params):
             x, y, th = _step(x, y, th, kind, amount, radius_m)
-        err = math.hypot(x - x1, y - y1) + radius_m * abs(math.remainder(th - th1, _TWO_PI))
+        err = math.hypot(x - x1, y - y1) + radius_m * abs(wrap_angle(th - th1))
         if err < 1e-6 * max(1.0, radius_m * d):
             found.append((radius_m * sum(params), word, params))
     return sorted(found)
@@ -100,7 +100,7 @@ def dubins_waypoints(start: tuple[float, float, float], word: str, params: tuple
         pieces = 1 if kind == "S" else max(1, math.ceil(amount / max_turn_rad - 1e-9))
         for _ in range(pieces):
             x, y, th = _step(x, y, th, kind, amount / pieces, radius_m)
-            poses.append((y, x, math.remainder(math.pi / 2 - th, _TWO_PI)))
+            poses.append((y, x, wrap_angle(math.pi / 2 - th)))
     # drop poses closer than min_gap to the previous kept one (short straights), never the goal
     kept: list[tuple[float, float, float]] = []
     prev = (start[0], start[1])

@@ -29,6 +29,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from lotsen.errors import ConfigError, PlanningError
+from lotsen.model.angles import wrap_angle
 from lotsen.planning import cubic
 from lotsen.planning.dubins import dubins_waypoints, dubins_words
 from lotsen.planning.path import Path, SegmentMetrics
@@ -264,7 +265,7 @@ def _plan_segment(p0: np.ndarray, psi0: float, p1: np.ndarray, psi1: float, wate
         pts, length, max_k, cost, ok_len, ok_k, feas = evaluate(ab)
     geom_ok = ok_len & ok_k
     if not geom_ok.any():
-        turn_deg = math.degrees(abs(math.remainder(psi1 - psi0, 2 * math.pi)))
+        turn_deg = math.degrees(abs(wrap_angle(psi1 - psi0)))
         if not ok_len.any():
             why = (f"the shortest candidate has length ratio {length.min() / straight:.2f} "
                    f"> {cfg.length_ratio_max:g}")
@@ -555,7 +556,7 @@ def plan_return_route(route: Route, north_m: float, east_m: float, heading_rad: 
     if math.hypot(north_m - h.north_m, east_m - h.east_m) < 0.05:
         raise PlanningError("return route: the vessel is already at the harbour")
     _check_nodes_against_config([start], ["return start"], water, cfg)
-    arrivals = ([h.heading_rad, math.remainder(h.heading_rad + math.pi, 2 * math.pi)]
+    arrivals = ([h.heading_rad, wrap_angle(h.heading_rad + math.pi)]
                 if arrival_heading_rad is None else [arrival_heading_rad])
     best: Path | None = None
     errors = []

@@ -35,6 +35,7 @@ from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
 from lotsen.logs.reader import read_log
 from lotsen.messages import Alert, EstimatorHealth, SupervisorStatus, ThrustCommand, Topic, VesselState
+from lotsen.model.angles import wrap_angle
 from lotsen.runtime.clock import CLOCK_ENV
 from lotsen.runtime.lifetime import RUNTIME_DIR_ENV
 from lotsen.stack.processes import free_port
@@ -542,8 +543,7 @@ def analyse_log(path: str, t_from: float, t_to: float, t_stop: float, failures: 
         t = np.array([s.stamp_s for s in rows])
         err = np.column_stack([[s.north_m for s in rows] - np.interp(t, tt, tn),
                                [s.east_m for s in rows] - np.interp(t, tt, te),
-                               (np.array([s.heading_rad for s in rows]) - np.interp(t, tt, th) + np.pi) % (2 * np.pi)
-                               - np.pi])
+                               wrap_angle(np.array([s.heading_rad for s in rows]) - np.interp(t, tt, th))])
         std = np.array([s.std[:3] for s in rows])
         z = np.abs(err) / np.maximum(std, 1e-9)
         outside = float(np.mean(np.any(z > 3.0, axis=1)))

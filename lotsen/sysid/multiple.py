@@ -534,7 +534,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                fixed: Mapping[str, float] | None = None, gap_s: float = 1.0,
                                noise_std: Mapping[str, float] | None = None,
                                geometry: VesselGeometry = DEFAULT_GEOMETRY, h_max: float = 0.0625,
-                               max_iterations: int = 60, window_s: float | None = None, node_s: float = 2.0,
+                               max_iterations: int = 60, node_s: float = 2.0,
                                estimate_noise: bool = True, tol: float = 1e-9,
                                progress: Callable[[int, float], None] | None = None,
                                problem: MultipleShootingProblem | None = None,
@@ -547,7 +547,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
     `estimate_noise` (default) the noise std of each output is re-estimated from its residuals and
     the estimate refined once with those weights; otherwise `noise_std` (or the defaults) is used and
-    the covariance is scaled by max(1, s^2). `window_s` is accepted for compatibility and ignored.
+    the covariance is scaled by max(1, s^2).
 
     `lake`: estimate with the parameters a constant earth-frame current, the wind (earth-frame air
     velocity and drag coefficients, lotsen.model.environment.apparent_wind_force) and a gust factor

@@ -49,6 +49,7 @@ from typing import Any
 
 from lotsen import messages as M
 from lotsen.errors import DataError
+from lotsen.model.angles import wrap_angle
 from lotsen.transport import ros2_types
 
 FORMAT_VERSION = 1
@@ -466,7 +467,7 @@ def _from_ros(name: str, ros: Any, ext: dict) -> Any:
         yaw_enu = 2 * math.atan2(q.z, q.w)
         tw = ros.twist.twist
         base = {"stamp_s": _stamp_s(ros.header), "north_m": p.position.y, "east_m": p.position.x,
-                "heading_rad": math.remainder(math.pi / 2 - yaw_enu, 2 * math.pi), "u_mps": tw.linear.x,
+                "heading_rad": wrap_angle(math.pi / 2 - yaw_enu), "u_mps": tw.linear.x,
                 "v_mps": -tw.linear.y, "r_radps": -tw.angular.z}
         return from_jsonable(M.VesselState, {**base, **ext})
     raise DecodeError(f"no ROS 2 type for {name}")

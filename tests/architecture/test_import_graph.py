@@ -123,7 +123,7 @@ ALLOWED: dict[str, set[str]] = {
     "supervisor": {"runtime", "model", "control", "planning"},
     "drivers": {"runtime", "model", "sim"},
     "logs": {"runtime", "model", "transport", "sysid"},
-    "transport": {"runtime"},
+    "transport": {"runtime", "model"},
     "web": {"runtime", "planning", "logs"},
 }
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
