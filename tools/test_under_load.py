@@ -27,9 +27,10 @@ RESULTS = ROOT / "bench" / "results"
 SUMMARY = re.compile(r"(\d+) (passed|failed|error|errors|skipped|deselected|xfailed|xpassed)")
 
 
-def _pytest(args: list[str]) -> tuple[int, dict[str, int], float, str]:
+def _pytest(args: list[str], cache: bool = False) -> tuple[int, dict[str, int], float, str]:
     t0 = time.monotonic()
-    p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args], cwd=ROOT,
+    plugins = [] if cache else ["-p", "no:cacheprovider"]  # --last-failed needs the cache
+    p = subprocess.run([sys.executable, "-m", "pytest", "-q", *plugins, *args], cwd=ROOT,
                        capture_output=True, text=True)
     counts: dict[str, int] = {}
     tail = p.stdout.strip().splitlines()[-1] if p.stdout.strip() else ""
@@ -39,15 +40,36 @@ def _pytest(args: list[str]) -> tuple[int, dict[str, int], float, str]:
     return p.returncode, counts, time.monotonic() - t0, "; ".join(failed[:5])
 
 
+def write_results(rows: list[dict], meta: dict) -> None:
+    """bench/results/under_load.{json,md}, rewritten after every run (a stopped series keeps what ran)."""
+    green = sum(1 for r in rows if r["pass"])
+    meta = {**meta, "green": green, "of": len(rows)}
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "under_load.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    cols = ["run", "step", "exit", "passed", "failed", "skipped", "deselected", "wall_s", "failed_tests"]
+    done = "" if len(rows) >= meta["runs"] * meta["steps"] else f" (stopped after {len(rows)} of {meta['runs']} planned)"
+    md = ["# under load", "",
+          f"The default test suite run {meta['runs']} times in a row with {meta['burners']} CPU burners "
+          "(`while True: pass`) running the whole time (`tools/test_under_load.py`).", "",
+          f"Measured {meta['date']} on {meta['machine']}, Python {meta['python']}, commit {meta['commit']}: "
+          f"**{green} of {len(rows)} green**{done}.", "",
+          "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    md += ["| " + " | ".join(str(r.get(c, "")) for c in cols) + " |" for r in rows]
+    (RESULTS / "under_load.md").write_text("\n".join(md) + "\n")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--burners", type=int, default=2)
     ap.add_argument("--live", action="store_true", help="also the wall-clock step of make test")
     args = ap.parse_args()
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+    meta = {"date": datetime.now().strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs",
+            "python": platform.python_version(), "commit": commit or "?", "burners": args.burners, "runs": args.runs,
+            "steps": 2 if args.live else 1}
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)]
-    rows = []
-    started = datetime.now()
+    rows: list[dict] = []
     try:
         for k in range(1, args.runs + 1):
             rc, counts, wall, failed = _pytest(["-n", "2", "--dist", "loadfile", "-m", "not live"])
@@ -55,34 +77,21 @@ def main() -> int:
                    "wall_s": round(wall, 1), "failed_tests": failed, "pass": rc == 0}
             rows.append(row)
             print(json.dumps(row), flush=True)
+            write_results(rows, meta)
             if args.live:
-                rc, counts, wall, failed = _pytest(["-m", "live"])
+                rc, counts, wall, failed = _pytest(["-m", "live"], cache=True)
                 if rc != 0:  # make test's one retry of the live step
-                    rc, counts, wall2, failed = _pytest(["-m", "live", "--last-failed"])
+                    rc, counts, wall2, failed = _pytest(["-m", "live", "--last-failed"], cache=True)
                     wall += wall2
                 row = {"run": k, "step": "live (wall clock, one retry)", "exit": rc, **counts,
                        "wall_s": round(wall, 1), "failed_tests": failed, "pass": rc == 0}
                 rows.append(row)
                 print(json.dumps(row), flush=True)
+                write_results(rows, meta)
     finally:
         for b in burners:
             b.kill()
-    green = sum(1 for r in rows if r["pass"])
-    meta = {"date": started.strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs",
-            "python": platform.python_version(), "burners": args.burners, "runs": args.runs,
-            "green": green, "of": len(rows)}
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "under_load.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
-    cols = ["run", "step", "exit", "passed", "failed", "skipped", "deselected", "wall_s", "failed_tests"]
-    md = ["# under load", "",
-          f"The default test suite run {args.runs} times in a row with {args.burners} CPU burners "
-          "(`while True: pass`) running the whole time (`tools/test_under_load.py`).", "",
-          f"Measured {meta['date']} on {meta['machine']}, Python {meta['python']}: "
-          f"**{green} of {len(rows)} green**.", "",
-          "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    md += ["| " + " | ".join(str(r.get(c, "")) for c in cols) + " |" for r in rows]
-    (RESULTS / "under_load.md").write_text("\n".join(md) + "\n")
-    return 0 if green == len(rows) else 1
+    return 0 if rows and all(r["pass"] for r in rows) and len(rows) == args.runs * meta["steps"] else 1
 
 
 if __name__ == "__main__":
