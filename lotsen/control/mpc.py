@@ -86,7 +86,7 @@ and the observer's prediction.
 Offset-free action: a disturbance observer estimates a constant body-frame force (current, wind)
 from the one-step prediction error of the model (with the ESC lag's effective thrust) and adds it to f_d.
 
-Safety: a solver status other than solved, a time-limit hit (OSQP `time_limit`)
+Safety: a solver status other than solved, a time-limit hit (OSQP `time_limit`, set on the real-time stack)
 or a non-finite solution never reaches the actuators. The controller then plays the previous
 feasible plan, shifted, for at most `max_fallback_steps`, then commands neutral (safe stop);
 `ControllerStatus.failures` counts the failures and `status` says which mode is active.
@@ -114,6 +114,9 @@ from lotsen.model.actuators import advance_motors
 
 NX, NW, NY = 6, 5, 5
 NREV = 3  # propellers with a direction: azimuth 1, azimuth 2, bow
+#: the solve's wall-clock budget on the real-time stack: a fifth of the 10 Hz period (a solve takes
+#: ~1 ms here, ~4 ms on a Pi 4); a late solve falls back like a failed one
+REALTIME_SOLVE_LIMIT_S = 0.02
 _SOLVED = (osqp.SolverStatus.OSQP_SOLVED, osqp.SolverStatus.OSQP_SOLVED_INACCURATE)
 
 
@@ -166,7 +169,10 @@ class MPCConfig:
     disturbance_max_N: float = 5.0
     max_fallback_steps: int = 5  # play the previous plan this many steps, then neutral
     max_iter: int = 400  # 200 ran out on the first steps after a cold start with the reversal slacks
-    time_limit_s: float = 0.02  # OSQP time limit (0 = none)
+    # OSQP's wall-clock time limit; 0: none, the solve bounded by max_iter alone, so a run on
+    # simulated time gives the same answer on any machine. The real-time stack sets
+    # REALTIME_SOLVE_LIMIT_S (lotsen.stack.parts.add_supervisor).
+    time_limit_s: float = 0.0
     eps: float = 1e-4
     check_termination: int = 5
     scaling: int = 0  # OSQP Ruiz equilibration iterations

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from lotsen.control import ControlConfig, MPCConfig
+from lotsen.control.mpc import REALTIME_SOLVE_LIMIT_S
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF, SeedFilters, SeedFiltersConfig, fit_mag_calibration
@@ -18,7 +20,7 @@ from lotsen.planning.exchange import path_from_message, planned_route_message
 from lotsen.planning.io import load_route
 from lotsen.stack.fusion_node import FusionNode, TruthStateNode
 from lotsen.stack.logs import add_recorder as _add_recorder
-from lotsen.runtime.executor import Node, NodeContext
+from lotsen.runtime.executor import Node, NodeContext, RealtimeExecutor
 from lotsen.stack.stack import Stack, model_info
 from lotsen.stack.web import add_web as _add_web
 from lotsen.stack.zenoh import add_bridge
@@ -110,11 +112,16 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
     """The supervisor with the configured controllers (or the given ones: harnesses), holding
     the launch config's route planned here once, before the control loop starts."""
     cfg = stack.config
+    # a wall-clock limit on the MPC's solve only at wall-clock pace: on simulated time the answer
+    # must not depend on how busy the machine is
+    solve_limit_s = REALTIME_SOLVE_LIMIT_S if isinstance(stack.executor, RealtimeExecutor) else 0.0
+    control = ControlConfig(controller=cfg.nodes.controller, mpc=MPCConfig(time_limit_s=solve_limit_s))
     # the controllers' actuator limits are the model's, never the simulated boat's
     sup = SupervisorNode(stack.model, DEFAULT_LIMITS,
                          SupervisorConfig(control_rate_hz=cfg.nodes.control_rate_hz,
                                           controller=cfg.nodes.controller,
                                           failsafes=cfg.extra.failsafes, planner=cfg.extra.planner),
+                         control_config=control,
                          mag_calibrator=mag_calibrator, follower=follower, station_keeper=station_keeper,
                          heading_calibration=heading_calibration(stack))
     if cfg.route:

@@ -113,3 +113,21 @@ def test_the_logs_map_origin_is_the_stacks_one_origin(tmp_path):
                                                  "extra": {"logs": {"flush_period_s": 1.0}}}))
     assert recorder_config(config, resolve_origin(config)).geo_origin == (57.7, 11.9, 0.0)
     assert recorder_config(config, None).geo_origin is None  # a boat without a configured origin: no map views
+
+
+def test_the_mpc_has_a_wall_clock_budget_only_at_wall_clock_pace():
+    """On simulated time the MPC's answer may not depend on how busy (or emulated) the machine is:
+    no OSQP time limit there; the real-time stack gives every solve REALTIME_SOLVE_LIMIT_S."""
+    from lotsen.control.mpc import REALTIME_SOLVE_LIMIT_S
+    from lotsen.runtime.executor import RealtimeExecutor
+
+    config = LaunchConfig(mode="sim")
+    for executor, limit in ((None, 0.0), (RealtimeExecutor(), REALTIME_SOLVE_LIMIT_S)):
+        stack = build_stack(config, realtime=False, parts=("supervisor",), executor=executor)
+        try:
+            follower = stack.nodes["supervisor"].follower
+            assert follower.config.time_limit_s == limit
+            if limit:
+                assert follower.solver.settings.time_limit == pytest.approx(limit)
+        finally:
+            stack.shutdown()
