@@ -174,6 +174,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
               f"intervals from the residuals' own correlation (sandwich; residuals correlated over up to "
               f"{env.autocorrelation_factor:.0f} samples)", file=sys.stderr)
+    shift = getattr(res.details, "gust_interval_shift", None)
+    if shift:
+        moved = sorted((n for n in shift if abs(shift[n]) > 1.0), key=lambda n: -abs(shift[n]))
+        print("gust model: with the gusts cut into longer intervals the coefficients move "
+              + (", ".join(f"{n} {shift[n]:+.1f} sigma" for n in moved) if moved else "by less than 1 sigma each")
+              + "; the answer is the average of the two, its intervals include the difference", file=sys.stderr)
     bias = getattr(res.details, "gyro_bias", None)
     if bias is not None:
         out["gyro_bias_radps"] = {"values": [float(b) for b in bias],
@@ -275,7 +281,9 @@ def register(subparsers: Any) -> None:
                         "(always on with --lake)")
     p.add_argument("--lake", action="store_true",
                    help="estimate a constant current, the wind (air velocity and drag coefficients) and a gust "
-                        "factor per shooting interval with the parameters (records taken outside calm water)")
+                        "factor per shooting interval with the parameters (records taken outside calm water); "
+                        "estimated twice, with --node and 1.5 x --node gust intervals, and averaged over the two "
+                        "(their difference is part of the intervals; twice the time)")
     p.add_argument("--gust-std", type=float, default=0.3,
                    help="with --lake: prior spread of the per-interval gust factor on the wind speed (default 0.3)")
     p.add_argument("--reverse-thrust-ratio", type=_ratio, default=1.0, metavar="R",

@@ -160,3 +160,36 @@ def test_done_when_lake_record_is_answered_within_bounds_or_refused(tmp_path, ca
         bound = 0.05 if n in CORE_PARAMETERS else (None if n in d["identification"]["weakly_determined"] else 0.15)
         if bound is not None:
             assert abs(d[n] - t) <= bound * abs(t), n
+
+
+def _result(values: dict, std: dict, converged: bool = True):
+    from lotsen.sysid.estimate import Identifiability, IdentificationResult
+    from lotsen.sysid.multiple import MultipleShootingResult
+
+    names = tuple(values)
+    params = DEFAULT_PARAMETERS.with_updates(**values)
+    cov = np.diag([std[n] ** 2 for n in names])
+    ident = Identifiability(np.ones(len(names)), [], False, {}, [], 1.0)
+    details = MultipleShootingResult(np.zeros((1, 6)), np.zeros(1), {}, 0.0, 1, 1, 1)
+    return IdentificationResult(params, dict(std), {}, names, cov, np.linalg.inv(cov), np.zeros((1, 6)), 0.0, 10,
+                                1.0, 5, converged, ident, method="multiple", details=details)
+
+
+def test_two_gust_models_are_averaged_with_their_difference_in_the_intervals():
+    """Equal weights: the mean, covariance (P1 + P2)/2 + (d/2)(d/2)^T. A coefficient the second gust
+    model moves by d gets sigma sqrt(sigma^2 + d^2/4), one it leaves alone keeps its sigma; the same
+    estimate twice is itself; converged only if both are."""
+    from lotsen.sysid.multiple import average_over_model_choice
+
+    first = _result({"Y_v": -10.0, "N_r": -1.0}, {"Y_v": 0.3, "N_r": 0.02})
+    second = _result({"Y_v": -10.8, "N_r": -1.0}, {"Y_v": 0.3, "N_r": 0.02}, converged=False)
+    res = average_over_model_choice(first, second)
+    assert res.params.Y_v == pytest.approx(-10.4) and res.params.N_r == pytest.approx(-1.0)
+    assert res.std["Y_v"] == pytest.approx(0.5) and res.std["N_r"] == pytest.approx(0.02)
+    assert res.details.gust_interval_shift == pytest.approx({"Y_v": -0.8 / 0.3, "N_r": 0.0})
+    assert not res.converged and average_over_model_choice(first, first).converged
+    assert np.all(np.linalg.eigvalsh(res.covariance) > 0)
+    same = average_over_model_choice(first, first)
+    assert same.std == pytest.approx(first.std) and same.params == first.params
+    # the other coefficients (held) are untouched
+    assert res.params.m11 == first.params.m11
