@@ -25,6 +25,7 @@ watchdog event.
 from __future__ import annotations
 
 import os
+import re
 import secrets
 import signal
 import statistics
@@ -235,6 +236,19 @@ def repeated_start_rows(work: Path, cache: Path, starts: int, burners: int) -> l
              "pass": bool(len(page) == starts and events == 0)}]
 
 
+def arm64_check_rows() -> list[dict]:
+    """The last `make pi-check`'s result (bench/results/pi-check.md, its own date): the arm64 build
+    of the Pi's OS, emulated, is too slow to run inside this bench."""
+    path = Path(__file__).resolve().parent / "results" / "pi-check.md"
+    text = path.read_text() if path.is_file() else ""
+    run_line = re.search(r"Run (\d{4}-\d\d-\d\d \d\d:\d\d); result: \*\*(\w+)\*\*", text)
+    python = re.search(r"\| Python in the image \| ([^|]+) \|", text)
+    return [{"table": "arm64 check (make pi-check)", "run": run_line.group(1) if run_line else "never",
+             "result": run_line.group(2) if run_line else "no result", "image": "Debian bookworm arm64 (qemu)",
+             "python": python.group(1).strip() if python else "?", "details": "pi-check.md",
+             "target": "make pi-check passes", "pass": bool(run_line and run_line.group(2) == "pass")}]
+
+
 def run(quick: bool = False) -> list[dict]:
     idle_s = 10.0 if quick else 20.0
     rows: list[dict] = []
@@ -299,4 +313,4 @@ def run(quick: bool = False) -> list[dict]:
         rows += [cold_row, warm_row] + mem_rows
         for burners, starts in ((0, 3 if quick else 10), (2, 3 if quick else 20)):
             rows += repeated_start_rows(Path(tmp), cache, starts, burners)
-    return rows
+    return rows + arm64_check_rows()
