@@ -137,17 +137,27 @@ def result_markdown(result: dict, doc: str) -> str:
             f"{result.get('elapsed_s', '?')} s.\n\n{body}")
 
 
-def index_page() -> str:
-    """bench/results/README.md from every result present (running one benchmark updates its entry
-    and keeps the others): a summary of every question and its verdict on top, then the tables."""
-    summary = ["| benchmark | question | target | verdict | measured |", "|---|---|---|---|---|"]
-    sections = []
+def stored_results() -> list[tuple[Path, dict]]:
+    """The benchmarks' stored results (bench/results/*.json written by `main`); other JSON there
+    (tools/test_under_load.py's under_load.json) has no "benchmark" key and is not one of them."""
+    out = []
     for path in sorted(RESULTS.glob("*.json")):
         try:
             result = json.loads(path.read_text())
         except (OSError, ValueError):
             continue
-        name = result.get("benchmark", path.stem)
+        if isinstance(result, dict) and "benchmark" in result:
+            out.append((path, result))
+    return out
+
+
+def index_page() -> str:
+    """bench/results/README.md from every result present (running one benchmark updates its entry
+    and keeps the others): a summary of every question and its verdict on top, then the tables."""
+    summary = ["| benchmark | question | target | verdict | measured |", "|---|---|---|---|---|"]
+    sections = []
+    for _, result in stored_results():
+        name = result["benchmark"]
         m = result.get("machine", {})
         when = f"{m.get('date', '?')}{' (quick)' if result.get('quick') else ''}"
         if result.get("error"):
@@ -165,9 +175,8 @@ def index_page() -> str:
 
 def render_only() -> int:
     """Rewrite every .md and the index from the stored .json (no benchmark runs)."""
-    for path in sorted(RESULTS.glob("*.json")):
-        result = json.loads(path.read_text())
-        name = result.get("benchmark", path.stem)
+    for _, result in stored_results():
+        name = result["benchmark"]
         bench = HERE / f"bench_{name}.py"
         doc = ""
         if bench.exists():
