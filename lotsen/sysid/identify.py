@@ -17,7 +17,7 @@ from typing import Any, Callable, Mapping, Sequence
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
 from lotsen.sysid.data import IdRecord
 from lotsen.sysid.estimate import estimate, parameter_bounds
-from lotsen.sysid.multiple import check_identifiable, estimate_lake_checked, estimate_multiple_shooting
+from lotsen.sysid.multiple import check_identifiable, estimate_lake_averaged, estimate_multiple_shooting
 from lotsen.sysid.verdict import CORE_PARAMETERS, Verdict, judge
 
 NAMES_INDEX = {n: i for i, n in enumerate(DEFAULT_PARAMETERS.names())}
@@ -48,7 +48,7 @@ def estimate_records(records: Sequence[IdRecord], theta0: VesselParameters = DEF
         return estimate(records, theta0, fixed, window_s=window_s, gap_s=gap_s, noise_std=noise,
                         geometry=geometry, max_iterations=max_iterations, progress=progress)
     if lake:
-        return estimate_lake_checked(records, theta0, fixed, gust_std=gust_std, gap_s=gap_s, noise_std=noise,
+        return estimate_lake_averaged(records, theta0, fixed, gust_std=gust_std, gap_s=gap_s, noise_std=noise,
                                      geometry=geometry, node_s=node_s, max_iterations=max_iterations,
                                      estimate_noise=estimate_noise, progress=progress)
     return estimate_multiple_shooting(records, theta0, fixed, gap_s=gap_s, noise_std=noise, geometry=geometry,
@@ -104,7 +104,9 @@ class Identification:
                                   "autocorrelation_factor": env.autocorrelation_factor}
         shift = getattr(res.details, "gust_interval_shift", None)
         if shift is not None:
-            out["gust_interval_shift_sigma"] = {n: round(v, 2) for n, v in shift.items()}
+            # null for a coefficient without a sigma to measure the shift in (strict JSON has no inf)
+            out["gust_interval_shift_sigma"] = {n: round(v, 2) if math.isfinite(v) else None
+                                                for n, v in shift.items()}
         return out
 
 
