@@ -37,7 +37,7 @@ test: venv-dev browser
 	$(PY) -m pytest -q -m live || $(PY) -m pytest -q -m live --last-failed
 
 # The default suite 10 times in a row with two CPU burners running (RUNS=, BURNERS=); writes
-# bench/results/under_load.md. About an hour and a half on a 2-core machine.
+# bench/results/under_load.md. About 15-19 min a run on a 2-core machine with the burners: 2.5-3 h.
 RUNS ?= 10
 BURNERS ?= 2
 test-under-load: venv-dev browser
