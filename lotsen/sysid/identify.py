@@ -49,8 +49,8 @@ def estimate_records(records: Sequence[IdRecord], theta0: VesselParameters = DEF
                         geometry=geometry, max_iterations=max_iterations, progress=progress)
     if lake:
         return estimate_lake_averaged(records, theta0, fixed, gust_std=gust_std, gap_s=gap_s, noise_std=noise,
-                                     geometry=geometry, node_s=node_s, max_iterations=max_iterations,
-                                     estimate_noise=estimate_noise, progress=progress)
+                                      geometry=geometry, node_s=node_s, max_iterations=max_iterations,
+                                      estimate_noise=estimate_noise, progress=progress)
     return estimate_multiple_shooting(records, theta0, fixed, gap_s=gap_s, noise_std=noise, geometry=geometry,
                                       node_s=node_s, max_iterations=max_iterations,
                                       estimate_noise=estimate_noise, progress=progress, gyro_bias=gyro_offset)

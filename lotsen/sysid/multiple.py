@@ -986,8 +986,8 @@ def estimate_lake_averaged(records: Sequence[IdRecord], theta0: VesselParameters
                            fixed: Mapping[str, float] | None = None, node_s: float = 2.0,
                            **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
     """The two gust models' estimates (`estimate_lake_two_gust_models`) averaged
-    (`average_over_model_choice`). The sandwich
-    covariance of one estimate sees the noise, not the bias of a gust model that is not the lake's:
+    (`average_over_model_choice`). The sandwich covariance of one estimate sees the noise, not the
+    bias of a gust model that is not the lake's:
     on 20 lake records one estimate's 3-sigma intervals held 86 % of the true values and it answered
     4 records wrongly; the average's held all of them and answered none wrongly (docs/sysid.md).
     Converged only when both are; twice the work."""
