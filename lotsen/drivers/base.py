@@ -11,6 +11,7 @@ every `reopen_s`.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections import deque
@@ -57,14 +58,17 @@ class RateMeter:
         while self._stamps and now - self._stamps[0] > self.window_s:
             self._stamps.popleft()
 
-    def rate(self) -> float:
-        """1 / median interval: a burst (a late reader catching up) does not fake a high rate."""
-        s = self._stamps
-        if len(s) < 2 or s[-1] <= s[0]:
+    def rate(self, since_s: float = -math.inf) -> float:
+        """1 / median interval: a burst (a late reader catching up) does not fake a high rate.
+        `since_s`: only the intervals that end at or after it (`lotsen check` leaves out the
+        devices' opening, when what queued during the GNSS configuration or a late start arrives
+        in bursts: in a 2-s check those were most of the intervals, and the GNSS read 24 Hz for 8)."""
+        s = list(self._stamps)
+        gaps = sorted(b - a for a, b in zip(s, s[1:]) if b >= since_s)
+        if not gaps or sum(gaps) <= 0.0:
             return 0.0
-        gaps = sorted(b - a for a, b in zip(s, list(s)[1:]))
         mid = gaps[len(gaps) // 2]
-        return 1.0 / mid if mid > 0 else (len(s) - 1) / (s[-1] - s[0])
+        return 1.0 / mid if mid > 0 else len(gaps) / sum(gaps)
 
 
 class DriverNode(Node):
@@ -165,8 +169,8 @@ class DriverNode(Node):
         self.health.messages += 1
         self.rate.tick(now)
 
-    def refresh_health(self) -> DeviceHealth:
-        self.health.rate_hz = self.rate.rate()
+    def refresh_health(self, since_s: float = -math.inf) -> DeviceHealth:
+        self.health.rate_hz = self.rate.rate(since_s)
         return self.health
 
     def step(self, now: float) -> Out:

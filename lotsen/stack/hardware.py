@@ -10,6 +10,7 @@ in their own threads; with a `SimExecutor` they poll in timers (deterministic te
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,8 +35,9 @@ class HardwareBoat:
     drivers: dict[str, DriverNode] = field(default_factory=dict)
     twin: Any = None  # EmulatedBoatNode when emulated
 
-    def health(self) -> list:
-        return [d.refresh_health() for d in self.drivers.values()]
+    def health(self, since_s: float = -math.inf) -> list:
+        """Each driver's health, its rate from the intervals ending at or after `since_s`."""
+        return [d.refresh_health(since_s) for d in self.drivers.values()]
 
 
 def _smbus_opener(bus: int) -> Any:

@@ -173,3 +173,26 @@ def test_check_command_against_the_twins(capsys):
     assert "all devices OK" in out and "configured=yes" in out
     assert "imu: emulated MPU9250" in out
     assert "rc: emulated X8R SBUS" in out and "link ok, takeover off, e-stop off" in out
+
+
+def test_rate_meter_leaves_the_opening_bursts_out():
+    """`lotsen check` measures after the devices settle: what queued while the GNSS was being
+    configured arrives in bursts that, in a short window, are most of the intervals."""
+    from lotsen.drivers.base import RateMeter
+
+    m = RateMeter(window_s=10.0)
+    t = 0.0
+    for _ in range(30):  # the backlog read at opening: 30 messages 2 ms apart
+        m.tick(t)
+        t += 0.002
+    t = 1.0
+    for _ in range(9):  # then an 8-Hz receiver: 9 messages, 8 intervals
+        m.tick(t)
+        t += 0.125
+    assert m.rate() > 100.0  # the bursts' intervals are the median: a 4 Hz device would pass as 500 Hz
+    assert m.rate(since_s=1.0) == pytest.approx(8.0)
+    assert m.rate(since_s=1.1) == pytest.approx(8.0)  # the interval ending at 1.125 s counts whole
+    assert m.rate(since_s=99.0) == 0.0
+    single = RateMeter()
+    single.tick(0.0)
+    assert single.rate() == 0.0
