@@ -115,6 +115,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     fixed = _parse_fix(args.fix or [])
     noise = _parse_noise(args.noise or [])
+    # the files first: a bad file is reported before any warning about the estimate
+    theta0 = load_params(args.init) if args.init else DEFAULT_PARAMETERS
+    records = [_with_kind(load_record(p), args.inputs) for p in args.data]
+    validation = [_with_kind(load_record(p), args.inputs) for p in args.validate] if args.validate else None
     warnings: list[str] = []
     if not any(n in fixed for n in SCALE_ANCHORS):
         if args.no_default_scale:
@@ -127,11 +131,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                "C_N, mu_az, mu_t scale with this choice. Use --fix m11=... or --fix mu_az=... to set it.")
         print(msg, file=sys.stderr)
         warnings.append(msg)
-    theta0 = load_params(args.init) if args.init else DEFAULT_PARAMETERS
-    records = [_with_kind(load_record(p), args.inputs) for p in args.data]
-    if args.validate:
-        est_records = records
-        val_records = [_with_kind(load_record(p), args.inputs) for p in args.validate]
+    if validation is not None:
+        est_records, val_records = records, validation
     elif args.holdout > 0:
         if not 0 < args.holdout < 0.9:
             raise ConfigError("--holdout must be between 0 and 0.9")
