@@ -154,8 +154,13 @@ class FastStrictYamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # ty
     """StrictYamlLoader on libyaml's parser when present (the constructor stays in Python)."""
 
 
+#: YAML 1.1 (PyYAML) reads 1e9, 3e-2 and 1.0e9 as text: its floats need a dot and a signed
+#: exponent. An operator writing a coefficient in exponent form means a number (YAML 1.2 agrees).
+_EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+
 for _loader in (StrictYamlLoader, FastStrictYamlLoader):
     _loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping)  # type: ignore[arg-type]
+    _loader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT, list("-+.0123456789"))
 
 
 class NoAliasYamlLoader(StrictYamlLoader):

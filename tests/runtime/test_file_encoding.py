@@ -177,3 +177,31 @@ def test_json_with_a_duplicate_key_is_refused_too(tmp_path):
     path.write_text('{"m11": 15.0, "m22": 20.0, "m11": 1.0}')
     with pytest.raises(ConfigError, match="duplicate key 'm11'"):
         read_json(path, ConfigError)
+
+
+# ------------------------------------------------------------------------------------------------
+# numbers in exponent form
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("text, value", [("1e9", 1e9), ("3e-2", 0.03), ("1.0e9", 1e9), ("-2.5E+3", -2500.0),
+                                         (".5e1", 5.0)])
+def test_a_number_in_exponent_form_is_a_number(text, value):
+    """PyYAML (YAML 1.1) reads these as text; an operator writing m22: 1e9 or a latency of 3e-2
+    got "expected a number, got '3e-2'" for a number. Quoted, it stays text."""
+    assert parse_yaml(f"a: {text}", "t.yaml") == {"a": value}
+    assert parse_yaml(f"a: {text}\nb: &x 1\nc: *x\n", "t.yaml") == {"a": value, "b": 1, "c": 1}  # Python loader
+    assert parse_yaml(f"a: '{text}'", "t.yaml") == {"a": text}
+    assert parse_yaml("a: 1e9x", "t.yaml") == {"a": "1e9x"}
+
+
+def test_a_config_value_in_exponent_form_is_read_and_a_map_of_numbers_is_checked_at_load(tmp_path):
+    """sim.boat.parameters is a map of numbers: a value that is not one is refused when the file
+    is read, with the file and the key path (it used to surface at start-up without the file)."""
+    from lotsen.runtime.config import load_config
+
+    path = tmp_path / "c.yaml"
+    path.write_text("sim:\n  boat:\n    command_latency_s: 3e-2\n    parameters: {m22: 2.5e1}\n")
+    cfg = load_config(path)
+    assert cfg.sim.boat.command_latency_s == 0.03 and cfg.sim.boat.parameters == {"m22": 25.0}
+    path.write_text("sim:\n  boat:\n    parameters: {m22: abc}\n")
+    with pytest.raises(ConfigError, match=r"c.yaml: sim.boat.parameters.m22: expected a number, got 'abc'"):
+        load_config(path)
