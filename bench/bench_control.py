@@ -303,7 +303,9 @@ def dompc_rows(quick: bool) -> list[dict]:
     x0 = [path.north_m[0], path.east_m[0] + 0.3, path.heading_rad[0], 0.3, 0, 0]  # 30 cm off, moving
     rows = []
     for ocp, variants in DOMPC_CASES:
-        cfg = MPCConfig(disturbance_gain=0.0, esc_in_prediction=False, servo_in_prediction=False)
+        # a fixed cross-track weight (no schedule with the distance to the path): the OCP do-mpc solves
+        cfg = MPCConfig(disturbance_gain=0.0, esc_in_prediction=False, servo_in_prediction=False,
+                        cross_track_far_m=0.0)
         if ocp == "reversible":
             cfg = replace(cfg, reversal_cost_azimuth_per_N=0.0, reversal_cost_bow_per_N=0.0)
         ref = PathReference(path, cfg.min_speed_ref_mps)

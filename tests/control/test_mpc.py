@@ -370,16 +370,18 @@ def test_servo_and_esc_lags_make_the_prediction_match_the_simulator(command):
 
 def test_adaptive_second_qp_runs_in_transients_not_in_steady_tracking():
     """The second QP per step (re-linearised along the first one's solution) runs while the plan
-    moves by more than `reiterate_dw`: from rest 1 m off the path it cuts the squared cross-track
-    error of the approach, and once tracking it hardly runs (the median step stays that of one QP).
-    Measured on the lake boat with the reversal guard: 18.8 vs 17.6 m^2 s / 0.1 s (-6 %), 30 second
-    QPs in 300 steps (with the previous prices 20.7 vs 17.5)."""
+    moves by more than `reiterate_dw`: from rest 1 m off the path, and once tracking it hardly runs
+    (the median step stays that of one QP). With the prices it was built with (cross-track 60, azimuth
+    crossing 0.01 N^-1, dwell 2 s) it cuts the squared cross-track error of the approach: 18.8 vs 17.6
+    m^2 s / 0.1 s (-6 %), 30 second QPs in 300 steps. With today's defaults (120 near the path, 0.05,
+    4 s) it does not (20.9 vs 23.2): the reason the default stays one QP."""
     path = circle_path()
     h0 = float(path.heading_rad[0])
     x0 = [float(path.north_m[0]) - math.sin(h0), float(path.east_m[0]) + math.cos(h0), h0, 0.0, 0.0, 0.0]
+    built_with = dict(q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0)
     costs, solves = {}, {}
     for iterations in (1, 2):
-        c = MPCController(config=MPCConfig(time_limit_s=0.0, qp_iterations=iterations))
+        c = MPCController(config=MPCConfig(time_limit_s=0.0, qp_iterations=iterations, **built_with))
         run = follow_path(c, path, 30.0, x0=x0)
         cte, cmds, _statuses = run.cross_track_m, run.commands, run.statuses
         assert c.failures == 0
@@ -390,6 +392,9 @@ def test_adaptive_second_qp_runs_in_transients_not_in_steady_tracking():
     assert steps + 5 <= qps < 1.2 * steps  # second QPs in the approach, few once tracking
     assert solves[1][0] == solves[1][1]
     assert costs[2] < 0.97 * costs[1]
+    c = MPCController(config=MPCConfig(time_limit_s=0.0, qp_iterations=2))  # today's defaults
+    follow_path(c, path, 30.0, x0=x0)
+    assert len(c.solve_times_ms) + 5 <= c.qp_solves < 1.2 * len(c.solve_times_ms)
 
 
 def test_thrust_prices_are_in_newtons_whatever_the_model():
@@ -429,3 +434,32 @@ def test_reversal_guard_holds_a_direction_and_prices_only_the_crossing():
     c._n_achieved = np.array([40.0, 40.0, 2.0])  # within the hysteresis: the direction is kept
     c._update_direction()
     assert c._sigma[2] == 1.0 and c.reversals == 1
+
+
+def test_cross_track_weight_falls_from_near_to_far():
+    from lotsen.control.mpc import cross_track_weight
+
+    cfg = MPCConfig()
+    assert cross_track_weight(cfg, 0.0) == cfg.q_cross_track
+    assert cross_track_weight(cfg, -0.1) == cross_track_weight(cfg, 0.1)
+    assert cfg.q_cross_track_far < cross_track_weight(cfg, 1.0) < 1.02 * cfg.q_cross_track_far
+    assert cross_track_weight(MPCConfig(cross_track_far_m=0.0), 1.0) == cfg.q_cross_track
+    with pytest.raises(ValueError, match="cross_track_far_m"):
+        MPCConfig(cross_track_far_m=-0.1)
+
+
+def test_approach_from_one_metre_off_does_not_overshoot():
+    """From rest 1 m off the path: with the stiff near-path weight everywhere the boat ran at the
+    path and overshot it by 0.82 m (the 2-s horizon sees the stop too late); the weight falling to
+    q_cross_track_far away from the path brings it on with <= 4 cm overshoot (measured)."""
+    path = circle_path()
+    h0 = float(path.heading_rad[0])
+    x0 = [float(path.north_m[0]) - math.sin(h0), float(path.east_m[0]) + math.cos(h0), h0, 0.0, 0.0, 0.0]
+    overshoot = {}
+    for far_m in (0.1, 0.0):
+        c = MPCController(config=MPCConfig(time_limit_s=0.0, cross_track_far_m=far_m))
+        cte = np.asarray(follow_path(c, path, 30.0, x0=x0).cross_track_m)
+        assert cte[0] > 0.9 and c.failures == 0
+        overshoot[far_m] = -float(np.min(cte))
+    assert overshoot[0.1] < 0.1, overshoot
+    assert overshoot[0.0] > 0.3, overshoot  # the case is one where the schedule matters

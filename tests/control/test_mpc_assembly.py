@@ -16,11 +16,13 @@ from .conftest import circle_path
 REFERENCE = Path(__file__).parent / "data" / "mpc_qp_reference.npz"
 ARRAYS = ("_Px", "_Ax", "_q", "_l", "_u", "_ref", "_Ad", "_Bd", "_c")
 STATES = [(0.0, 0.3, 0.05, 0.4, 0.02, 0.01), (0.05, 0.28, 0.07, 0.45, 0.01, 0.02)]
+# the weights the recording was made with (the defaults then): the test checks the assembly, not the tuning
+RECORDED = dict(time_limit_s=0.0, q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0)
 
 
 @pytest.mark.parametrize("name,config", [
-    ("predicted", MPCConfig(time_limit_s=0.0)),
-    ("time", MPCConfig(time_limit_s=0.0, progress_reference="time", qp_iterations=2)),
+    ("predicted", MPCConfig(**RECORDED)),
+    ("time", MPCConfig(**RECORDED, progress_reference="time", qp_iterations=2)),
 ])
 def test_assembled_qp_matches_the_recording(name, config):
     reference = np.load(REFERENCE)
