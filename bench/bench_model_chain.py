@@ -201,7 +201,8 @@ def model_quality_rows(quick: bool = False) -> list[dict]:
     """Issue 25 item 3: tracking against model error on the lake boat. The controller's and the EKF's
     model is the boat's coefficients each scaled by (1 +- e), random signs per seed; e = 0 is the exact
     model. Targets: tracking no better as e grows (mean over seeds, within the seeds' spread), with 25 %
-    within 1.5x the exact model's; <= 0.7 cm and <= 0.1 reversals/s with the exact model."""
+    within 1.5x the exact model's; <= 0.7 cm and <= 0.1 reversals/s with the exact model. The end points
+    (exact, 25 %) again on seeds 0-8: the spread of a 1.5x bar over draws of the error signs."""
     from lotsen.sim import DEFAULT_BOAT
     from lotsen.sim.boat import scaled_parameters
 
@@ -235,6 +236,19 @@ def model_quality_rows(quick: bool = False) -> list[dict]:
                  "monotone": monotone,
                  "target": "no better with a worse model; 25 % within 1.5x exact; exact <= 0.7 cm",
                  "pass": monotone and mean[es[-1]] <= 1.5 * mean[0.0] and mean[0.0] <= 0.7})
+    # the same two end points on more draws of the error signs: three seeds do not settle a 1.5x bar
+    # (single missions at 25 % move by up to 0.5 cm with small weight changes)
+    more = (3, 4, 5, 6, 7, 8)
+    wide: dict[float, list[float]] = {0.0: [], 0.25: []}
+    for e in wide:
+        for seed in seeds + more:
+            params = scaled_parameters(boat.parameters, e, np.random.default_rng(1000 + seed))
+            wide[e].append(mission(boat, params, seed)["cross_track_rms_m"] * 100)
+    ex, wr = statistics.mean(wide[0.0]), statistics.mean(wide[0.25])
+    rows.append({"table": "model-quality verdict on seeds 0-8 (exact and 25 % only)", "seeds": len(wide[0.0]),
+                 "exact_cm": round(ex, 3), "error_25_cm": round(wr, 3), "ratio": round(wr / ex, 2),
+                 "worst_seed_ratio": round(max(w / x for w, x in zip(wide[0.25], wide[0.0])), 2),
+                 "target": "25 % within 1.5x exact; exact <= 0.7 cm", "pass": wr <= 1.5 * ex and ex <= 0.7})
     return rows
 
 

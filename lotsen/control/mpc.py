@@ -127,9 +127,9 @@ class MPCConfig:
     horizon: int = 20  # N steps
     dt_s: float = 0.1  # prediction step = control period
     # per m^2. 120 (was 60): on the lake boat in current and wind on the EKF the exact model tracks
-    # 0.68 cm instead of 0.71 and a model 25 % off 1.54x that instead of 1.70x (seeds 0-8; the
-    # stiffer path weight corrects a wrong model's prediction sooner); it comes with the dearer
-    # azimuth crossing below, without which a wrong model reverses the propellers 0.13-0.19 per s
+    # 0.68 cm instead of 0.72 and a model 25 % off 1.45x that instead of 1.61x (seeds 0-2; 1.60x
+    # instead of 1.70x over seeds 0-8); it comes with the dearer azimuth crossing below, without
+    # which a wrong model reverses the propellers 0.13-0.19 times per second
     q_cross_track: float = 120.0
     # Far from the path the cross-track weight falls to q_cross_track_far: q = far + (near - far) /
     # (1 + (e / cross_track_far_m)^2) with e the measured cross-track error, set each step. A stiff
@@ -368,7 +368,8 @@ def cross_track_weight(cfg: MPCConfig, cross_track_m: float) -> float:
 
 
 class QpWeights(NamedTuple):
-    """The cost and the rate bound of the first input (scaled units, set up once)."""
+    """The cost and the rate bound of the first input (scaled units, set up once; q_y[0], the
+    cross-track weight, is set each step by `cross_track_weight`)."""
 
     q_y: np.ndarray  # outputs: cross-track, course, heading, speed, yaw rate
     stage: np.ndarray  # per stage (the terminal factor on the last)
