@@ -21,3 +21,14 @@ def assert_commands_within_limits(cmds: np.ndarray, dt_s: float = 0.1, limits=DE
 
 def rms(a) -> float:
     return float(math.sqrt(np.mean(np.square(a))))
+
+
+#: the MPC weights before the 2026-11-27 retuning (cross-track 60 everywhere, azimuth crossing 0.01 N^-1,
+#: 2-s dwell): what the QP recording and the second-QP measurement were made with
+WEIGHTS_BEFORE_RETUNING = dict(q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0)
+
+
+def one_metre_off_at_rest(path) -> list[float]:
+    """Initial state at rest, 1 m to port of the path's first point, on its heading."""
+    h0 = float(path.heading_rad[0])
+    return [float(path.north_m[0]) - math.sin(h0), float(path.east_m[0]) + math.cos(h0), h0, 0.0, 0.0, 0.0]

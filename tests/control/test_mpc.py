@@ -12,7 +12,7 @@ from lotsen.messages import VesselState
 from lotsen.model import Environment, VesselModel
 
 from .conftest import circle_path, straight_path
-from .helpers import assert_commands_within_limits, rms
+from .helpers import WEIGHTS_BEFORE_RETUNING, assert_commands_within_limits, one_metre_off_at_rest, rms
 
 
 # OSQP's wall-clock time limit is a product safeguard; in unit tests it would make the outcome depend on
@@ -376,12 +376,10 @@ def test_adaptive_second_qp_runs_in_transients_not_in_steady_tracking():
     m^2 s / 0.1 s (-6 %), 30 second QPs in 300 steps. With today's defaults (120 near the path, 0.05,
     4 s) it does not (20.9 vs 23.2): the reason the default stays one QP."""
     path = circle_path()
-    h0 = float(path.heading_rad[0])
-    x0 = [float(path.north_m[0]) - math.sin(h0), float(path.east_m[0]) + math.cos(h0), h0, 0.0, 0.0, 0.0]
-    built_with = dict(q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0)
+    x0 = one_metre_off_at_rest(path)
     costs, solves = {}, {}
     for iterations in (1, 2):
-        c = MPCController(config=MPCConfig(time_limit_s=0.0, qp_iterations=iterations, **built_with))
+        c = MPCController(config=MPCConfig(time_limit_s=0.0, qp_iterations=iterations, **WEIGHTS_BEFORE_RETUNING))
         run = follow_path(c, path, 30.0, x0=x0)
         cte, cmds, _statuses = run.cross_track_m, run.commands, run.statuses
         assert c.failures == 0
@@ -453,8 +451,7 @@ def test_approach_from_one_metre_off_does_not_overshoot():
     path and overshot it by 0.82 m (the 2-s horizon sees the stop too late); the weight falling to
     q_cross_track_far away from the path brings it on with <= 4 cm overshoot (measured)."""
     path = circle_path()
-    h0 = float(path.heading_rad[0])
-    x0 = [float(path.north_m[0]) - math.sin(h0), float(path.east_m[0]) + math.cos(h0), h0, 0.0, 0.0, 0.0]
+    x0 = one_metre_off_at_rest(path)
     overshoot = {}
     for far_m in (0.1, 0.0):
         c = MPCController(config=MPCConfig(time_limit_s=0.0, cross_track_far_m=far_m))

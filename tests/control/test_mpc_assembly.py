@@ -12,12 +12,13 @@ from lotsen.control import MPCConfig, MPCController
 from lotsen.messages import VesselState
 
 from .conftest import circle_path
+from .helpers import WEIGHTS_BEFORE_RETUNING
 
 REFERENCE = Path(__file__).parent / "data" / "mpc_qp_reference.npz"
 ARRAYS = ("_Px", "_Ax", "_q", "_l", "_u", "_ref", "_Ad", "_Bd", "_c")
 STATES = [(0.0, 0.3, 0.05, 0.4, 0.02, 0.01), (0.05, 0.28, 0.07, 0.45, 0.01, 0.02)]
 # the weights the recording was made with (the defaults then): the test checks the assembly, not the tuning
-RECORDED = dict(time_limit_s=0.0, q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0)
+RECORDED = dict(time_limit_s=0.0, **WEIGHTS_BEFORE_RETUNING)
 
 
 @pytest.mark.parametrize("name,config", [
