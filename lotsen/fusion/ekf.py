@@ -97,6 +97,17 @@ class EkfConfig:
     # N, N, N m per sqrt(s), with disturbance_states: fast enough to follow the force error of a hull
     # 10-20 % off its model through a speed change, slow enough to leave the current observable in turns
     sigma_tau_walk: tuple[float, float, float] = (0.3, 0.5, 0.08)
+    # The actuators' forces are known only to a fraction: a real thruster's coefficient is 10-20 %
+    # off its model's, 20 % weaker astern, dead near zero speed. Each propeller's thrust has a relative
+    # standard deviation sigma_thrust_rel (its speed sigma_thrust_rel / 2, thrust ~ n|n|), each
+    # azimuth angle sigma_azimuth_rad; through the model's input Jacobian B this is acceleration
+    # noise proportional to the thrust in use: process noise B S B' tau (error correlation time tau)
+    # and, for the accelerometer that sees the true force, measurement noise B S B'. A crash stop
+    # then widens the velocity's uncertainty and GNSS velocity pulls it back, instead of the model's
+    # deceleration being trusted until GNSS disagrees beyond the gate (docs/fusion.md).
+    sigma_thrust_rel: float = 0.35
+    sigma_azimuth_rad: float = math.radians(2.0)
+    thrust_error_correlation_s: float = 1.0
     # measurement noise
     sigma_gyro_radps: float = 0.005
     sigma_accel_mps2: float = 0.08  # of the decimated mean: noise, vibration, model's force error
@@ -210,7 +221,12 @@ class ModelAidedEKF:
         return cn, ce, tx, ty, tn
 
     def _dynamics_jacobian(self, x: np.ndarray, u: tuple[float, ...]) -> np.ndarray:
-        """J = df/dx (6 x n) of the kinematics and kinetics with current and body force.
+        """J = df/dx (6 x n) of the kinematics and kinetics with current and body force."""
+        return self._jacobians(x, u)[0]
+
+    def _jacobians(self, x: np.ndarray, u: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """J = df/dx (6 x n) of the kinematics and kinetics with current and body force, and the
+        model's input Jacobian B = df/du (6 x 5) at the same point.
 
         The calm-water Jacobian at the velocity relative to the water, nu_r = nu - nu_c, gives
         G = d nu_dot / d nu_r; with u_dot = g_u(nu_r) + r v_c, v_dot = g_v(nu_r) - r u_c and
@@ -222,7 +238,7 @@ class ModelAidedEKF:
         cn, ce = (xl[self.i_cur], xl[self.i_cur + 1]) if self.i_cur is not None else (0.0, 0.0)
         # the six vessel states: the model's Jacobian with the current (heading and r columns included)
         uf = tuple(float(v) for v in u)  # canonical types: the signature VesselModel.warm_up compiled
-        A, _ = _jacobians_current((xl[0], xl[1], psi, xl[3], xl[4], r), uf, self.model.arrays.packed, cn, ce)
+        A, B = _jacobians_current((xl[0], xl[1], psi, xl[3], xl[4], r), uf, self.model.arrays.packed, cn, ce)
         J = np.zeros((6, self.n))
         J[:, :6] = A
         if self.i_cur is not None:
@@ -234,7 +250,16 @@ class ModelAidedEKF:
         if self.i_tau is not None:
             it = self.i_tau
             J[3, it], J[4, it + 1], J[5, it + 2] = self._inv_m
-        return J
+        return J, B
+
+    def _actuator_accel_cov(self, B: np.ndarray, u: tuple[float, ...]) -> np.ndarray:
+        """Covariance (3 x 3) of [u_dot, v_dot, r_dot] from the actuators' uncertain forces:
+        B S B' with S = diag(sigma_alpha^2 x 2, (sigma_thrust_rel / 2 |n_i|)^2 x 3)."""
+        c = self.config
+        k = 0.5 * c.sigma_thrust_rel
+        s = np.array([c.sigma_azimuth_rad, c.sigma_azimuth_rad, k * u[2], k * u[3], k * u[4]])
+        Bs = B[3:6] * s  # columns scaled by the inputs' standard deviations
+        return Bs @ Bs.T
 
     def _rhs(self, x: np.ndarray, u: tuple[float, ...]) -> tuple[float, ...]:
         """f(x, u) of the six kinematic/kinetic states (RK4's first stage with dt = 0)."""
@@ -270,7 +295,7 @@ class ModelAidedEKF:
         diag = slice(None, None, n + 1)
         for k in range(steps):
             u = inputs.advance(t0 + (k + 1) * dt, dt)
-            J = self._dynamics_jacobian(x, u)
+            J, B = self._jacobians(x, u)
             xl = x.tolist()
             cn, ce, tx, ty, tn = self._environment(x)
             x1, _ = rk4_step((xl[0], xl[1], xl[2], xl[3], xl[4], xl[5]), u, model.arrays.packed,
@@ -287,6 +312,8 @@ class ModelAidedEKF:
             P[:, :6] += GP.T
             P[:6, :6] += GP @ G.T
             P.flat[diag] += self._q * dt
+            if self.config.sigma_thrust_rel > 0.0 or self.config.sigma_azimuth_rad > 0.0:
+                P[3:6, 3:6] += self._actuator_accel_cov(B, u) * (self.config.thrust_error_correlation_s * dt)
         return x, P
 
     def _advance(self, stamp: float, sensor: str, replay: tuple | None = None) -> bool:
@@ -546,7 +573,7 @@ class ModelAidedEKF:
         x = self.x
         u_in = self.inputs.value()
         f = self._rhs(x, u_in)
-        J = self._dynamics_jacobian(x, u_in)
+        J, B = self._jacobians(x, u_in)
         u, v, r = x[IU], x[IV], x[IR]
         h = np.array([f[3] - v * r, f[4] + u * r])  # specific force of a level boat, body frame
         H = np.zeros((2, self.n))
@@ -562,7 +589,8 @@ class ModelAidedEKF:
             H[0, self.i_ba] = 1.0
             H[1, self.i_ba + 1] = 1.0
             reopen += (self.i_ba, self.i_ba + 1)
-        R = np.eye(2) * self.config.sigma_accel_mps2 ** 2
+        # the accelerometer feels the actuators' true force, the model predicts their modelled one
+        R = np.eye(2) * self.config.sigma_accel_mps2 ** 2 + self._actuator_accel_cov(B, u_in)[:2, :2]
         self._update("accel", np.array(a) - h, H, R, reopen=reopen)
 
     def on_mag(self, m: MagSample) -> None:
