@@ -56,6 +56,8 @@ def _rows(label: str, res: dict, cfg) -> list[dict]:  # type: ignore[no-untyped-
         row["pass"] = row.pop("pass_")
         if name != "ekf":  # the seed's filters and imufusion's AHRS: peers beside the EKF, not judged
             row["role"] = "peer"
+        elif label.startswith("EKF without"):  # a part switched off: what it contributes, not judged
+            row["role"] = "ablation"
         rows.append(row)
     return rows
 

@@ -54,8 +54,9 @@ def grouped(rows: list[dict]) -> list[tuple[str, list[dict]]]:
 
 def verdict(rows: list[dict]) -> str:
     """'pass' when every judged row passed, 'FAIL (k of n)' otherwise, 'info' without verdicts. A
-    peer's row (`role: peer`, e.g. the design it is compared with) is shown but not judged."""
-    judged = [r["pass"] for r in rows if isinstance(r.get("pass"), bool) and r.get("role") != "peer"]
+    peer's row (`role: peer`, e.g. the design it is compared with) and an ablation's (`role: ablation`,
+    the product with one part switched off to show what that part contributes) are shown, not judged."""
+    judged = [r["pass"] for r in rows if isinstance(r.get("pass"), bool) and r.get("role") not in ("peer", "ablation")]
     if not judged:
         return "info"
     failed = judged.count(False)
@@ -169,7 +170,8 @@ def index_page() -> str:
         sections.append(f"## {name}\n\nMeasured {when} on {m.get('machine', '?')}, Python {m.get('python', '?')}."
                         f" Details and method: [{name}.md]({name}.md).\n\n" + tables_markdown(result.get("rows", [])))
     head = ["# Benchmark results", "", "Written by `make bench` (bench/run.py). One table per question, with its "
-            "target, the peer measured in the same run where there is one, and its verdict.", "", "## Summary", ""]
+            "target, the peer measured in the same run where there is one, and its verdict (rows marked `peer` or "
+            "`ablation`, the product with one part switched off, are shown but not judged).", "", "## Summary", ""]
     return "\n".join(head + summary) + "\n\n" + "\n".join(sections)
 
 
