@@ -83,7 +83,7 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
             rows_u.append(np.zeros(5))
             rows_n.append(0)
             rows_y.append(y)
-        rows_u[-1] += np.array(sim.actuators.state)
+        rows_u[-1] += np.array(sim.step_input)  # what acted during this step
         rows_n[-1] += 1
         if keep_truth:
             truth_t.append(t)

@@ -174,3 +174,67 @@ def test_advance_motors_is_the_simulators_motor_model():
     n = advance_motors((20.0, -30.0, 5.0), (90.0, 10.0, -60.0), 0.1, act.limits, steps=10)
     assert n == pytest.approx(act.state[2:], abs=1e-12)
     assert n != pytest.approx(advance_motors((20.0, -30.0, 5.0), (90.0, 10.0, -60.0), 0.1, act.limits), abs=1e-3)
+
+
+
+def _achieved_input_record(seconds: float = 40.0, seed: int = 4):
+    """A noise-free record of a boat equal to the default model as the stack logs it: the actuator
+    state at 20 Hz stamped when the simulator reports it, north/east/psi/r at 8 Hz from the truth,
+    under random set-points held 0.4-1.2 s (turns, speed and bow-thruster changes). Returns the
+    record and the true state after every step (t, x)."""
+    from lotsen.sim import SimulatedBoat
+    from lotsen.sysid.data import IdRecord
+
+    rng = np.random.default_rng(seed)
+    sim = Simulator(SimulatedBoat.ideal_for(VesselModel()), config=SimConfig(seed=seed, sensors=False))
+    rows, ts, xs = [], [0.0], [list(sim.x)]
+    t_next = 0.0
+    nan4 = [math.nan] * 4
+    while sim.t < seconds:
+        if sim.t >= t_next - 1e-9:
+            sim.command((rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-20, 90), rng.uniform(-20, 90),
+                         rng.uniform(-80, 80)))
+            t_next = sim.t + rng.uniform(0.4, 1.2)
+        sim.step()
+        ts.append(sim.t)
+        xs.append(list(sim.x))
+        k = round(sim.t / sim.config.dt_s)
+        if k % 5 == 0:
+            a = sim.actuator_state()
+            rows.append([a.stamp_s, a.alpha1_rad, a.alpha2_rad, a.n1_rps, a.n2_rps, a.nt_rps, *nan4])
+        if k % 25 == 12:  # 8 Hz, out of phase with the actuator state
+            rows.append([sim.t, *[math.nan] * 5, sim.x[0], sim.x[1], sim.x[2], sim.x[5]])
+    a = np.array(rows)
+    return IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], input_kind="sample"), np.array(ts), np.array(xs)
+
+
+def test_the_reported_actuator_state_is_what_drove_the_boat_at_its_stamp():
+    """Identification interpolates the logged actuator state linearly between its stamps. The
+    simulator must move the boat under exactly that input: it integrates each 10 ms step under the
+    actuators' mean over the step. Under the step's end value (as it did before) the inputs acted
+    half a step before their stamps, and on calm lab records identification came back biased by
+    1-2 % on m33, N_r and mu_t (z-scores 3-4 on random boats, N_v up to 18 % off). Checked on the
+    estimator's own simulation at the true parameters, every 2 s interval started from the true
+    state: its misfit (residuals and continuity defects, in noise units) with the stamps as
+    reported against the same record with the inputs moved 5 ms either way."""
+    import dataclasses
+
+    from lotsen.model import DEFAULT_PARAMETERS
+    from lotsen.sysid.estimate import NAMES, parameter_scale
+    from lotsen.sysid.multiple import MultipleShootingProblem
+
+    rec, ts, xs = _achieved_input_record()
+    theta = np.array([getattr(DEFAULT_PARAMETERS, n) for n in NAMES])
+    is_input = np.isnan(rec.outputs[:, 0])
+
+    def misfit(shift_s: float) -> float:
+        t = np.where(is_input, rec.t + shift_s, rec.t)
+        order = np.argsort(t, kind="stable")
+        r = dataclasses.replace(rec, t=t[order], inputs=rec.inputs[order], outputs=rec.outputs[order])
+        prob = MultipleShootingProblem([r])
+        nodes = xs[np.clip(np.searchsorted(ts, prob.grid.node_time - 1e-9), 0, len(ts) - 1)]
+        lin = prob.linearise(theta, nodes, np.zeros(0, int), parameter_scale(theta), False)
+        return float(max(np.sqrt(np.mean(lin.e ** 2, axis=0)).max(), np.sqrt(np.mean(lin.c ** 2, axis=0)).max()))
+
+    on_time, late, early = misfit(0.0), misfit(0.005), misfit(-0.005)
+    assert on_time < 0.8 * min(late, early), (on_time, late, early)  # measured 0.42 vs 0.63 and 0.72
