@@ -99,11 +99,12 @@ def identify_on(boat: SimulatedBoat, work: Path, experiments: Sequence[Experimen
         logs.append(out)
     hull = dict(fixed={"m11": boat.parameters.m11}, gnss_antenna_m=tuple(boat.gnss_antenna_m),
                 reverse_thrust_ratio=boat.geometry.reverse_thrust_ratio)
-    # the broadband record first, and the battery from there when identification accepts it: from the
+    # the broadband record first, and the battery from there when that estimate converged inside the
+    # bounds (refused only for weakly determined coefficients is still a far better start): from the
     # defaults, a boat 10-40 % away can fall into a wrong basin on the whole battery (refused, not wrong)
     try:
         first = identify_logs(logs[:1], work / "first.json", **hull)
-        init = None if first.refused else first.result.params
+        init = first.result.params if first.result.converged and not first.at_bounds else None
     except LotsenError:
         init = None
     ident = identify_logs(logs, work / "identified.json", init=init, **hull)

@@ -72,13 +72,17 @@ def test_run_log_to_asynchronous_record_export_and_identify(steps_run, tmp_path,
     free = ("X_uu", "mu_az")
     fix = [a for n in DEFAULT_PARAMETERS.names() if n not in free
            for a in ("--fix", f"{n}={getattr(DEFAULT_PARAMETERS, n)}")]
-    outs = []
+    outs, codes = [], []
     for src in (log, exported):
         out = tmp_path / f"{src.suffix[1:]}.json"
-        assert main(["identify", str(src), "--out", str(out), "--holdout", "0", *fix]) == 0
+        # a short steps record on the lake boat, the rest fixed at the defaults: the verdict may refuse
+        # (X_uu at +-2.7 %, above the core rule's 2.5 %); the file is written either way
+        codes.append(main(["identify", str(src), "--out", str(out), "--holdout", "0", *fix]))
         outs.append(json.loads(out.read_text()))
     capsys.readouterr()
+    assert codes[0] in (0, 1) and codes[0] == codes[1], codes
     a, b = outs
+    assert a["verdict"] == b["verdict"]
     for n in free:  # the same record, whichever file it came from
         assert np.isfinite(a[n]) and abs(a[n] - b[n]) <= 1e-6 * abs(a[n]) and 0 < a["std"][n] < 0.1 * abs(a[n])
 
