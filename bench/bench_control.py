@@ -485,7 +485,8 @@ def mission_rows(quick: bool) -> list[dict]:
                          "reversals_per_10s": round(_reversals_per_10s(res.u[follow], res.t[follow]), 2),
                          "solve_median_ms": res.metrics["solve_time_median_ms"],
                          "target": "cross-track <= 1.5 cm, hold <= 5 cm",
-                         "pass": bool(res.completed and cte <= 0.015 and hold <= 0.05)})
+                         "pass": bool(res.completed and cte <= 0.015 and hold <= 0.05),
+                         **({"role": "peer"} if name == "issue 14" else {})})  # the design it replaced
     return rows
 
 
