@@ -132,7 +132,7 @@ def run(quick: bool = False) -> list[dict]:
             # 50 Hz interval means misplaces the actuators' motion within the intervals during fast
             # transients (tau 60-80 ms), a bias that only the 0.1 % bounds of 10 min reveal
             held = dataclasses.replace(g, record=dataclasses.replace(g.record, input_kind="held"))
-            rows += _whole_record_row(held, "async (inputs held)", dur)
+            rows += [{**r, "role": "ablation"} for r in _whole_record_row(held, "async (inputs held)", dur)]
         else:
             rows += _whole_record_row(g, style, dur)
     if not quick:
