@@ -2,7 +2,7 @@
 
 from lotsen.sim.actuators import ActuatorDynamics, ActuatorFaults
 from lotsen.sim.boat import (
-    DEFAULT_BOAT, LAKE_BOAT_PARAMETERS, SimulatedBoat, parameter_mismatch, randomised_parameters,
+    DEFAULT_BOAT, LAKE_BOAT_PARAMETERS, SimulatedBoat, parameter_mismatch, random_boat, randomised_parameters,
 )
 from lotsen.sim.sensors import (
     GRAVITY_MPS2, GnssConfig, GnssModel, ImuConfig, ImuModel, MagnetometerModel, TachometerConfig,
@@ -11,7 +11,8 @@ from lotsen.sim.sensors import (
 from lotsen.sim.simulator import BatteryConfig, SimConfig, Simulator, simulate_inputs
 
 __all__ = [
-    "DEFAULT_BOAT", "LAKE_BOAT_PARAMETERS", "SimulatedBoat", "parameter_mismatch", "randomised_parameters",
+    "DEFAULT_BOAT", "LAKE_BOAT_PARAMETERS", "SimulatedBoat", "parameter_mismatch", "random_boat",
+    "randomised_parameters",
     "ActuatorDynamics", "ActuatorFaults", "GRAVITY_MPS2", "GnssConfig", "GnssModel", "ImuConfig",
     "ImuModel", "MagnetometerModel", "TachometerConfig", "TachometerModel", "BatteryConfig",
     "SimConfig", "Simulator", "simulate_inputs",

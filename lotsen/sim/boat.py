@@ -86,6 +86,13 @@ def randomised_parameters(rng: np.random.Generator, low: float, high: float,
     return VesselParameters.from_dict(values, source="randomised boat")
 
 
+def random_boat(seed: int, low: float = 0.10, high: float = 0.40) -> SimulatedBoat:
+    """The lake boat's unmodelled effects with coefficients `low`..`high` off the defaults, drawn by
+    `seed` (`randomised_parameters`): the randomised boats of the tests and the model-chain bench."""
+    return DEFAULT_BOAT.with_parameters(randomised_parameters(np.random.default_rng(seed), low, high),
+                                        name=f"random boat {seed} ({low * 100:.0f}-{high * 100:.0f} %)")
+
+
 def parameter_mismatch(boat: VesselParameters, model: VesselParameters) -> dict[str, float]:
     """Relative difference (boat - model) / |model| per coefficient."""
     b, m = boat.to_dict(), model.to_dict()

@@ -14,7 +14,7 @@ from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 from lotsen.model import DEFAULT_PARAMETERS, Environment, VesselModel
 from lotsen.planning import plan_route
 from lotsen.planning.io import load_route
-from lotsen.sim import DEFAULT_BOAT, randomised_parameters
+from lotsen.sim import DEFAULT_BOAT, random_boat
 from lotsen.sim.boat import scaled_parameters
 
 ROUTE = Path(__file__).resolve().parents[2] / "examples" / "routes" / "figure_eight.yaml"
@@ -58,7 +58,7 @@ def test_exact_model_tracks_best_and_a_25_percent_error_within_1_5x():
 def test_exact_model_tracks_no_worse_than_the_defaults_on_a_randomised_boat():
     """Issue 25's done-when on a boat 10-40 % from the defaults (with the lake boat's unmodelled
     effects): the boat's exact coefficients track no worse than the default ones."""
-    boat = DEFAULT_BOAT.with_parameters(randomised_parameters(np.random.default_rng(21), 0.10, 0.40))
+    boat = random_boat(21)
     exact = _mission(boat, boat.parameters, 21)["cross_track_rms_m"]
     defaults = _mission(boat, DEFAULT_PARAMETERS, 21)["cross_track_rms_m"]
     assert exact <= defaults, (exact, defaults)

@@ -134,13 +134,10 @@ def test_identified_parameters_track_within_20_percent_of_the_exact_model(tmp_pa
     Random boat 16: of boats 11-22 the battery answers 16 and 18 (core sigmas <= 2.1 %); 12 is
     refused since the core sigma rule (Y_v +-3.3 %, 6.5 % off), the others for weakly determined
     coefficients or a wrong basin (bench/results/model_chain.md has the whole set)."""
-    import numpy as np
-
     from lotsen.harness.lab_loop import identify_on, track_with_model as mission
-    from lotsen.sim import randomised_parameters
+    from lotsen.sim import random_boat
 
-    boat = DEFAULT_BOAT if boat_seed is None else DEFAULT_BOAT.with_parameters(
-        randomised_parameters(np.random.default_rng(boat_seed), 0.10, 0.40), name=f"random boat {boat_seed}")
+    boat = DEFAULT_BOAT if boat_seed is None else random_boat(boat_seed)
     identified, ident = identify_on(boat, tmp_path)
     assert identified is not None, (ident["verdict"], ident["identification"]["reasons"])
     for n in CORE_PARAMETERS:
