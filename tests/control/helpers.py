@@ -23,9 +23,10 @@ def rms(a) -> float:
     return float(math.sqrt(np.mean(np.square(a))))
 
 
-#: the MPC weights before the 2026-11-27 retuning (cross-track 60 everywhere, azimuth crossing 0.01 N^-1,
-#: 2-s dwell): what the QP recording and the second-QP measurement were made with
-WEIGHTS_BEFORE_RETUNING = dict(q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0)
+#: the MPC weights before the 2026-11-27 retunings (cross-track 60 everywhere, azimuth crossing 0.01 N^-1,
+#: 2-s dwell, yaw-rate weight 1): what the QP recording and the second-QP measurement were made with
+WEIGHTS_BEFORE_RETUNING = dict(q_cross_track=60.0, reversal_cost_azimuth_per_N=0.01, reversal_dwell_s=2.0,
+                               q_yaw_rate=1.0)
 
 
 def one_metre_off_at_rest(path) -> list[float]:
