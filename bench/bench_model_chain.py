@@ -9,8 +9,9 @@ Identification on lake records (`identification_rows`): `lotsen identify --lake`
 records (`lotsen.harness.identification.lake_run`: a boat 5-40 % off the defaults, m11 kept as the scale, a
 constant current up to 0.1 m/s, gusty wind up to 5 m/s, the simulator's noisy asynchronous
 sensors), 20 seeds (3 quick): per coefficient the error and the share of 3-sigma intervals holding
-the truth; the answers (coverage, answers given, wrong answers: exit 0 with a core coefficient off by
-more than 5 % or any beyond 3 sigma) against a peer, the same estimate without the average over two
+the truth; the answers (coverage, answers given, wrong answers: exit 0 with a coefficient outside the
+done-when rule, `_coefficient_right`: core within 5 %, the rest within 15 % unless reported weak, all
+within 3 sigma) against a peer, the same estimate without the average over two
 gust models (its first, 2-s estimate alone with its sandwich covariance); and the issue's case (10 min, 0.08 m/s
 current, 4 m/s gusty wind).
 
@@ -55,13 +56,13 @@ def _identify(lake):  # type: ignore[no-untyped-def]
     cpu = time.process_time() - c0
     v = identification_verdict(res, parameters_at_bounds(res))
     v_alone = identification_verdict(alone, parameters_at_bounds(alone))
-    return res, v.verdict, v.reasons, v.weakly_determined, cpu, alone, v_alone.verdict
+    return res, v.verdict, v.reasons, v.weakly_determined, cpu, alone, v_alone
 
 
 def _coverage(results: list, boats: list) -> tuple[np.ndarray, np.ndarray, list[str]]:
     names = results[0][0].free_names
     errs, zs = [], []
-    for (res, _), boat in zip(results, boats):
+    for (res, *_), boat in zip(results, boats):
         true = np.array([getattr(boat, n) for n in names])
         est = np.array([getattr(res.params, n) for n in names])
         sd = np.array([res.std[n] for n in names])
@@ -70,17 +71,16 @@ def _coverage(results: list, boats: list) -> tuple[np.ndarray, np.ndarray, list[
     return np.array(errs), np.array(zs), list(names)
 
 
-def _summary(label: str, Z: np.ndarray, E: np.ndarray, names: list[str], verdicts: list[str], n_seeds: int,
-             cpu: float | None) -> dict:
-    from lotsen.sysid.verdict import CORE_PARAMETERS
-
+def _summary(label: str, Z: np.ndarray, E: np.ndarray, names: list[str], verdicts: list[str],
+             weak: list[Sequence[str]], n_seeds: int, cpu: float | None) -> dict:
     cover = float(np.mean(np.abs(Z) <= 3.0))
     accepted = np.array([v != "refused" for v in verdicts])
     cover_acc = float(np.mean(np.abs(Z[accepted]) <= 3.0)) if accepted.any() else None
-    core = [j for j, n in enumerate(names) if n in CORE_PARAMETERS]
-    # an answer given (exit 0) with a core coefficient off by more than 5 % or any beyond 3 sigma
-    wrong = int(sum(1 for k in range(len(verdicts)) if accepted[k] and (
-        np.any(np.abs(E[k, core]) > 0.05) or np.any(np.abs(Z[k]) > 3.0))))
+    # an answer given (exit 0) with a coefficient the done-when rule does not accept (_coefficient_right,
+    # in relative terms: estimate = 1 + err, truth = 1, sigma = err / z)
+    wrong = int(sum(1 for k in range(len(verdicts)) if accepted[k] and not all(
+        _coefficient_right(n, 1.0 + E[k, j], 1.0, abs(E[k, j] / Z[k, j]) if Z[k, j] else 0.0, weak[k])
+        for j, n in enumerate(names))))
     return {"table": "identification on lake records: the answers", "estimate": label, "seeds": n_seeds,
             "within_3_sigma": round(cover, 3),
             "within_3_sigma_accepted": None if cover_acc is None else round(cover_acc, 3),
@@ -107,9 +107,9 @@ def identification_rows(quick: bool = False) -> list[dict]:
     checked, alone, boats_, cpus = [], [], [], []
     for k in range(n_seeds):
         lake = lake_run(1000 + k)
-        res, verdict, _, _, cpu, res1, verdict1 = _identify(lake)
-        checked.append((res, verdict))
-        alone.append((res1, verdict1))
+        res, verdict, _, weak, cpu, res1, v1 = _identify(lake)
+        checked.append((res, verdict, weak))
+        alone.append((res1, v1.verdict, v1.weakly_determined))
         boats_.append(lake.boat)
         cpus.append(cpu)
     E, Z, names = _coverage(checked, boats_)
@@ -121,9 +121,9 @@ def identification_rows(quick: bool = False) -> list[dict]:
                      "within_3_sigma": round(float(np.mean(np.abs(Z[:, j]) <= 3.0)), 2)})
     E1, Z1, _ = _coverage(alone, boats_)
     peer = _summary("peer: one gust model (2-s intervals), sandwich covariance", Z1, E1, names,
-                    [v for _, v in alone], n_seeds, None)  # not timed apart: part of the pair's
+                    [v for _, v, _ in alone], [w for *_, w in alone], n_seeds, None)  # timed with the pair
     ours = _summary("lotsen identify --lake (2-s and 3-s gust intervals, averaged)", Z, E, names,
-                    [v for _, v in checked], n_seeds, float(np.mean(cpus)))
+                    [v for _, v, _ in checked], [w for *_, w in checked], n_seeds, float(np.mean(cpus)))
     ours["target"] = ">= 95 % within 3 sigma (all, and answers given); no wrong answer"
     ours["pass"] = bool(ours["within_3_sigma"] >= 0.95 and (ours["within_3_sigma_accepted"] or 1.0) >= 0.95
                         and ours["wrong_answers"] == 0)
