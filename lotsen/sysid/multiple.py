@@ -50,8 +50,7 @@ from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters, geometry_tuple
 from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import (
-    OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_inputs,
-    step_limit,
+    OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_input_lines,
 )
 from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
@@ -93,7 +92,8 @@ GYRO_BIAS_LIMIT = 0.5
 class ShootingGrid:
     """Integration steps of all shooting intervals of all segments, flattened.
 
-    Step j integrates over h[j] with the input U[j] (held); reset[j] = 1 marks the first,
+    Step j integrates over h[j] with the input line U[j] = [u0, du] (lotsen.sysid.data.step_input_lines);
+    reset[j] = 1 marks the first,
     zero-length step of an interval, which loads its node state. Node i starts at step
     node_step[i]; if it has a successor in its segment (has_next[i]) its interval ends after
     step end_step[i]. Measurement k (row meas_row[k] of segment meas_seg[k]) is reached after
@@ -101,7 +101,7 @@ class ShootingGrid:
     """
 
     h: np.ndarray
-    U: np.ndarray  # n_steps x 5
+    U: np.ndarray  # n_steps x 10
     reset: np.ndarray
     node_step: np.ndarray
     node_time: np.ndarray
@@ -145,7 +145,7 @@ def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 
         is_node[nodes] = True
         dt = np.diff(t)
         m = np.zeros(n, int)
-        m[:-1] = np.maximum(1, np.ceil(dt / step_limit(seg, h_max) - 1e-9).astype(int))
+        m[:-1] = np.maximum(1, np.ceil(dt / h_max - 1e-9).astype(int))
         m[:-1][dt == 0] = 0
         count = m + is_node
         start = np.concatenate([[0], np.cumsum(count)[:-1]])
@@ -155,9 +155,9 @@ def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 
         rs = is_node[step_row] & (j_in_row == 0)
         hh = np.where(rs, 0.0, np.append(dt, 0.0)[step_row] / np.maximum(m[step_row], 1))
         hs.append(hh)
-        # the step average of the reconstructed input (held: the row's value; docs/sysid.md, "Data")
-        sub = j_in_row - is_node[step_row]
-        Us.append(step_inputs(seg, step_row, (sub + 0.5) / np.maximum(m[step_row], 1)))
+        # the reconstructed input's line over each step (held: the row's value; docs/sysid.md, "Data")
+        sub = np.maximum(j_in_row - is_node[step_row], 0)
+        Us.append(step_input_lines(seg, step_row, sub / np.maximum(m[step_row], 1)))
         resets.append(rs.astype(float))
         # the step after which row k's state is reached
         row_step = np.where(is_node, start, start - 1)
