@@ -504,17 +504,22 @@ class MultipleShootingResult:
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
-                mu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                mu: float, active: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The damped Gauss-Newton step; `active` (per free parameter) holds those at a bound fixed."""
     Hss, Hsp, Hpp, gs, gp = blocks
     lu = prob.factor_A(Hss, lin.Gx, Ds, mu)
     rhs_w = np.concatenate([-gs.ravel(), -lin.c.ravel()])
     F, AinvB, Ainv_rw, r = prob.reduced(lu, Hsp, lin.Gp, Hpp + mu * np.diag(Dp), rhs_w, -gp)
     nf = len(gp)
     if nf:
-        try:
-            dp = np.linalg.solve(F, r)
-        except np.linalg.LinAlgError:
-            dp = np.linalg.lstsq(F, r, rcond=None)[0]
+        keep = np.ones(nf, bool) if active is None else ~active
+        dp = np.zeros(nf)
+        if keep.any():
+            Fk, rk = F[np.ix_(keep, keep)], r[keep]
+            try:
+                dp[keep] = np.linalg.solve(Fk, rk)
+            except np.linalg.LinAlgError:
+                dp[keep] = np.linalg.lstsq(Fk, rk, rcond=None)[0]
     else:
         dp = np.zeros(0)
     w = Ainv_rw - AinvB @ dp
@@ -852,8 +857,20 @@ def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.nd
         # defects kept below the tolerance.
         continuous = lin.c.size == 0 or float(np.max(np.abs(lin.c))) < CONTINUITY_TOL
         accepted = False
+        # bounds by an active set: a parameter at its bound whose step points outward is held there for
+        # this step, and the others' step is computed without it (clipping the full step instead moves
+        # the rest as if the bounded one had moved: on a hull whose best fit leans on a bound, such as
+        # X_u at its floor, the damping then grows until the estimate crawls and never converges)
+        th_f = theta[free]
+        at_lo, at_hi = th_f <= lo[free] + 1e-12 * np.abs(lo[free]), th_f >= hi[free] - 1e-12 * np.abs(hi[free])
         for trial in range(14):
-            ds, dp, lam = _solve_step(prob, lin, blocks, Ds, Dp, mu)
+            active = np.zeros(len(free), bool)
+            for _ in range(len(free) + 1):
+                ds, dp, lam = _solve_step(prob, lin, blocks, Ds, Dp, mu, active)
+                out = ~active & ((at_lo & (dp < 0)) | (at_hi & (dp > 0)))
+                if not out.any():
+                    break
+                active |= out
             alpha = 1.0 if trial < 6 else 0.5 ** (trial - 5)
             if lam.size:
                 nu = max(nu, 1.2 * float(np.max(np.abs(lam))))
@@ -871,7 +888,7 @@ def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.nd
                 # second-order correction (Maratos effect): the step met the linearised continuity, but
                 # the intervals' curvature left larger defects; one more solve with the same
                 # factorisation, no gradient and the new defects, pulls the trajectory back together
-                soc = _solve_step(prob, replace(lin, c=lin_new.c), (*blocks[:3], 0.0 * gs, 0.0 * gp), Ds, Dp, mu)
+                soc = _solve_step(prob, replace(lin, c=lin_new.c), (*blocks[:3], 0.0 * gs, 0.0 * gp), Ds, Dp, mu, active)
                 th_soc = th_new.copy()
                 th_soc[free] = np.clip(th_new[free] + soc[1] * tscale[free], lo[free], hi[free])
                 nodes_soc = nodes_new + soc[0] * prob.xscale[None, :]
