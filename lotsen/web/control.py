@@ -268,7 +268,7 @@ class ControlHandler:
         return [{"type": "export_result", "id": msg.id, "format": msg.fields["format"], "text": text}]
 
     async def _on_import(self, session: Session, msg: Message) -> list[dict]:
-        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"])
+        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"], self.origin)
         return [{"type": "import_result", "id": msg.id, "route": route}]
 
     def _on_tiles_preload(self, session: Session, msg: Message) -> list[dict]:
