@@ -361,3 +361,14 @@ def plan_from_route(route: Route, origin: GeoOrigin) -> Plan:
     speeds = [n.speed_mps for n in route.nodes]
     return Plan(home=home, mission=mission, fence=fence, rally=rally,
                 cruise_speed_mps=max(set(speeds), key=speeds.count) if speeds else None)
+
+
+def fence_parts(items: list[MissionItem], origin: GeoOrigin) -> dict:
+    """The `area` / `obstacles` of a route dict from fence items alone (a fence uploaded before
+    any mission), in the local frame of `origin`."""
+    return _fence(items, LocalFrame(origin.lat_deg, origin.lon_deg, origin.height_m))
+
+
+def local_frame(origin: GeoOrigin) -> LocalFrame:
+    """The local frame of a route's geographic origin (WGS84 <-> north/east metres)."""
+    return LocalFrame(origin.lat_deg, origin.lon_deg, origin.height_m)
