@@ -702,10 +702,10 @@ class MavlinkEndpoint:
             return self._mission_ack(link, gcs, kind, code, f"{kind} refused: {exc}")
         except LotsenError as exc:
             return self._mission_ack(link, gcs, kind, mavlink.MAV_MISSION_INVALID, f"{kind} refused: {exc}")
-        ok, text = await self._upload_route(gcs, route, items if kind == MISSION else None)
+        held = self._held_route_id()  # before this upload: the items stored for it stay valid for the parts kept
+        ok, text = await self._upload_route(gcs, route, items[1:] if kind == MISSION else None)
         if not ok:
             return self._mission_ack(link, gcs, kind, mavlink.MAV_MISSION_INVALID, f"{kind} refused: {text}")
-        held = self._held_route_id()
         previous = self.uploaded if held and self.uploaded.get("route_id") == held else {}
         kept = {k: previous[k] for k in (MISSION, FENCE, RALLY) if k in previous and k != kind}
         if kind == RALLY:
@@ -733,12 +733,23 @@ class MavlinkEndpoint:
         """Plan and publish `route` as the page's upload does: (True, route_id) or (False, the
         planner's reason, its node named as the mission item when `mission` is given)."""
         route = {k: v for k, v in route.items() if k != "origin"}
+        t0 = self.clock()
         replies, job = self.handler.receive(gcs.session, json.dumps({"type": "route", "route": route}))
         if job is not None:
             replies = replies + await job
         reply = replies[0] if replies else {}
         if reply.get("type") == "route_ok":
-            return True, str(reply["route_id"])
+            # accepted when the boat says it holds it (its status's route id), as the page's read-back
+            rid = str(reply["route_id"])
+            deadline = self.clock() + 2 * self.options.command_timeout_s
+            while self.clock() < deadline:
+                if self._held_route_id() == rid:
+                    return True, rid
+                for t, alert in list(self.refusals):
+                    if t >= t0 and alert.code == "refused:route":
+                        return False, alert.text
+                await asyncio.sleep(0.02)
+            return False, f"the boat did not confirm route {rid} within {2 * self.options.command_timeout_s:g} s"
         text = str(reply.get("error", "no answer from the planner"))
         if mission is not None:
             text = _name_items(text, waypoint_seqs(mission))
@@ -817,7 +828,7 @@ class MavlinkEndpoint:
 
     def _waypoints(self) -> list[int]:
         """Mission sequence numbers of the route's nodes, as a download numbers them."""
-        return waypoint_seqs(self._plan_items(MISSION))
+        return waypoint_seqs(self._plan_items(MISSION)[1:])  # item 0 is home (the harbour)
 
     def _reached(self, node: int) -> None:
         seqs = self._waypoints()
@@ -825,6 +836,7 @@ class MavlinkEndpoint:
             msg = mavlink.MAVLink_mission_item_reached_message(seqs[node])
             for link in self.links:
                 link.send(msg)
+            self._text(None, "info", f"Reached waypoint #{seqs[node]}")  # as ArduPilot says it
 
     def _boot_ms(self) -> int:
         return int(max(self.clock(), 0.0) * 1000) & 0xFFFFFFFF
