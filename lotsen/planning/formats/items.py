@@ -260,6 +260,18 @@ def waypoint_seqs(items: Iterable[MissionItem]) -> list[int]:
     return [i.seq for i in items if i.command in (NAV_WAYPOINT, NAV_SPLINE_WAYPOINT)]
 
 
+def _place(area: Any, obstacles: list, poly: list, inclusion: bool) -> Any:
+    """One fence polygon in its place: the first inclusion is the area, further inclusions regions
+    forbidden outside, exclusions obstacles. Returns the area."""
+    if not inclusion:
+        obstacles.append(poly)
+    elif area is None:
+        return poly
+    else:
+        obstacles.append({"polygon": poly, "forbidden": "outside"})
+    return area
+
+
 def _fence(items: list[MissionItem], frame: LocalFrame) -> dict:
     area = None
     obstacles: list[Any] = []
@@ -274,14 +286,8 @@ def _fence(items: list[MissionItem], frame: LocalFrame) -> dict:
             if len(ring) < count or any(v.command != it.command or int(v.param1) != count for v in ring):
                 raise MissionItemError(FENCE, it.seq, f"{it.name()}: the polygon's {count} vertices are not "
                                        "consecutive items of the same kind and count")
-            poly = [list(_position(frame, v, FENCE)) for v in ring]
-            if it.command == NAV_FENCE_POLYGON_VERTEX_INCLUSION:
-                if area is None:
-                    area = poly
-                else:
-                    obstacles.append({"polygon": poly, "forbidden": "outside"})
-            else:
-                obstacles.append(poly)
+            area = _place(area, obstacles, [list(_position(frame, v, FENCE)) for v in ring],
+                          it.command == NAV_FENCE_POLYGON_VERTEX_INCLUSION)
             i += count
             continue
         if it.command in (NAV_FENCE_CIRCLE_INCLUSION, NAV_FENCE_CIRCLE_EXCLUSION):
@@ -291,13 +297,7 @@ def _fence(items: list[MissionItem], frame: LocalFrame) -> dict:
             c = _position(frame, it, FENCE)
             poly = [[round(c[0] + r * math.cos(2 * math.pi * k / CIRCLE_CORNERS), 4),
                      round(c[1] + r * math.sin(2 * math.pi * k / CIRCLE_CORNERS), 4)] for k in range(CIRCLE_CORNERS)]
-            if it.command == NAV_FENCE_CIRCLE_INCLUSION:
-                if area is None:
-                    area = poly
-                else:
-                    obstacles.append({"polygon": poly, "forbidden": "outside"})
-            else:
-                obstacles.append(poly)
+            area = _place(area, obstacles, poly, it.command == NAV_FENCE_CIRCLE_INCLUSION)
         elif it.command == NAV_FENCE_RETURN_POINT:
             pass  # lotsen holds inside the area on a breach (docs/failsafes.md); the return point is not used
         else:
