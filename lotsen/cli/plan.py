@@ -13,9 +13,10 @@ from lotsen.errors import ConfigError
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "plan", help="plan a path through a route's nodes (cubic segments, speed profile)",
-        description="Plan the path harbour -> nodes of ROUTE (YAML or GeoJSON) and write it as JSON "
-                    "and/or a plot.")
-    p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
+        description="Plan the path harbour -> nodes of ROUTE (YAML, GeoJSON, or a ground station's file: "
+                    "QGroundControl .plan, QGC WPL 110 .waypoints/.txt, KML, GPX) and write it as JSON "
+                    "and/or a plot; --export writes the route in another of these formats.")
+    p.add_argument("route", help="route file (.yaml, .yml, .geojson, .plan, .waypoints, .txt, .kml, .gpx)")
     p.add_argument("--out", help="write the path as JSON (lotsen.path format)")
     p.add_argument("--plot", help="write a PNG of area, obstacles, nodes and the path coloured by speed")
     p.add_argument("--return-from", nargs=3, type=float, metavar=("NORTH", "EAST", "HEADING_DEG"),
@@ -24,7 +25,28 @@ def register(subparsers) -> None:
     p.add_argument("--min-turn-radius", type=float, help="metres (default 1.0)")
     p.add_argument("--clearance", type=float, help="metres from obstacles (default 0.5)")
     p.add_argument("--speed-max", type=float, help="m/s (default 1.5)")
+    p.add_argument("--export", metavar="FILE", help="write the route (not the path) as .yaml, .geojson, .plan, "
+                   ".waypoints, .kml or .gpx (the format by the suffix; checked by planning it first)")
+    p.add_argument("--origin", metavar="LAT,LON", help="geographic origin of the local frame (degrees) for a ground "
+                   "station's file and for an export of a route without one; default: the route's, else its harbour")
+    p.add_argument("--node-speed", type=float, metavar="M/S", help="node speed where the file has none (.waypoints, "
+                   "KML, GPX; a .plan's cruise speed; default 0.5)")
     p.set_defaults(func=run)
+
+
+def _origin(text: str | None):
+    """--origin LAT,LON as a GeoOrigin (None without it); ConfigError naming the flag."""
+    if text is None:
+        return None
+    from lotsen.planning import GeoOrigin
+
+    try:
+        lat, lon = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ConfigError(f"--origin: {text!r} is not LAT,LON in degrees (e.g. 59.3293,18.0686)") from None
+    if not (math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90 and -180 <= lon <= 180):
+        raise ConfigError(f"--origin: latitude {lat:g} / longitude {lon:g} out of range ([-90, 90], [-180, 180])")
+    return GeoOrigin(lat, lon, 0.0)
 
 
 def _config(args):
@@ -51,7 +73,15 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.planning.io import load_route
     from lotsen.stack.planner_worker import PlannerWorker
 
-    route = load_route(args.route)
+    origin = _origin(getattr(args, "origin", None))
+    speed = getattr(args, "node_speed", None)
+    if speed is not None and not (math.isfinite(speed) and 0 < speed <= 5.0):
+        raise ConfigError(f"--node-speed: {speed:g} m/s is outside (0, 5] m/s")
+    if getattr(args, "export", None):
+        from lotsen.planning.formats import format_of
+
+        format_of(args.export)  # an unknown suffix is refused before any planning
+    route = load_route(args.route, origin=origin, default_speed_mps=speed)
     cfg = _config(args)
     # the page's budget (extra.planning defaults): size bounds at once, then time and memory in
     # the planner worker, so no route file can hang this command or eat the machine's memory
@@ -75,6 +105,14 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         _write(args.out, lambda f: f.write_text(json.dumps(path.to_dict()), encoding="utf-8"))
         print(f"wrote {args.out}")
+    if getattr(args, "export", None):
+        from lotsen.planning.io import save_route
+
+        notes: list[str] = []
+        _write(args.export, lambda f: notes.extend(save_route(route, f, origin)))
+        for note in notes:
+            print(f"note: {note}")
+        print(f"wrote {args.export}")
     if args.plot:
         _write(args.plot, lambda f: plot_path(route, path, f))
         print(f"wrote {args.plot}")

@@ -15,6 +15,7 @@ import threading
 from dataclasses import replace
 from pathlib import Path
 
+from lotsen.errors import ConfigError
 from lotsen.runtime.config import BoatSection
 from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.config import StackConfig, load_stack_config
@@ -44,6 +45,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "it, over the config's sim.boat), or 'ideal' for a boat equal to the model in use")
     p.add_argument("--params", metavar="PARAMS.json",
                    help="the model the estimator and the controllers use (over the config's vessel.parameters_file)")
+    p.add_argument("--mavlink", action="append", metavar="URL",
+                   help="a MAVLink 2 endpoint for ground stations (QGroundControl, Mission Planner, MAVProxy, Cockpit): "
+                        "udpout:HOST:PORT (as ArduPilot SITL sends to 14550), udpin:HOST:PORT, tcpin:HOST:PORT, or a "
+                        "serial device /dev/ttyUSB0[,57600]; repeatable; added to extra.mavlink.endpoints "
+                        "(docs/mavlink.md)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
     p.set_defaults(func=run)
 
@@ -63,6 +69,7 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     if generated:
         web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
+    config = with_mavlink(config, getattr(args, "mavlink", None))
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
     if lock is not None:
         lock.identities = run_identities(config)
@@ -71,6 +78,19 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
 
     validate(config, tls=bool(getattr(args, "tls", False)))
     return config, generated
+
+
+def with_mavlink(config: StackConfig, urls: list[str] | None) -> StackConfig:
+    """`--mavlink URL ...` added to `extra.mavlink.endpoints` (checked there: a bad URL is a
+    ConfigError naming it); the endpoint lives in the web process, so it needs the web server."""
+    if urls:
+        mav = config.extra.mavlink
+        config = replace(config, extra=replace(config.extra, mavlink=replace(
+            mav, endpoints=mav.endpoints + tuple(u for u in urls if u not in mav.endpoints))))
+    if config.extra.mavlink.endpoints and not config.web.enabled:
+        raise ConfigError("--mavlink / extra.mavlink.endpoints: the MAVLink endpoint runs in the web process; "
+                          "set web.enabled: true")
+    return config
 
 
 def with_model_and_boat(config: StackConfig, params: str | None, boat: str | None) -> StackConfig:

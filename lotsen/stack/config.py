@@ -30,6 +30,7 @@ from lotsen.settings import value_range as _r
 from lotsen.supervisor.failsafes import FailsafeConfig
 from lotsen.transport.ros2_bridge import Ros2BridgeConfig
 from lotsen.transport.zenoh_bridge import BridgeConfig
+from lotsen.web.mavlink.options import MavlinkExtra
 from lotsen.web.options import WebExtra
 
 #: what the ROS 2 process publishes to ROS 2 by default (the seed's Table 3 and the status)
@@ -68,6 +69,7 @@ class ExtraConfig:
     failsafes: FailsafeConfig = field(default_factory=FailsafeConfig)
     logs: RecorderConfig | None = None  # None: the recorder's defaults, in `logging.directory`
     web: WebExtra = field(default_factory=WebExtra)
+    mavlink: MavlinkExtra = field(default_factory=MavlinkExtra)  # ground stations (endpoints: none by default)
     zenoh: BridgeConfig | None = None  # None: no bridge to other machines
     ros2: Ros2BridgeConfig | None = None  # present: the ROS 2 process runs (its pilot token: the run's)
     hardware: HardwareConfig = field(default_factory=HardwareConfig)  # devices and pins (`--hardware`)

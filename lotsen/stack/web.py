@@ -100,4 +100,25 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     if options.host not in ("127.0.0.1", "localhost", "::1"):
         banner.append(f"warning: the operator interface is reachable from the network ({options.host})")
     stack.services.setdefault("on_shutdown", []).append(server.stop)
+    if config.extra.mavlink.endpoints:
+        add_mavlink(stack, hub, options.pilot_token)
     return server
+
+
+def add_mavlink(stack: Stack, hub: Any, pilot_token: str) -> Any:
+    """The MAVLink endpoint (`extra.mavlink`, `lotsen run --mavlink URL`) on the web server's hub:
+    the same bus, pilot seat, control handler and planner as the page; signing with the page's
+    pilot token (one credential)."""
+    from lotsen.web.mavlink.endpoint import MavlinkEndpoint
+
+    config = stack.config
+    fs = config.extra.failsafes
+    endpoint = MavlinkEndpoint(hub, config.extra.mavlink, pilot_token, stack.origin, stack.model.params.to_dict(),
+                               fs, config.nodes.controller, config.nodes.control_rate_hz,
+                               config.nodes.command_deadline_s)
+    assert hub.loop is not None, "the web server starts (and its hub gets its event loop) before the endpoint"
+    endpoint.start(hub.loop)
+    stack.services["mavlink"] = endpoint
+    stack.services.setdefault("banner", []).extend(endpoint.banner())
+    stack.services.setdefault("on_shutdown", []).append(endpoint.stop)
+    return endpoint

@@ -169,7 +169,10 @@ class PilotSeat:
         return self._clock() - self.last_heard_s if self.holder is not None else float("inf")
 
     def stale(self) -> bool:
-        return self.holder is not None and self.silent_s() > self.link_timeout_s
+        """The pilot is silent beyond its limit: the seat's, or the holder's own `link_timeout_s`
+        (a ground station heartbeats at 1 Hz: lotsen.web.mavlink)."""
+        limit = getattr(self.holder, "link_timeout_s", None) or self.link_timeout_s
+        return self.holder is not None and self.silent_s() > limit
 
     def claim(self, session: object, token: str, takeover: bool = False) -> SeatChange:
         if not token_matches(token, self._token):

@@ -47,6 +47,8 @@ class Session:
     manual_active: bool = False  # the last manual command was non-zero
     close_requested: str = ""  # reason, when the hub should close the socket
     last_rate_error_s: float = -1e9
+    source: str = "web"  # who asks, in OperatorCommand.source ("mavlink:255" for a ground station)
+    link_timeout_s: float | None = None  # own silence limit as pilot (a ground station's); None: the seat's
 
 
 async def _to_thread(fn: Callable[..., Any], *args: Any) -> Any:
@@ -234,7 +236,7 @@ class ControlHandler:
 
     def _on_command(self, session: Session, msg: Message) -> list[dict]:
         action = msg.fields["action"]
-        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source="web"))
+        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source=session.source))
         # "requested", not "done": the supervisor decides; a refusal comes back as an Alert
         return [{"type": "ack", "id": msg.id, "action": action}]
 
@@ -268,7 +270,7 @@ class ControlHandler:
         return [{"type": "export_result", "id": msg.id, "format": msg.fields["format"], "text": text}]
 
     async def _on_import(self, session: Session, msg: Message) -> list[dict]:
-        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"])
+        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"], self.origin)
         return [{"type": "import_result", "id": msg.id, "route": route}]
 
     def _on_tiles_preload(self, session: Session, msg: Message) -> list[dict]:

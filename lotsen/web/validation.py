@@ -14,8 +14,8 @@ command       action: one of lotsen.messages.OPERATOR_ACTIONS          pilot
 manual        surge, sway, yaw: numbers in [-1, 1]                     pilot
 plan          route: route dict (docs/planning.md schema)              pilot
 route         route: route dict -> PlannedRoute (upload)               pilot
-export        route: route dict, format: "yaml" | "geojson"            anyone
-import        text: str, format: "yaml" | "geojson"                    anyone
+export        route: route dict, format: ROUTE_FORMATS                  anyone
+import        text: str, format: ROUTE_FORMATS                         anyone
 tiles_preload south, west, north, east (deg), zoom_min, zoom_max        pilot
 tiles_cancel                                                           pilot
 params        name: an editable setting (lotsen.web.settings), value: number pilot
@@ -36,6 +36,9 @@ from typing import Any
 
 from lotsen.messages import OPERATOR_ACTIONS
 from lotsen.planning.route import MAX_COORDINATE_M
+
+#: route files the page reads and writes: lotsen's own and the ground stations' (lotsen.planning.formats)
+ROUTE_FORMATS = ("yaml", "geojson", "plan", "wpl", "kml", "gpx")
 from lotsen.web.settings import EDITABLE_NAMES
 
 MAX_MESSAGE_CHARS = 512 * 1024
@@ -80,8 +83,8 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "manual": {"surge": _NUM_UNIT, "sway": _NUM_UNIT, "yaw": _NUM_UNIT},
     "plan": {"route": Field("route")},
     "route": {"route": Field("route")},
-    "export": {"route": Field("route"), "format": Field("enum", choices=("yaml", "geojson"))},
-    "import": {"text": Field("str", max_len=MAX_IMPORT_CHARS), "format": Field("enum", choices=("yaml", "geojson"))},
+    "export": {"route": Field("route"), "format": Field("enum", choices=ROUTE_FORMATS)},
+    "import": {"text": Field("str", max_len=MAX_IMPORT_CHARS), "format": Field("enum", choices=ROUTE_FORMATS)},
     "tiles_preload": {"south": Field("number", lo=-85.0, hi=85.0), "north": Field("number", lo=-85.0, hi=85.0),
                       "west": Field("number", lo=-180.0, hi=180.0), "east": Field("number", lo=-180.0, hi=180.0),
                       "zoom_min": Field("int", lo=0, hi=22), "zoom_max": Field("int", lo=0, hi=22)},

@@ -753,22 +753,35 @@ async function save(format) {
   if (!route.complete()) { toast("nothing to save: place the harbour and nodes", true); return; }
   const res = await request({ type: "export", format, route: route.toDict() });
   if (res.type !== "export_result") { alerts.push({ severity: "error", code: "web:export", text: res.error }); return; }
-  const blob = new Blob([res.text], { type: format === "yaml" ? "application/x-yaml" : "application/geo+json" });
+  const kind = FILE_KINDS[format];
+  const blob = new Blob([res.text], { type: kind.mime });
   const a = document.createElement("a");
   a.href = URL.createObjectURL(blob);
-  a.download = `route.${format === "yaml" ? "yaml" : "geojson"}`;
+  a.download = `route.${kind.suffix}`;
   a.click();
   setTimeout(() => URL.revokeObjectURL(a.href), 1000);
 }
+// lotsen's route files and the ground stations' (QGroundControl .plan, QGC WPL 110, KML, GPX)
+const FILE_KINDS = {
+  yaml: { suffix: "yaml", mime: "application/x-yaml" }, geojson: { suffix: "geojson", mime: "application/geo+json" },
+  plan: { suffix: "plan", mime: "application/json" }, wpl: { suffix: "waypoints", mime: "text/plain" },
+  kml: { suffix: "kml", mime: "application/vnd.google-earth.kml+xml" }, gpx: { suffix: "gpx", mime: "application/gpx+xml" },
+};
+function formatOf(name) {
+  const m = /\.([a-z]+)$/i.exec(name); const ext = m ? m[1].toLowerCase() : "";
+  return { yml: "yaml", yaml: "yaml", json: "geojson", geojson: "geojson", plan: "plan", waypoints: "wpl", wpl: "wpl",
+           txt: "wpl", kml: "kml", gpx: "gpx" }[ext] || "yaml";
+}
 $("#btn-save-yaml").onclick = () => save("yaml");
 $("#btn-save-geojson").onclick = () => save("geojson");
+$("#btn-save-other").onclick = () => save($("#save-format").value);
 
 $("#file-load").addEventListener("change", async ev => {
   const file = ev.target.files[0];
   ev.target.value = "";
   if (!file) return;
   const text = await file.text();
-  const format = /\.(geo)?json$/i.test(file.name) ? "geojson" : "yaml";
+  const format = formatOf(file.name);
   const res = await request({ type: "import", format, text });
   if (res.type === "import_result") { route.fromDict(res.route); map.fit(); toast(`loaded ${file.name}`); }
   else alerts.push({ severity: "error", code: "web:import", text: res.error });
