@@ -28,11 +28,10 @@ from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.model.actuators import advance_motors
 from lotsen.settings import value_range as _r
 
-if TYPE_CHECKING:  # the inputs are defined with the node, the modes with their controllers;
-    # monitors only read them (and the web server and the launcher import this module for
-    # FailsafeConfig without the controllers)
+if TYPE_CHECKING:  # monitors only read the inputs and ask the mode what it is; the web server and
+    # the launcher import this module for FailsafeConfig without the controllers the modes run
+    from lotsen.supervisor.inputs import SupervisorInputs
     from lotsen.supervisor.modes import Mode
-    from lotsen.supervisor.node import SupervisorInputs
 
 
 class FailsafeAction(StrEnum):

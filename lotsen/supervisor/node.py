@@ -35,6 +35,7 @@ from lotsen.supervisor.failsafes import (
     ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ThrusterMonitor,
     monitor, standard_monitors,
 )
+from lotsen.supervisor.inputs import SupervisorInputs, finite_state as _finite_state
 from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
 from lotsen.supervisor.prearm import FailedCheck, PrearmInputs, blocking, describe, prearm_failures, route_corridor_m
 
@@ -65,42 +66,6 @@ class SupervisorConfig:
     route_fence_tolerance_m: float = 0.05  # a received path may touch the area's edge by this much
     failsafes: FailsafeConfig = field(default_factory=FailsafeConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)  # the return to the harbour
-
-
-@dataclass
-class SupervisorInputs:
-    """The latest of everything the supervisor listens to, with arrival times (runtime clock)."""
-
-    state: VesselState | None = None
-    manual: ManualCommand | None = None
-    manual_arrival_s: float = -math.inf
-    experiment: ThrustCommand | None = None  # the running identification experiment's command
-    experiment_arrival_s: float = -math.inf
-    link: LinkStatus | None = None
-    link_arrival_s: float = -math.inf
-    rc: RcOverride | None = None
-    rc_arrival_s: float = -math.inf
-    rc_takeover: bool = False  # the takeover switch as last seen over a good link
-    fix: GnssFix | None = None
-    last_usable_fix_s: float | None = None
-    battery: BatteryStatus | None = None
-    actuators: ActuatorState | None = None
-    health: Any = None  # EstimatorHealth (lotsen.fusion) when the estimator publishes one
-    route: Any = None  # the route in use (its navigable area and obstacles), None without one
-
-    @property
-    def escs_armed(self) -> bool:
-        return self.actuators is not None and bool(self.actuators.escs_armed)
-
-    def position_trusted(self, max_position_std_m: float) -> bool:
-        """A finite state estimate whose position std is within the bound and whose integrity
-        monitor (when there is one) trusts the position."""
-        s = self.state
-        if s is None or not _finite_state(s):
-            return False
-        if len(s.std) >= 2 and max(s.std[0], s.std[1]) > max_position_std_m:
-            return False
-        return self.health is None or bool(self.health.position_ok)
 
 
 class SupervisorNode(Node):
@@ -645,10 +610,6 @@ def _with_controller(config: Any, name: str) -> Any:
 
 def _clip1(v: float) -> float:
     return min(max(float(v), -1.0), 1.0)
-
-
-def _finite_state(s: VesselState) -> bool:
-    return all_finite(*s.as_array_tuple())
 
 
 def _time_to_end(path: Any, min_speed_mps: float = 0.05) -> np.ndarray:

@@ -115,8 +115,15 @@ class ControlHandler:
         self.publish(Topic.MANUAL, ManualCommand(stamp_s=self.clock(), surge=0.0, sway=0.0, yaw=0.0))
 
     def link_tick(self) -> LinkStatus:
-        """Called at ~5 Hz: publish the pilot's liveness; a silent pilot's driving is zeroed once."""
+        """Called at ~5 Hz: publish the pilot's liveness; a silent pilot's driving is zeroed once;
+        a pilot seated with a credential that was replaced since (`lotsen pair --new`) loses the seat."""
         holder = self.seat.holder
+        if holder is not None and self.seat.holder_revoked():
+            self.seat.release(holder)
+            self._stop_manual(holder if isinstance(holder, Session) else None)
+            self.notify(holder, {"type": "pilot", "pilot": False, "revoked": True,
+                                 "reason": "the pilot credential was replaced on the boat (lotsen pair --new): pair again"})
+            holder = None
         if isinstance(holder, Session) and holder.manual_active and self.seat.stale():
             self._stop_manual(holder)
         # a pilot that is connected but silent (frozen tab, half-open Wi-Fi) counts as gone
@@ -204,20 +211,22 @@ class ControlHandler:
                                             "(manual 30/s, ping 20/s, others 5/s)")]
 
     def _on_auth(self, session: Session, msg: Message) -> list[dict]:
-        if not self.auth_guard.allow(session.address):
+        # the right credential first: it is never throttled, also when another client behind the
+        # same address spent the guessing budget (a phone hotspot, one NAT for the jetty)
+        if not self.seat.token_ok(msg.fields["token"]):
+            spent = not self.auth_guard.allow(session.address)
             session.auth_failures += 1
-            if session.auth_failures >= MAX_AUTH_FAILURES:
-                session.close_requested = "too many token attempts"
-            return [_error(msg.id, "rate_limited", "auth: too many wrong tokens from your address "
-                           f"(5, then one every {self.auth_guard.wait_s():g} s); wait and try again")]
+            if not spent:
+                self.auth_guard.failed(session.address)
+            if spent or session.auth_failures >= MAX_AUTH_FAILURES:
+                session.close_requested = "too many wrong tokens"
+            if spent:
+                return [_error(msg.id, "rate_limited", "auth: too many wrong tokens from your address "
+                               f"(5, then one every {self.auth_guard.wait_s():g} s); wait and try again")]
+            return [_error(msg.id, "bad_token", "auth: wrong pilot token")]
         try:
             change = self.seat.claim(session, msg.fields["token"], msg.fields.get("takeover", False))
         except AuthError as exc:
-            if exc.code == "bad_token":
-                self.auth_guard.failed(session.address)
-                session.auth_failures += 1
-                if session.auth_failures >= MAX_AUTH_FAILURES:
-                    session.close_requested = "too many wrong tokens"
             return [_error(msg.id, exc.code, str(exc))]
         if change.previous is not None:
             if isinstance(change.previous, Session):

@@ -490,6 +490,39 @@ def test_the_right_token_is_never_throttled_by_reconnections():
         h.close_session(s)
 
 
+def test_the_right_token_gets_the_seat_after_a_neighbour_spent_the_addresss_guessing_budget():
+    """issue 41 item 10: a stranger behind the same address (one hotspot, one NAT) spent the
+    budget: its wrong tokens are refused `rate_limited` and close their connection at once, the
+    pilot's right one is taken at once."""
+    h, _, _, _ = make()
+    for i in range(8):
+        s = h.open_session("192.0.2.7")
+        reply = send(h, s, {"type": "auth", "token": f"guess{i}"})[0]
+        if i >= 5:
+            assert reply["code"] == "rate_limited" and s.close_requested  # one guess per handshake
+    pilot_session = h.open_session("192.0.2.7")
+    assert send(h, pilot_session, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
+
+
+def test_a_replaced_credential_takes_the_seat_from_the_pilot_seated_with_the_old_one():
+    """`lotsen pair --new` on the boat while a page is the pilot: the page loses the seat (told
+    why) and the old credential no longer authenticates; the new one does."""
+    clock = FakeClock()
+    current = [TOKEN]
+    notified: list[tuple[object, dict]] = []
+    published: list = []
+    h = ControlHandler(PilotSeat(lambda: current[0], 1.0, clock), lambda t, m: published.append((t, m)), clock,
+                       run_blocking=_inline, notify=lambda s, m: notified.append((s, m)), auth_guard=AuthGuard(clock))
+    s = pilot(h)
+    h.link_tick()
+    assert h.seat.is_pilot(s) and not notified
+    current[0] = "a brand new credential of the boat"
+    h.link_tick()
+    assert not h.seat.is_pilot(s) and notified[-1][1]["revoked"] is True
+    assert code(send(h, h.open_session(), {"type": "auth", "token": TOKEN})) == "bad_token"
+    assert send(h, h.open_session("10.0.0.2"), {"type": "auth", "token": current[0]})[0]["type"] == "auth_ok"
+
+
 def test_large_frames_are_charged_before_decoding():
     h, _, _, _ = make()
     viewer = h.open_session()

@@ -176,13 +176,20 @@ def test_banner_shows_url_and_token_and_the_token_is_never_in_a_url(running):
 
 
 def test_repeated_wrong_tokens_close_the_connection_and_block_the_address(running):
-    """Last in this module: it spends 127.0.0.1's wrong-token budget (one more every 2 s)."""
+    """Last in this module: it spends 127.0.0.1's wrong-token budget (one more every 2 s); the right
+    token still gets the seat (issue 41)."""
     with connect(running.ws_url) as ws:
         for i in range(5):
             ws.send(json.dumps({"type": "auth", "token": f"guess-{i}"}))
         with pytest.raises(ConnectionClosed):
             for _ in range(200):
                 ws.recv(timeout=2)
-    with connect(running.ws_url) as ws:  # a new connection from the same address: refused unchecked
-        ws.send(json.dumps({"type": "auth", "token": TOKEN, "id": 1}))
+    with connect(running.ws_url) as ws:  # a new guess from the same address: refused, and the socket closed
+        ws.send(json.dumps({"type": "auth", "token": "guess-5", "id": 1}))
         assert recv_until(ws, lambda m: m.get("id") == 1)["code"] == "rate_limited"
+        with pytest.raises(ConnectionClosed):
+            for _ in range(200):
+                ws.recv(timeout=2)
+    with connect(running.ws_url) as ws:  # the right credential from that address: never throttled (issue 41)
+        ws.send(json.dumps({"type": "auth", "token": TOKEN, "id": 2}))
+        assert recv_until(ws, lambda m: m.get("id") == 2)["type"] == "auth_ok"
