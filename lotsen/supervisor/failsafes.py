@@ -451,21 +451,26 @@ class GeofenceMonitor(Monitor):
         self.inset_m = cfg.geofence_inset_m
         self.in_manual = cfg.geofence_in_manual
         self.max_position_std_m = cfg.max_position_std_m
-        self._regions: tuple[Any, Any, Any] = (None, None, None)  # (route, fence, inset), once per route
+        self._regions: tuple[Any, Any, Any] = ((), None, None)  # (routes, fence, inset), once per route
 
-    def _fence(self, route: Any) -> tuple[Any, Any]:
-        """The region outside which the fence trips, and the one the boat holds in after a breach."""
-        if self._regions[0] is not route:
-            free = route.free_region()
+    def _fence(self, routes: tuple[Any, ...]) -> tuple[Any, Any]:
+        """The region outside which the fence trips, and the one the boat holds in after a breach:
+        the free water of the route in use and of the boat's configured area together."""
+        known = self._regions[0]
+        if len(known) != len(routes) or any(a is not b for a, b in zip(known, routes)):  # by identity: cheap
+            free = routes[0].free_region()
+            for r in routes[1:]:
+                free = free.intersection(r.free_region())
             inner = free.buffer(-self.inset_m)
-            self._regions = (route, free.buffer(self.margin_m), free if inner.is_empty else inner)
+            self._regions = (routes, free.buffer(self.margin_m), free if inner.is_empty else inner)
         return self._regions[1], self._regions[2]
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
         s = inputs.state
-        if inputs.route is None or s is None or not inputs.position_trusted(self.max_position_std_m):
+        routes = inputs.fence_regions()
+        if not routes or s is None or not inputs.position_trusted(self.max_position_std_m):
             return False, ""
-        outside = not self._fence(inputs.route)[0].contains(Point(s.north_m, s.east_m))
+        outside = not self._fence(routes)[0].contains(Point(s.north_m, s.east_m))
         return outside, f"position ({s.north_m:.1f}, {s.east_m:.1f}) outside the navigable area"
 
     def action_for(self, mode: "Mode") -> FailsafeAction:
@@ -478,7 +483,7 @@ class GeofenceMonitor(Monitor):
         thrust, not by the weak sideways one."""
         s = inputs.state
         p = Point(s.north_m, s.east_m)
-        q = nearest_points(self._fence(inputs.route)[1], p)[0]
+        q = nearest_points(self._fence(inputs.fence_regions())[1], p)[0]
         heading = math.atan2(q.y - p.y, q.x - p.x) if p.distance(q) > 0.05 else s.heading_rad
         return (q.x, q.y, heading)
 

@@ -40,6 +40,13 @@ class SupervisorInputs:
     actuators: ActuatorState | None = None
     health: Any = None  # EstimatorHealth (lotsen.fusion) when the estimator publishes one
     route: Any = None  # the route in use (its navigable area and obstacles), None without one
+    # the boat's own navigable area: the launch config's route area (None: not configured). No
+    # route received from the page may leave it, and the geofence acts on it with or without a route
+    fence: Any = None
+
+    def fence_regions(self) -> tuple[Any, ...]:
+        """The routes whose free water the boat must stay in: the route in use and the fence."""
+        return tuple(r for r in (self.route, self.fence) if r is not None)
 
     @property
     def escs_armed(self) -> bool:

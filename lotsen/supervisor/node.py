@@ -13,16 +13,17 @@ predicates; a refusal is an `Alert` the operator sees, not only a log line.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
-from shapely import contains_xy
+from shapely import Point, contains_xy
 
 from lotsen.control import ControlConfig, HoldTarget, ThrustAllocator, make_path_follower, make_station_keeper
 from lotsen.errors import LotsenError
 from lotsen.messages import (
-    OPERATOR_ACTIONS, ActuatorState, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
+    OPERATOR_ACTIONS, ActuatorState, CommandAck, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
     MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
     RcOverride, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
@@ -47,6 +48,8 @@ REQUESTED_MODE = {"auto": ModeName.AUTO, "hold": ModeName.HOLD, "return": ModeNa
 PREARM_ACTIONS = ("arm", "auto", "experiment")  # the requests pre-arm checks guard
 GEOFENCE_HOLD_REASON = "failsafe: geofence, holding inside the area"
 SEVERITY_ORDER = ("info", "warning", "error", "critical")
+#: request ids answered, kept to answer a resent request again without acting twice
+ANSWERS_KEPT = 256
 
 
 @dataclass(frozen=True)
@@ -119,6 +122,7 @@ class SupervisorNode(Node):
         self.mag_review: MagCalibrationResult | None = None  # a fresh fit in use, awaiting accept/reject
         self._heading_calibration_before = heading_calibration
         self._corridor: tuple[Any, Any, float] = (None, None, math.inf)
+        self._answered: OrderedDict[str, CommandAck] = OrderedDict()  # request_id -> its answer
 
     @property
     def route(self) -> Any:
@@ -127,6 +131,16 @@ class SupervisorNode(Node):
     @route.setter
     def route(self, route: Any) -> None:
         self.inputs.route = route
+
+    @property
+    def fence(self) -> Any:
+        """The boat's own navigable area (a Route whose area and obstacles count): the launch
+        config's route area; None when the config has none. Set once at start."""
+        return self.inputs.fence
+
+    @fence.setter
+    def fence(self, route: Any) -> None:
+        self.inputs.fence = route
 
     @property
     def hold_target(self) -> HoldTarget | None:
@@ -237,6 +251,7 @@ class SupervisorNode(Node):
             route = route_from_dict(msg.route)
             path = path_from_message(msg)
             self._check_path_inside(route, path)
+            self._check_path_inside(self.fence, path, "of the boat (its launch config)")
         except LotsenError as exc:
             self.counters["routes_refused"] += 1
             self._refuse("route", str(exc))
@@ -249,17 +264,28 @@ class SupervisorNode(Node):
         self._publish_route()
         self._publish_status()
 
-    def _check_path_inside(self, route: Any, path: Any) -> None:
-        """A received path must lie in the route's navigable water (the planner's promise, checked)."""
-        if route.area is None and not route.obstacles:
+    def _check_path_inside(self, route: Any, path: Any, whose: str = "of the route") -> None:
+        """A received path must lie in the route's navigable water (the planner's promise, checked)
+        and in the boat's own (`fence`), whatever area the route itself declares: a page that
+        cleared or widened the area cannot send the boat beyond the configured one."""
+        if route is None or (route.area is None and not route.obstacles):
             return
         free = route.free_region().buffer(self.config.route_fence_tolerance_m)
         step = max(1, len(path) // 2000)
         inside = contains_xy(free, path.north_m[::step], path.east_m[::step])
         if not np.all(inside):
             i = int(np.argmin(inside)) * step
-            raise LotsenError(f"route: the path leaves the navigable area at ({path.north_m[i]:.1f}, "
-                              f"{path.east_m[i]:.1f}) m")
+            d = free.distance(Point(path.north_m[i], path.east_m[i]))
+            raise LotsenError(f"route: the path leaves the navigable area {whose} at ({path.north_m[i]:.1f}, {path.east_m[i]:.1f}) m "
+                              f"({d:.1f} m outside); the boat keeps the route it held")
+
+    def return_route(self) -> Any:
+        """The route the return to the harbour is planned in: the route in use, inside the boat's
+        own area when the route brought none."""
+        r, f = self.route, self.fence
+        if r is None or f is None or r.area is not None:
+            return r
+        return replace(r, area=f.area, obstacles=tuple(r.obstacles) + tuple(f.obstacles))
 
     def set_route(self, route: Any, path: Any, route_id: str = "", node_s: tuple[float, ...] = ()) -> None:
         """Hold `route` and its planned `path` (the launch config's route, or one received)."""
@@ -316,15 +342,32 @@ class SupervisorNode(Node):
         return ""
 
     def _on_operator(self, cmd: OperatorCommand) -> None:
+        """One operator request: refused with the reason, or done; with a request_id it is answered
+        by a CommandAck (operator/ack), and a resent id is answered again without acting twice."""
+        rid = cmd.request_id
+        if rid and rid in self._answered:
+            self.ctx.publish(Topic.OPERATOR_ACK, replace(self._answered[rid], stamp_s=self.ctx.now()))
+            return
+        why = self._operator(cmd)
+        if rid:
+            ack = CommandAck(stamp_s=self.ctx.now(), request_id=rid, action=cmd.action, accepted=not why,
+                             reason=why, mode=str(self.mode.name), armed=self.armed)
+            self._answered[rid] = ack
+            while len(self._answered) > ANSWERS_KEPT:
+                self._answered.popitem(last=False)
+            self.ctx.publish(Topic.OPERATOR_ACK, ack)
+
+    def _operator(self, cmd: OperatorCommand) -> str:
+        """Carry out one request; the reason when it is refused, "" when done."""
         action = cmd.action
         if action in ("rtk_start", "rtk_stop", "logging_on", "logging_off") and action in OPERATOR_ACTIONS:
-            return  # handled by the GNSS driver / simulated receiver and the recorder
+            return ""  # handled by the GNSS driver / simulated receiver and the recorder
         why = self.why_not(action)
         prearm = self.prearm_failures(action) if action in PREARM_ACTIONS and not self.mode.human_in_control \
             else []
         if why:
             self._refuse(action, why, **({"prearm_failed": [f.id for f in prearm]} if prearm else {}))
-            return
+            return why
         t = self.ctx.now()
         by = f"requested by {cmd.source}"
         if prearm:  # accepted with failing checks: only the expert override does that
@@ -362,6 +405,7 @@ class SupervisorNode(Node):
             self.ctx.publish(Topic.MAG_CALIBRATION, replace(self.mag_review, stamp_s=t, decision=decision))
             self.mag_review = None
         self._publish_status()
+        return ""
 
     def _refuse(self, action: str, why: str, **data: Any) -> None:
         self.counters["refused_requests"] += 1
@@ -444,7 +488,7 @@ class SupervisorNode(Node):
             self.enter_hold(t, f"{reason}: no route/harbour known, holding instead")
             return
         try:
-            path = plan_return_route(self.route, s.north_m, s.east_m, s.heading_rad, self.config.planner)
+            path = plan_return_route(self.return_route(), s.north_m, s.east_m, s.heading_rad, self.config.planner)
         except LotsenError as exc:
             self.ctx.log("error", f"return to harbour cannot be planned: {exc}")
             self.alert("error", "return", f"return to harbour cannot be planned: {exc}")

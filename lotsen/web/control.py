@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import itertools
+import secrets
 from dataclasses import dataclass, field
 from typing import Any, Awaitable, Callable
 
@@ -96,6 +97,7 @@ class ControlHandler:
         self.last_upload: dict | None = None  # {"route_id", "route", "detours"} of the pilot's last upload
         self.settings = Settings(self.planner_config)  # the parameter sheet (lotsen.web.settings)
         self.broadcast = broadcast or (lambda m: None)  # a message to every page
+        self._instance = secrets.token_hex(4)  # request ids of this process never repeat an earlier one's
 
     # -- connection life cycle ---------------------------------------------------------------
     def open_session(self, address: str = "?") -> Session:
@@ -245,9 +247,12 @@ class ControlHandler:
 
     def _on_command(self, session: Session, msg: Message) -> list[dict]:
         action = msg.fields["action"]
-        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source=session.source))
-        # "requested", not "done": the supervisor decides; a refusal comes back as an Alert
-        return [{"type": "ack", "id": msg.id, "action": action}]
+        # the page's id of this press; without one, one of ours (the boat answers each id once)
+        request = msg.fields.get("request") or f"web-{self._instance}-{next(_ids)}"
+        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source=session.source,
+                                                     request_id=request))
+        # "requested", not "done": the boat's own answer comes as `confirmed` (operator/ack)
+        return [{"type": "ack", "id": msg.id, "action": action, "request": request}]
 
     def _on_manual(self, session: Session, msg: Message) -> list[dict]:
         f = msg.fields

@@ -79,7 +79,8 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "auth": {"token": Field("str", max_len=MAX_TOKEN_CHARS), "takeover": Field("bool", required=False)},
     "release": {},
     "ping": {"t": Field("number", required=False)},
-    "command": {"action": Field("enum", choices=OPERATOR_ACTIONS)},
+    # request: the page's id of this press (a resend carries the same one; the boat acts once)
+    "command": {"action": Field("enum", choices=OPERATOR_ACTIONS), "request": Field("str", required=False, max_len=40)},
     "manual": {"surge": _NUM_UNIT, "sway": _NUM_UNIT, "yaw": _NUM_UNIT},
     "plan": {"route": Field("route")},
     "route": {"route": Field("route")},

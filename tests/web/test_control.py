@@ -85,8 +85,9 @@ def test_a_viewer_may_stop_the_boat_only_when_the_config_allows_it():
     assert code(send(h, viewer, {"type": "command", "action": "estop"})) == "not_pilot"
     assert published == []
     h.viewer_may_estop = True
-    assert send(h, viewer, {"type": "command", "action": "estop"})[0] == {"type": "ack", "id": None, "action": "estop"}
-    assert [(t, m.action) for t, m in published] == [(Topic.OPERATOR, "estop")]
+    reply = send(h, viewer, {"type": "command", "action": "estop", "request": "page-7"})[0]
+    assert reply == {"type": "ack", "id": None, "action": "estop", "request": "page-7"}
+    assert [(t, m.action, m.request_id) for t, m in published] == [(Topic.OPERATOR, "estop", "page-7")]
     for action in ("auto", "reset_estop", "arm"):
         assert code(send(h, viewer, {"type": "command", "action": action})) == "not_pilot"
     assert code(send(h, viewer, {"type": "manual", "surge": 0.5, "sway": 0, "yaw": 0})) == "not_pilot"
@@ -186,8 +187,11 @@ def test_valid_pilot_messages_publish_the_bus_messages():
     published.clear()
     for action in OPERATOR_ACTIONS:
         clock.t += 0.5
-        assert send(h, s, {"type": "command", "action": action, "id": 7}) == [{"type": "ack", "id": 7, "action": action}]
+        reply, = send(h, s, {"type": "command", "action": action, "id": 7})
+        assert {k: reply[k] for k in ("type", "id", "action")} == {"type": "ack", "id": 7, "action": action}
     assert [m.action for _, m in published] == list(OPERATOR_ACTIONS)
+    ids = [m.request_id for _, m in published]  # a request id of the server's own when the page gave none
+    assert len(set(ids)) == len(ids) and all(i.startswith("web-") for i in ids)
     assert all(t == Topic.OPERATOR and isinstance(m, OperatorCommand) for t, m in published)
     published.clear()
     send(h, s, {"type": "manual", "surge": 1, "sway": -0.5, "yaw": 0.25})
