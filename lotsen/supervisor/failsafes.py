@@ -48,7 +48,7 @@ class FailsafeAction(StrEnum):
 FOLLOWING = (ModeName.AUTO, ModeName.RETURN)  # the modes that follow a path
 UNDER_WAY = FOLLOWING + (ModeName.EXPERIMENT,)  # the modes in which the boat moves by itself
 #: pre-arm checks an expert may skip (lotsen.supervisor.prearm; the ESCs are always checked)
-SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link"]
+SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link", "storage"]
 
 
 @dataclass(frozen=True)
@@ -109,6 +109,10 @@ class FailsafeConfig:
     prearm_skip: tuple[SkippablePrearmCheck, ...] = ()
     # expert override: failed checks that can be overridden are logged and alerted, not refused
     prearm_override: bool = False
+    # storage: the recorder's disk (its RecorderStatus) with less free space than this, a write
+    # failure, or a recorder silent for storage_silent_s: an alert, and a failed pre-arm check
+    storage_min_free_mb: float = field(default=50.0, metadata=_r(0.0, 1e6))
+    storage_silent_s: float = field(default=5.0, metadata=_r(1.0, 600.0))
     # RC receiver: no rc/override for this long counts as a lost RC link (the driver itself
     # reports a lost link after its lost_after_s); while the RC has control: neutral
     rc_timeout_s: float = field(default=0.3, metadata=_r(0.1, 0.4))
@@ -172,6 +176,9 @@ class Monitor:
     name = "monitor"
     severity = "warning"
     acts_while_active = False
+    # the alert is raised again when the reason changes while the failsafe is active: the storage
+    # check's "low on space" that becomes "the write failed" (not for reasons that count seconds)
+    realert_on_change = False
 
     def __init__(self, persist_s: float, clear_s: float, actions: dict[ModeName, FailsafeAction]) -> None:
         self.condition = PersistentCondition(persist_s, clear_s)
@@ -527,6 +534,40 @@ class ControllerMonitor(Monitor):
         return False, ""  # event-driven: `observe`
 
 
+def storage_problem(inputs: "SupervisorInputs", t: float, cfg: FailsafeConfig) -> str:
+    """What is wrong with the recorder's disk, in the operator's words ("" = nothing, or no
+    recorder in this run): a write failure and what was kept, too little free space, silence."""
+    r = inputs.recorder
+    if r is None:
+        return ""
+    if r.error:
+        return f"{r.error}; recording stopped, kept {r.kept}"
+    age = t - inputs.recorder_arrival_s
+    if age > cfg.storage_silent_s:
+        return f"no word from the recorder for {age:.0f} s (logs in {r.directory})"
+    if 0 <= r.free_bytes < cfg.storage_min_free_mb * 1e6:
+        return (f"the log disk ({r.directory}) has {r.free_bytes / 1e6:.1f} MB free, below the "
+                f"{cfg.storage_min_free_mb:g} MB a run needs (storage_min_free_mb)")
+    return ""
+
+
+class StorageMonitor(Monitor):
+    """The log disk full, failing or silent (`storage_problem`): reported only (an alert on every
+    page and in the log); the boat goes on as it was, and the pre-arm check refuses the next arm."""
+
+    name = "storage"
+    severity = "error"
+    realert_on_change = True
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        super().__init__(0.0, 3.0, {})
+        self.cfg = cfg
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        why = storage_problem(inputs, t, self.cfg)
+        return bool(why), why
+
+
 def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> list[Monitor]:
     """The failsafe table of docs/failsafes.md that is checked every tick, in order (dead
     reckoning after the monitors it follows up on). The controller monitor is separate: it
@@ -545,6 +586,7 @@ def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMI
         BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s,
                        _in((ModeName.AUTO, ModeName.HOLD, ModeName.EXPERIMENT), FailsafeAction.RETURN), "warning"),
         GeofenceMonitor(cfg),
+        StorageMonitor(cfg),
     ]
 
 

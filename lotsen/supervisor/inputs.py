@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from lotsen.messages import ActuatorState, BatteryStatus, GnssFix, LinkStatus, ManualCommand, RcOverride, \
-    ThrustCommand, VesselState
+    RecorderStatus, ThrustCommand, VesselState
 from lotsen.model.angles import all_finite
 
 
@@ -43,6 +43,8 @@ class SupervisorInputs:
     # the boat's own navigable area: the launch config's route area (None: not configured). No
     # route received from the page may leave it, and the geofence acts on it with or without a route
     fence: Any = None
+    recorder: RecorderStatus | None = None  # the recorder's disk (lotsen run's recorder process)
+    recorder_arrival_s: float = -math.inf
 
     def fence_regions(self) -> tuple[Any, ...]:
         """The routes whose free water the boat must stay in: the route in use and the fence."""

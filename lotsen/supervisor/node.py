@@ -25,7 +25,7 @@ from lotsen.errors import LotsenError
 from lotsen.messages import (
     OPERATOR_ACTIONS, ActuatorState, CommandAck, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
     MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
-    RcOverride, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
+    RcOverride, RecorderStatus, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, all_finite
 from lotsen.planning import PlannerConfig, plan_return_route
@@ -34,7 +34,7 @@ from lotsen.planning.io import route_from_dict, route_to_dict
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.supervisor.failsafes import (
     ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ThrusterMonitor,
-    monitor, standard_monitors,
+    monitor, standard_monitors, storage_problem,
 )
 from lotsen.supervisor.inputs import SupervisorInputs, finite_state as _finite_state
 from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
@@ -161,6 +161,7 @@ class SupervisorNode(Node):
         ctx.subscribe(Topic.IMU_MAG, self._on_mag)
         ctx.subscribe(Topic.RPM, self._on_rpm)
         ctx.subscribe(Topic.ACTUATORS, self._on_actuators)
+        ctx.subscribe(Topic.RECORDER, self._on_recorder)
         health_topic = getattr(Topic, "ESTIMATOR_HEALTH", None)
         if health_topic is not None:
             ctx.subscribe(health_topic, self._on_health)
@@ -231,6 +232,9 @@ class SupervisorNode(Node):
 
     def _on_actuators(self, msg: ActuatorState) -> None:
         self.inputs.actuators = msg
+
+    def _on_recorder(self, msg: RecorderStatus) -> None:
+        self.inputs.recorder, self.inputs.recorder_arrival_s = msg, self.ctx.now()
 
     def _on_health(self, msg: Any) -> None:
         self.inputs.health = msg
@@ -423,7 +427,7 @@ class SupervisorNode(Node):
                             heading_usable=self._heading_ok(), health=i.health, fix=i.fix,
                             heading_calibration=self.heading_calibration, battery=i.battery, route=self.route,
                             path=self.path, corridor_m=corridor, link=i.link, link_age_s=t - i.link_arrival_s,
-                            rc=i.rc)
+                            rc=i.rc, storage=storage_problem(i, t, self.config.failsafes))
 
     def prearm_failures(self, action: str) -> list[FailedCheck]:
         """The failed pre-arm checks of `action` (arm, auto); prearm_skip as in prearm.prearm_failures."""
@@ -546,8 +550,13 @@ class SupervisorNode(Node):
         return mode.update(self, t)
 
     # ------------------------------------------------------------------ failsafes
-    def _flag(self, mon_name: str, on: bool, reason: str, severity: str) -> bool:
+    def _flag(self, mon_name: str, on: bool, reason: str, severity: str, realert: bool = False) -> bool:
+        before = self.failsafes.active.get(mon_name)
         became_on, became_off = self.failsafes.set(mon_name, on, reason)
+        # what is wrong changed in kind (its first words; not a figure that counts down)
+        if realert and on and not became_on and before is not None and before[:16] != reason[:16]:
+            self.ctx.log("warning", f"failsafe {mon_name}: {reason}", failsafe=mon_name)
+            self.alert(severity, f"failsafe:{mon_name}", f"{mon_name}: {reason}")
         if became_on:
             self.failsafe_history.append(f"{mon_name}: {reason} at {self.ctx.now():.2f} s")
             self.ctx.log("warning", f"failsafe {mon_name}: {reason}", failsafe=mon_name)
@@ -570,7 +579,8 @@ class SupervisorNode(Node):
     def _check_failsafes(self, t: float) -> None:
         for mon in self.monitors:
             active = mon.update(self.inputs, t)
-            if self._flag(mon.name, active, mon.reason, mon.severity) or (active and mon.acts_while_active):
+            if self._flag(mon.name, active, mon.reason, mon.severity, mon.realert_on_change) or \
+                    (active and mon.acts_while_active):
                 self._act(t, mon, mon.action_for(self.mode))
 
     def _act(self, t: float, mon: Monitor, action: FailsafeAction) -> None:
