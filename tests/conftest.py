@@ -1,7 +1,13 @@
 import dataclasses
 import math
+import os
+import tempfile
 
 import pytest
+
+# the boat's pilot credential (lotsen.web.pairing) of every run a test starts goes here, never
+# into the user's ~/.config/lotsen (inherited by the `lotsen run` processes the tests start)
+os.environ.setdefault("LOTSEN_CONFIG_DIR", tempfile.mkdtemp(prefix="lotsen-test-config-"))
 
 
 def _same(a, b) -> bool:
