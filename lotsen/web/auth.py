@@ -186,6 +186,10 @@ class PilotSeat:
         current = self._credential()
         return bool(current) and token_matches(token, current)
 
+    def current_token(self) -> str:
+        """The credential in force (for the pilot's pairing QR code only)."""
+        return self._credential()
+
     def holder_revoked(self) -> bool:
         """The seat is held with a credential that has since been replaced (`lotsen pair --new`)."""
         return self.holder is not None and not self.token_ok(self._holder_token)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import itertools
+import re
 import secrets
 from dataclasses import dataclass, field
 from typing import Any, Awaitable, Callable
@@ -286,6 +287,17 @@ class ControlHandler:
     async def _on_import(self, session: Session, msg: Message) -> list[dict]:
         route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"], self.origin)
         return [{"type": "import_result", "id": msg.id, "route": route}]
+
+    def _on_pair_qr(self, session: Session, msg: Message) -> list[dict]:
+        """The QR code of the pairing address on the page's own origin (the pilot shows it to pair
+        another phone; it carries the credential the pilot already holds)."""
+        origin = msg.fields["origin"]
+        if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]{1,180}", origin):
+            raise LotsenError(f"pair_qr: origin {origin[:60]!r} is not scheme://host[:port]")
+        from lotsen.web.pairing import pairing_url, qr_svg
+
+        url = pairing_url(origin, self.seat.current_token())
+        return [{"type": "pair_qr", "id": msg.id, "url": url, "svg": qr_svg(url)}]
 
     def _on_tiles_preload(self, session: Session, msg: Message) -> list[dict]:
         """Starts the download in the background (progress as `tiles_progress` to every page)."""
