@@ -693,7 +693,7 @@ async function plan() {
   } else {
     route.errors = res.errors || [{ kind: "route", message: res.error || "planning failed" }];
     map.draftPath = null; map.draftDetours = [];
-    setPlanStatus(route.errors.map(e => e.message).join("\n"), "bad");
+    setPlanStatus(route.errors.map(e => e.message).join("\n") + longLegs(route).map(l => `\ncheck: ${longLegText(l)}`).join(""), "bad");
   }
   map.invalidate(); renderTable(); updateButtons();
 }
@@ -782,9 +782,15 @@ function fieldError(inp, text, restore) {
     (inp.closest("label") || inp).insertAdjacentElement("afterend", box);
     inp.dataset.errId = box.id;
   }
-  box.innerHTML = `<span>${esc(text)}</span>` + (restore !== undefined ? `<button type="button" class="restore">Restore ${esc(String(restore))}</button>` : "");
+  const html = `<span>${esc(text)}</span>` + (restore !== undefined ? `<button type="button" class="restore">Restore ${esc(String(restore))}</button>` : "");
+  if (box.innerHTML !== html) box.innerHTML = html;
   const btn = box.querySelector("button.restore");
-  if (btn) btn.onclick = () => { inp.value = String(restore); fieldError(inp, ""); };
+  if (btn) {
+    const back = () => { inp.value = String(restore); fieldError(inp, ""); };
+    // on the finger's touch, before the field loses the focus (its change event would refuse again)
+    btn.onpointerdown = (ev) => { ev.preventDefault(); back(); };
+    btn.onclick = back;
+  }
   inp.setAttribute("aria-invalid", "true"); inp.setAttribute("aria-describedby", box.id);
 }
 state.fieldError = fieldError;
