@@ -138,18 +138,18 @@ class _Session:
         self._writer = Writer(self._file, chunk_size=config.chunk_size, compression=comp[config.compression])
         from lotsen import __version__
 
-        self._writer.start(profile=PROFILE, library=f"lotsen {__version__}")
-        self._writer.add_metadata("lotsen", {"log_format_version": LOG_FORMAT_VERSION, "lotsen_version": __version__,
-                                             "start_epoch_ns": str(epoch0_ns), **metadata})
         self._channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
         self._last_t_s = math.nan
         self._views = foxglove_views.ViewMaker(config.geo_origin) if (
             config.foxglove_views and foxglove_views.available()) else None
-        try:
+        try:  # the header: a full disk already fails here; the run goes on, the failure is reported
+            self._writer.start(profile=PROFILE, library=f"lotsen {__version__}")
+            self._writer.add_metadata("lotsen", {"log_format_version": LOG_FORMAT_VERSION, "lotsen_version": __version__,
+                                                 "start_epoch_ns": str(epoch0_ns), **metadata})
             self._writer.flush()
             self.stats.bytes = self.stats.kept_bytes = self._file.tell()
-        except OSError as exc:  # a full disk already: the run goes on, the failure is reported
+        except OSError as exc:
             self._fail("starting", exc)
         self._thread = threading.Thread(target=self._run, name=f"mcap-writer-{path.name}", daemon=True)
         self._thread.start()
@@ -356,6 +356,7 @@ class McapRecorder:
         self._epoch0_ns = int(epoch_at_clock_zero * 1e9)
         self._metadata = dict(metadata or {})
         self._session: _Session | None = None
+        self.start_error = ""  # the last start() that could not even create its file
         self._lock = threading.Lock()
         self._unsubscribe: Callable[[], None] | None = None
         self._topics = frozenset(config.topics) if config.topics is not None else None
@@ -415,11 +416,14 @@ class McapRecorder:
         except OSError:
             pass
         failed = last.failed if last is not None else ""
+        if s is None and self.start_error:
+            failed = self.start_error
         return RecorderStatus(stamp_s=now_s, directory=str(Path(self.config.directory).resolve()),
                               free_bytes=free, total_bytes=total, recording=s is not None and not failed,
                               file=s.path.name if s is not None else "",
                               written_bytes=s.stats.bytes if s is not None else 0,
-                              error=failed, kept=last.kept() if failed else "")
+                              error=failed, kept=last.kept() if failed and last is not None else
+                              ("nothing (no file could be made)" if failed else ""))
 
     def start(self, path: str | os.PathLike | None = None) -> Path:
         """Open a new file (named by date and run unless `path`) and record into it. A directory
@@ -431,7 +435,12 @@ class McapRecorder:
                 p = Path(path) if path is not None else next_log_path(self.config.directory)
             except OSError as exc:  # an unreadable directory
                 raise ConfigError(f"logging.directory {self.config.directory!r}: {exc.strerror or exc}") from None
-            self._session = _Session(p, self.config, self._epoch0_ns, self._metadata)
+            try:
+                self._session = _Session(p, self.config, self._epoch0_ns, self._metadata)
+            except ConfigError as exc:
+                self.start_error = str(exc)
+                raise
+            self.start_error = ""
             return p
 
     def stop(self) -> RecorderStats | None:

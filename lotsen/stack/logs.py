@@ -123,8 +123,11 @@ def add_recorder(stack: Any, config: RecorderConfig | None = None, start: bool |
     stack.services["recorder"] = rec
     stack.services.setdefault("on_shutdown", []).append(rec.close)
     if stack.config.logging.enabled if start is None else start:
-        path = rec.start()
-        stack.services.setdefault("banner", []).append(f"logging: recording to {path}")
+        try:
+            path = rec.start()
+            stack.services.setdefault("banner", []).append(f"logging: recording to {path}")
+        except LotsenError as exc:  # a full or read-only disk: the run goes on, the status says why
+            stack.services.setdefault("banner", []).append(f"logging: cannot record: {exc}")
     else:
         stack.services.setdefault("banner", []).append("logging: off (operator action logging_on starts a file)")
     return rec
