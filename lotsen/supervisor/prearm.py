@@ -32,7 +32,7 @@ CHECK_IDS: tuple[str, ...] = ("escs", "battery", "storage", "position", "gnss", 
 SKIPPABLE: tuple[str, ...] = typing.get_args(SkippablePrearmCheck)
 #: the checks each request runs
 CHECKS_FOR: dict[str, tuple[str, ...]] = {"arm": ("battery", "storage"), "auto": CHECK_IDS,
-                                          "experiment": ("escs", "battery", "position", "gnss", "heading")}
+                                          "experiment": ("escs", "battery", "storage", "position", "gnss", "heading")}
 
 
 @dataclass(frozen=True)

@@ -115,6 +115,16 @@ def test_manual_is_one_tap_from_the_first_screen_with_the_pad_speed_and_heading(
         on_screen(page, sel)
         assert hit(page, sel), sel
     assert page.inner_text("#dh-mode") == "MANUAL"
+    # the mode's confirmation is never covered: the request line is a line of its own, and a toast
+    # sits under the top bar, clear of the mode and armed badges
+    page.evaluate("() => { const t = document.querySelector('#toast'); t.textContent = 'a toast'; t.className = 'show'; }")
+    t = page.locator("#toast").bounding_box()
+    for badge in ("#mode", "#armed"):
+        b = page.locator(badge).bounding_box()
+        apart = (t["y"] >= b["y"] + b["height"] - 0.5 or t["y"] + t["height"] <= b["y"] + 0.5
+                 or t["x"] >= b["x"] + b["width"] - 0.5 or t["x"] + t["width"] <= b["x"] + 0.5)
+        assert apart, (badge, t, b)
+    page.evaluate("() => { document.querySelector('#toast').className = ''; }")
     assert page.inner_text("#dh-speed").endswith("m/s") and page.inner_text("#dh-heading").endswith("°")
     on_screen(page, "#estop")
     shot(page, "drive")

@@ -79,7 +79,9 @@ def test_pilot_controls_reach_the_bus_and_link_status_is_published(running):
         ws.send(json.dumps({"type": "auth", "token": TOKEN, "id": 1}))
         assert recv_until(ws, lambda m: m.get("id") == 1)["type"] == "auth_ok"
         ws.send(json.dumps({"type": "command", "action": "hold", "id": 2}))
-        assert recv_until(ws, lambda m: m.get("id") == 2) == {"type": "ack", "id": 2, "action": "hold"}
+        ack = recv_until(ws, lambda m: m.get("id") == 2)
+        assert {k: ack[k] for k in ("type", "id", "action")} == {"type": "ack", "id": 2, "action": "hold"}
+        assert ack["request"].startswith("web-")  # the id the boat will answer (none given by this client)
         ws.send(json.dumps({"type": "manual", "surge": 0.4, "sway": 0.0, "yaw": -0.1}))
         wait_for(lambda: any(m.surge == 0.4 for m in running.messages(Topic.MANUAL)))
         wait_for(lambda: any(isinstance(m, LinkStatus) and m.pilot_connected for m in running.messages(Topic.LINK)))
