@@ -27,7 +27,7 @@ from lotsen.messages import (
     MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
     RcOverride, RecorderStatus, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
-from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, all_finite
+from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel
 from lotsen.planning import PlannerConfig, plan_return_route
 from lotsen.planning.exchange import path_from_message
 from lotsen.planning.io import route_from_dict, route_to_dict
