@@ -9,7 +9,6 @@ loop's interpreter).
 from __future__ import annotations
 
 import argparse
-import secrets
 import signal
 import threading
 from dataclasses import replace
@@ -54,9 +53,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[StackConfig, bool]:
-    """The config with the command line's overrides; a generated pilot token for this run (the
-    same for every process and every restart of the web process). Returns (config, generated).
+def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[StackConfig, list[str]]:
+    """The config with the command line's overrides and, unless web.pilot_token is set, the boat's
+    pilot credential (lotsen.web.pairing: made once, kept on the boat, the same for every run and
+    every restart). Returns (config, pairing): pairing is ["new" | "kept", credential file] when
+    the boat's credential is used, else [].
     With `lock`: the boat is locked for this run (`RunRefused` when another run has it) before
     the config is validated, so a second run is refused before anything else happens."""
     config = load_stack_config(args.config)  # every section typed and checked (lotsen.stack.config)
@@ -65,9 +66,6 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     web = config.web
     if args.host is not None or args.port is not None:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
-    generated = not web.pilot_token
-    if generated:
-        web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
     config = with_mavlink(config, getattr(args, "mavlink", None))
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
@@ -75,9 +73,11 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
         lock.identities = run_identities(config)
         lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
     from lotsen.stack.processes import validate
+    from lotsen.stack.web import paired_config
 
+    config, pairing = paired_config(config)
     validate(config, tls=bool(getattr(args, "tls", False)))
-    return config, generated
+    return config, pairing
 
 
 def with_mavlink(config: StackConfig, urls: list[str] | None) -> StackConfig:
@@ -115,15 +115,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, lock: RunLock) -> int:
-    config, generated = launch_config(args, lock)
+    config, pairing = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
     from lotsen.stack.stack import simulated_boat, vessel_model
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
-    if generated and config.web.enabled:
-        print(f"pilot token (this run only; set web.pilot_token to fix it): {config.web.pilot_token}", flush=True)
+    if pairing:
+        from lotsen.web.pairing import console_lines, page_base_url
+
+        base = page_base_url(config.web.host, config.web.port, bool(args.tls))
+        for line in console_lines(config.web.pilot_token, Path(pairing[1]), base, pairing[0] == "new"):
+            print(line, flush=True)
     if args.one_process:
         return _run_one_process(config, args, lock)
     roles = ("core", "recorder") + (("web",) if config.web.enabled else ()) + \

@@ -79,7 +79,8 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "auth": {"token": Field("str", max_len=MAX_TOKEN_CHARS), "takeover": Field("bool", required=False)},
     "release": {},
     "ping": {"t": Field("number", required=False)},
-    "command": {"action": Field("enum", choices=OPERATOR_ACTIONS)},
+    # request: the page's id of this press (a resend carries the same one; the boat acts once)
+    "command": {"action": Field("enum", choices=OPERATOR_ACTIONS), "request": Field("str", required=False, max_len=40)},
     "manual": {"surge": _NUM_UNIT, "sway": _NUM_UNIT, "yaw": _NUM_UNIT},
     "plan": {"route": Field("route")},
     "route": {"route": Field("route")},
@@ -90,11 +91,13 @@ SCHEMAS: dict[str, dict[str, Field]] = {
                       "zoom_min": Field("int", lo=0, hi=22), "zoom_max": Field("int", lo=0, hi=22)},
     "tiles_cancel": {},
     "params": {"name": Field("enum", choices=EDITABLE_NAMES), "value": Field("number", lo=-1e6, hi=1e6)},
+    # the pairing QR code for another phone: the page's own origin (scheme://host:port)
+    "pair_qr": {"origin": Field("str", max_len=200)},
 }
 
 #: everything that plans, commands or downloads on the boat's behalf needs the pilot seat
 PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel",
-                        "params"})
+                        "params", "pair_qr"})
 #: what a viewer may send (docs/web.md, "Access rules")
 VIEWER_ALLOWED = frozenset(SCHEMAS) - PILOT_ONLY
 
