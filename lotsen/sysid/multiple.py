@@ -66,17 +66,18 @@ CONTINUITY_TOL = 1e-3
 X_SCALE = np.array([0.01, 0.01, 0.01, 0.01, 0.01, 0.003])
 # the lake model (`lake=True`): the gust factor's scale, and the environment's start, scale and prior
 GUST_SCALE = 0.05
-ENV_START = np.array([0.0, 0.0, 0.0, 0.0, *wind_drag_coefficients()])
-ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *wind_drag_coefficients()])
+_K_WIND = np.array([*wind_drag_coefficients(), 0.1 * wind_drag_coefficients()[1]])  # k_Nv: a 0.1 m arm
+ENV_START = np.array([0.0, 0.0, 0.0, 0.0, *_K_WIND[:3], 0.0])
+ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *_K_WIND])
 # priors that keep the problem regular in calm air (no wind: the drag coefficients are undetermined)
 # and break the near-degeneracy of drag coefficient and wind speed (k W^2): coefficients within
 # `wind_coefficient_spread` (relative) of the nominal hull's (WindCoefficients: areas measured on the
 # hull, C_X, C_Y, C_N from the literature), wind and current within 10 and 1 m/s. Measured on a lake
 # record (docs/sysid.md): with a 30 % or 5 % spread the estimate falls into a wrong basin (wind too
 # weak, drag too high, Y_v/Y_vv/N_v absorbing the difference); with 1 % it finds the truth's basin.
-ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *wind_drag_coefficients()])  # x wind_coefficient_spread
-ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0])
-ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0])
+ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *_K_WIND])  # the coefficients' x wind_coefficient_spread
+ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0, -1.0])
+ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0, 1.0])
 # The yaw-rate output's constant offset, one per record (`gyro_bias=True`): r_measured = r + b. A gyro
 # bias calibrated "at rest" is wrong by the yaw rate the boat had then (on a lake the wind turns a
 # drifting boat: 0.02-0.06 rad/s on the lake records, 7-20 x the gyro noise), and the stack's records
@@ -1023,7 +1024,7 @@ def average_over_model_choice(first: IdentificationResult, second: Identificatio
     d = np.array([getattr(second.params, n) for n in names]) - v1
     mean = v1 + d / 2.0
     cov = (np.asarray(first.covariance, float) + np.asarray(second.covariance, float)) / 2.0 + np.outer(d, d) / 4.0
-    std = {n: float(math.sqrt(cov[i, i])) for i, n in enumerate(names)}
+    std = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
     shift = {n: float(d[i] / first.std[n]) if first.std[n] > 0 else math.inf for i, n in enumerate(names)}
     details = replace(first.details, gust_interval_shift=shift) if first.details is not None else None
     params = first.params.with_updates(**{n: float(v) for n, v in zip(names, mean)})

@@ -35,11 +35,11 @@ NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
 # The lake model (lotsen.sysid.multiple, `lake=True`): the state gets two entries per shooting interval,
 # the gust factors g (along the mean wind) and h (across it; dg/dt = dh/dt = 0), and theta 7
 # environment entries: the earth-frame current (c_N, c_E), the earth-frame velocity of the air
-# w = (w_N, w_E) and the wind drag coefficients (k_X, k_Y, k_N) of
+# w = (w_N, w_E) and the wind drag coefficients (k_X, k_Y, k_N, k_Nv) of
 # lotsen.model.environment.apparent_wind_force. In the interval the air moves with g w + h (-w_E, w_N):
 # gusts change the wind's speed (g) and turn it (h ~ the turn in radians; a 10 deg wander swings the
 # cross-wind by 17 % of the speed, as much as the gusts change it).
-ENV_NAMES = ("current_n", "current_e", "wind_n", "wind_e", "k_wind_x", "k_wind_y", "k_wind_n")
+ENV_NAMES = ("current_n", "current_e", "wind_n", "wind_e", "k_wind_x", "k_wind_y", "k_wind_n", "k_wind_nv")
 NX_LAKE = 8
 NTHETA_LAKE = NTHETA + len(ENV_NAMES)
 
@@ -73,7 +73,7 @@ def _build_step_functions(geom: tuple[float, ...], jit: bool, lake: bool = False
             return ca.vertcat(*f(xl, ul, thl, geom))
         g, c = xl[6], xl[7]
         tau = apparent_wind_force(xl[2], xl[3], xl[4], g * thl[20] - c * thl[21], g * thl[21] + c * thl[20],
-                                  thl[22], thl[23], thl[24], ca.cos, ca.sin, ca.sqrt)
+                                  thl[22], thl[23], thl[24], thl[25], ca.cos, ca.sin, ca.sqrt)
         return ca.vertcat(*f(xl[:6], ul, thl[:NTHETA], geom, (thl[18], thl[19]), tau), 0, 0)
 
     k1 = rhs(x, 0)
