@@ -15,6 +15,7 @@ import threading
 from dataclasses import replace
 from pathlib import Path
 
+from lotsen.errors import ConfigError
 from lotsen.runtime.config import BoatSection
 from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.config import StackConfig, load_stack_config
@@ -44,6 +45,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "it, over the config's sim.boat), or 'ideal' for a boat equal to the model in use")
     p.add_argument("--params", metavar="PARAMS.json",
                    help="the model the estimator and the controllers use (over the config's vessel.parameters_file)")
+    p.add_argument("--physics", metavar="udp:HOST:PORT",
+                   help="an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
+                        "docs/physics.md; over the config's extra.physics.address)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
     p.set_defaults(func=run)
 
@@ -64,6 +68,7 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
         web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
+    config = with_physics(config, getattr(args, "physics", None))
     if lock is not None:
         lock.identities = run_identities(config)
         lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
@@ -86,6 +91,18 @@ def with_model_and_boat(config: StackConfig, params: str | None, boat: str | Non
     return config
 
 
+def with_physics(config: StackConfig, address: str | None) -> StackConfig:
+    """`--physics udp:HOST:PORT`: the external physics instead of the simulated boat (its
+    `extra.physics` channel map and timeouts from the config). Only in simulation."""
+    if address:
+        physics = config.extra.physics
+        config = replace(config, extra=replace(config.extra, physics=replace(physics, address=address)))
+    if config.extra.physics.address and config.mode != "sim":
+        raise ConfigError(f"extra.physics.address {config.extra.physics.address}: an external physics replaces the "
+                          "simulated boat; it cannot fly with --hardware")
+    return config
+
+
 def run(args: argparse.Namespace) -> int:
     lock = RunLock([])  # one run per boat: held until this command ends (the kernel frees it if killed)
     try:
@@ -98,7 +115,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     config, generated = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
-    from lotsen.stack.stack import simulated_boat, vessel_model
+    from lotsen.stack.stack import boat_description
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
@@ -115,7 +132,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
     if config.mode == "sim":
-        print(f"simulated boat: {simulated_boat(config).describe(vessel_model(config).params)}; model: "
+        print(f"simulated boat: {boat_description(config)}; model: "
               f"{config.vessel.parameters_file or 'default coefficients'}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:

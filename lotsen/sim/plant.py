@@ -79,6 +79,10 @@ class Plant(ABC):
     limits: ActuatorLimits = DEFAULT_LIMITS
     gnss_antenna_m: tuple[float, float] = (0.0, 0.0)
     actuators: ActuatorDynamics
+    # what an implementation keeps up to date as it steps (read through the properties below)
+    _x: tuple[float, ...] = (0.0,) * 6
+    _x_dot: tuple[float, ...] = (0.0,) * 6
+    _step_input: tuple[float, ...] = (0.0,) * 5
 
     @abstractmethod
     def command(self, u: Sequence[float]) -> None:
@@ -89,18 +93,18 @@ class Plant(ABC):
         """Advance `dt_s`; return the sample at the step's start (None: no fresh state)."""
 
     @property
-    @abstractmethod
     def x(self) -> tuple[float, ...]:
         """The planar state now [N, E, psi, u, v, r]."""
+        return self._x
 
     @property
     def x_dot(self) -> tuple[float, ...]:
-        return (0.0,) * 6
+        return self._x_dot
 
     @property
     def step_input(self) -> tuple[float, ...]:
         """The achieved actuators' mean over the last step (what drove the boat during it)."""
-        return tuple(self.actuators.state)
+        return self._step_input
 
     @property
     def fresh(self) -> bool:
@@ -266,18 +270,6 @@ class BoatPlant(Plant):
                                  boat.thrust_dead_band_rps])
 
     # -- the Plant interface -------------------------------------------------------------------
-    @property
-    def x(self) -> tuple[float, ...]:
-        return self._x
-
-    @property
-    def x_dot(self) -> tuple[float, ...]:
-        return self._x_dot
-
-    @property
-    def step_input(self) -> tuple[float, ...]:
-        return self._step_input
-
     @property
     def environment(self) -> Environment:
         return self._environment

@@ -3,6 +3,10 @@ publishes what the real drivers would: imu/data_raw, imu/mag, gps_chatter, rpm_c
 the achieved actuator values (actuators/state, with the ESCs' arming state), plus the ground
 truth (sim/truth).
 
+Behind an external physics (`lotsen.physics`) the node is the same: while the physics gives no
+fresh state, the simulator measures nothing and the node publishes no truth and no actuator state
+either, so every consumer sees the boat's data go stale, as when a real sensor bus stops.
+
 One time base: every message is stamped on the runtime's clock, as the drivers stamp theirs.
 The simulator keeps its own time from 0; the node maps it onto the clock (offset fixed at the
 first tick) and, at wall-clock pace, steps as many simulator steps as the clock has advanced, so
@@ -47,6 +51,7 @@ class SimulatedBoatNode(Node):
         self.esc_fault = False
         self._escs_armed_at: float | None = None
         self.offset_s: float | None = None  # runtime clock - simulator time
+        self._stale_logged = False
         self.skipped_s = 0.0
 
     def start(self, ctx: NodeContext) -> None:
@@ -104,6 +109,15 @@ class SimulatedBoatNode(Node):
             msg.stamp_s += off
             publish(_TOPIC_OF[type(msg)], msg)
         self._steps += 1
+        if not self.sim.fresh:  # an external physics without a fresh state: nothing is measured, not even the truth
+            if not self._stale_logged:
+                self._stale_logged = True
+                self.ctx.log("error", "the physics does not answer: the boat's sensors are stale",
+                             **self.sim.plant.status())
+            return
+        if self._stale_logged:
+            self._stale_logged = False
+            self.ctx.log("warning", "the physics answers again", **self.sim.plant.status())
         if self._steps % self._truth_every == 0:
             truth = self.sim.truth()
             truth.stamp_s += off
