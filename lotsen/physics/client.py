@@ -19,7 +19,7 @@ rigidly onto the requested start pose (position and heading; reported in `status
 Failures. A frame that gets no reply within `timeout_s` (on simulated time; `realtime_timeout_s`
 at wall-clock pace, where the wait holds up the control loop) is counted (`timeouts`) and sent
 again with the same frame count at the next step (a physics answers a repeated count without
-stepping twice); until a reply comes, frames wait at most 5 ms. While no fresh state has come,
+stepping twice); at wall-clock pace, until a reply comes, frames wait at most 5 ms. While no fresh state has come,
 `step()` returns None: the simulator measures nothing, the sensors go stale and the failsafes act.
 After `lost_after_s` without a reply the physics is `lost`: lotsen no longer waits for it (it only
 polls, so a lost physics never stalls the loop) and resumes when a reply comes (`recoveries`). A reply that is not a valid state line is counted
@@ -78,6 +78,9 @@ class UdpPhysics(Plant):
         # how long a frame waits for its reply: on simulated time as long as a slow physics needs,
         # at wall-clock pace no longer than the control loop can give
         self.wait_s = config.realtime_timeout_s if realtime else config.timeout_s
+        # at wall-clock pace, once a frame went unanswered the next ones hardly wait (a dead physics
+        # must not hold the loop up frame after frame); on simulated time waiting costs no run time
+        self.wait_unanswered_s = min(self.wait_s, 0.005) if realtime else self.wait_s
         self.place_wait_s = place_wait_s
         self._clock = clock
         self._sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_DGRAM)
@@ -229,9 +232,8 @@ class UdpPhysics(Plant):
             self._count = (self._count + 1) & 0xFFFFFFFF
         self.counters["frames"] += 1
         self._send(encode_servo(ServoPacket(self.frame_rate_hz, self._count, self._pwm)))
-        # once a frame went unanswered, the next ones hardly wait (a dead physics must not hold the
-        # loop up frame after frame) until a reply comes; a lost one is only polled
-        state = self._receive(0.0 if self.lost else self.wait_s if self._answered else min(self.wait_s, 0.005))
+        # a lost physics is only polled
+        state = self._receive(0.0 if self.lost else self.wait_s if self._answered else self.wait_unanswered_s)
         self._answered = state is not None
         now = self._clock()
         if state is None:
@@ -274,7 +276,8 @@ class UdpPhysics(Plant):
         r = state.gyro_radps[2]
         dt = state.timestamp_s - t_prev
         r_dot = (r - r_prev) / dt if math.isfinite(dt) and dt > 0 else 0.0
-        self._x, self._x_dot = planar_state(n, e, psi, (vn, ve), r, state.accel_body_mps2[:2], r_dot)
+        roll, pitch = state.attitude_rad[0], state.attitude_rad[1]
+        self._x, self._x_dot = planar_state(n, e, psi, (vn, ve), r, state.accel_body_mps2[:2], roll, pitch, r_dot)
         if state.actuators is not None:
             self.actuators.state = tuple(state.actuators)
 

@@ -13,7 +13,8 @@ GNSS, tachometers, battery), which make the sensor messages from what the plant 
 A plant is stepped by its caller, `dt_s` at a time. `step()` returns what the sensors sample at the
 step's *start*: `PlantSample(x, x_dot, actuators)` with the planar state x = [N, E, psi, u, v, r],
 its rate x_dot (x_dot[0:2] the velocity over ground in NED, x_dot[3:5] such that the accelerometer
-reads x_dot[3] - v r and x_dot[4] + u r: `planar_state` builds both from what a 6-DOF physics reports),
+reads x_dot[3] - v r and x_dot[4] + u r, the level boat's acceleration: `planar_state` builds both
+from what a 6-DOF physics reports),
 and the achieved actuators (alpha1, alpha2, n1, n2, nt). None means the plant has no fresh state
 (an external physics that stopped answering): the simulator then measures nothing, the sensors go
 stale and the failsafes act.
@@ -36,6 +37,7 @@ from lotsen.model.environment import Environment, WindCoefficients, wind_force
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.sim.actuators import ActuatorDynamics
 from lotsen.sim.boat import DEFAULT_BOAT, SimulatedBoat
+from lotsen.sim.sensors import GRAVITY_MPS2
 
 #: how many independent random streams a simulator spawns from its seed (sensors 0-3, plant 4-5)
 RANDOM_STREAMS = 6
@@ -54,16 +56,21 @@ class PlantSample(NamedTuple):
 
 
 def planar_state(north: float, east: float, psi: float, velocity_ne: Sequence[float], r: float,
-                 specific_force_xy: Sequence[float], r_dot: float = 0.0) -> tuple[tuple[float, ...], tuple[float, ...]]:
+                 specific_force_xy: Sequence[float], roll: float = 0.0, pitch: float = 0.0,
+                 r_dot: float = 0.0) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """(x, x_dot) of the planar state from what a 6-DOF physics reports: position, heading, the
-    velocity over ground (NED), the body yaw rate and the accelerometer's specific force (body x,
-    y). u, v are the velocity over ground in the heading's axes; lotsen's IMU model reads the
-    accelerometer as x_dot[3] - v r and x_dot[4] + u r (`ImuModel.sample`), so x_dot[3:5] are the
-    values that make it read the reported force."""
+    velocity over ground (NED), the body yaw rate, the accelerometer's specific force (body x, y)
+    and the attitude. u, v are the velocity over ground in the heading's axes. lotsen's IMU model
+    is level: it reads the accelerometer as x_dot[3] - v r and x_dot[4] + u r (`ImuModel.sample`),
+    the boat's acceleration; gravity's share in a heeled or trimmed physics's specific force
+    (g sin(pitch) on x, -g cos(pitch) sin(roll) on y: 0.17 m/s^2 a degree) is taken out here, as
+    the level model has no tilt."""
     c, s = math.cos(psi), math.sin(psi)
     vn, ve = velocity_ne[0], velocity_ne[1]
     u, v = c * vn + s * ve, -s * vn + c * ve
-    return (north, east, psi, u, v, r), (vn, ve, r, specific_force_xy[0] + v * r, specific_force_xy[1] - u * r, r_dot)
+    ax = specific_force_xy[0] - GRAVITY_MPS2 * math.sin(pitch)
+    ay = specific_force_xy[1] + GRAVITY_MPS2 * math.cos(pitch) * math.sin(roll)
+    return (north, east, psi, u, v, r), (vn, ve, r, ax + v * r, ay - u * r, r_dot)
 
 
 class Plant(ABC):

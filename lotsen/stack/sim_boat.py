@@ -30,6 +30,8 @@ _TOPIC_OF = {ImuSample: Topic.IMU_RAW, MagSample: Topic.IMU_MAG, GnssFix: Topic.
 #: laptop) is skipped and logged. Shorter ones are replayed: the water does not wait for a late
 #: control loop, and skipping would make the measurements after it disagree with the motion
 MAX_CATCH_UP_S = 5.0
+#: an external physics silent for this many steps in a row is logged (a single late frame is not)
+STALE_LOG_STEPS = 10
 
 
 class SimulatedBoatNode(Node):
@@ -51,7 +53,7 @@ class SimulatedBoatNode(Node):
         self.esc_fault = False
         self._escs_armed_at: float | None = None
         self.offset_s: float | None = None  # runtime clock - simulator time
-        self._stale_logged = False
+        self._stale_steps = 0  # steps in a row without a fresh state (an external physics)
         self.skipped_s = 0.0
 
     def start(self, ctx: NodeContext) -> None:
@@ -110,14 +112,15 @@ class SimulatedBoatNode(Node):
             publish(_TOPIC_OF[type(msg)], msg)
         self._steps += 1
         if not self.sim.fresh:  # an external physics without a fresh state: nothing is measured, not even the truth
-            if not self._stale_logged:
-                self._stale_logged = True
+            self._stale_steps += 1
+            if self._stale_steps == STALE_LOG_STEPS:
                 self.ctx.log("error", "the physics does not answer: the boat's sensors are stale",
                              **self.sim.plant.status())
             return
-        if self._stale_logged:
-            self._stale_logged = False
-            self.ctx.log("warning", "the physics answers again", **self.sim.plant.status())
+        if self._stale_steps >= STALE_LOG_STEPS:
+            self.ctx.log("warning", f"the physics answers again after {self._stale_steps * self.sim.config.dt_s:.2f} s",
+                         **self.sim.plant.status())
+        self._stale_steps = 0
         if self._steps % self._truth_every == 0:
             truth = self.sim.truth()
             truth.stamp_s += off

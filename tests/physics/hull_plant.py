@@ -56,7 +56,7 @@ class HullPlant(Plant):
         h = self.hull
         vel, f = h.measure()
         n, e, psi, _, _, r = h.x3
-        self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2])
+        self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2], h.eta[3], h.eta[4])
         self.actuators.state = tuple(h.actuators)
 
     @property
