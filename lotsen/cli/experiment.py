@@ -47,8 +47,18 @@ def parse_area(text: str) -> tuple[float, float]:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
+    if args.physics:
+        if args.hardware:
+            raise ConfigError("--physics replaces the simulated boat; it cannot run with --hardware")
+        if args.boat:
+            raise ConfigError("--boat: with --physics the boat is the physics server's")
+        if Path(args.out).suffix != ".mcap":
+            raise ConfigError(f"--out {args.out}: with --physics the run is recorded on the stack: give RUN.mcap "
+                              "(lotsen identify reads it)")
+        args.sim = True
     if not args.sim and not args.hardware:
-        raise LotsenError("say where to run: --sim (simulated boat) or --hardware [--emulated] (the boat's drivers)")
+        raise LotsenError("say where to run: --sim (simulated boat), --physics udp:HOST:PORT (an external physics) "
+                          "or --hardware [--emulated] (the boat's drivers)")
     model = VesselModel(load_params(args.params))
     check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
                      margin_m=args.margin)
@@ -58,15 +68,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
 
-        from lotsen.cli.run import with_model_and_boat
+        from lotsen.cli.mission import check_physics_answered
+        from lotsen.cli.run import with_model_and_boat, with_physics
         from lotsen.harness.lab_loop import record_on_simulated_stack
         from lotsen.stack.config import load_stack_config
-        from lotsen.stack.stack import simulated_boat
+        from lotsen.stack.stack import boat_description
 
         config = with_model_and_boat(replace(load_stack_config(args.config), seed=args.seed), args.params, args.boat)
+        config = with_physics(replace(config, mode="sim"), args.physics)
         node = record_on_simulated_stack(exp, out, config)
-        print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {simulated_boat(config).describe(model.params)}"
+        print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {boat_description(config, model)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        if hasattr(node.plant, "silent_at_s"):  # an external physics
+            check_physics_answered(node.plant, [node.aborted] if node.aborted else [], args.out)
         return 1 if node.aborted else 0
     if args.hardware:
         from dataclasses import replace
@@ -152,6 +166,10 @@ def register(subparsers: Any) -> None:
     r.add_argument("--hardware", action="store_true",
                    help="run on the boat through its drivers (with the state estimate and the recorder)")
     r.add_argument("--emulated", action="store_true", help="with --hardware: the drivers' emulated twins")
+    r.add_argument("--physics", metavar="udp:HOST:PORT",
+                   help="run on an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
+                        "docs/physics.md; the channel map from --config's extra.physics), recorded on the stack: "
+                        "--out RUN.mcap")
     r.add_argument("--config", help="launch config YAML: for --hardware its devices and pins (extra.hardware); "
                                     "for --sim with an .mcap output its sim.boat and vessel sections")
     r.add_argument("--out", required=True,

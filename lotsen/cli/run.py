@@ -49,6 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "udpout:HOST:PORT (as ArduPilot SITL sends to 14550), udpin:HOST:PORT, tcpin:HOST:PORT, or a "
                         "serial device /dev/ttyUSB0[,57600]; repeatable; added to extra.mavlink.endpoints "
                         "(docs/mavlink.md)")
+    p.add_argument("--physics", metavar="udp:HOST:PORT",
+                   help="an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
+                        "docs/physics.md; over the config's extra.physics.address)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
     p.set_defaults(func=run)
 
@@ -69,6 +72,7 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
     config = with_mavlink(config, getattr(args, "mavlink", None))
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
+    config = with_physics(config, getattr(args, "physics", None))
     if lock is not None:
         lock.identities = run_identities(config)
         lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
@@ -106,6 +110,18 @@ def with_model_and_boat(config: StackConfig, params: str | None, boat: str | Non
     return config
 
 
+def with_physics(config: StackConfig, address: str | None) -> StackConfig:
+    """`--physics udp:HOST:PORT`: the external physics instead of the simulated boat (its
+    `extra.physics` channel map and timeouts from the config). Only in simulation."""
+    if address:
+        physics = config.extra.physics
+        config = replace(config, extra=replace(config.extra, physics=replace(physics, address=address)))
+    if config.extra.physics.address and config.mode != "sim":
+        raise ConfigError(f"extra.physics.address {config.extra.physics.address}: an external physics replaces the "
+                          "simulated boat; it cannot fly with --hardware")
+    return config
+
+
 def run(args: argparse.Namespace) -> int:
     lock = RunLock([])  # one run per boat: held until this command ends (the kernel frees it if killed)
     try:
@@ -118,7 +134,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     config, pairing = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
-    from lotsen.stack.stack import simulated_boat, vessel_model
+    from lotsen.stack.stack import boat_description
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
@@ -139,7 +155,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
     if config.mode == "sim":
-        print(f"simulated boat: {simulated_boat(config).describe(vessel_model(config).params)}; model: "
+        print(f"simulated boat: {boat_description(config)}; model: "
               f"{config.vessel.parameters_file or 'default coefficients'}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:

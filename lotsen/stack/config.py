@@ -23,6 +23,7 @@ from lotsen.drivers.config import HardwareConfig
 from lotsen.errors import ConfigError
 from lotsen.logs.recorder import RecorderConfig
 from lotsen.messages import Topic
+from lotsen.physics.config import PhysicsConfig
 from lotsen.planning import PlannerConfig
 from lotsen.planning.budget import PlanningBudget
 from lotsen.runtime.config import LaunchConfig, from_mapping, load_config
@@ -74,6 +75,7 @@ class ExtraConfig:
     ros2: Ros2BridgeConfig | None = None  # present: the ROS 2 process runs (its pilot token: the run's)
     hardware: HardwareConfig = field(default_factory=HardwareConfig)  # devices and pins (`--hardware`)
     emulated: bool = False  # with mode hardware: emulated devices speaking the real protocols
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)  # an external physics (address) instead of the own boat
 
 
 @dataclass(frozen=True)

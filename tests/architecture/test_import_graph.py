@@ -18,7 +18,7 @@ LAYERS: dict[str, int] = {
     "sim": 2, "planning": 2,
     "fusion": 3, "control": 3, "sysid": 3,
     "runtime": 4,
-    "supervisor": 5, "drivers": 5, "logs": 5, "transport": 5, "web": 5,
+    "supervisor": 5, "drivers": 5, "logs": 5, "transport": 5, "web": 5, "physics": 5,
     "stack": 6,
     "harness": 7,
     "cli": 8,
@@ -125,6 +125,7 @@ ALLOWED: dict[str, set[str]] = {
     "logs": {"runtime", "model", "transport", "sysid"},
     "transport": {"runtime", "model"},
     "web": {"runtime", "planning", "logs"},
+    "physics": {"model", "sim"},
 }
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
 
