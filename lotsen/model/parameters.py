@@ -14,6 +14,11 @@ from typing import Any, Mapping
 from lotsen.errors import ConfigError
 
 
+#: identification verdicts whose coefficients may be flown: a physical answer ("ok", "weak") or effective
+#: coefficients that predict the boat measurably better than the model in use ("predictive")
+USABLE_VERDICTS = ("ok", "weak", "predictive")
+
+
 def _p(default: float, unit: str, lo: float, hi: float, doc: str) -> Any:
     return field(default=default, metadata={"unit": unit, "range": (lo, hi), "doc": doc})
 
@@ -78,7 +83,7 @@ class VesselParameters:
         if not isinstance(data, Mapping):
             raise ConfigError(f"{source}: expected a mapping of parameter names to numbers")
         verdict = data.get("verdict")
-        if verdict is not None and verdict not in ("ok", "weak"):
+        if verdict is not None and verdict not in USABLE_VERDICTS:
             details = data.get("identification")
             reasons = details.get("reasons") if isinstance(details, Mapping) else None
             why = "; ".join(str(r) for r in reasons) if isinstance(reasons, list) else ""
