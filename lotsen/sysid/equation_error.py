@@ -29,12 +29,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
 from scipy.ndimage import gaussian_filter1d
-from scipy.optimize import lsq_linear, minimize
+from scipy.optimize import least_squares, lsq_linear, minimize
 
 from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
 from lotsen.model.dynamics import array_tau
@@ -54,6 +54,10 @@ N_WIND = 4  # k_X, k_Y, k_N, k_Nv of lotsen.model.environment.apparent_wind_forc
 # wind is the boat's own motion and unbounded coefficients turn into hull damping (seen: 16 x nominal)
 WIND_COEFFICIENT_MAX = 4.0
 K_WIND_MAX = WIND_COEFFICIENT_MAX * np.array([*wind_drag_coefficients(), 0.2 * wind_drag_coefficients()[1]])
+# and the drag along and across the hull at least a quarter of the nominal hull's: a hull above water has
+# drag, and without this floor a wind of 0.5 m/s with large coefficients mimics hull damping in place of a
+# 4 m/s wind with the hull's own (the yaw moments may take either sign)
+K_WIND_MIN = np.array([0.25, 0.25, -1.0, -1.0]) * np.abs(K_WIND_MAX) / WIND_COEFFICIENT_MAX * np.array([1, 1, 4, 4])
 
 
 @dataclass
@@ -137,6 +141,35 @@ def _filtered(x: np.ndarray, seg: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
+#: a lake's current varies slowly (wind-driven, seiches): piecewise linear in time with a knot every this
+#: many seconds, neighbouring knots tied by a random walk of CURRENT_WALK_MPS per knot interval
+CURRENT_KNOT_S = 90.0
+CURRENT_WALK_MPS = 0.02
+
+
+@dataclass
+class CurrentPath:
+    """An earth-frame current piecewise linear in time (knots `t`, values north and east)."""
+
+    t: np.ndarray
+    north: np.ndarray
+    east: np.ndarray
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """North, east and their rates at the times `t`."""
+        if len(self.t) == 1:
+            z = np.zeros_like(t)
+            return z + self.north[0], z + self.east[0], z, z
+        k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
+        dt = np.diff(self.t)[k]
+        sN, sE = np.diff(self.north)[k] / dt, np.diff(self.east)[k] / dt
+        return (self.north[k] + sN * (t - self.t[k]), self.east[k] + sE * (t - self.t[k]), sN, sE)
+
+    @property
+    def mean(self) -> tuple[float, float]:
+        return float(np.mean(self.north)), float(np.mean(self.east))
+
+
 @dataclass
 class EquationErrorResult:
     params: VesselParameters
@@ -145,17 +178,25 @@ class EquationErrorResult:
     cost: float
     std: dict[str, float]  # 1-sigma of the estimated coefficients (inf: at a bound)
     free_names: tuple[str, ...]
+    current_path: CurrentPath | None = None  # lake: the current over the record
 
 
 def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float], geometry: VesselGeometry,
-                current: tuple[float, float], wind: tuple[float, float] | None
+                current: "tuple[float, float] | CurrentPath", wind: tuple[float, float] | None
                 ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
-    """Rows (3 n) of A theta_free = b and the free parameters' indices; wind coefficients last."""
+    """Rows (3 n) of A theta_free = b and the free parameters' indices; wind coefficients last.
+    `current`: constant (north, east), or a CurrentPath (piecewise linear in time)."""
     u, v, r = ms.u, ms.v, ms.r
     c, s = np.cos(ms.psi), np.sin(ms.psi)
-    uc, vc = current[0] * c + current[1] * s, -current[0] * s + current[1] * c
+    if isinstance(current, CurrentPath):
+        cN, cE, dN, dE = current.at(ms.t)
+    else:
+        cN, cE, dN, dE = current[0], current[1], 0.0, 0.0
+    uc, vc = cN * c + cE * s, -cN * s + cE * c
     ur, vr = u - uc, v - vc
-    urd, vrd = ms.u_dot - r * vc, ms.v_dot + r * uc  # nu_r' = nu' - r [v_c, -u_c] (constant current)
+    # nu_r' = nu' - r [v_c, -u_c] - R^T c' (the current turns with the body frame and drifts in time)
+    urd = ms.u_dot - r * vc - (dN * c + dE * s)
+    vrd = ms.v_dot + r * uc - (-dN * s + dE * c)
     au, av, ar = np.abs(ur), np.abs(vr), np.abs(r)
     inp = tuple(ms.inputs[:, i] for i in range(5))
     nu = (ur, vr, r)
@@ -198,9 +239,9 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
                             gap_s: float = 1.0, lake: bool = False, gyro_bias: Sequence[float] | None = None,
                             env0: Sequence[float] | None = None) -> EquationErrorResult:
     """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
-    bounded search); `lake`: with a constant current, an air velocity and the wind's drag coefficients
-    (started from `env0`, ENV_NAMES order). `theta0` only supplies what the record cannot (nothing:
-    its values are kept for the fixed ones)."""
+    bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
+    wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
+    coefficients' values where `fixed` does not and kappa's start."""
     segs = [s for r in records for s in split_segments(r, gap_s)]
     per_segment_bias = None
     if gyro_bias is not None:
@@ -211,16 +252,20 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     lo, hi = parameter_bounds()
     theta_fixed = {NAMES.index(n): float(v) for n, v in fixed.items()}
     kappa_fixed = "kappa" in fixed
+    last: tuple = ()
 
-    def solve(kappa: float, current: tuple[float, float], wind: tuple[float, float] | None,
-              weights: np.ndarray) -> tuple[float, np.ndarray, list[int], np.ndarray]:
+    def solve(kappa: float, current: Any, wind: tuple[float, float] | None,
+              weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
+        """The bounded linear least squares at (kappa, current, wind): (weighted residuals 3 x n,
+        coefficients, free indices, residual std per equation)."""
+        nonlocal last
         A, b, free, n = _regression(ms, kappa, theta_fixed, geometry, current, wind)
         Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
         bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
         Af = Af.reshape(n, 3, -1).transpose(1, 0, 2) * weights[:, None, None]
         bf = bf.T * weights[:, None]
         nw = A.shape[1] - len(free)
-        lo_f = np.concatenate([lo[free], [0.0, 0.0, -1.0, -1.0][:nw] * K_WIND_MAX[:nw]])
+        lo_f = np.concatenate([lo[free], K_WIND_MIN[:nw]])
         hi_f = np.concatenate([hi[free], K_WIND_MAX[:nw]])
         Am, bm = Af.reshape(3 * n, -1), bf.ravel()
         colscale = np.maximum(np.linalg.norm(Am, axis=0), 1e-12)
@@ -234,59 +279,79 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         sol = lsq_linear(R, q, bounds=(lo_f * colscale, hi_f * colscale), method="bvls")
         x = sol.x / colscale
         res = (bm - Am @ x).reshape(3, n)
-        nonlocal last
         last = (Af, res, lo_f, hi_f)
-        return float(np.sum(res ** 2)), x, free, np.sqrt(np.mean(res ** 2, axis=1)) / weights
-
-    last: tuple = ()
+        return res, x, free, np.sqrt(np.mean(res ** 2, axis=1)) / weights
 
     weights = np.array([1.0, 1.0, 10.0])  # N, N, N m: the moment's arm about 0.1 m
     kappa0 = float(fixed.get("kappa", theta0.kappa))
     lk_lo, lk_hi = math.log(KAPPA_RANGE[0]), math.log(KAPPA_RANGE[1])
-    env = np.asarray(env0, float)[:4].copy() if (lake and env0 is not None) else np.zeros(4)
+    lk0 = math.log(min(max(kappa0, KAPPA_RANGE[0]), KAPPA_RANGE[1]))
 
-    def unpack(z: np.ndarray) -> tuple[float, tuple[float, float], tuple[float, float] | None]:
-        k = kappa0 if kappa_fixed else math.exp(min(max(z[0], lk_lo), lk_hi))
-        if not lake:
-            return k, (0.0, 0.0), None
-        return k, (float(z[1]), float(z[2])), (float(z[3]), float(z[4]))
+    def kappa_of(lk: float) -> float:
+        return kappa0 if kappa_fixed else math.exp(min(max(lk, lk_lo), lk_hi))
 
-    z0 = np.array([math.log(min(max(kappa0, KAPPA_RANGE[0]), KAPPA_RANGE[1])), *env]) if lake else \
-        np.array([math.log(min(max(kappa0, KAPPA_RANGE[0]), KAPPA_RANGE[1]))])
-    best = None
-    for _ in range(2):  # the second pass with each equation weighted by its own residual spread
-        def cost(z: np.ndarray) -> float:
-            return solve(*unpack(z), weights)[0]
+    if lake:
+        # the current's knots over the record (one path for all segments, in the record's time)
+        span = max(float(ms.t[-1] - ms.t[0]), 1.0)
+        n_knots = max(1, int(math.ceil(span / CURRENT_KNOT_S)) + 1)
+        knots = np.linspace(float(ms.t[0]), float(ms.t[-1]), n_knots) if n_knots > 1 else np.array([float(ms.t[0])])
+        env = np.asarray(env0, float)[:4] if env0 is not None else np.zeros(4)
+        # the random walk between knots, as rows beside the data's (which are correlated over ~2 s
+        # by the common filter: as many independent rows as that leaves, per knot interval)
+        walk_weight = math.sqrt(max(2.0 * math.sqrt(math.pi) * FILTER_SIGMA_S / dt, 1.0))
 
-        if lake:
-            # the wind's direction is the search's hardest part: a grid of air velocities (eight
-            # directions, two speeds) first, then a local search from the best three
-            grid = [z0] + [np.array([z0[0], z0[1], z0[2], w * math.cos(a), w * math.sin(a)])
-                           for a in np.arange(8) * math.pi / 4 for w in (2.0, 4.5)]
-            ranked = sorted(grid, key=cost)[:3]
-            cands = [minimize(cost, s, method="Nelder-Mead",
-                              options={"xatol": 1e-3, "fatol": 1e-6 * cost(s), "maxiter": 250}) for s in ranked]
-            opt = min(cands, key=lambda o: o.fun)
-        elif kappa_fixed:
-            opt = None
-        else:
-            grid = np.linspace(lk_lo, lk_hi, 13)
-            vals = [cost(np.array([g])) for g in grid]
-            g0 = grid[int(np.argmin(vals))]
-            opt = minimize(cost, np.array([g0]), method="Nelder-Mead", options={"xatol": 1e-3, "maxiter": 100})
-        z0 = opt.x if opt is not None else z0
-        total, x, free, rstd = solve(*unpack(z0), weights)
-        weights = 1.0 / np.maximum(rstd, 1e-9)
-        best = (total, x, free, rstd, unpack(z0))
-    assert best is not None
-    total, x, free, rstd, (kappa, current, wind) = best
-    solve(kappa, current, wind, 1.0 / np.maximum(rstd, 1e-9))  # the final weights' regression, for the covariance
+        def unpack(z: np.ndarray) -> tuple[float, CurrentPath, tuple[float, float]]:
+            cur = CurrentPath(knots, z[3:3 + n_knots], z[3 + n_knots:])
+            return kappa_of(z[0]), cur, (float(z[1]), float(z[2]))
+
+        def residual(z: np.ndarray, w: np.ndarray) -> np.ndarray:
+            k, cur, wind = unpack(z)
+            res = solve(k, cur, wind, w)[0].ravel()
+            walk = np.concatenate([np.diff(cur.north), np.diff(cur.east)]) / CURRENT_WALK_MPS * walk_weight
+            return np.concatenate([res, walk])
+
+        def start(wind: tuple[float, float]) -> np.ndarray:
+            return np.concatenate([[lk0, wind[0], wind[1]], np.full(n_knots, env[0]), np.full(n_knots, env[1])])
+
+        # the wind's direction is the search's hardest part: a grid of air velocities (eight directions,
+        # two speeds) for the best start, then a bounded Gauss-Newton search over all of it
+        cands = [start((env[2], env[3]))] + [start((w * math.cos(a), w * math.sin(a)))
+                                             for a in np.arange(8) * math.pi / 4 for w in (2.0, 4.5)]
+        z = min(cands, key=lambda zz: float(np.sum(residual(zz, weights) ** 2)))
+        zlo = np.concatenate([[lk_lo, -30.0, -30.0], np.full(2 * n_knots, -1.0)])
+        zhi = np.concatenate([[lk_hi, 30.0, 30.0], np.full(2 * n_knots, 1.0)])
+        scale = np.concatenate([[0.5, 1.0, 1.0], np.full(2 * n_knots, 0.02)])
+        for _ in range(2):  # the second pass with each equation weighted by its own residual spread
+            sol = least_squares(residual, np.clip(z, zlo, zhi), bounds=(zlo, zhi), x_scale=scale, args=(weights,),
+                                diff_step=1e-3, xtol=1e-4, ftol=1e-5, max_nfev=30)
+            z = sol.x
+            _, _, _, rstd = solve(*unpack(z), weights)
+            weights = 1.0 / np.maximum(rstd, 1e-9)
+        kappa, current, wind = unpack(z)
+    else:
+        current, wind = (0.0, 0.0), None
+        kappa = kappa0
+        for _ in range(2):  # the second pass with each equation weighted by its own residual spread
+            if not kappa_fixed:
+                def cost(lk: float) -> float:
+                    return float(np.sum(solve(kappa_of(lk), current, wind, weights)[0] ** 2))
+
+                grid = np.linspace(lk_lo, lk_hi, 13)
+                g0 = grid[int(np.argmin([cost(g) for g in grid]))]
+                opt = minimize(lambda zz: cost(float(zz[0])), np.array([g0]), method="Nelder-Mead",
+                               options={"xatol": 1e-3, "maxiter": 100})
+                kappa = kappa_of(float(opt.x[0]))
+            _, _, _, rstd = solve(kappa, current, wind, weights)
+            weights = 1.0 / np.maximum(rstd, 1e-9)
+    res, x, free, rstd = solve(kappa, current, wind, weights)  # the final weights' regression
+    total = float(np.sum(res ** 2))
     cov = _sandwich(*last, x, ms.segment)
     std = {NAMES[i]: float(math.sqrt(cov[j, j])) if math.isfinite(cov[j, j]) else math.inf
            for j, i in enumerate(free)}
     if not kappa_fixed:
-        std["kappa"] = _profile_std(lambda k: solve(k, current, wind, 1.0 / np.maximum(rstd, 1e-9))[0], kappa,
-                                    float(np.median(np.diag(cov)[:len(free)] / np.maximum(_naive_var(last[0])[:len(free)], 1e-300))),
+        std["kappa"] = _profile_std(lambda k: float(np.sum(solve(k, current, wind, weights)[0] ** 2)), kappa,
+                                    float(np.median(np.diag(cov)[:len(free)]
+                                                    / np.maximum(_naive_var(last[0])[:len(free)], 1e-300))),
                                     3 * len(ms.t) - len(x))
     theta = np.array(theta0.to_vector(), float)
     for i, val in theta_fixed.items():
@@ -296,9 +361,11 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     theta = np.clip(theta, lo, hi)
     env_out = None
     if lake:
-        env_out = np.array([current[0], current[1], wind[0], wind[1], *x[len(free):]])
+        cm = current.mean  # type: ignore[union-attr]
+        env_out = np.array([cm[0], cm[1], wind[0], wind[1], *x[len(free):]])  # type: ignore[index]
     return EquationErrorResult(VesselParameters.from_vector(theta), env_out, rstd, total, std,
-                               tuple(NAMES[i] for i in free) + (() if kappa_fixed else ("kappa",)))
+                               tuple(NAMES[i] for i in free) + (() if kappa_fixed else ("kappa",)),
+                               current if lake else None)
 
 
 def _naive_var(Af: np.ndarray) -> np.ndarray:
