@@ -197,6 +197,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if ident.prediction:
         _print_prediction(ident)
+    for a in ident.advice or []:
+        print(f"advice: {a}", file=sys.stderr)
     if args.report:
         _write_report(args, res, est_records, val_records, warnings, theta0)
     if verdict.verdict == "predictive":

@@ -47,6 +47,8 @@ FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard 
 # smoothing spline's gain is 1 / (1 + lambda dt omega^4)); a 13 kg boat's motion lies below 1 Hz.
 # (Generalised cross-validation chose about the same and took 8 s per series in scipy's Python loop.)
 SMOOTHING_CUTOFF_HZ = 1.0
+NW_MIN_BANDWIDTH_S = 10.0  # the sandwich's Newey-West bandwidth, at least
+BATCHES = 8  # stretches of the record for the batch-means spread
 EDGE_S = 1.5  # spline ends left out
 KAPPA_RANGE = (1e-3, 0.3)
 N_WIND = 4  # k_X, k_Y, k_N, k_Nv of lotsen.model.environment.apparent_wind_force
@@ -58,6 +60,16 @@ K_WIND_MAX = WIND_COEFFICIENT_MAX * np.array([*wind_drag_coefficients(), 0.2 * w
 # drag, and without this floor a wind of 0.5 m/s with large coefficients mimics hull damping in place of a
 # 4 m/s wind with the hull's own (the yaw moments may take either sign)
 K_WIND_MIN = np.array([0.25, 0.25, -1.0, -1.0]) * np.abs(K_WIND_MAX) / WIND_COEFFICIENT_MAX * np.array([1, 1, 4, 4])
+# and a prior: the nominal hull's along and across drag +- half of it, the yaw moments 0 +- the nominal
+# (on a hull record, without it one record found 5 m/s with its drag, the other 1.1 m/s with 11x it)
+K_WIND_MEAN = np.array([*wind_drag_coefficients()[:2], 0.0, 0.0])
+K_WIND_PRIOR_STD = np.array([0.5 * wind_drag_coefficients()[0], 0.5 * wind_drag_coefficients()[1],
+                             wind_drag_coefficients()[2], 0.1 * wind_drag_coefficients()[1]])
+
+
+def _walk_rows(dt: float) -> float:
+    """How many filtered data rows count as one independent row (the common filter correlates ~2 s)."""
+    return math.sqrt(max(2.0 * math.sqrt(math.pi) * FILTER_SIGMA_S / dt, 1.0))
 
 
 @dataclass
@@ -145,6 +157,7 @@ def _filtered(x: np.ndarray, seg: np.ndarray, dt: float) -> np.ndarray:
 #: many seconds, neighbouring knots tied by a random walk of CURRENT_WALK_MPS per knot interval
 CURRENT_KNOT_S = 90.0
 CURRENT_WALK_MPS = 0.02
+WIND_PRIOR_MPS = 6.0  # the air's velocity: 0 +- this, per earth axis
 
 
 @dataclass
@@ -255,13 +268,16 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     last: tuple = ()
 
     def solve(kappa: float, current: Any, wind: tuple[float, float] | None,
-              weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
+              weights: np.ndarray, rows: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
         """The bounded linear least squares at (kappa, current, wind): (weighted residuals 3 x n,
-        coefficients, free indices, residual std per equation)."""
+        coefficients, free indices, residual std per equation); `rows`: only these samples."""
         nonlocal last
         A, b, free, n = _regression(ms, kappa, theta_fixed, geometry, current, wind)
         Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
         bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
+        if rows is not None:
+            Af, bf, n = Af[rows], bf[rows], len(rows)
         Af = Af.reshape(n, 3, -1).transpose(1, 0, 2) * weights[:, None, None]
         bf = bf.T * weights[:, None]
         nw = A.shape[1] - len(free)
@@ -273,9 +289,16 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         # instead of 3 n (|A x - b|^2 = |R x - q|^2 + const with R^T R = A^T A, R^T q = A^T b)
         As = Am / colscale
         G = As.T @ As
+        h = As.T @ bm
+        if nw:  # the wind's drag near the nominal hull's (K_WIND_PRIOR): drag and wind speed trade as k W^2
+            pw = np.arange(len(free), len(free) + nw)
+            kp = K_WIND_MEAN[:nw] * colscale[pw]
+            sp = K_WIND_PRIOR_STD[:nw] * colscale[pw] / _walk_rows(dt)
+            G[pw, pw] += 1.0 / sp ** 2
+            h[pw] += kp / sp ** 2
         G[np.diag_indices_from(G)] += 1e-12 * np.trace(G)
         R = np.linalg.cholesky(G).T
-        q = np.linalg.solve(R.T, As.T @ bm)
+        q = np.linalg.solve(R.T, h)
         sol = lsq_linear(R, q, bounds=(lo_f * colscale, hi_f * colscale), method="bvls")
         x = sol.x / colscale
         res = (bm - Am @ x).reshape(3, n)
@@ -298,7 +321,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         env = np.asarray(env0, float)[:4] if env0 is not None else np.zeros(4)
         # the random walk between knots, as rows beside the data's (which are correlated over ~2 s
         # by the common filter: as many independent rows as that leaves, per knot interval)
-        walk_weight = math.sqrt(max(2.0 * math.sqrt(math.pi) * FILTER_SIGMA_S / dt, 1.0))
+        walk_weight = _walk_rows(dt)
 
         def unpack(z: np.ndarray) -> tuple[float, CurrentPath, tuple[float, float]]:
             cur = CurrentPath(knots, z[3:3 + n_knots], z[3 + n_knots:])
@@ -308,7 +331,10 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
             k, cur, wind = unpack(z)
             res = solve(k, cur, wind, w)[0].ravel()
             walk = np.concatenate([np.diff(cur.north), np.diff(cur.east)]) / CURRENT_WALK_MPS * walk_weight
-            return np.concatenate([res, walk])
+            # a weak prior on the air's velocity: in calm air its drag is hardly seen and the wind's
+            # speed would wander (23 m/s on a windless record); a lake wind is a few m/s
+            air = np.array(wind) / WIND_PRIOR_MPS * walk_weight
+            return np.concatenate([res, walk, air])
 
         def start(wind: tuple[float, float]) -> np.ndarray:
             return np.concatenate([[lk0, wind[0], wind[1]], np.full(n_knots, env[0]), np.full(n_knots, env[1])])
@@ -328,6 +354,33 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
             _, _, _, rstd = solve(*unpack(z), weights)
             weights = 1.0 / np.maximum(rstd, 1e-9)
         kappa, current, wind = unpack(z)
+
+        def unprojected(zz: np.ndarray, xx: np.ndarray) -> np.ndarray:
+            """The weighted, filtered residual at (zz, xx): the coefficients held."""
+            k, cur, wd = unpack(zz)
+            A, b, _, n = _regression(ms, k, theta_fixed, geometry, cur, wd)
+            Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
+            bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
+            return (bf.T - np.einsum("nep,p->en", Af.reshape(n, 3, -1), xx)) * weights[:, None]
+
+        def nonlinear_sensitivity(xx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """-d residual / d z by differences (the current's knots and the air's velocity; kappa's
+            own interval comes from its profile), and those parameters' priors' information."""
+            sel = np.arange(1, len(z)) if not kappa_fixed else np.arange(1, len(z))
+            r0 = unprojected(z, xx)
+            cols = []
+            for j in sel:
+                h = 1e-3 * scale[j] * 10
+                zp = z.copy()
+                zp[j] += h
+                cols.append(-(unprojected(zp, xx) - r0) / h)
+            Dz = np.stack(cols, axis=-1)
+            info = np.zeros((len(sel), len(sel)))
+            info[:2, :2] = np.eye(2) * (walk_weight / WIND_PRIOR_MPS) ** 2
+            Dw = np.diff(np.eye(n_knots), axis=0) * walk_weight / CURRENT_WALK_MPS
+            for off in (2, 2 + n_knots):
+                info[off:off + n_knots, off:off + n_knots] += Dw.T @ Dw
+            return Dz, info
     else:
         current, wind = (0.0, 0.0), None
         kappa = kappa0
@@ -345,7 +398,21 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
             weights = 1.0 / np.maximum(rstd, 1e-9)
     res, x, free, rstd = solve(kappa, current, wind, weights)  # the final weights' regression
     total = float(np.sum(res ** 2))
-    cov = _sandwich(*last, x, ms.segment)
+    Dz, prior_info = nonlinear_sensitivity(x) if lake else (None, None)
+    cov = _sandwich(*last, x, ms.segment, Dz, prior_info, dt)
+    # the spread between stretches of the record (batch means): the effective values of a hull that is
+    # not the grey box depend on what each stretch asked of it (speeds, turns, the wind's gusts), which
+    # no residual correlation within the record shows; each stretch re-solved with kappa, current and
+    # wind held, the variance of their mean taken where it exceeds the sandwich's
+    stretches = [blk for blk in np.array_split(np.arange(len(ms.t)), BATCHES) if len(blk) > 50]
+    if len(stretches) >= 3:
+        xs = np.array([solve(kappa, current, wind, weights, blk)[1][:len(free)] for blk in stretches])
+        batch_var = np.var(xs, axis=0, ddof=1) / len(stretches)
+        d = np.diag(cov)[:len(free)].copy()
+        finite = np.isfinite(d)
+        d[finite] = np.maximum(d[finite], batch_var[finite])
+        cov[np.arange(len(free)), np.arange(len(free))] = d
+    solve(kappa, current, wind, weights)  # `last` back to the whole record (kappa's profile below)
     std = {NAMES[i]: float(math.sqrt(cov[j, j])) if math.isfinite(cov[j, j]) else math.inf
            for j, i in enumerate(free)}
     if not kappa_fixed:
@@ -378,12 +445,16 @@ def _naive_var(Af: np.ndarray) -> np.ndarray:
 
 
 def _sandwich(Af: np.ndarray, res: np.ndarray, lo: np.ndarray, hi: np.ndarray, x: np.ndarray,
-              segment: np.ndarray) -> np.ndarray:
+              segment: np.ndarray, Dz: np.ndarray | None = None, prior_info: np.ndarray | None = None,
+              dt: float = 0.125) -> np.ndarray:
     """Covariance of the regression's coefficients robust to correlated residuals: G^-1 M G^-1 with the
     per-sample scores' covariance M by Newey-West (Bartlett weights up to twice the residuals'
     correlation time, within segments). The columns are filtered (FILTER_SIGMA_S), so residuals stay
     correlated over seconds whatever the model; a coefficient at its bound is held there (infinite
-    variance reported: its interval means nothing)."""
+    variance reported: its interval means nothing). `Dz` (3 x n x q): the residual's sensitivity to
+    the nonlinear parameters found around the regression (a lake's current and wind), with their
+    priors' information `prior_info` (q x q): their uncertainty then widens the coefficients' (without
+    it two lake records of one hull agreed on 12 of 17 coefficients within 3 sigma)."""
     p = Af.shape[-1]
     at_bound = (x <= lo + 1e-12 * np.abs(lo)) | (x >= hi - 1e-12 * np.abs(hi))
     keep = ~at_bound
@@ -391,8 +462,13 @@ def _sandwich(Af: np.ndarray, res: np.ndarray, lo: np.ndarray, hi: np.ndarray, x
     if not keep.any():
         return cov
     A = Af[:, :, keep]  # 3 x n x k
+    k = A.shape[-1]
+    if Dz is not None:
+        A = np.concatenate([A, Dz], axis=-1)
     S = np.einsum("enk,en->nk", A, res)  # per sample: the three equations' scores summed
     G = np.einsum("enk,enl->kl", A, A)
+    if prior_info is not None:
+        G[k:, k:] += prior_info
     r = res.sum(axis=0)
     r = r - r.mean()
     tau = 1.0
@@ -402,17 +478,21 @@ def _sandwich(Af: np.ndarray, res: np.ndarray, lo: np.ndarray, hi: np.ndarray, x
         if rho < 0.05:
             break
         tau += 2.0 * rho
-    L = int(max(1, min(round(2.0 * tau), len(S) // 10)))
+    # at least NW_MIN_BANDWIDTH_S: the misfit of a hull that is not the grey box (a gust's force the wind
+    # model does not follow) stays correlated over seconds though the lag-by-lag correlation is small
+    L = int(max(1, min(max(round(2.0 * tau), round(NW_MIN_BANDWIDTH_S / dt)), len(S) // 10)))
     M = S.T @ S
     for lag in range(1, L + 1):
         same = (segment[lag:] == segment[:-lag]).astype(float)
         Gl = (S[:-lag] * same[:, None]).T @ S[lag:]
         M += (1.0 - lag / (L + 1.0)) * (Gl + Gl.T)
+    if prior_info is not None:
+        M[k:, k:] += prior_info
     try:
         Gi = np.linalg.inv(G)
     except np.linalg.LinAlgError:
         Gi = np.linalg.pinv(G)
-    sub = Gi @ M @ Gi
+    sub = (Gi @ M @ Gi)[:k, :k]
     idx = np.flatnonzero(keep)
     cov[np.ix_(idx, idx)] = 0.5 * (sub + sub.T)
     return cov

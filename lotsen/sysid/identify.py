@@ -93,6 +93,9 @@ class Identification:
     chosen: str = "identified"
     estimator: str = "output error"
     fixed: dict[str, float] | None = None
+    fixed_test: Any = None  # lotsen.sysid.multiple.FixedValueTest of the output-error estimate, if any
+    advice: list[str] | None = None  # what the misfit says, in operator language (`advice`)
+    environment_values: dict[str, float] | None = None  # a lake estimate's environment without details
 
     @property
     def refused(self) -> bool:
@@ -114,7 +117,11 @@ class Identification:
         if self.prediction:
             out["prediction"] = {"models": {k: sc.to_json_dict() for k, sc in self.prediction.items()},
                                  "chosen": self.chosen}
+        if self.advice:
+            v["advice"] = list(self.advice)
         env = getattr(res.details, "environment", None)
+        if env is None and self.environment_values is not None:
+            out["environment"] = {"values": dict(self.environment_values)}
         if env is not None:
             out["environment"] = {"values": env.values, "std": env.std,
                                   "gust_factor_mean": float(env.gust_factor.mean()),
@@ -151,6 +158,9 @@ PREDICTIVE_MIN_WINDOWS = 10
 #: from the equation-error start a boat built like the model converges in 5-10 iterations; after this
 #: many a record the model cannot explain is recognised (multiple.estimate_multiple_shooting's misfit_check)
 MISFIT_CHECK_ITERATIONS = 15
+STEADY_WIND_ITERATIONS = 8  # the lake model's first stage (estimate_lake_from)
+DRIFT_ADVICE_MPS = 0.02  # a drift the prediction misses, worth --lake
+SPEED_ADVICE_RATIO = 2.0  # faster windows' errors this many times the slower ones': a speed-dependent misfit
 
 
 def equation_error_result(ee: Any, fixed: Mapping[str, float]) -> Any:
@@ -194,14 +204,18 @@ def estimate_lake_from(records: Sequence[IdRecord], start: VesselParameters, fix
     the coefficients, current and steady wind together (gust factors held), then the gust factors
     free from there. (`estimate_lake` starts from the documented defaults with a third stage for the
     environment alone; the equation-error start makes that stage unnecessary.)"""
-    first = estimate_multiple_shooting(records, start, fixed, lake=True, gust_std=1e-3, env0=env0,
-                                       max_iterations=max_iterations, progress=progress, **kwargs)
-    env = _environment_of(first)
     test_fixed = kwargs.pop("test_fixed", ())
+    kwargs.pop("estimate_noise", None)
+    # the steady-wind stage only brings coefficients, current and wind together before the gusts are
+    # released: a few iterations, the noise as assumed (its residuals carry the gusts by design)
+    first = estimate_multiple_shooting(records, start, fixed, lake=True, gust_std=1e-3, env0=env0,
+                                       max_iterations=STEADY_WIND_ITERATIONS, progress=progress,
+                                       estimate_noise=False, **kwargs)
+    env = _environment_of(first)
     return estimate_multiple_shooting(records, first.params, fixed, lake=True, gust_std=gust_std, env0=env,
                                       nodes0=first.details.nodes, gyro_bias0=first.details.gyro_bias,
                                       max_iterations=max_iterations, progress=progress, test_fixed=test_fixed,
-                                      **kwargs)
+                                      misfit_check=MISFIT_CHECK_ITERATIONS, **kwargs)
 
 
 def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0: VesselParameters,
@@ -270,12 +284,50 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
     if in_use != DEFAULT_PARAMETERS:
         scores["in use"] = prediction_score(in_use, validation, gap_s=gap_s, geometry=geometry, environment=env_ref)
     baseline = scores.get("in use", scores["defaults"])
-    return _decide(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
+    ident = _decide(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
+    ident.advice = advice(ident, lake)
+    if ident.chosen == "equation error" and ee is not None and ee.environment is not None:
+        from lotsen.sysid.sensitivity import ENV_NAMES
+
+        ident.environment_values = {n: float(v) for n, v in zip(ENV_NAMES, ee.environment)}
+    return ident
+
+
+def advice(ident: Identification, lake: bool) -> list[str]:
+    """What the record says about its misfit, in operator language: a drift the model lacks (current,
+    wind) without --lake, errors that grow with speed (something speed-dependent the grey box lacks)."""
+    out: list[str] = []
+    sc = (ident.prediction or {}).get(ident.chosen)
+    if sc is None or sc.n_windows == 0:
+        return out
+    d = sc.drift()
+    if not lake and d is not None and d[2] > 3.0 and d[0] > DRIFT_ADVICE_MPS:
+        out.append(f"the boat drifted {d[0]:.2f} m/s towards {d[1]:.0f} deg more than any coefficient explains: "
+                   "a current or wind: identify this record with --lake")
+    sp = sc.speed_dependence()
+    if sp is not None and sp[2] > SPEED_ADVICE_RATIO * sp[1]:
+        out.append(f"the model lacks something that depends on speed: its {sc.horizon_s:g}-s predictions miss by "
+                   f"{sp[2]:.2f} m from above {sp[0]:.1f} m/s against {sp[1]:.2f} m from below (resistance "
+                   "that grows faster than speed squared, thrust that falls with the advance speed, a bow "
+                   "thruster that fades when moving): the coefficients are effective values for the speeds "
+                   "recorded; record at the speeds you will fly")
+    if ident.verdict.weakly_determined or any("weakly determined" in r for r in ident.verdict.reasons):
+        out.append("some coefficients are weakly determined: the record does not excite them enough (longer or "
+                   "richer manoeuvres: lotsen experiment design); this is not noise the model lacks")
+    return out
 
 
 def _decide(cands: list[Candidate], physical: Verdict, at_bounds: list[str], scores: dict[str, PredictionScore],
             baseline: PredictionScore, res: Any, fixed: Mapping[str, float], anchor: str | None,
             held_out: bool = True) -> Identification:
+    ident = _decide_verdict(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
+    ident.fixed_test = getattr(res.details, "fixed_test", None)
+    return ident
+
+
+def _decide_verdict(cands: list[Candidate], physical: Verdict, at_bounds: list[str],
+                    scores: dict[str, PredictionScore], baseline: PredictionScore, res: Any,
+                    fixed: Mapping[str, float], anchor: str | None, held_out: bool) -> Identification:
     from lotsen.sysid.prediction import improvement, improvement_interval
 
     reasons = list(physical.reasons)

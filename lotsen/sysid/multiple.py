@@ -618,7 +618,9 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
             vals = [float(ac[n][7]) for n in ("north", "east") if n in ac and len(ac[n]) >= 8]
             misfit = bool(vals) and float(np.mean(vals)) > MISFIT_TRACK_AUTOCORR
             if misfit:
-                converged = False  # stalled, not converged: the model cannot explain the record
+                # converged or stalled or crawling, the model does not explain the track: no physical
+                # answer will come of more iterations (a record it explains goes on)
+                converged = False
                 break
             if converged and passes == 1:
                 break
@@ -768,7 +770,7 @@ def fixed_value_test(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np
     estimate that ended at (`theta`, `nodes`) with `free` estimated. At that estimate the gradient of
     the cost along the free coefficients is zero; along a fixed one it is the data's pull away from
     the fixed value. Its efficient part (the free ones' adjustment removed) has the covariance
-    B M B^T with M the score's covariance (`score_covariance`, honest for correlated residuals);
+    B M B^T with M = s^2 F the score's covariance under the null;
     LM = g^T (B M B^T)^-1 g is chi-square with one degree per tested coefficient when the fixed values
     are right. A value fixed wrongly (a default 10-30 % off a hull's) is then misfit, not a confident
     answer: the free ones bent to make up for it."""
@@ -787,7 +789,13 @@ def fixed_value_test(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np
     lu = prob.factor_A(Hss, lin.Gx, Ds, 1e-12)
     rhs_w = np.concatenate([-gs.ravel(), -lin.c.ravel()])
     F, _, _, r = prob.reduced(lu, Hsp, lin.Gp, Hpp, rhs_w, -gp)
-    M = score_covariance(prob, lin, blocks, F)
+    # the score's covariance under the null: right fixed values and a model that explains the record,
+    # i.e. white residuals at the (re-estimated) noise level, so M = s^2 F. (The sandwich's M would
+    # count the misfit that wrong fixed values cause as noise and hide them: 2.7 sigma each for four
+    # coefficients 7-15 % off; a record whose residuals are correlated anyway is refused as physical
+    # for that by the verdict's track test.)
+    s2 = max(float(np.sum(lin.e ** 2)) / max(prob.n_measurements - len(order), 1), 1e-12)
+    M = s2 * F
     t = np.isin(order, idx)
     p = ~t
     try:
