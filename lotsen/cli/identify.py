@@ -153,7 +153,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         ident = identify(est_records, val_records, theta0, fixed, lake=args.lake, geometry=geometry, in_use=in_use,
                          noise_std=noise, gap_s=args.gap, node_s=args.node, max_iterations=args.max_iter,
                          gust_std=args.gust_std, estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
-                         held_out=val_records is not est_records, progress=progress)
+                         held_out=val_records is not est_records, terms=_parse_terms(args.terms), progress=progress)
     progress(None)
     res = ident.result
     for d in res.identifiability.directions:
@@ -219,6 +219,22 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     else:
         print("verdict: ok", file=sys.stderr)
     return 0
+
+
+def _parse_terms(text: str) -> tuple[str, ...] | None:
+    """--terms: auto (None: chosen by held-out prediction), none, or names of optional model terms."""
+    from lotsen.model.parameters import OPTIONAL_TERMS
+
+    if text == "auto":
+        return None
+    if text == "none":
+        return ()
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    unknown = [n for n in names if n not in OPTIONAL_TERMS]
+    if unknown or not names:
+        raise ConfigError(f"--terms {text!r}: expected auto, none or a comma list of optional model terms "
+                          f"({', '.join(OPTIONAL_TERMS)})")
+    return names
 
 
 def _progress_printer(title: str):  # type: ignore[no-untyped-def]
@@ -328,6 +344,9 @@ def register(subparsers: Any) -> None:
                    help="single shooting and validation: simulation window length, s (default 10)")
     p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
     p.add_argument("--max-iter", type=int, default=60)
+    p.add_argument("--terms", default="auto", metavar="auto|none|NAME[,NAME]",
+                   help="optional model terms (X_uuu: surge resistance growing faster than speed squared): auto "
+                        "(default) turns each on where the held-out prediction shows the record needs it")
     p.add_argument("--gyro-offset", action="store_true",
                    help="estimate a constant offset of the yaw rate (r) per record with the coefficients "
                         "(always on with --lake)")

@@ -14,6 +14,11 @@ from typing import Any, Mapping
 from lotsen.errors import ConfigError
 
 
+#: coefficients that are optional model terms, beyond the seed's eq. (22): 0 switches a term off, and a
+#: parameter file without one means it is off (identification turns one on where held-out prediction
+#: shows the record needs it: lotsen.sysid.identify)
+OPTIONAL_TERMS = {"X_uuu": "the surge resistance grows faster than speed squared (wave making)"}
+
 #: identification verdicts whose coefficients may be flown: a physical answer ("ok", "weak") or effective
 #: coefficients that predict the boat measurably better than the model in use ("predictive")
 USABLE_VERDICTS = ("ok", "weak", "predictive")
@@ -45,6 +50,9 @@ class VesselParameters:
     C_N: float = _p(1.0, "-", 0.0, 10.0, "normal-force coefficient of the thruster housing")
     mu_az: float = _p(0.0011, "N s^2", 1e-6, 0.1, "azimuth thrust per (rev/s)^2")
     mu_t: float = _p(0.0004, "N s^2", 0.0, 0.1, "bow-thruster thrust per (rev/s)^2")
+    # optional model terms (0: off, the seed's equations exactly): OPTIONAL_TERMS
+    X_uuu: float = _p(0.0, "kg s/m^2", -500.0, 0.0, "cubic surge damping X_uuu u^3 (optional term: resistance that "
+                      "grows faster than speed squared, wave making near hull speed; 0 = off)")
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -62,8 +70,9 @@ class VesselParameters:
 
     @classmethod
     def from_vector(cls, theta: Any) -> "VesselParameters":
+        """From theta in `names()` order; the seed's 18 alone leave the optional terms off."""
         names = cls.names()
-        if len(theta) != len(names):
+        if len(theta) not in (len(names), len(names) - len(OPTIONAL_TERMS)):
             raise ConfigError(f"parameter vector has {len(theta)} entries, expected {len(names)}")
         return cls(**{n: float(v) for n, v in zip(names, theta)})
 

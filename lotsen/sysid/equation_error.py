@@ -28,7 +28,7 @@ the output-error estimate takes it from here (and keeps the better of it and the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -40,7 +40,7 @@ from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
 from lotsen.model.dynamics import array_tau
 from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
 from lotsen.sysid.data import IdRecord, Segment, split_segments
-from lotsen.sysid.estimate import NAMES, parameter_bounds
+from lotsen.sysid.estimate import NAMES, parameter_bounds, with_terms_off
 
 FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard deviation)
 # the splines' smoothing: lambda = 1 / (dt (2 pi f_c)^4) passes motion below f_c and cuts above it (a
@@ -86,6 +86,9 @@ class MotionSamples:
     r_dot: np.ndarray
     inputs: np.ndarray  # n x 5, the reconstructed inputs at t
     segment: np.ndarray  # the segment of each sample (filtering stays within a segment)
+
+    def subset(self, rows: np.ndarray) -> "MotionSamples":
+        return MotionSamples(*(getattr(self, f.name)[rows] for f in fields(self)))
 
 
 def _spline(t: np.ndarray, y: np.ndarray):  # type: ignore[no-untyped-def]
@@ -224,7 +227,7 @@ def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float
     # columns per parameter: (X row, Y row, N row) such that sum_j theta_j col_j = 0 (+ thrust on the right)
     cols = {
         "m11": (urd, ur * r, -ur * vr), "m22": (-vr * r, vrd, ur * vr), "m33": (z, z, ms.r_dot),
-        "X_u": (ur, z, z), "X_uu": (-au * ur, z, z),
+        "X_u": (ur, z, z), "X_uu": (-au * ur, z, z), "X_uuu": (-ur * ur * ur, z, z),
         "Y_v": (z, vr, z), "Y_r": (z, r, z), "Y_uv": (z, -au * vr, z), "Y_vv": (z, -av * vr, z),
         "Y_rv": (z, -ar * vr, z),
         "N_v": (z, z, vr), "N_r": (z, z, r), "N_vv": (z, z, -av * vr), "N_rr": (z, z, -ar * r),
@@ -250,7 +253,7 @@ def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float
 def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, float],
                             theta0: VesselParameters, geometry: VesselGeometry = DEFAULT_GEOMETRY,
                             gap_s: float = 1.0, lake: bool = False, gyro_bias: Sequence[float] | None = None,
-                            env0: Sequence[float] | None = None) -> EquationErrorResult:
+                            env0: Sequence[float] | None = None, terms: Sequence[str] = ()) -> EquationErrorResult:
     """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
     bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
     wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
@@ -263,6 +266,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     ms = motion_samples(segs, per_segment_bias)
     dt = float(np.median(np.diff(ms.t))) if len(ms.t) > 1 else 0.125
     lo, hi = parameter_bounds()
+    fixed = with_terms_off(fixed, theta0, terms)  # the optional model terms off unless in `terms`
     theta_fixed = {NAMES.index(n): float(v) for n, v in fixed.items()}
     kappa_fixed = "kappa" in fixed
     last: tuple = ()
@@ -271,13 +275,12 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
               weights: np.ndarray, rows: np.ndarray | None = None
               ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
         """The bounded linear least squares at (kappa, current, wind): (weighted residuals 3 x n,
-        coefficients, free indices, residual std per equation); `rows`: only these samples."""
+        coefficients, free indices, residual std per equation); `rows`: only these (contiguous) samples."""
         nonlocal last
-        A, b, free, n = _regression(ms, kappa, theta_fixed, geometry, current, wind)
-        Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
-        bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
-        if rows is not None:
-            Af, bf, n = Af[rows], bf[rows], len(rows)
+        mx = ms if rows is None else ms.subset(rows)
+        A, b, free, n = _regression(mx, kappa, theta_fixed, geometry, current, wind)
+        Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), mx.segment, dt)
+        bf = _filtered(b.reshape(3, n).T, mx.segment, dt)
         Af = Af.reshape(n, 3, -1).transpose(1, 0, 2) * weights[:, None, None]
         bf = bf.T * weights[:, None]
         nw = A.shape[1] - len(free)
@@ -406,7 +409,24 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     # wind held, the variance of their mean taken where it exceeds the sandwich's
     stretches = [blk for blk in np.array_split(np.arange(len(ms.t)), BATCHES) if len(blk) > 50]
     if len(stretches) >= 3:
-        xs = np.array([solve(kappa, current, wind, weights, blk)[1][:len(free)] for blk in stretches])
+        if lake:
+            # on a lake each stretch has its own current and wind too: re-solved as offsets from the
+            # record's (priors as the record's), so their uncertainty enters the stretches' spread
+            def stretch(blk: np.ndarray) -> np.ndarray:
+                def res_b(dz: np.ndarray) -> np.ndarray:
+                    cur = CurrentPath(current.t, current.north + dz[0], current.east + dz[1])  # type: ignore[union-attr]
+                    wd = (wind[0] + dz[2], wind[1] + dz[3])  # type: ignore[index]
+                    r = solve(kappa, cur, wd, weights, blk)[0].ravel()
+                    return np.concatenate([r, dz[:2] / CURRENT_WALK_MPS * walk_weight,
+                                           dz[2:] / WIND_PRIOR_MPS * walk_weight])
+                dz = least_squares(res_b, np.zeros(4), x_scale=np.array([0.02, 0.02, 1.0, 1.0]), diff_step=1e-3,
+                                   xtol=1e-3, ftol=1e-4, max_nfev=12).x
+                cur = CurrentPath(current.t, current.north + dz[0], current.east + dz[1])  # type: ignore[union-attr]
+                return solve(kappa, cur, (wind[0] + dz[2], wind[1] + dz[3]), weights, blk)[1][:len(free)]  # type: ignore[index]
+
+            xs = np.array([stretch(blk) for blk in stretches])
+        else:
+            xs = np.array([solve(kappa, current, wind, weights, blk)[1][:len(free)] for blk in stretches])
         batch_var = np.var(xs, axis=0, ddof=1) / len(stretches)
         d = np.diag(cov)[:len(free)].copy()
         finite = np.isfinite(d)

@@ -96,6 +96,7 @@ class Identification:
     fixed_test: Any = None  # lotsen.sysid.multiple.FixedValueTest of the output-error estimate, if any
     advice: list[str] | None = None  # what the misfit says, in operator language (`advice`)
     environment_values: dict[str, float] | None = None  # a lake estimate's environment without details
+    terms: tuple[str, ...] = ()  # the optional model terms estimated (lotsen.model.parameters.OPTIONAL_TERMS)
 
     @property
     def refused(self) -> bool:
@@ -109,6 +110,7 @@ class Identification:
         out = res.to_json_dict()
         v = self.verdict.to_json_dict()
         v["estimator"] = self.estimator
+        v["optional_terms"] = list(self.terms)
         if self.fixed:
             v["fixed"] = dict(self.fixed)
             v["holds_if"] = ("these coefficients hold only if the fixed values are right: "
@@ -160,6 +162,7 @@ PREDICTIVE_MIN_WINDOWS = 10
 MISFIT_CHECK_ITERATIONS = 15
 STEADY_WIND_ITERATIONS = 8  # the lake model's first stage (estimate_lake_from)
 DRIFT_ADVICE_MPS = 0.02  # a drift the prediction misses, worth --lake
+TERM_MIN_IMPROVEMENT = 0.05  # an optional model term is turned on when it predicts this much better
 SPEED_ADVICE_RATIO = 2.0  # faster windows' errors this many times the slower ones': a speed-dependent misfit
 
 
@@ -223,6 +226,7 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
              in_use: VesselParameters | None = None, noise_std: Mapping[str, float] | None = None,
              gap_s: float = 1.0, node_s: float = 2.0, max_iterations: int = 60, gust_std: float = 0.3,
              estimate_noise: bool = True, gyro_offset: bool = False, held_out: bool = True,
+             terms: Sequence[str] | None = None,
              progress: Callable[[str], None] | None = None) -> Identification:
     """One identification (docs/sysid.md, "The verdict"): the equation-error start (the same whatever
     `theta0`), the output-error estimate from there (multiple shooting; `lake`: with current, wind and
@@ -230,9 +234,10 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
     the model in use (`in_use`, default `theta0`), and the verdict: ok / weak (a physical answer),
     predictive (effective coefficients that predict measurably better than the model in use), refused.
     """
+    from lotsen.model.parameters import OPTIONAL_TERMS
     from lotsen.sysid.equation_error import estimate_equation_error
     from lotsen.sysid.multiple import MultipleShootingProblem
-    from lotsen.sysid.prediction import prediction_score
+    from lotsen.sysid.prediction import improvement, prediction_score
 
     say = progress or (lambda _msg: None)
     fixed = dict(fixed)
@@ -250,6 +255,34 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
         ee = estimate_equation_error(records, fixed, theta0, geometry, gap_s, lake=lake, gyro_bias=bias0)
     except (ValueError, np.linalg.LinAlgError):
         ee = None  # too few fixes for the splines: the output-error estimate starts from theta0
+    # the optional model terms (lotsen.model.parameters.OPTIONAL_TERMS): named ones estimated; by default
+    # (None) each is turned on where the equation-error fit with it predicts the held-out data
+    # measurably better (TERM_MIN_IMPROVEMENT), the choice the issue asks of held-out prediction
+    chosen_terms: tuple[str, ...] = tuple(terms or ())
+    term_note = ""
+    if terms is None and ee is not None:
+        cand = tuple(n for n in OPTIONAL_TERMS if n not in fixed)
+        if cand:
+            say("optional model terms: " + ", ".join(cand))
+            try:
+                ee_t = estimate_equation_error(records, fixed, theta0, geometry, gap_s, lake=lake, gyro_bias=bias0,
+                                               terms=cand)
+                s0 = prediction_score(ee.params, validation, gap_s=gap_s, geometry=geometry, environment=ee.environment)
+                s1 = prediction_score(ee_t.params, validation, gap_s=gap_s, geometry=geometry,
+                                      environment=ee_t.environment)
+                gain = improvement(s1, s0) if s0.n_windows and s1.stable else 0.0
+                if gain >= TERM_MIN_IMPROVEMENT:
+                    chosen_terms, ee = cand, ee_t
+                    term_note = (f"optional term{'s' if len(cand) > 1 else ''} {', '.join(cand)} on: "
+                                 + "; ".join(OPTIONAL_TERMS[n] for n in cand)
+                                 + f" (the equation-error fit with {'them' if len(cand) > 1 else 'it'} predicts the "
+                                 f"held-out data {100 * gain:.0f} % better)")
+                else:
+                    term_note = (f"optional term{'s' if len(cand) > 1 else ''} {', '.join(cand)} left off (with "
+                                 f"{'them' if len(cand) > 1 else 'it'} the held-out prediction changes by "
+                                 f"{100 * gain:+.0f} %)")
+            except (ValueError, np.linalg.LinAlgError):
+                pass
     start = ee.params if ee is not None else theta0
     say("output-error estimate (multiple shooting)")
     it = [0]
@@ -259,7 +292,8 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
         say(f"iteration {it[0]}: cost {cost:.5g}")
 
     common = dict(gap_s=gap_s, noise_std=noise_std, geometry=geometry, node_s=node_s,
-                  max_iterations=max_iterations, estimate_noise=estimate_noise, progress=gn_progress)
+                  max_iterations=max_iterations, estimate_noise=estimate_noise, progress=gn_progress,
+                  terms=chosen_terms)
     if lake:
         res = estimate_lake_from(records, start, fixed, ee.environment if ee is not None else None,
                                  gust_std=gust_std, test_fixed=test_fixed, **common)
@@ -286,6 +320,9 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
     baseline = scores.get("in use", scores["defaults"])
     ident = _decide(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
     ident.advice = advice(ident, lake)
+    ident.terms = chosen_terms
+    if term_note:
+        ident.advice.insert(0, term_note)
     if ident.chosen == "equation error" and ee is not None and ee.environment is not None:
         from lotsen.sysid.sensitivity import ENV_NAMES
 

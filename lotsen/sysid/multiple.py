@@ -54,7 +54,7 @@ from lotsen.sysid.data import (
 )
 from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
-    identifiability, parameter_bounds, parameter_scale, starting_point,
+    identifiability, parameter_bounds, parameter_scale, starting_point, with_terms_off,
 )
 from lotsen.model.environment import wind_drag_coefficients
 from lotsen.sysid.kernels import step_kernels
@@ -552,7 +552,8 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                gust_std: float = 0.3, env0: Sequence[float] | None = None,
                                wind_coefficient_spread: float = 0.01, gyro_bias: bool | None = None,
                                gyro_bias0: Sequence[float] | None = None,
-                               test_fixed: Sequence[str] = (), misfit_check: int = 0) -> IdentificationResult:
+                               test_fixed: Sequence[str] = (), misfit_check: int = 0,
+                               terms: Sequence[str] = ()) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
@@ -569,7 +570,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from the data
     (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
     """
-    fixed = dict(fixed or {})
+    fixed = with_terms_off(dict(fixed or {}), theta0, terms)  # optional model terms off unless in `terms`
     unknown = [n for n in fixed if n not in NAMES]
     if unknown:
         raise LotsenError(f"cannot fix unknown parameter(s) {', '.join(unknown)} (known: {', '.join(NAMES)})")
