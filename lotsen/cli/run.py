@@ -16,6 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from lotsen.runtime.config import BoatSection
+from lotsen.settings import PORT, SEED, Number
 from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.config import StackConfig, load_stack_config
 from lotsen.stack.identity import run_identities
@@ -25,6 +26,10 @@ from lotsen.stack.identity import run_identities
 # osqp, FastAPI, ...) are loaded. Those are imported in the functions below, after the lock is taken.
 
 
+#: `--duration` of a run (and of `lotsen record`): a week at most (a longer run has no end set)
+RUN_DURATION = Number(0.1, 7 * 86400.0, "s")
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run the full stack (simulated boat by default)")
     p.add_argument("config", nargs="?", help="launch config YAML (default: built-in defaults)")
@@ -32,10 +37,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--hardware", action="store_true", help="real drivers (on the boat)")
     p.add_argument("--emulated", action="store_true", help="with --hardware: emulated devices speaking the real protocols")
     p.add_argument("--host", help="web bind address (default from config: 127.0.0.1)")
-    p.add_argument("--port", type=int, help="web port (default from config: 8080)")
-    p.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
-    p.add_argument("--seed", type=int, help="random seed of the simulation")
-    p.add_argument("--foxglove", nargs="?", type=int, const=8765, metavar="PORT",
+    p.add_argument("--port", type=PORT, help="web port (default from config: 8080)")
+    p.add_argument("--duration", type=RUN_DURATION,
+                   help="stop after this many seconds (default: run until Ctrl-C; at most a week)")
+    p.add_argument("--seed", type=SEED, help="random seed of the simulation")
+    p.add_argument("--foxglove", nargs="?", type=PORT, const=8765, metavar="PORT",
                    help="also stream every topic to Foxglove (WebSocket, default port 8765)")
     p.add_argument("--tls", action="store_true",
                    help="serve the operator page over HTTPS with a self-signed certificate (its fingerprint is printed)")

@@ -142,3 +142,10 @@ def load_stack_config(path: str | Path | None) -> StackConfig:
         return stack_config(config)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}" if path is not None else str(exc)) from None
+
+
+def config_files(config: LaunchConfig) -> tuple[str, ...]:
+    """The files a config makes a command read (route, parameter and calibration files): no
+    output of that command may overwrite one (lotsen.files.check_output)."""
+    return tuple(p for p in (config.route, config.vessel.parameters_file, config.sim.boat.parameters_file,
+                             config.nodes.mag_calibration_file) if p)
