@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Iterator
 
 from lotsen.errors import DataError
+from lotsen.files import MAX_CAPTURE_BYTES, check_input_file, check_output, write_output
 
 _MAX_REFUSALS_SHOWN = 20
 
@@ -46,8 +47,9 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.drivers.ubx import replay_stream
 
     path = Path(args.capture)
-    if not path.is_file():
-        raise DataError(f"{path}: no such capture file")
+    check_input_file(path, MAX_CAPTURE_BYTES, DataError, "capture file")
+    if args.out:
+        check_output(args.out, (path,), DataError, "CSV")
     try:
         result = replay_stream(_chunks(path))
     except OSError as exc:
@@ -63,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
                      f"{f.fix_type.name},{_num(f.h_acc_m, '.3f')}")
     text = "\n".join(lines) + "\n"
     if args.out:
-        Path(args.out).write_text(text, encoding="utf-8")
+        write_output(args.out, text, (path,), DataError, "CSV")
     else:
         sys.stdout.write(text)
     c = result.counters

@@ -35,10 +35,19 @@ import scipy.linalg
 from lotsen.errors import DataError
 from lotsen.fusion.common import wrap_angle
 from lotsen.messages import MagCalibrated, MagSample
+from lotsen.settings import Number
 
 
 class CalibrationError(DataError):
     """Magnetometer data cannot give a calibration (too few points, too little of a turn, ...)."""
+
+
+# what a calibration file's numbers may be: a field in any unit (uT ~50, raw counts, nT ~5e4)
+_FIELD = Number(-1e7, 1e7)
+_RMS = Number(0.0, 10.0)
+_COVERAGE = Number(0.0, 360.0, "deg")
+_POINTS = Number(0, 10**9, integer=True)
+_OFFSET = Number(-2 * math.pi, 2 * math.pi, "rad")
 
 
 @dataclass(frozen=True)
@@ -86,30 +95,44 @@ class MagCalibration:
         return wrap_angle(math.atan2(-wy, wx) + self.heading_offset_rad)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready (strict JSON has no NaN: an unknown fit quality is null)."""
+        def known(v: float) -> float | None:
+            return v if math.isfinite(v) else None
+
         return {"center": list(self.center), "matrix": [list(r) for r in self.matrix],
-                "residual_rms": self.residual_rms, "coverage_deg": self.coverage_deg,
+                "residual_rms": known(self.residual_rms), "coverage_deg": known(self.coverage_deg),
                 "n_points": self.n_points, "heading_offset_rad": self.heading_offset_rad,
                 "units": self.units}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "calibration") -> "MagCalibration":
-        try:
-            center = tuple(float(v) for v in d["center"])
-            matrix = tuple(tuple(float(v) for v in row) for row in d["matrix"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CalibrationError(f"{where}: needs 'center' (2 numbers) and 'matrix' (2x2): {exc}") from None
-        if len(center) != 2 or len(matrix) != 2 or any(len(r) != 2 for r in matrix):
-            raise CalibrationError(f"{where}: 'center' must have 2 and 'matrix' 2x2 entries")
+        """A calibration file's content; every number finite and in its range (settings.Number)."""
+        if not isinstance(d, dict):
+            raise CalibrationError(f"{where}: expected a JSON object with 'center' and 'matrix'")
         known = {"center", "matrix", "residual_rms", "coverage_deg", "n_points", "heading_offset_rad", "units"}
         unknown = set(d) - known
         if unknown:
-            raise CalibrationError(f"{where}: unknown keys {sorted(unknown)}")
+            raise CalibrationError(f"{where}: unknown keys {sorted(map(str, unknown))[:5]}")
+        c, m = d.get("center"), d.get("matrix")
+        if not (isinstance(c, list) and len(c) == 2 and isinstance(m, list) and len(m) == 2
+                and all(isinstance(r, list) and len(r) == 2 for r in m)):
+            raise CalibrationError(f"{where}: needs 'center' (2 numbers) and 'matrix' (2x2 numbers)")
+        center = tuple(_FIELD.check(v, f"{where}: center[{i}]", CalibrationError) for i, v in enumerate(c))
+        matrix = tuple(tuple(_FIELD.check(v, f"{where}: matrix[{i}][{j}]", CalibrationError) for j, v in enumerate(r))
+                       for i, r in enumerate(m))
+        rms = d.get("residual_rms")
+        cov = d.get("coverage_deg")
+        units = d.get("units", "")
+        if not isinstance(units, str):
+            raise CalibrationError(f"{where}: units: expected text, got {units!r:.40}")
         return cls(center=center, matrix=matrix,  # type: ignore[arg-type]
-                   residual_rms=float(d.get("residual_rms", float("nan"))),
-                   coverage_deg=float(d.get("coverage_deg", float("nan"))),
-                   n_points=int(d.get("n_points", 0)),
-                   heading_offset_rad=float(d.get("heading_offset_rad", 0.0)),
-                   units=str(d.get("units", "")))
+                   residual_rms=float("nan") if rms is None else _RMS.check(rms, f"{where}: residual_rms", CalibrationError),
+                   coverage_deg=float("nan") if cov is None else _COVERAGE.check(cov, f"{where}: coverage_deg",
+                                                                                 CalibrationError),
+                   n_points=_POINTS.check(d.get("n_points", 0), f"{where}: n_points", CalibrationError),
+                   heading_offset_rad=_OFFSET.check(d.get("heading_offset_rad", 0.0), f"{where}: heading_offset_rad",
+                                                    CalibrationError),
+                   units=units[:40])
 
 
 @dataclass(frozen=True)
