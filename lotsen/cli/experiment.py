@@ -74,6 +74,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if not args.sim and not args.hardware:
         raise LotsenError("say where to run: --sim (simulated boat) or --hardware [--emulated] (the boat's drivers)")
     check_outputs((args.out,), _run_inputs(args), ConfigError)
+    if args.config:  # read and checked whatever the run uses of it: a bad file is never ignored
+        from lotsen.stack.config import load_stack_config
+
+        load_stack_config(args.config)
     model = VesselModel(load_params(args.params))
     check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
                      margin_m=args.margin)

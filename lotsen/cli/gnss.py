@@ -8,6 +8,7 @@ The capture may mix UBX, NMEA, RTCM3 and garbage (e.g. `cat /dev/ttyAMA1 > captu
 counts of what was skipped go to stderr. A NAV-PVT claiming a physically impossible fix (latitude
 beyond 90 deg, zero accuracy, RTK fixed at metres, ...; `lotsen.drivers.ubx.implausible_fix`) is
 refused as the driver refuses it: not in the CSV, named on stderr with its iTOW and the reason.
+A capture without a single usable fix says so and exits 1 (the CSV holds only its header).
 """
 
 from __future__ import annotations
@@ -77,4 +78,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"gnss-replay: refused NAV-PVT at iTOW {pvt.itow_s:.3f} s: {why}", file=sys.stderr)
     if len(result.refused) > _MAX_REFUSALS_SHOWN:
         print(f"gnss-replay: ... and {len(result.refused) - _MAX_REFUSALS_SHOWN} more refused", file=sys.stderr)
+    if not result.fixes:
+        print(f"gnss-replay: {path}: not one usable NAV-PVT fix in the capture", file=sys.stderr)
+        return 1
     return 0

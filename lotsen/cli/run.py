@@ -15,6 +15,7 @@ import threading
 from dataclasses import replace
 from pathlib import Path
 
+from lotsen.errors import ConfigError
 from lotsen.runtime.config import BoatSection
 from lotsen.settings import PORT, SEED, Number
 from lotsen.runtime.lifetime import RunLock
@@ -63,6 +64,8 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     if args.hardware:
         config = replace(config, mode="hardware", extra=replace(config.extra, emulated=bool(args.emulated)))
     web = config.web
+    if args.host is not None and not args.host.strip():
+        raise ConfigError("--host: empty; give the web server's bind address (e.g. 127.0.0.1 or 0.0.0.0)")
     if args.host is not None or args.port is not None:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
     generated = not web.pilot_token

@@ -44,7 +44,7 @@ from lotsen.runtime.bus import BoundedQueue
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.transport import rmw_zenoh as W
 from lotsen.transport import ros2_map, ros2_types
-from lotsen.transport.zenoh_bridge import zenoh_config
+from lotsen.transport.zenoh_bridge import open_session
 
 SOURCE_PREFIX = "ros2:"
 _CLIENT_RE = re.compile(r"[^A-Za-z0-9_-]")
@@ -194,7 +194,7 @@ class Ros2Bridge(Node):
         self._stop = threading.Event()
         self._unsubscribe: Any = None
         self._last_refusal_log = float("-inf")
-        self.session = zenoh.open(zenoh_config(config))
+        self.session = open_session(config)
         self.session_id = str(self.session.info.zid())
         self._declare_token(W.node_token(config.domain_id, self.session_id, 0, ns, config.node_name))
         for topic in config.publish:  # announce known topics at once (ros2 topic list), others on first use

@@ -92,6 +92,19 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     return c
 
 
+def open_session(config: Any) -> Any:
+    """zenoh.open with its refusals (an endpoint it cannot parse or bind, a router it cannot reach)
+    as a ConfigError naming the endpoints, not a zenoh traceback."""
+    import zenoh
+
+    conf = zenoh_config(config)
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError as exc:
+        where = ", ".join((*config.listen, *config.connect)) or "no endpoint"
+        raise ConfigError(f"zenoh: cannot open a session ({where}): {str(exc).split(' at /')[0]}") from None
+
+
 @dataclass
 class BridgeStats:
     sent: int = 0
@@ -130,7 +143,7 @@ class ZenohBridge(Node):
         self._drain_pending = threading.Event()
         self._encoded_sink: Callable[[list[tuple[str, codec.Envelope]]], None] | None = None
         self._decoded_topics: frozenset[str] = frozenset()
-        self.session = zenoh.open(zenoh_config(config))
+        self.session = open_session(config)
         self._subs = []
         from zenoh import ext
 
