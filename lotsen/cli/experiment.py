@@ -71,8 +71,10 @@ def _run_inputs(args: argparse.Namespace, config_files: tuple[str, ...] = ()) ->
 
 def _cmd_run(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
-    if not args.sim and not args.hardware:
-        raise LotsenError("say where to run: --sim (simulated boat) or --hardware [--emulated] (the boat's drivers)")
+    if args.sim == args.hardware:
+        raise LotsenError("say where to run, once: --sim (simulated boat) or --hardware [--emulated] (the boat's drivers)")
+    if args.emulated and not args.hardware:
+        raise LotsenError("--emulated is for --hardware (the drivers' emulated twins); --sim runs the simulated boat")
     check_outputs((args.out,), _run_inputs(args), ConfigError)
     if args.config:  # read and checked whatever the run uses of it: a bad file is never ignored
         from lotsen.stack.config import load_stack_config

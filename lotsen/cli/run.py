@@ -60,6 +60,10 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     same for every process and every restart of the web process). Returns (config, generated).
     With `lock`: the boat is locked for this run (`RunRefused` when another run has it) before
     the config is validated, so a second run is refused before anything else happens."""
+    if getattr(args, "sim", False) and args.hardware:
+        raise ConfigError("--sim and --hardware: choose one (the simulated boat is the default)")
+    if getattr(args, "emulated", False) and not args.hardware:
+        raise ConfigError("--emulated is for --hardware (the drivers' emulated twins)")
     config = load_stack_config(args.config)  # every section typed and checked (lotsen.stack.config)
     if args.hardware:
         config = replace(config, mode="hardware", extra=replace(config.extra, emulated=bool(args.emulated)))
