@@ -56,6 +56,8 @@ class Number:
     def allowed(self) -> str:
         """'0.1 to 60 s', '0 or 0.05 to 5 m/s', '0 to 4294967295 (whole numbers)'."""
         unit = f" {self.unit}" if self.unit else ""
+        if self.lo <= -sys.float_info.max and self.hi >= sys.float_info.max:
+            return f"a finite number{' in ' + self.unit if self.unit else ''}"
         span = f"{_fmt(self.lo)} to {_fmt(self.hi)}{unit}"
         if self.zero_ok and not self.lo <= 0 <= self.hi:
             span = f"0 or {span}"

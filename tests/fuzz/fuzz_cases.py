@@ -148,7 +148,7 @@ def _get(obj: Any, path: tuple) -> Any:
     return obj
 
 
-_MARK = "@@HOSTILE@@"
+_MARK = "HOSTILEVALUEMARKER"  # a plain scalar: YAML writes it unquoted
 
 
 def structured_mutation(text: str, fmt: str, rng: random.Random) -> Mutation | None:
@@ -324,7 +324,7 @@ COMMANDS: tuple[Command, ...] = (
     Command(("plan",), ("plan", "route.yaml", "--out", "path.json"), {"route.yaml": "route"}),
     Command(("mission",), ("mission", "route.yaml", "--sim", "--estimator", "truth", "--hold", "0", "--report", "r.json"),
             {"route.yaml": "route"}, cheap=False),
-    Command(("identify",), ("identify", "data.csv", "--out", "p.json", "--max-iter", "2", "--method", "single"),
+    Command(("identify",), ("identify", "data.csv", "--out", "p.json", "--max-iter", "2"),
             {"data.csv": "data_csv"}),
     Command(("experiment", "run"), ("experiment", "run", "exp.yaml", "--sim", "--out", "out.csv"), {"exp.yaml": "experiment"}),
     Command(("experiment", "lake"), ("experiment", "lake", "--out", "lake.csv", "--duration", "10")),
@@ -595,10 +595,11 @@ def _seed_of_kind(kind: str) -> str:
     return next((n for n, k in SEED_FILES.items() if k == kind), "")
 
 
-def file_cases(seeds: dict[str, bytes], rng: random.Random, per_command: int) -> list[Case]:
-    """`per_command` mutated inputs for each command that reads a seed."""
+def file_cases(seeds: dict[str, bytes], rng: random.Random, per_command: int,
+               commands: tuple[Command, ...] = COMMANDS) -> list[Case]:
+    """`per_command` mutated inputs for each of `commands` that reads a seed."""
     cases = []
-    for cmd in COMMANDS:
+    for cmd in commands:
         reads = list(cmd.reads.items())
         if not reads:
             continue
