@@ -26,7 +26,7 @@ for p in (str(REPO), str(REPO / "tests" / "fuzz")):
         sys.path.insert(0, p)
 
 import fuzz_cases as fc  # noqa: E402  (after the path set-up above)
-from fuzz_runner import CaseRunner, measure  # noqa: E402
+from fuzz_runner import measure  # noqa: E402
 
 CASE_TIMEOUT_S = 60.0
 REFUSAL_LIMIT_S = 5.0
@@ -46,15 +46,7 @@ def run(quick: bool = False) -> list[dict]:
     t_start = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="lotsen-fuzz-") as tmp:
         work = Path(tmp)
-        seeds_dir = work / "seeds"
-        seeds_dir.mkdir()
-        fc.write_text_seeds(seeds_dir)
-        with CaseRunner(env={"LOTSEN_RUNTIME_DIR": str(work / "runtime")}) as runner:
-            for argv in fc.SEED_COMMANDS:
-                made = runner.run(argv, seeds_dir, 300.0)
-                if made.code != 0:
-                    raise RuntimeError(f"seed command failed: {made.describe()}")
-            seeds = {p.name: p.read_bytes() for p in seeds_dir.iterdir() if p.is_file()}
+        with fc.session(work) as (runner, seeds):
             for draw in draws:
                 rng = random.Random(draw)
                 cases = fc.flag_cases(build_parser(), rng, per_flag)

@@ -64,8 +64,6 @@ def check_input_file(path: str | Path, limit: int, error: type[LotsenError] = Lo
     p = Path(path)
     try:
         st = p.stat()
-    except FileNotFoundError:
-        raise error(f"{p}: no such {what}; cannot read it") from None
     except OSError as exc:
         raise error(f"{p}: cannot read {what}: {exc.strerror or exc}") from None
     if stat.S_ISDIR(st.st_mode):

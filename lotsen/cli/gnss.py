@@ -48,6 +48,8 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.drivers.ubx import replay_stream
 
     path = Path(args.capture)
+    if not path.exists():
+        raise DataError(f"{path}: no such capture file")
     check_input_file(path, MAX_CAPTURE_BYTES, DataError, "capture file")
     if args.out:
         check_output(args.out, (path,), DataError, "CSV")

@@ -65,7 +65,8 @@ def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
     if len(parts) != 2:
         raise ConfigError(f"--{what} {text[:40]!r}: expected SPEED,DIR_DEG, e.g. 0.1,90")
     speed_range = _CURRENT_MPS if what == "current" else _WIND_MPS
-    return (speed_range.parse(parts[0], f"--{what} SPEED"), _DIRECTION_DEG.parse(parts[1], f"--{what} DIR_DEG"))
+    where = f"--{what} {text[:40]!r} (SPEED,DIR_DEG)"
+    return speed_range.parse(parts[0], f"{where}: the speed"), _DIRECTION_DEG.parse(parts[1], f"{where}: the direction")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -45,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
             if not results:
                 print(f"{src}: no unclosed recordings")
         return 1 if any(r.error or r.nothing_recovered for r in results) else 0
+    if not src.exists():
+        raise DataError(f"{src}: no such log file")
     check_input_file(src, MAX_LOG_BYTES, DataError, "log file")
     dst = Path(args.out) if args.out else recovered_path(src)
     check_output(dst, (src,), DataError, "recovered file")

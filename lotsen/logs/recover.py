@@ -303,6 +303,8 @@ def recover_mcap(src: str | os.PathLike, dst: str | os.PathLike, *, fsync: bool 
     from lotsen import __version__
 
     src, dst = Path(src), Path(dst)
+    if not src.exists():
+        raise DataError(f"{src}: no such log file")
     check_input_file(src, MAX_LOG_BYTES, DataError, "log file")
     if src.resolve() == dst.resolve() or same_file(src, dst):
         raise DataError(f"{dst}: the output must not be the file being recovered (nor a link to it)")

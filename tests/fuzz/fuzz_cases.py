@@ -23,9 +23,10 @@ import json
 import math
 import os
 import random
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Iterator
 
 import yaml
 
@@ -89,6 +90,23 @@ def write_text_seeds(folder: Path) -> None:
 #: command lines (run by the case runner in the seed folder) that make the recorded seeds
 SEED_COMMANDS = (["experiment", "run", "exp.yaml", "--sim", "--out", "data.csv"],
                  ["experiment", "run", "exp.yaml", "--sim", "--out", "run.mcap"])
+
+
+@contextmanager
+def session(work: Path, seed_timeout_s: float = 300.0) -> Iterator[tuple[Any, dict[str, bytes]]]:
+    """A case runner (fuzz_runner.CaseRunner, its runtime folder inside `work`) and the seeds,
+    the recorded ones made by the commands themselves (SEED_COMMANDS)."""
+    from fuzz_runner import CaseRunner
+
+    seeds_dir = work / "seeds"
+    seeds_dir.mkdir(parents=True)
+    write_text_seeds(seeds_dir)
+    with CaseRunner(env={"LOTSEN_RUNTIME_DIR": str(work / "runtime")}) as runner:
+        for argv in SEED_COMMANDS:
+            made = runner.run(argv, seeds_dir, seed_timeout_s)
+            if made.code != 0:
+                raise RuntimeError(f"a seed command failed: {made.describe()}")
+        yield runner, {p.name: p.read_bytes() for p in seeds_dir.iterdir() if p.is_file()}
 
 
 def seed_variants(seeds: dict[str, bytes], kind: str) -> list[str]:

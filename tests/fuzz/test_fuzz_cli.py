@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import fuzz_cases as fc
-from fuzz_runner import CaseRunner, measure
+from fuzz_runner import measure
 from lotsen.cli.main import COMMANDS, build_parser
 from lotsen.settings import Number
 
@@ -87,14 +87,7 @@ def fuzz(tmp_path_factory):
     """The case runner and the seeds (the project's inputs, a CSV record and an MCAP recorded by
     the commands themselves)."""
     work = tmp_path_factory.mktemp("fuzz")
-    seeds_dir = work / "seeds"
-    seeds_dir.mkdir()
-    fc.write_text_seeds(seeds_dir)
-    with CaseRunner(env={"LOTSEN_RUNTIME_DIR": str(work / "runtime")}) as runner:
-        for argv in fc.SEED_COMMANDS:
-            made = runner.run(argv, seeds_dir, 120.0)
-            assert made.code == 0, made.describe()
-        seeds = {p.name: p.read_bytes() for p in seeds_dir.iterdir() if p.is_file()}
+    with fc.session(work, 120.0) as (runner, seeds):
         yield runner, seeds, work
 
 
