@@ -8,6 +8,7 @@ The metadata (unit, range, description) validates files and generates the docs' 
 from __future__ import annotations
 
 import difflib
+import json
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Mapping
@@ -187,9 +188,10 @@ def parameters_from_file(data: Any, source: str) -> ParameterFile:
     parameters = VesselParameters.from_dict(values, source=source)  # what is there is physical
     missing = [n for n in names if n not in data and n not in defaults]
     if missing:
+        example = ", ".join(json.dumps(n) for n in missing[:3])
         raise ConfigError(f"{source}: missing coefficient(s) {', '.join(missing)}: a parameter file gives all "
                           f"{len(names)} (a model half of defaults is a wrong model on the boat); to take the "
-                          f'documented defaults for some, list them: "{DEFAULTS_KEY}": [{", ".join(repr(n).replace(chr(39), chr(34)) for n in missing[:3])}]')
+                          f'documented defaults for some, list them: "{DEFAULTS_KEY}": [{example}]')
     return ParameterFile(parameters, source, defaults, verdict)
 
 

@@ -34,6 +34,7 @@ from lotsen.errors import ConfigError
 from lotsen.messages import LATCHED_TOPICS
 from lotsen.runtime.bus import BoundedQueue
 from lotsen.runtime.executor import Node, NodeContext
+from lotsen.settings import value_range as _r
 from lotsen.transport import codec
 
 
@@ -50,13 +51,13 @@ class BridgeConfig:
     key_prefix: str = "lotsen"
     multicast_scouting: bool = False  # never scout by multicast unless explicitly enabled
     gossip_scouting: bool = False
-    queue_maxlen: int = 2000
+    queue_maxlen: int = field(default=2000, metadata=_r(1, 10_000_000))
     # received messages reach the bus at once (the receiving thread wakes the executor); this
     # timer is only a backstop. A 5 ms poll woke every process of a run 200 times a second.
-    drain_period_s: float = 0.1
+    drain_period_s: float = field(default=0.1, metadata=_r(0.0001, 1.0))
     # the sender takes what arrives within this long after a first message in one go: one
     # wake-up per burst (a sensor tick publishes several topics), not one per message
-    send_batch_s: float = 0.01
+    send_batch_s: float = field(default=0.01, metadata=_r(0.0, 1.0))
     latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
     # a client that starts before its router (the processes of a run start side by side): keep
     # trying to connect (opening the session waits for the router) instead of failing at once
