@@ -115,6 +115,8 @@ def check_output(path: str | Path, inputs: Iterable[str | Path | None] = (), err
     p = Path(path)
     if p.is_dir():
         raise error(f"{p}: is a folder; give the {what} a file name")
+    if p.exists() and not p.is_file():  # a device (/dev/null), a FIFO, a socket: never replaced by a file
+        raise error(f"{p}: not a regular file; the {what} is written as a new file, give it a file name")
     parent = p.parent
     if not parent.is_dir():
         raise error(f"{p}: cannot write the {what}: the folder {parent} does not exist")

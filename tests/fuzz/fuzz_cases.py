@@ -582,7 +582,7 @@ def _suffix(kind: str) -> str:
 def _output_value(kind: str, base_inputs: list[str], rng: random.Random) -> tuple[list[str], dict, bool, str]:
     """A hostile output name: an input (same path, a link), a missing folder, a folder, a bad plot suffix."""
     links: dict[str, tuple[str, str]] = {}
-    options = ["no_dir", "folder"] + (["same", "symlink", "hardlink"] if base_inputs else []) + \
+    options = ["no_dir", "folder", "device"] + (["same", "symlink", "hardlink"] if base_inputs else []) + \
         (["bad_ext"] if kind == "out:plot" else [])
     choice = rng.choice(options)
     target = rng.choice(base_inputs) if base_inputs else ""
@@ -596,6 +596,9 @@ def _output_value(kind: str, base_inputs: list[str], rng: random.Random) -> tupl
         values = ["no_such_dir/out" + (".png" if kind == "out:plot" else ".json")]
     elif choice == "folder":
         values = ["."]
+    elif choice == "device":
+        values = ["pipe.fifo"]  # a special file (as /dev/null would be: never replaced by a regular file)
+        links["pipe.fifo"] = ("fifo", "")
     else:
         values = ["x.nosuchext"]
     return values, links, True, f"{choice} {target}".strip()

@@ -64,6 +64,8 @@ def test_an_output_is_never_an_input_nor_a_link_to_one(tmp_path):
         check_output(tmp_path / "nope" / "x.json", [])
     with pytest.raises(LotsenError, match="is a folder"):
         check_output(tmp_path, [])
+    with pytest.raises(LotsenError, match="not a regular file"):
+        check_output("/dev/null", [])  # as root, a rename would have replaced the device with a file
     assert data.read_text() == "t\n1\n"
 
 
