@@ -84,13 +84,12 @@ class Number:
             if v != 0.0 and abs(v) < _TINY:
                 raise error(f"{where}: {v!r} is a denormal number (magnitude below {_TINY:.3g}), not a "
                             f"meaningful value (allowed: {self.allowed()})")
-        if self.integer:
-            if v != math.floor(v):
-                raise error(f"{where}: {_fmt(v)} is not a whole number (allowed: {self.allowed()})")
-            v = int(v)
+        if self.integer and v != math.floor(v):
+            raise error(f"{where}: {_fmt(v)} is not a whole number (allowed: {self.allowed()})")
         if not (self.lo <= v <= self.hi or (self.zero_ok and v == 0)):
-            raise error(f"{where}: {v!r} outside the allowed range {self.allowed()}")
-        return v if self.integer else float(v)
+            shown = repr(v) if len(repr(v)) <= 40 else f"{float(v):g}"
+            raise error(f"{where}: {shown} outside the allowed range {self.allowed()}")
+        return int(v) if self.integer else float(v)
 
     def parse(self, text: str, where: str, error: type[LotsenError] = ConfigError) -> Any:
         """A number written as text (a flag, a CSV cell), checked as `check` does."""
