@@ -65,7 +65,7 @@ def check_input_file(path: str | Path, limit: int, error: type[LotsenError] = Lo
     try:
         st = p.stat()
     except OSError as exc:
-        raise error(f"{p}: cannot read {what}: {exc.strerror or exc}") from None
+        raise error(f"{_short_name(str(p))}: cannot read {what}: {exc.strerror or exc}") from None
     if stat.S_ISDIR(st.st_mode):
         raise error(f"{p}: is a folder, not a {what}")
     if not stat.S_ISREG(st.st_mode):
@@ -112,7 +112,17 @@ def check_output(path: str | Path, inputs: Iterable[str | Path | None] = (), err
     text = str(path)
     if not text.strip() or "\x00" in text:
         raise error(f"{what}: {text!r} is not a file name")
-    p = Path(path)
+    try:
+        return _check_output(Path(path), inputs, error, what)
+    except OSError as exc:  # e.g. a name longer than the file system takes
+        raise error(f"{_short_name(text)}: cannot write the {what}: {exc.strerror or exc}") from None
+
+
+def _short_name(text: str) -> str:
+    return text if len(text) <= 120 else text[:100] + "..." + text[-15:]
+
+
+def _check_output(p: Path, inputs: Iterable[str | Path | None], error: type[LotsenError], what: str) -> Path:
     if p.is_dir():
         raise error(f"{p}: is a folder; give the {what} a file name")
     if p.exists() and not p.is_file():  # a device (/dev/null), a FIFO, a socket: never replaced by a file

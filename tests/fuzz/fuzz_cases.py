@@ -549,13 +549,16 @@ def _flag_case(cmd: Command, name: str, action: argparse.Action, kind: str, rng:
 
 def _input_value(kind: str, rng: random.Random) -> tuple[list[str], dict, dict, bool, str]:
     """A hostile input file for a flag that reads a `kind` seed: (values, files, links, must, what)."""
-    choices = ["missing", "folder", "dev_zero", "empty", "wrong_kind", "fifo"] + ([] if kind == "ubx" else ["huge"])
+    choices = ["missing", "folder", "dev_zero", "empty", "wrong_kind", "fifo", "long_name"] + \
+        ([] if kind == "ubx" else ["huge"])
     choice = rng.choice(choices)
     files: dict[str, bytes] = {}
     links: dict[str, tuple[str, str]] = {}
     must = True
     if choice == "missing":
         values = ["no_such_file.x"]
+    elif choice == "long_name":  # longer than a file system takes (ENAMETOOLONG)
+        values = ["n" * 300 + _suffix(kind)]
     elif choice == "folder":
         values = ["."]
     elif choice == "dev_zero":
@@ -582,7 +585,7 @@ def _suffix(kind: str) -> str:
 def _output_value(kind: str, base_inputs: list[str], rng: random.Random) -> tuple[list[str], dict, bool, str]:
     """A hostile output name: an input (same path, a link), a missing folder, a folder, a bad plot suffix."""
     links: dict[str, tuple[str, str]] = {}
-    options = ["no_dir", "folder", "device"] + (["same", "symlink", "hardlink"] if base_inputs else []) + \
+    options = ["no_dir", "folder", "device", "long_name"] + (["same", "symlink", "hardlink"] if base_inputs else []) + \
         (["bad_ext"] if kind == "out:plot" else [])
     choice = rng.choice(options)
     target = rng.choice(base_inputs) if base_inputs else ""
@@ -594,6 +597,8 @@ def _output_value(kind: str, base_inputs: list[str], rng: random.Random) -> tupl
         values = [link]
     elif choice == "no_dir":
         values = ["no_such_dir/out" + (".png" if kind == "out:plot" else ".json")]
+    elif choice == "long_name":
+        values = ["n" * 300 + (".png" if kind == "out:plot" else ".json")]
     elif choice == "folder":
         values = ["."]
     elif choice == "device":
