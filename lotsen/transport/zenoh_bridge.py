@@ -25,6 +25,7 @@
 from __future__ import annotations
 
 import json
+import re
 import threading
 import uuid
 from dataclasses import dataclass, field
@@ -68,6 +69,33 @@ class BridgeConfig:
     # drain_period_s: no thread switch per sample, for a process that receives the core's
     # whole stream, e.g. the recorder)
     receive: Literal["callback", "poll"] = "callback"
+
+    def __post_init__(self) -> None:
+        # names become Zenoh key expressions: refused here with the setting, not as a ZError
+        # from the sender's thread after the bridge has started
+        for name in ("vessel", "key_prefix"):
+            value = getattr(self, name)
+            if not _NAME.fullmatch(value or ""):
+                raise ConfigError(f"zenoh bridge: {name} {value[:40]!r}: letters, digits, '_', '-' and '.' only")
+        if self.local_prefix and not _PREFIX.fullmatch(self.local_prefix):
+            raise ConfigError(f"zenoh bridge: local_prefix {self.local_prefix[:40]!r}: letters, digits, '_', '-', "
+                              "'.' and '/' only")
+        for pattern in self.subscribe:
+            check_key_expression(f"{self.key_prefix}/{pattern.strip('/')}", f"subscribe pattern {pattern[:40]!r}")
+
+
+_NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
+_PREFIX = re.compile(r"[A-Za-z0-9_.\-/]{1,128}")
+
+
+def check_key_expression(key: str, what: str) -> None:
+    """ConfigError unless `key` is a Zenoh key expression (wildcards `*` and `**` allowed)."""
+    import zenoh
+
+    try:
+        zenoh.KeyExpr(key)
+    except (zenoh.ZError, ValueError, TypeError) as exc:
+        raise ConfigError(f"zenoh bridge: {what} is not a key expression: {str(exc).split(' at /')[0]}") from None
 
 
 def zenoh_config(cfg: BridgeConfig) -> Any:
