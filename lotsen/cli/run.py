@@ -111,7 +111,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     config, generated = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
-    from lotsen.stack.stack import simulated_boat, vessel_model
+    from lotsen.stack.stack import describe_parameters, simulated_boat, vessel_model
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
@@ -129,7 +129,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
     if config.mode == "sim":
         print(f"simulated boat: {simulated_boat(config).describe(vessel_model(config).params)}; model: "
-              f"{config.vessel.parameters_file or 'default coefficients'}", flush=True)
+              f"{describe_parameters(config.vessel.parameters_file)}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:
         launcher.start()

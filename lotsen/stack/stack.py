@@ -97,7 +97,10 @@ def simulated_boat(config: LaunchConfig, model: VesselModel | None = None) -> Si
         return SimulatedBoat.ideal_for(model)
     boat = DEFAULT_BOAT
     if b.parameters_file:
-        boat = boat.with_parameters(load_parameters(b.parameters_file))
+        loaded = load_parameter_file(b.parameters_file)
+        # a file that takes some coefficients from the defaults says so in every report of the boat
+        boat = boat.with_parameters(loaded.parameters,
+                                    name=f"{boat.name} with {loaded.describe()}" if loaded.defaults_for else None)
     if b.parameters:
         boat = boat.with_parameters(VesselParameters.from_dict({**boat.parameters.to_dict(), **b.parameters},
                                                                source="sim.boat.parameters"))
