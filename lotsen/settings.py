@@ -7,7 +7,7 @@ The same rules hold for a value from a flag, a YAML file or a JSON file, and eve
 the place, the value and the allowed range with its unit:
 
     nodes[2].speed_mps: 1e-09 outside the allowed range 0 or 0.05 to 5 m/s
-    argument --node: nan is not a finite number (allowed: 0.1 to 60 s)
+    argument --node: nan is not a finite number (allowed: 0.2 to 60 s)
 
 Settings dataclasses declare it as field metadata,
 
@@ -65,13 +65,12 @@ class Number:
 
     def check(self, value: Any, where: str, error: type[LotsenError] = ConfigError) -> Any:
         """`value` (a parsed number) as float (int if `integer`), or `error` naming `where`."""
+        if not isinstance(value, (bool, int, float)) and hasattr(value, "item") and hasattr(value, "__float__"):
+            value = value.item()  # a numpy scalar: its Python number
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            if hasattr(value, "__float__") and not isinstance(value, (str, bytes)):  # numpy scalars
-                value = value.item() if hasattr(value, "item") else float(value)
-            else:
-                shown = repr(value)
-                shown = shown if len(shown) <= 40 else shown[:37] + "..."
-                raise error(f"{where}: expected a number, got {shown} (allowed: {self.allowed()})")
+            shown = repr(value)
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            raise error(f"{where}: expected a number, got {shown} (allowed: {self.allowed()})")
         if isinstance(value, int):
             if abs(value) > sys.float_info.max:
                 raise error(f"{where}: integer with {len(str(abs(value)))} digits is outside the allowed "

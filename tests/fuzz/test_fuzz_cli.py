@@ -28,7 +28,7 @@ from lotsen.settings import Number
 SEED = int(os.environ.get("LOTSEN_FUZZ_SEED", "1"))
 #: per case: a hang is a case still running after this (the issue: refusals within 5 s; the
 #: suite allows twice that for a loaded machine, the bench judges the 5 s)
-CASE_TIMEOUT_S = 30.0
+CASE_TIMEOUT_S = 60.0
 REFUSAL_LIMIT_S = 10.0
 FILE_CASES_PER_COMMAND = 8
 
