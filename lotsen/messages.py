@@ -18,7 +18,7 @@ __all__ = [
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
     "OPERATOR_ACTIONS", "ModeName", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
-    "ModelInfo", "LATCHED_TOPICS",
+    "ModelInfo", "LATCHED_TOPICS", "CommandAck", "RecorderStatus",
 ]
 
 
@@ -48,6 +48,7 @@ class Topic:
     ALERT = "supervisor/alert"  # Alert: refusals, failsafes, warnings for the operator
     PROGRESS = "mission/progress"  # MissionProgress along the active path (AUTO / RETURN)
     OPERATOR = "operator/command"  # OperatorCommand (mode changes, start/stop)
+    OPERATOR_ACK = "operator/ack"  # CommandAck: the supervisor's answer to each OperatorCommand with a request_id
     MANUAL = "operator/manual"  # ManualCommand from the keyboard
     LINK = "operator/link"  # LinkStatus: the pilot's connection, published by the web server
     RC = "rc/override"  # RcOverride from the FrSky receiver
@@ -55,6 +56,7 @@ class Topic:
     LOG = "log"  # LogEvent
     ESTIMATOR_HEALTH = "fusion/health"  # EstimatorHealth: integrity of the state estimate (docs/fusion.md)
     MODEL = "model/in_use"  # ModelInfo: the model the estimator and controllers use, and its origin
+    RECORDER = "logs/status"  # RecorderStatus: the recorder's disk and what it has kept (1 Hz)
 
 
 #: state a late joiner needs (a recorder, a page, a ROS 2 node started after it was published):
@@ -325,6 +327,39 @@ class OperatorCommand:
     stamp_s: float
     action: str
     source: str = "operator"
+    # the sender's id of this request (a page resends an unconfirmed e-stop with the same id): the
+    # supervisor answers each id once with a CommandAck and acts on it once
+    request_id: str = ""
+
+
+@dataclass(slots=True, kw_only=True)
+class CommandAck:
+    """The supervisor's answer to an OperatorCommand with a request_id: accepted (and done) or
+    refused with the reason, and the mode after it. A resent request gets the first answer again."""
+
+    stamp_s: float
+    request_id: str
+    action: str
+    accepted: bool
+    reason: str = ""
+    mode: str = ""
+    armed: bool = False
+
+
+@dataclass(slots=True, kw_only=True)
+class RecorderStatus:
+    """The recorder's state, 1 Hz: where it writes, the free space there, and a write failure with
+    what it has kept (the file and its last complete second)."""
+
+    stamp_s: float
+    directory: str
+    free_bytes: int = -1  # -1: unknown
+    total_bytes: int = -1
+    recording: bool = False
+    file: str = ""  # the file being written ("" = none)
+    written_bytes: int = 0  # in that file so far
+    error: str = ""  # a write failure ("" = none): the disk full or failing
+    kept: str = ""  # after a failure: what is safe on disk, in the operator's words
 
 
 @dataclass(slots=True, kw_only=True)

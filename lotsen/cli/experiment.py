@@ -71,8 +71,18 @@ def _run_inputs(args: argparse.Namespace, config_files: tuple[str, ...] = ()) ->
 
 def _cmd_run(args: argparse.Namespace) -> int:
     exp = load_experiment(args.experiment)
+    if args.physics:
+        if args.hardware:
+            raise ConfigError("--physics replaces the simulated boat; it cannot run with --hardware")
+        if args.boat:
+            raise ConfigError("--boat: with --physics the boat is the physics server's")
+        if Path(args.out).suffix != ".mcap":
+            raise ConfigError(f"--out {args.out}: with --physics the run is recorded on the stack: give RUN.mcap "
+                              "(lotsen identify reads it)")
+        args.sim = True
     if args.sim == args.hardware:
-        raise LotsenError("say where to run, once: --sim (simulated boat) or --hardware [--emulated] (the boat's drivers)")
+        raise LotsenError("say where to run, once: --sim (simulated boat), --physics udp:HOST:PORT (an external "
+                          "physics) or --hardware [--emulated] (the boat's drivers)")
     if args.emulated and not args.hardware:
         raise LotsenError("--emulated is for --hardware (the drivers' emulated twins); --sim runs the simulated boat")
     check_outputs((args.out,), _run_inputs(args), ConfigError)
@@ -87,18 +97,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
 
-        from lotsen.cli.run import with_model_and_boat
+        from lotsen.cli.mission import check_physics_answered
+        from lotsen.cli.run import with_model_and_boat, with_physics
         from lotsen.harness.lab_loop import record_on_simulated_stack
         from lotsen.stack.config import load_stack_config
-        from lotsen.stack.stack import simulated_boat
+        from lotsen.stack.stack import boat_description
 
         config = with_model_and_boat(replace(load_stack_config(args.config), seed=args.seed), args.params, args.boat)
+        config = with_physics(replace(config, mode="sim"), args.physics)
         from lotsen.stack.config import config_files
 
         with atomic_output(out, _run_inputs(args, config_files(config)), ConfigError, "log") as tmp:
             node = record_on_simulated_stack(exp, tmp, config)
-        print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {simulated_boat(config).describe(model.params)}"
+        print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {boat_description(config, model)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        if hasattr(node.plant, "silent_at_s"):  # an external physics
+            check_physics_answered(node.plant, [node.aborted] if node.aborted else [], args.out)
         return 1 if node.aborted else 0
     if args.hardware:
         from dataclasses import replace
@@ -195,6 +209,10 @@ def register(subparsers: Any) -> None:
     r.add_argument("--hardware", action="store_true",
                    help="run on the boat through its drivers (with the state estimate and the recorder)")
     r.add_argument("--emulated", action="store_true", help="with --hardware: the drivers' emulated twins")
+    r.add_argument("--physics", metavar="udp:HOST:PORT",
+                   help="run on an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
+                        "docs/physics.md; the channel map from --config's extra.physics), recorded on the stack: "
+                        "--out RUN.mcap")
     r.add_argument("--config", help="launch config YAML: for --hardware its devices and pins (extra.hardware); "
                                     "for --sim with an .mcap output its sim.boat and vessel sections")
     r.add_argument("--out", required=True,

@@ -31,6 +31,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "gnss-replay": ("gnss", "print the NAV-PVT fixes of a recorded UBX byte stream as CSV"),
     "check": ("check", "pre-flight check: open each device, measure its rate and health"),
     "recover": ("recover", "make a killed/unclosed MCAP recording readable (index + summary)"),
+    "pair": ("pair", "the boat's pilot credential: its QR code to pair a phone, or a new one (--new)"),
+    "physics-server": ("physics", "serve the simulated boat as an ArduPilot SITL JSON physics (the reference for --physics)"),
 }
 COMMAND_MODULES = tuple(dict.fromkeys(module for module, _ in COMMANDS.values()))
 

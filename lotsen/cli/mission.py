@@ -1,14 +1,18 @@
-"""`lotsen mission ROUTE.yaml --sim [--controller mpc|pursuit|los|lq] [--current SPEED,DIR_DEG]
-[--wind SPEED,DIR_DEG] [--seed N] [--boat BOAT.json|ideal] [--params PARAMS.json] --report report.json
-[--plot mission.png]`
+"""`lotsen mission ROUTE.yaml --sim|--physics udp:HOST:PORT [--controller mpc|pursuit|los|lq]
+[--current SPEED,DIR_DEG] [--wind SPEED,DIR_DEG] [--seed N] [--boat BOAT.json|ideal] [--params PARAMS.json]
+[--config CONFIG.yaml] --report report.json [--plot mission.png]`
 
 Plans the route (lotsen.planning), runs the closed loop on the simulated boat (controller at
 10 Hz on the simulator's 100 Hz steps), holds the last point with the station keeper, and writes
 a JSON report (tracking errors, propeller reversals, solve times, completion, which boat and which
 model) and optionally a plot. The simulated boat (`--boat`, default the lake boat) and the model
 the estimator and controllers use (`--params`, default the default coefficients) are separate:
-a boat is never its model unless `--boat ideal` says so.
-Exit code 0 when the mission completed, 1 when it did not (the report is written either way).
+a boat is never its model unless `--boat ideal` says so. `--physics udp:HOST:PORT` flies an
+external physics instead (ArduPilot SITL's JSON protocol, docs/physics.md; the channel map from
+`--config`'s extra.physics): lotsen's sensor models, estimator and controllers, the physics's boat,
+water and wind.
+Exit code 0 when the mission completed, 1 when it did not (the report is written either way), 2
+with an error when the physics stopped answering during the mission.
 """
 
 from __future__ import annotations
@@ -36,7 +40,13 @@ def register(subparsers: Any) -> None:
         description="Plan ROUTE, follow it with the selected controller on the simulator, hold the "
                     "last point, and report tracking errors and solver times.")
     p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
-    p.add_argument("--sim", action="store_true", help="run on the simulated boat (the only target so far)")
+    p.add_argument("--sim", action="store_true", help="run on the simulated boat")
+    p.add_argument("--physics", metavar="udp:HOST:PORT",
+                   help="fly an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
+                        "docs/physics.md); its boat, water and wind are its own")
+    p.add_argument("--config", metavar="CONFIG.yaml",
+                   help="with --physics: the launch config whose extra.physics (channel map, timeouts, GNSS antenna) "
+                        "is used")
     p.add_argument("--controller", default="mpc", choices=("mpc", "pursuit", "los", "lq"))
     p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
     p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
@@ -70,8 +80,17 @@ def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    if not args.sim:
-        raise LotsenError("mission: only --sim is supported (the runtime runs missions on the boat)")
+    if not args.sim and not args.physics:
+        raise LotsenError("mission: say what to fly: --sim (the simulated boat) or --physics udp:HOST:PORT (an "
+                          "external physics); the runtime runs missions on the boat")
+    if args.physics:
+        if args.boat:
+            raise ConfigError("--boat: with --physics the boat is the physics server's")
+        if args.current or args.wind:
+            raise ConfigError("--current/--wind: with --physics the water and the wind are the physics server's; "
+                              "set them there")
+    elif args.config:
+        raise ConfigError("--config: only read for --physics (its extra.physics section)")
     from dataclasses import replace
 
     from lotsen.cli.plan import plan_within_budget
@@ -86,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")
     check_plot_name(args.plot)
-    inputs = (args.route, args.params, None if args.boat == "ideal" else args.boat)
+    inputs = (args.route, args.params, None if args.boat == "ideal" else args.boat, args.config)
     check_outputs((args.report, args.plot), inputs, ConfigError)
     env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1])
     # the files first (a bad file is reported before minutes of simulation), then the plan
@@ -106,19 +125,27 @@ def run(args: argparse.Namespace) -> int:
         control = replace(control, mpc=replace(MPCConfig(), horizon=args.horizon))
     cfg = MissionConfig(control_rate_hz=1.0 / control.dt_s, environment=env, seed=args.seed, hold_s=args.hold,
                         sensors=args.estimator != "truth")
+    plant = physics_plant(args.config, args.physics, cfg.sim_dt_s) if args.physics else None
+    boat = plant if plant is not None else boat
     estimator = make_sim_ekf(cfg, path, model, boat=boat) if args.estimator == "ekf" else None
-    result = run_mission(path, make_path_follower(control, model), cfg, model=model, boat=boat, estimator=estimator)
+    try:
+        result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator,
+                             **({"plant": plant} if plant is not None else {"boat": boat}))
+    finally:
+        if plant is not None:
+            plant.close()
+    ideal = bool(getattr(boat, "ideal", False))
     report = dict(result.metrics)
     report.update(model=model_file.source if model_file else "default coefficients",
                   model_defaults_for=list(model_file.defaults_for) if model_file else [],
-                  boat=boat.describe(model.params), ideal_model=boat.ideal)
+                  boat=boat.describe(model.params), ideal_model=ideal)
     report.update(route=str(args.route), environment={"current_mps": cur[0], "current_to_deg": cur[1],
                                                        "wind_mps": wind[0], "wind_from_deg": wind[1]},
                   seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz)
     write_output(args.report, json.dumps(report, indent=2) + "\n", inputs, ConfigError, "report")
     m = result.metrics
     print(f"boat: {report['boat']}; model: {model_file.describe() if model_file else report['model']}"
-          + (" [ideal model]" if boat.ideal else ""))
+          + (" [ideal model]" if ideal else ""))
     print(f"{m['controller']}: {'completed' if m['completed'] else 'NOT completed (' + m['reason'] + ')'} in "
           f"{m['duration_s']:.1f} s; cross-track RMS {m['cross_track_rms_m'] * 100:.1f} cm, max "
           f"{m['cross_track_max_m'] * 100:.1f} cm; heading RMS {m['heading_error_rms_deg']:.1f} deg; speed RMS "
@@ -131,7 +158,36 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         save_plot(args.plot, lambda p: plot_mission(result, p), inputs)
         print(f"wrote {args.plot}")
+    if plant is not None:
+        check_physics_answered(plant, result.metrics.get("failsafes_triggered", []), args.report)
     return 0 if result.completed else 1
+
+
+def physics_plant(config_path: str | None, address: str, dt_s: float) -> Any:
+    """The external physics at `address` with the channel map of `config_path`'s extra.physics."""
+    from dataclasses import replace
+
+    from lotsen.physics.client import UdpPhysics
+    from lotsen.stack.config import load_stack_config
+
+    physics = load_stack_config(config_path).extra.physics
+    return UdpPhysics(replace(physics, address=address), dt_s=dt_s)
+
+
+def check_physics_answered(plant: Any, failsafes: Any, report: str) -> None:
+    """A PhysicsError when the physics stopped answering during the run and did not come back (the
+    run went on with stale sensors until the failsafes acted), or was lost for a while."""
+    from lotsen.physics.client import PhysicsError
+
+    t = plant.silent_at_s if plant.silent_at_s is not None else plant.lost_at_s
+    if t is None:
+        return
+    c = plant.counters
+    raise PhysicsError(f"the physics at {plant.address} stopped answering at t = {t:.1f} s "
+                       f"({c['timeouts']} frames unanswered, {c['corrupt']} corrupt replies"
+                       + (f"; last: {plant.last_problem}" if plant.last_problem else "")
+                       + f"); the boat's sensors went stale and the failsafes acted ({', '.join(failsafes) or 'none'}); "
+                       f"{report} has the run up to there")
 
 
 def plot_mission(result: Any, out: FilePath) -> None:

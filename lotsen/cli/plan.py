@@ -8,20 +8,23 @@ import math
 
 from lotsen.cli.outputs import check_plot_name, save_plot
 from lotsen.errors import ConfigError
-from lotsen.files import check_outputs, write_output
+from lotsen.files import atomic_output, check_outputs, write_output
 from lotsen.settings import Number
 
 #: the flags' physical ranges (the route file's own limits: lotsen.planning.route)
 COORDINATE = Number(-2000.0, 2000.0, "m")
 HEADING_DEG = Number(-360.0, 360.0, "deg")
+NODE_SPEED = Number(0.05, 5.0, "m/s")  # a moving node's speed (lotsen.planning.route.MIN/MAX_SPEED_MPS)
+LATITUDE, LONGITUDE = Number(-90.0, 90.0, "deg"), Number(-180.0, 180.0, "deg")
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "plan", help="plan a path through a route's nodes (cubic segments, speed profile)",
-        description="Plan the path harbour -> nodes of ROUTE (YAML or GeoJSON) and write it as JSON "
-                    "and/or a plot.")
-    p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
+        description="Plan the path harbour -> nodes of ROUTE (YAML, GeoJSON, or a ground station's file: "
+                    "QGroundControl .plan, QGC WPL 110 .waypoints/.txt, KML, GPX) and write it as JSON "
+                    "and/or a plot; --export writes the route in another of these formats.")
+    p.add_argument("route", help="route file (.yaml, .yml, .geojson, .plan, .waypoints, .txt, .kml, .gpx)")
     p.add_argument("--out", help="write the path as JSON (lotsen.path format)")
     p.add_argument("--plot", help="write a PNG of area, obstacles, nodes and the path coloured by speed")
     p.add_argument("--return-from", nargs=3, metavar=("NORTH", "EAST", "HEADING_DEG"),
@@ -31,6 +34,12 @@ def register(subparsers) -> None:
     p.add_argument("--min-turn-radius", type=Number(0.1, 100.0, "m"), help="metres (default 1.0)")
     p.add_argument("--clearance", type=Number(0.0, 50.0, "m"), help="metres from obstacles (default 0.5)")
     p.add_argument("--speed-max", type=Number(0.05, 5.0, "m/s"), help="m/s (default 1.5)")
+    p.add_argument("--export", metavar="FILE", help="write the route (not the path) as .yaml, .geojson, .plan, "
+                   ".waypoints, .kml or .gpx (the format by the suffix; checked by planning it first)")
+    p.add_argument("--origin", metavar="LAT,LON", help="geographic origin of the local frame (degrees) for a ground "
+                   "station's file and for an export of a route without one; default: the route's, else its harbour")
+    p.add_argument("--node-speed", type=NODE_SPEED, metavar="M/S", help="node speed where the file has none "
+                   "(.waypoints, KML, GPX; a .plan's cruise speed; default 0.5)")
     p.set_defaults(func=run)
 
 
@@ -41,6 +50,18 @@ def return_pose(values: list[str] | None) -> tuple[float, float, float] | None:
     n, e, h = values
     return (COORDINATE.parse(n, "--return-from NORTH"), COORDINATE.parse(e, "--return-from EAST"),
             HEADING_DEG.parse(h, "--return-from HEADING_DEG"))
+
+
+def _origin(text: str | None):
+    """--origin LAT,LON as a GeoOrigin (None without it); ConfigError naming the flag."""
+    if text is None:
+        return None
+    from lotsen.planning import GeoOrigin
+
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ConfigError(f"--origin: {text[:40]!r} is not LAT,LON in degrees (e.g. 59.3293,18.0686)")
+    return GeoOrigin(LATITUDE.parse(parts[0], "--origin LAT"), LONGITUDE.parse(parts[1], "--origin LON"), 0.0)
 
 
 def _config(args):
@@ -85,9 +106,15 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.planning.io import load_route
 
     pose = return_pose(args.return_from)
+    origin = _origin(getattr(args, "origin", None))
     check_plot_name(args.plot)
-    check_outputs((args.out, args.plot), (args.route,), ConfigError)
-    route = load_route(args.route)
+    export = getattr(args, "export", None)
+    if export:
+        from lotsen.planning.formats import format_of
+
+        format_of(export)  # an unknown suffix is refused before any planning
+    check_outputs((args.out, args.plot, export), (args.route,), ConfigError)
+    route = load_route(args.route, origin=origin, default_speed_mps=getattr(args, "node_speed", None))
     cfg = _config(args)
     path = plan_within_budget(route, cfg, pose)
     for m in path.segments:
@@ -99,6 +126,15 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         write_output(args.out, json.dumps(path.to_dict()), (args.route,), ConfigError, "path")
         print(f"wrote {args.out}")
+    if export:
+        from lotsen.planning.io import save_route
+
+        notes: list[str] = []
+        with atomic_output(export, (args.route,), ConfigError, "route") as tmp:
+            notes.extend(save_route(route, tmp, origin))
+        for note in notes:
+            print(f"note: {note}")
+        print(f"wrote {export}")
     if args.plot:
         save_plot(args.plot, lambda f: plot_path(route, path, f), (args.route,))
         print(f"wrote {args.plot}")

@@ -9,7 +9,6 @@ loop's interpreter).
 from __future__ import annotations
 
 import argparse
-import secrets
 import signal
 import threading
 from dataclasses import replace
@@ -51,13 +50,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "it, over the config's sim.boat), or 'ideal' for a boat equal to the model in use")
     p.add_argument("--params", metavar="PARAMS.json",
                    help="the model the estimator and the controllers use (over the config's vessel.parameters_file)")
+    p.add_argument("--mavlink", action="append", metavar="URL",
+                   help="a MAVLink 2 endpoint for ground stations (QGroundControl, Mission Planner, MAVProxy, Cockpit): "
+                        "udpout:HOST:PORT (as ArduPilot SITL sends to 14550), udpin:HOST:PORT, tcpin:HOST:PORT, or a "
+                        "serial device /dev/ttyUSB0[,57600]; repeatable; added to extra.mavlink.endpoints "
+                        "(docs/mavlink.md)")
+    p.add_argument("--physics", metavar="udp:HOST:PORT",
+                   help="an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
+                        "docs/physics.md; over the config's extra.physics.address)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
     p.set_defaults(func=run)
 
 
-def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[StackConfig, bool]:
-    """The config with the command line's overrides; a generated pilot token for this run (the
-    same for every process and every restart of the web process). Returns (config, generated).
+def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tuple[StackConfig, list[str]]:
+    """The config with the command line's overrides and, unless web.pilot_token is set, the boat's
+    pilot credential (lotsen.web.pairing: made once, kept on the boat, the same for every run and
+    every restart). Returns (config, pairing): pairing is ["new" | "kept", credential file] when
+    the boat's credential is used, else [].
     With `lock`: the boat is locked for this run (`RunRefused` when another run has it) before
     the config is validated, so a second run is refused before anything else happens."""
     if getattr(args, "sim", False) and args.hardware:
@@ -72,18 +81,32 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
         raise ConfigError("--host: empty; give the web server's bind address (e.g. 127.0.0.1 or 0.0.0.0)")
     if args.host is not None or args.port is not None:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
-    generated = not web.pilot_token
-    if generated:
-        web = replace(web, pilot_token=secrets.token_urlsafe(24))  # 192 random bits
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
+    config = with_mavlink(config, getattr(args, "mavlink", None))
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
+    config = with_physics(config, getattr(args, "physics", None))
     if lock is not None:
         lock.identities = run_identities(config)
         lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
     from lotsen.stack.processes import validate
+    from lotsen.stack.web import paired_config
 
+    config, pairing = paired_config(config)
     validate(config, tls=bool(getattr(args, "tls", False)))
-    return config, generated
+    return config, pairing
+
+
+def with_mavlink(config: StackConfig, urls: list[str] | None) -> StackConfig:
+    """`--mavlink URL ...` added to `extra.mavlink.endpoints` (checked there: a bad URL is a
+    ConfigError naming it); the endpoint lives in the web process, so it needs the web server."""
+    if urls:
+        mav = config.extra.mavlink
+        config = replace(config, extra=replace(config.extra, mavlink=replace(
+            mav, endpoints=mav.endpoints + tuple(u for u in urls if u not in mav.endpoints))))
+    if config.extra.mavlink.endpoints and not config.web.enabled:
+        raise ConfigError("--mavlink / extra.mavlink.endpoints: the MAVLink endpoint runs in the web process; "
+                          "set web.enabled: true")
+    return config
 
 
 def with_model_and_boat(config: StackConfig, params: str | None, boat: str | None) -> StackConfig:
@@ -99,6 +122,18 @@ def with_model_and_boat(config: StackConfig, params: str | None, boat: str | Non
     return config
 
 
+def with_physics(config: StackConfig, address: str | None) -> StackConfig:
+    """`--physics udp:HOST:PORT`: the external physics instead of the simulated boat (its
+    `extra.physics` channel map and timeouts from the config). Only in simulation."""
+    if address:
+        physics = config.extra.physics
+        config = replace(config, extra=replace(config.extra, physics=replace(physics, address=address)))
+    if config.extra.physics.address and config.mode != "sim":
+        raise ConfigError(f"extra.physics.address {config.extra.physics.address}: an external physics replaces the "
+                          "simulated boat; it cannot fly with --hardware")
+    return config
+
+
 def run(args: argparse.Namespace) -> int:
     lock = RunLock([])  # one run per boat: held until this command ends (the kernel frees it if killed)
     try:
@@ -108,15 +143,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, lock: RunLock) -> int:
-    config, generated = launch_config(args, lock)
+    config, pairing = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
-    from lotsen.stack.stack import describe_parameters, simulated_boat, vessel_model
+    from lotsen.stack.stack import boat_description, describe_parameters
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
-    if generated and config.web.enabled:
-        print(f"pilot token (this run only; set web.pilot_token to fix it): {config.web.pilot_token}", flush=True)
+    if pairing:
+        from lotsen.web.pairing import console_lines, page_base_url
+
+        base = page_base_url(config.web.host, config.web.port, bool(args.tls))
+        for line in console_lines(config.web.pilot_token, Path(pairing[1]), base, pairing[0] == "new"):
+            print(line, flush=True)
     if args.one_process:
         return _run_one_process(config, args, lock)
     roles = ("core", "recorder") + (("web",) if config.web.enabled else ()) + \
@@ -128,7 +167,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         signal.signal(signal.SIGTERM, lambda *_: launcher.request_stop())
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
     if config.mode == "sim":
-        print(f"simulated boat: {simulated_boat(config).describe(vessel_model(config).params)}; model: "
+        print(f"simulated boat: {boat_description(config)}; model: "
               f"{describe_parameters(config.vessel.parameters_file)}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:

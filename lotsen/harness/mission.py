@@ -33,7 +33,7 @@ from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselMode
 from lotsen.model.angles import wrap_angle
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
 from lotsen.runtime.executor import Node, NodeContext
-from lotsen.sim import DEFAULT_BOAT, SimConfig, SimulatedBoat, Simulator
+from lotsen.sim import DEFAULT_BOAT, Plant, SimConfig, SimulatedBoat, Simulator
 from lotsen.stack.launch import Harness, build_stack
 
 
@@ -142,13 +142,15 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
                 *, station_keeper: StationKeeper | None = None, model: VesselModel | None = None,
                 boat: SimulatedBoat | None = None, sim_model: VesselModel | None = None,
                 limits: ActuatorLimits = DEFAULT_LIMITS, estimator: Any = None,
-                sim_config: SimConfig | None = None) -> MissionResult:
+                sim_config: SimConfig | None = None, plant: Plant | None = None) -> MissionResult:
     """Run one mission in simulation on the stack's closed loop: the simulated boat node (with
     its actuator guard), the estimator node (or the truth), and the supervisor with its
     failsafes, armed and sent to AUTO at the start. `model` is the controllers' and the
     estimator's model (default: the default model); `boat` the simulated boat (default: the lake
     boat, which is not the default model). `sim_model`: a boat exactly equal to that model
-    (no unmodelled effects; `SimulatedBoat.ideal_for`)."""
+    (no unmodelled effects; `SimulatedBoat.ideal_for`). `plant`: another body behind lotsen's
+    sensors instead (an external physics, `lotsen.physics.client.UdpPhysics`, or any `Plant`),
+    placed at the path's start; its water and air are its own (`config.environment` must be calm)."""
     model = model or VesselModel()
     follower = follower or make_path_follower(ControlConfig(), model, limits)
     keeper = station_keeper or make_station_keeper(ControlConfig(), model, limits)
@@ -159,9 +161,14 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
     x0 = [float(path.north_m[0]) + along * math.cos(h0) - cross * math.sin(h0),
           float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
           h0 + config.start_heading_offset_rad, 0.0, 0.0, 0.0]
-    if boat is None:
-        boat = SimulatedBoat.ideal_for(sim_model, limits) if sim_model is not None else DEFAULT_BOAT
-    sim = Simulator(boat, config=sim_cfg, x0=x0)
+    if plant is not None:
+        if boat is not None or sim_model is not None:
+            raise ValueError("run_mission: give a plant or a boat, not both")
+        sim = Simulator(plant, config=sim_cfg, x0=x0)
+    else:
+        if boat is None:
+            boat = SimulatedBoat.ideal_for(sim_model, limits) if sim_model is not None else DEFAULT_BOAT
+        sim = Simulator(boat, config=sim_cfg, x0=x0)
     launch = LaunchConfig(seed=config.seed, nodes=NodesSection(fusion="truth" if estimator is None else "ekf",
                                                                control_rate_hz=config.control_rate_hz),
                           sim=SimSection(dt_s=sim_cfg.dt_s, esc_arm_time_s=0.0), web=WebSection(enabled=False),
@@ -220,6 +227,9 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
         res.cross_track_m = true_cte
     res.metrics = mission_metrics(res, follower, t_done[0] if t_done else None)
     res.metrics["failsafes_triggered"] = sorted({e.split(":")[0] for e in sup.failsafe_history})
+    plant_status = sim.plant.status()  # an external physics's counters (lotsen's own boat has none)
+    if plant_status:
+        res.metrics["physics"] = plant_status
     return res
 
 
@@ -279,8 +289,8 @@ def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> 
 
 
 def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = None,
-                 sim_config: SimConfig | None = None, boat: SimulatedBoat = DEFAULT_BOAT) -> ModelAidedEKF:
-    """lotsen.fusion's model-aided EKF set up for the simulated boat: GNSS origin of the simulator,
+                 sim_config: SimConfig | None = None, boat: SimulatedBoat | Plant = DEFAULT_BOAT) -> ModelAidedEKF:
+    """lotsen.fusion's model-aided EKF set up for the simulated boat (or plant): GNSS origin of the simulator,
     the boat's GNSS antenna position (measured on the hull, as `vessel.gnss_antenna_m`), the
     magnetometer calibration its distortion implies (what `lotsen calibrate` would find), and
     the start pose of the mission."""

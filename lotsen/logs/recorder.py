@@ -31,6 +31,7 @@ from typing import Any, Callable, Literal
 
 from lotsen.errors import ConfigError
 from lotsen.logs import foxglove_views
+from lotsen.messages import RecorderStatus
 from lotsen.runtime.bus import BoundedQueue, Bus
 from lotsen.transport import codec
 from lotsen.settings import value_range as _r
@@ -90,6 +91,17 @@ class RecorderStats:
     bytes: int = 0
     last_error: str = ""
     per_topic: dict[str, int] = field(default_factory=dict)
+    # a write failure (the disk full or failing): recording stops at the first one, and the file
+    # keeps what the last good flush put on disk (`kept_bytes`, messages up to `kept_until_s`)
+    failed: str = ""
+    kept_bytes: int = 0
+    kept_until_s: float = math.nan  # runtime clock seconds of the last message flushed to disk
+
+    def kept(self) -> str:
+        """What is safe on disk after a failure, in the operator's words."""
+        until = f" up to {self.kept_until_s:.1f} s of the run" if math.isfinite(self.kept_until_s) else ""
+        return (f"{Path(self.path).name}{until} ({self.kept_bytes / 1e3:.0f} kB on disk, readable; "
+                f"`lotsen recover` indexes it)")
 
 
 def next_log_path(directory: str | os.PathLike, when: float | None = None) -> Path:
@@ -126,14 +138,19 @@ class _Session:
         self._writer = Writer(self._file, chunk_size=config.chunk_size, compression=comp[config.compression])
         from lotsen import __version__
 
-        self._writer.start(profile=PROFILE, library=f"lotsen {__version__}")
-        self._writer.add_metadata("lotsen", {"log_format_version": LOG_FORMAT_VERSION, "lotsen_version": __version__,
-                                             "start_epoch_ns": str(epoch0_ns), **metadata})
         self._channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
+        self._last_t_s = math.nan
         self._views = foxglove_views.ViewMaker(config.geo_origin) if (
             config.foxglove_views and foxglove_views.available()) else None
-        self._writer.flush()
+        try:  # the header: a full disk already fails here; the run goes on, the failure is reported
+            self._writer.start(profile=PROFILE, library=f"lotsen {__version__}")
+            self._writer.add_metadata("lotsen", {"log_format_version": LOG_FORMAT_VERSION, "lotsen_version": __version__,
+                                                 "start_epoch_ns": str(epoch0_ns), **metadata})
+            self._writer.flush()
+            self.stats.bytes = self.stats.kept_bytes = self._file.tell()
+        except OSError as exc:
+            self._fail("starting", exc)
         self._thread = threading.Thread(target=self._run, name=f"mcap-writer-{path.name}", daemon=True)
         self._thread.start()
 
@@ -195,7 +212,15 @@ class _Session:
         if self.config.fsync:
             os.fsync(self._file.fileno())
         self.stats.flushes += 1
-        self.stats.bytes = self._file.tell()
+        self.stats.bytes = self.stats.kept_bytes = self._file.tell()
+        self.stats.kept_until_s = self._last_t_s
+
+    def _fail(self, what: str, exc: OSError) -> None:
+        """A write failure (ENOSPC, EIO): record no more into this file (the writer's state is
+        no longer the file's), say so once; what the last flush put on disk stays readable."""
+        if not self.stats.failed:
+            self.stats.failed = f"{what} {self.path}: {exc.strerror or exc}"
+            self.stats.last_error = self.stats.failed
 
     def _run(self) -> None:
         last_flush = time.monotonic()
@@ -209,6 +234,9 @@ class _Session:
                 self._stop.wait(WRITE_BATCH_S)
             batch = [item] if item is not None else []
             batch += self.queue.get_all()
+            if self.stats.failed:  # the disk failed: nothing more goes into this file
+                self.stats.dropped += len(batch)
+                batch = []
             for topic, (t_s, msg) in batch:
                 try:
                     if isinstance(msg, codec.Envelope):
@@ -216,16 +244,20 @@ class _Session:
                     else:
                         self._write(topic, t_s, msg)
                     dirty = True
+                    self._last_t_s = t_s
+                except OSError as exc:  # the disk, not the message (a chunk filled up and was written)
+                    self._fail("writing", exc)
+                    break
                 except Exception as exc:  # noqa: BLE001 - one bad message must not end the recording
                     self.stats.encode_errors += 1
                     self.stats.last_error = f"{topic}: {exc!r}"
-            self.stats.dropped = self.queue.dropped
+            self.stats.dropped = max(self.stats.dropped, self.queue.dropped)
             now = time.monotonic()
-            if dirty and now - last_flush >= self.config.flush_period_s:
+            if dirty and not self.stats.failed and now - last_flush >= self.config.flush_period_s:
                 try:
                     self._flush()
                 except OSError as exc:
-                    self.stats.last_error = f"flush: {exc}"
+                    self._fail("flushing", exc)
                 last_flush, dirty = now, False
             if stopping and not batch:
                 break
@@ -242,7 +274,13 @@ class _Session:
     def close(self, timeout_s: float = 10.0) -> RecorderStats:
         self._stop.set()
         self._thread.join(timeout_s)
-        self.stats.dropped = self.queue.dropped
+        self.stats.dropped = max(self.stats.dropped, self.queue.dropped)
+        if self.stats.failed:  # a failed disk: leave the file as the last flush made it (recoverable)
+            try:
+                self._file.close()
+            except OSError:
+                pass
+            return self.stats
         try:
             s = self.stats
             self._writer.add_metadata("lotsen_stats", {
@@ -318,6 +356,7 @@ class McapRecorder:
         self._epoch0_ns = int(epoch_at_clock_zero * 1e9)
         self._metadata = dict(metadata or {})
         self._session: _Session | None = None
+        self.start_error = ""  # the last start() that could not even create its file
         self._lock = threading.Lock()
         self._unsubscribe: Callable[[], None] | None = None
         self._topics = frozenset(config.topics) if config.topics is not None else None
@@ -365,6 +404,27 @@ class McapRecorder:
         s = self._session
         return s.stats if s else None
 
+    def status(self, now_s: float) -> RecorderStatus:
+        """Where the recorder writes and how that goes (`RecorderStatus`, for the storage check
+        and the page): the free space of the log directory, a write failure and what it kept."""
+        s = self._session
+        last = s.stats if s is not None else (self.closed_files[-1] if self.closed_files else None)
+        free = total = -1
+        try:
+            st = os.statvfs(self.config.directory)
+            free, total = st.f_bavail * st.f_frsize, st.f_blocks * st.f_frsize
+        except OSError:
+            pass
+        failed = last.failed if last is not None else ""
+        if s is None and self.start_error:
+            failed = self.start_error
+        return RecorderStatus(stamp_s=now_s, directory=str(Path(self.config.directory).resolve()),
+                              free_bytes=free, total_bytes=total, recording=s is not None and not failed,
+                              file=s.path.name if s is not None else "",
+                              written_bytes=s.stats.bytes if s is not None else 0,
+                              error=failed, kept=last.kept() if failed and last is not None else
+                              ("nothing (no file could be made)" if failed else ""))
+
     def start(self, path: str | os.PathLike | None = None) -> Path:
         """Open a new file (named by date and run unless `path`) and record into it. A directory
         or file that cannot be created is a ConfigError naming it."""
@@ -375,7 +435,12 @@ class McapRecorder:
                 p = Path(path) if path is not None else next_log_path(self.config.directory)
             except OSError as exc:  # an unreadable directory
                 raise ConfigError(f"logging.directory {self.config.directory!r}: {exc.strerror or exc}") from None
-            self._session = _Session(p, self.config, self._epoch0_ns, self._metadata)
+            try:
+                self._session = _Session(p, self.config, self._epoch0_ns, self._metadata)
+            except ConfigError as exc:
+                self.start_error = str(exc)
+                raise
+            self.start_error = ""
             return p
 
     def stop(self) -> RecorderStats | None:

@@ -331,6 +331,26 @@ def jacobians(x: Sequence[float], inp: Sequence[float], theta: Sequence[float],
     return _jacobians_floats(x, inp, packed_from_theta(theta, geometry_tuple(geom)), current_ne)
 
 
+def _rebound(cos_: Any, sin_: Any, sqrt_: Any, fabs_: Any, sign_: Any) -> dict[str, Any]:
+    """The equations' code objects (`_azimuth_force`, `_tau`, `_current_body`, `_rhs`) re-bound to other
+    elementary functions: CasADi's (symbols) or numpy's (arrays of samples)."""
+    ns = dict(globals())
+    ns.update(cos=cos_, sin=sin_, sqrt=sqrt_, fabs=fabs_, _sign=sign_)
+    for name, fn in (("_azimuth_force", _azimuth_force_py), ("_tau", _tau_py), ("_current_body", _current_body_py),
+                     ("_rhs", _rhs_py)):
+        ns[name] = types.FunctionType(py_func(fn).__code__, ns, name)
+    return ns
+
+
+def array_tau(nu: Sequence[np.ndarray], inp: Sequence[np.ndarray], theta: Sequence[float],
+              geom: VesselGeometry = DEFAULT_GEOMETRY) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """tau = (tau_X, tau_Y, tau_N) of the thrusters (seed eq. 18-20) at arrays of samples: the same
+    code as the simulator's, on numpy arrays (the regressors of lotsen.sysid.equation_error)."""
+    tau = _rebound(np.cos, np.sin, np.sqrt, np.abs, np.sign)["_tau"]
+    mq = packed_from_theta(theta, geometry_tuple(geom))
+    return tuple(np.asarray(t, float) for t in tau(nu[0], nu[1], nu[2], inp, mq))  # type: ignore[return-value]
+
+
 def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
     """The same equations on CasADi symbols: f(x, u, theta, geom_tuple) -> list of 6 expressions.
 
@@ -339,12 +359,7 @@ def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
     `x`, `u`, `theta` are sequences of scalar CasADi expressions (e.g. `casadi.vertsplit(X)`).
     """
     ca = casadi_module
-    ns = dict(globals())
-    ns.update(cos=ca.cos, sin=ca.sin, sqrt=ca.sqrt, fabs=ca.fabs, _sign=ca.sign)
-    for name, fn in (("_azimuth_force", _azimuth_force_py), ("_tau", _tau_py), ("_current_body", _current_body_py),
-                     ("_rhs", _rhs_py)):
-        ns[name] = types.FunctionType(py_func(fn).__code__, ns, name)
-    rhs = ns["_rhs"]
+    rhs = _rebound(ca.cos, ca.sin, ca.sqrt, ca.fabs, ca.sign)["_rhs"]
 
     def f(x: Sequence[Any], u: Sequence[Any], theta: Sequence[Any], geom: tuple[float, ...],
           current_ne: tuple[Any, Any] = (0.0, 0.0), tau_ext: tuple[Any, Any, Any] = (0.0, 0.0, 0.0)) -> list[Any]:

@@ -73,17 +73,20 @@ def wind_drag_coefficients(coeff: WindCoefficients = WindCoefficients()) -> tupl
             q * coeff.C_N * coeff.lateral_area_m2 * coeff.length_m)
 
 
-def apparent_wind_force(psi, u, v, wind_n, wind_e, k_x, k_y, k_n, cos=math.cos, sin=math.sin,  # type: ignore[no-untyped-def]
-                        sqrt=math.sqrt):
+def apparent_wind_force(psi, u, v, wind_n, wind_e, k_x, k_y, k_n, k_nv=0.0, cos=math.cos,  # type: ignore[no-untyped-def]
+                        sin=math.sin, sqrt=math.sqrt):
     """The wind model above without angles: with the apparent wind (u_rw, v_rw) = (u, v) - R(psi)^T w,
     V cos(gamma) = u_rw, V sin(gamma) = v_rw, V^2 sin(2 gamma) = 2 u_rw v_rw, so
 
-        tau = -[k_X V u_rw, k_Y V v_rw, 2 k_N u_rw v_rw],   V = |(u_rw, v_rw)|
+        tau = -[k_X V u_rw, k_Y V v_rw, 2 k_N u_rw v_rw + k_Nv V v_rw],   V = |(u_rw, v_rw)|
 
-    (w = earth-frame velocity of the air, k = `wind_drag_coefficients`). Smooth, so that
-    identification can differentiate it: `cos`, `sin`, `sqrt` may be CasADi's."""
+    (w = earth-frame velocity of the air, k = `wind_drag_coefficients`). `k_nv` (0 in the simulator's
+    Fossen form) is a yaw moment that follows the side force, k_Nv = l k_Y with l the lateral centre of
+    pressure ahead of the origin: the other shape real hulls show (beam wind turns them, where the
+    sin(2 gamma) moment is zero); identification estimates both. Smooth, so that identification can
+    differentiate it: `cos`, `sin`, `sqrt` may be CasADi's or numpy's."""
     c, s = cos(psi), sin(psi)
     urw = u - (wind_n * c + wind_e * s)
     vrw = v - (-wind_n * s + wind_e * c)
     V = sqrt(urw * urw + vrw * vrw + 1e-12)
-    return (-k_x * V * urw, -k_y * V * vrw, -2.0 * k_n * urw * vrw)
+    return (-k_x * V * urw, -k_y * V * vrw, -2.0 * k_n * urw * vrw - k_nv * V * vrw)

@@ -159,11 +159,23 @@ def route_to_dict(route: Route) -> dict:
 # --------------------------------------------------------------------------------------------
 # files
 # --------------------------------------------------------------------------------------------
-def load_route(path: str | FilePath) -> Route:
-    """Read a route from YAML (.yaml/.yml) or GeoJSON (.geojson/.json)."""
+def load_route(path: str | FilePath, origin: GeoOrigin | None = None, default_speed_mps: float | None = None) -> Route:
+    """Read a route from YAML (.yaml/.yml), GeoJSON (.geojson/.json) or a ground station's file
+    (QGroundControl .plan, QGC WPL 110 .waypoints/.txt, .kml, .gpx: lotsen.planning.formats, in
+    the frame of `origin` or else of the file's harbour, node speeds `default_speed_mps` where
+    the file has none)."""
+    from lotsen.planning import formats
+
     path = FilePath(path)
     text = read_text(path, ConfigError, "route file")
-    if path.suffix.lower() in (".geojson", ".json"):
+    fmt = formats.SUFFIXES.get(path.suffix.lower(), "yaml")  # a file of no known suffix: YAML, as ever
+    if text.lstrip().startswith("QGC WPL"):
+        fmt = "wpl"
+    if fmt in formats.GROUND_STATION_FORMATS:
+        speed = formats.DEFAULT_SPEED_MPS if default_speed_mps is None else default_speed_mps
+        return _prefixed(path, lambda t: route_from_dict(formats.read_route_text(t, fmt, origin, speed, str(path))),
+                         text)
+    if fmt == "geojson":
         return _prefixed(path, route_from_geojson, parse_json(text, path, ConfigError))
     return _prefixed(path, route_from_dict, parse_yaml(text, path, ConfigError))
 
@@ -175,14 +187,23 @@ def _prefixed(path: FilePath, fn, data):
         raise ConfigError(f"{path}: {exc}") from None
 
 
-def save_route(route: Route, path: str | FilePath) -> None:
-    """Write a route as YAML, or GeoJSON if the suffix is .geojson/.json."""
+def save_route(route: Route, path: str | FilePath, origin: GeoOrigin | None = None) -> list[str]:
+    """Write a route in the format its suffix names: YAML, GeoJSON (.geojson/.json) or a ground
+    station's (.plan, .waypoints, .kml, .gpx; latitude/longitude from the route's origin, else
+    `origin`). Returns notes on what the format could not carry."""
+    from lotsen.planning import formats
+
     path = FilePath(path)
-    if path.suffix.lower() in (".geojson", ".json"):
-        path.write_text(json.dumps(route_to_geojson(route), indent=1), encoding="utf-8")
+    fmt = formats.SUFFIXES.get(path.suffix.lower(), "yaml")
+    notes: list[str] = []
+    if fmt in formats.GROUND_STATION_FORMATS:
+        text, notes = formats.write_route_text(route, fmt, origin)
+    elif fmt == "geojson":
+        text = json.dumps(route_to_geojson(route, origin), indent=1)
     else:
-        path.write_text(yaml.safe_dump(route_to_dict(route), sort_keys=False,
-                                        default_flow_style=None), encoding="utf-8")
+        text = yaml.safe_dump(route_to_dict(route), sort_keys=False, default_flow_style=None)
+    path.write_text(text, encoding="utf-8")
+    return notes
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""The simulated vessel (digital twin): integrator, actuator dynamics, sensors, environment, faults."""
+"""The simulated vessel (digital twin): the plant (vessel, actuators, environment; an interface an
+external physics implements too), lotsen's sensor models, faults."""
 
 from lotsen.sim.actuators import ActuatorDynamics, ActuatorFaults
 from lotsen.sim.boat import (
@@ -8,6 +9,7 @@ from lotsen.sim.sensors import (
     GRAVITY_MPS2, GnssConfig, GnssModel, ImuConfig, ImuModel, MagnetometerModel, TachometerConfig,
     TachometerModel,
 )
+from lotsen.sim.plant import BoatPlant, Plant, PlantError, PlantSample, planar_state
 from lotsen.sim.simulator import BatteryConfig, SimConfig, Simulator, simulate_inputs
 
 __all__ = [
@@ -15,5 +17,5 @@ __all__ = [
     "randomised_parameters",
     "ActuatorDynamics", "ActuatorFaults", "GRAVITY_MPS2", "GnssConfig", "GnssModel", "ImuConfig",
     "ImuModel", "MagnetometerModel", "TachometerConfig", "TachometerModel", "BatteryConfig",
-    "SimConfig", "Simulator", "simulate_inputs",
+    "SimConfig", "Simulator", "simulate_inputs", "BoatPlant", "Plant", "PlantError", "PlantSample", "planar_state",
 ]

@@ -23,6 +23,7 @@ from lotsen.drivers.config import HardwareConfig
 from lotsen.errors import ConfigError
 from lotsen.logs.recorder import RecorderConfig
 from lotsen.messages import Topic
+from lotsen.physics.config import PhysicsConfig
 from lotsen.planning import PlannerConfig
 from lotsen.planning.budget import PlanningBudget
 from lotsen.runtime.config import LaunchConfig, from_mapping, load_config
@@ -30,6 +31,7 @@ from lotsen.settings import value_range as _r
 from lotsen.supervisor.failsafes import FailsafeConfig
 from lotsen.transport.ros2_bridge import Ros2BridgeConfig
 from lotsen.transport.zenoh_bridge import BridgeConfig
+from lotsen.web.mavlink.options import MavlinkExtra
 from lotsen.web.options import WebExtra
 
 #: what the ROS 2 process publishes to ROS 2 by default (the seed's Table 3 and the status)
@@ -68,10 +70,12 @@ class ExtraConfig:
     failsafes: FailsafeConfig = field(default_factory=FailsafeConfig)
     logs: RecorderConfig | None = None  # None: the recorder's defaults, in `logging.directory`
     web: WebExtra = field(default_factory=WebExtra)
+    mavlink: MavlinkExtra = field(default_factory=MavlinkExtra)  # ground stations (endpoints: none by default)
     zenoh: BridgeConfig | None = None  # None: no bridge to other machines
     ros2: Ros2BridgeConfig | None = None  # present: the ROS 2 process runs (its pilot token: the run's)
     hardware: HardwareConfig = field(default_factory=HardwareConfig)  # devices and pins (`--hardware`)
     emulated: bool = False  # with mode hardware: emulated devices speaking the real protocols
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)  # an external physics (address) instead of the own boat
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ class ExperimentNode(Node):
         self.rows: list[tuple[float, ...]] = []
         self.done = False
         self.aborted = ""
+        self.plant: Any = None  # set by run_on_stack in simulation
 
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
@@ -151,7 +152,8 @@ def run_on_stack(experiment: Any, config: LaunchConfig, realtime: bool) -> Exper
     """Run `experiment` through the runtime on the boat the config names (hardware, its emulated
     twin, or the simulated boat): drivers, the state estimate, the supervisor and the recorder
     run; the experiment node is the supervisor's command source in EXPERIMENT mode. Returns the
-    ExperimentNode (its `record()` and `aborted`)."""
+    ExperimentNode (its `record()`, `aborted`, and `plant`: the simulated boat's plant, whose
+    `status()` says whether an external physics answered throughout)."""
     stack = build_stack(config, realtime=realtime, parts=("state", "supervisor", "logs"))
     node = stack.add(ExperimentNode(experiment))
     deadline = experiment.duration_s + node.preroll_s + 10.0
@@ -163,6 +165,8 @@ def run_on_stack(experiment: Any, config: LaunchConfig, realtime: bool) -> Exper
             stack.executor.run_until(deadline, stop=lambda: node.done)
             stack.executor.shutdown()
     finally:
+        if stack.simulator is not None:  # an external physics: whether it answered throughout
+            node.plant = stack.simulator.plant
         for close in stack.services.get("on_shutdown", []):
             close()
     return node

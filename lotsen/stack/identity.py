@@ -13,10 +13,13 @@ from lotsen.sim.boat import DEFAULT_BOAT
 
 def run_identities(config: LaunchConfig) -> list[str]:
     """What makes two runs the same boat (one run per boat, `RunLock`): in simulation the
-    simulated boat's name; on the hardware every device the run would open (serial ports, I2C
-    addresses, pigpiod's pins). Emulated devices live in the run's core: their runs are told
-    apart by the same names under "emulated"."""
+    simulated boat's name (or the external physics's address); on the hardware every device the
+    run would open (serial ports, I2C addresses, pigpiod's pins). Emulated devices live in the
+    run's core: their runs are told apart by the same names under "emulated"."""
     if config.mode == "sim":
+        physics = stack_config(config).extra.physics.address
+        if physics:  # one run per physics server: two would step one boat
+            return [f"physics {physics}"]
         b = config.sim.boat
         return [f"sim boat {b.name or ('ideal model' if b.ideal else DEFAULT_BOAT.name)}"]
     extra = stack_config(config).extra

@@ -46,12 +46,14 @@ PARTS: dict[str, Callable[[Stack], object]] = {
 }
 
 
-def add_boat(stack: Stack, simulator: Simulator | None = None, truth_rate_hz: float = 20.0) -> None:
-    """The simulated boat node (on `simulator` if given), or the hardware drivers (emulated
-    devices with `extra.emulated`)."""
+def add_boat(stack: Stack, simulator: Simulator | None = None, truth_rate_hz: float = 20.0,
+             realtime: bool = False) -> None:
+    """The simulated boat node (on `simulator` if given; else lotsen's own boat or the external
+    physics of `extra.physics`), or the hardware drivers (emulated devices with `extra.emulated`)."""
     config = stack.config
     if config.mode == "sim":
-        stack.simulator = simulator or simulator_from_config(config, stack.model)
+        stack.simulator = simulator or simulator_from_config(config, stack.model, realtime)
+        stack.on_shutdown(stack.simulator.plant.close)  # an external physics's socket
         stack.add(SimulatedBoatNode(stack.simulator, truth_rate_hz=truth_rate_hz,
                                     command_deadline_s=config.nodes.command_deadline_s,
                                     esc_arm_time_s=config.sim.esc_arm_time_s))
@@ -80,7 +82,7 @@ def build_stack(config: LaunchConfig, realtime: bool, parts: tuple[str, ...] | N
         warm.step("vessel model", stack.model.warm_up)  # numba compiles now, not when the operator presses AUTO
         # the thruster monitor's and the EKF's motor model
         warm.step("motor model", lambda: advance_motors((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.1))
-    add_boat(stack, h.simulator, h.truth_rate_hz)
+    add_boat(stack, h.simulator, h.truth_rate_hz, realtime)
     if realtime and stack.simulator is not None:
         # the simulated boat's plant step: compiled before the loop's first tick
         warm.step("simulated boat", stack.simulator.warm_up)

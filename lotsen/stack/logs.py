@@ -15,8 +15,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from typing import Any
+import sys
+from typing import Any, Callable
 
+from lotsen.errors import LotsenError
 from lotsen.logs.live import FoxgloveLive
 from lotsen.logs.recorder import McapRecorder, RecorderConfig, ensure_log_directory
 from lotsen.logs.recover import recover_directory
@@ -27,30 +29,57 @@ from lotsen.runtime.executor import Node, NodeContext
 
 
 class LoggingControlNode(Node):
-    """Logging on/off from the operator (OperatorCommand logging_on / logging_off), and a warning
-    on the `log` topic when the recorder has to drop messages (disk too slow)."""
+    """Logging on/off from the operator (OperatorCommand logging_on / logging_off), a warning on
+    the `log` topic when the recorder has to drop messages (disk too slow), and the recorder's
+    status once a second (RecorderStatus on logs/status: free space, a write failure and what it
+    kept), which the supervisor's storage check and the page read. A write failure is said once on
+    the `log` topic and on the console."""
 
     name = "logging"
 
-    def __init__(self, recorder: McapRecorder, check_period_s: float = 2.0) -> None:
+    def __init__(self, recorder: McapRecorder, check_period_s: float = 2.0, status_period_s: float = 1.0,
+                 console: Callable[[str], None] | None = None) -> None:
         self.recorder = recorder
         self.check_period_s = check_period_s
+        self.status_period_s = status_period_s
+        self.console = console or (lambda line: print(line, file=sys.stderr, flush=True))
         self._reported_drops = 0
+        self._reported_failure = ""
 
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
         ctx.subscribe(Topic.OPERATOR, self._on_operator)
         ctx.add_timer(self.check_period_s, self._check)
+        ctx.add_timer(self.status_period_s, self._status)
+
+    def _status(self) -> None:
+        st = self.recorder.status(self.ctx.now())
+        self.ctx.publish(Topic.RECORDER, st)
+        if st.error and st.error != self._reported_failure:
+            self._reported_failure = st.error
+            text = f"recording stopped: {st.error}; kept: {st.kept}"
+            self.ctx.log("error", text, kept=st.kept)
+            self.console(f"lotsen recorder: error: {text}")
 
     def _on_operator(self, cmd: OperatorCommand) -> None:
+        if cmd.action == "logging_on" and self._failed():  # a file that failed: a new one
+            self.recorder.stop()
         if cmd.action == "logging_on" and not self.recorder.recording:
-            path = self.recorder.start()
+            try:
+                path = self.recorder.start()
+            except (LotsenError, OSError) as exc:  # a full or read-only disk: said, not a crash
+                self.ctx.log("error", f"logging on failed: {exc}")
+                return
             self.ctx.log("info", f"logging on: {path}", path=str(path))
         elif cmd.action == "logging_off" and self.recorder.recording:
             stats = self.recorder.stop()
             # the log event is published after the file is closed: it is not in that file
             self.ctx.log("info", f"logging off: {stats.path} ({stats.written} messages, {stats.dropped} dropped)",
                          path=stats.path, written=stats.written, dropped=stats.dropped)
+
+    def _failed(self) -> bool:
+        s = self.recorder.stats
+        return s is not None and bool(s.failed)
 
     def _check(self) -> None:
         s = self.recorder.stats
@@ -94,8 +123,11 @@ def add_recorder(stack: Any, config: RecorderConfig | None = None, start: bool |
     stack.services["recorder"] = rec
     stack.services.setdefault("on_shutdown", []).append(rec.close)
     if stack.config.logging.enabled if start is None else start:
-        path = rec.start()
-        stack.services.setdefault("banner", []).append(f"logging: recording to {path}")
+        try:
+            path = rec.start()
+            stack.services.setdefault("banner", []).append(f"logging: recording to {path}")
+        except LotsenError as exc:  # a full or read-only disk: the run goes on, the status says why
+            stack.services.setdefault("banner", []).append(f"logging: cannot record: {exc}")
     else:
         stack.services.setdefault("banner", []).append("logging: off (operator action logging_on starts a file)")
     return rec

@@ -128,6 +128,8 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
         route = load_route(cfg.route)
         msg = planned_route_message(route, plan_route(route, cfg.extra.planner), source="config")
         sup.set_route(route, path_from_message(msg), msg.route_id, msg.node_s_m)
+        if route.area is not None:  # the configured area is the boat's own: no upload may leave it
+            sup.fence = route
     stack.add(sup)
     stack.add(ModelInfoNode(model_info(cfg, stack.model)))
     return sup

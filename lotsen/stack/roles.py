@@ -48,6 +48,8 @@ MCL_CURRENT, MCL_FUTURE, MCL_ONFAULT = 1, 2, 4  # mlockall(2) flags (Linux >= 4.
 OPERATOR_TOPICS = (Topic.OPERATOR, Topic.MANUAL, Topic.LINK, Topic.ROUTE)
 #: ... and from the ROS 2 process: operator commands that passed its token gate (CommandGate)
 ROS2_TOPICS = (Topic.OPERATOR,)
+#: ... and from the recorder its disk's status (the storage check and alert; it moves nothing)
+RECORDER_TOPICS = (Topic.RECORDER,)
 ROLES = ("core", "recorder", "web", "foxglove", "ros2")
 #: how long the core's bridge gathers outgoing messages before it sends them (see core_main)
 CORE_SEND_BATCH_S = 0.05
@@ -312,7 +314,8 @@ def core_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     # how far that is goes to the console at once (not with the banner, sent when ready)
     stack = build_stack(config, realtime=True, parts=("state", "supervisor"),
                         progress=lambda line: print(f"lotsen core: {line}", flush=True))
-    sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS]
+    sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS] + \
+        [f"recorder/{t}" for t in RECORDER_TOPICS]
     # every topic out in 50 ms batches: Zenoh then packs a batch into few frames (the core's
     # sending thread and the edge's receiving threads wake 20 times a second, not 100 and more);
     # the edge sees the telemetry up to 50 ms later, its stamps are the core's. JSON for every
@@ -342,7 +345,7 @@ def recorder_main(config: StackConfig, endpoint: str, ready: Any) -> None:
     stack = _edge_stack(config)
     # the core's whole stream (300+ messages a second): taken in batches, not one thread switch
     # each; every 0.1 s (the writer writes every 0.2 s, and logging on / off may wait that long)
-    bridge = _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG,),
+    bridge = _bridge(stack, vessel="recorder", mode="client", connect=(endpoint,), publish=(Topic.LOG, *RECORDER_TOPICS),
                      subscribe=("*/**",), wait_for_router=True, receive="poll", drain_period_s=0.1)
     recorder = add_recorder(stack)
     # ... and recorded as it came (the JSON on the wire is the log's JSON): decoded only for the
@@ -367,7 +370,8 @@ def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) 
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
-            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", "launcher/log"),
+            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", f"recorder/{Topic.RECORDER}",
+                       "launcher/log"),
             wait_for_router=True, receive="poll", drain_period_s=0.05)
     # the worker once the core is up (it would compete with the core's start for the CPU); after
     # the server: a web process that cannot serve ends with its one error

@@ -3,6 +3,10 @@ publishes what the real drivers would: imu/data_raw, imu/mag, gps_chatter, rpm_c
 the achieved actuator values (actuators/state, with the ESCs' arming state), plus the ground
 truth (sim/truth).
 
+Behind an external physics (`lotsen.physics`) the node is the same: while the physics gives no
+fresh state, the simulator measures nothing and the node publishes no truth and no actuator state
+either, so every consumer sees the boat's data go stale, as when a real sensor bus stops.
+
 One time base: every message is stamped on the runtime's clock, as the drivers stamp theirs.
 The simulator keeps its own time from 0; the node maps it onto the clock (offset fixed at the
 first tick) and, at wall-clock pace, steps as many simulator steps as the clock has advanced, so
@@ -26,6 +30,8 @@ _TOPIC_OF = {ImuSample: Topic.IMU_RAW, MagSample: Topic.IMU_MAG, GnssFix: Topic.
 #: laptop) is skipped and logged. Shorter ones are replayed: the water does not wait for a late
 #: control loop, and skipping would make the measurements after it disagree with the motion
 MAX_CATCH_UP_S = 5.0
+#: an external physics silent for this many steps in a row is logged (a single late frame is not)
+STALE_LOG_STEPS = 10
 
 
 class SimulatedBoatNode(Node):
@@ -47,6 +53,7 @@ class SimulatedBoatNode(Node):
         self.esc_fault = False
         self._escs_armed_at: float | None = None
         self.offset_s: float | None = None  # runtime clock - simulator time
+        self._stale_steps = 0  # steps in a row without a fresh state (an external physics)
         self.skipped_s = 0.0
 
     def start(self, ctx: NodeContext) -> None:
@@ -104,6 +111,16 @@ class SimulatedBoatNode(Node):
             msg.stamp_s += off
             publish(_TOPIC_OF[type(msg)], msg)
         self._steps += 1
+        if not self.sim.fresh:  # an external physics without a fresh state: nothing is measured, not even the truth
+            self._stale_steps += 1
+            if self._stale_steps == STALE_LOG_STEPS:
+                self.ctx.log("error", "the physics does not answer: the boat's sensors are stale",
+                             **self.sim.plant.status())
+            return
+        if self._stale_steps >= STALE_LOG_STEPS:
+            self.ctx.log("warning", f"the physics answers again after {self._stale_steps * self.sim.config.dt_s:.2f} s",
+                         **self.sim.plant.status())
+        self._stale_steps = 0
         if self._steps % self._truth_every == 0:
             truth = self.sim.truth()
             truth.stamp_s += off

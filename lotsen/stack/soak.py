@@ -191,10 +191,11 @@ def _left(mode: str) -> Callable[[dict], bool]:
     return lambda f: bool(f.get("sup")) and _mode(f)[0] != mode
 
 
-def derive_run_config(config: Path, work: Path, port: int, token: str, *, seed: int | None = None,
-                      environment: dict | None = None, extra: dict | None = None) -> Path:
+def derive_run_config(config: Path, work: Path, port: int, token: str | None, *, seed: int | None = None,
+                      environment: dict | None = None, extra: dict | None = None, log_dir: Path | None = None) -> Path:
     """The operator's launch config `config` for one run of `lotsen run` started by a harness:
-    the page on 127.0.0.1:`port` with pilot token `token`, the recorder writing to work/logs,
+    the page on 127.0.0.1:`port` with pilot token `token` (None: the boat's own credential,
+    lotsen.web.pairing), the recorder writing to work/logs (or `log_dir`),
     relative paths made absolute (the copy lives in `work`, as work/launch.yaml); `seed` and
     `environment` (sim.environment) replace the file's when given, `extra` is merged into its
     `extra` section (one level deep). Returns the copy's path."""
@@ -202,8 +203,8 @@ def derive_run_config(config: Path, work: Path, port: int, token: str, *, seed: 
     data = read_yaml(src, ConfigError, "configuration file") or {}
     if isinstance(data.get("route"), str):
         data["route"] = str((src.parent / data["route"]).resolve())
-    data.setdefault("web", {}).update(port=port, host="127.0.0.1", pilot_token=token, enabled=True)
-    data.setdefault("logging", {}).update(enabled=True, directory=str(work / "logs"))
+    data.setdefault("web", {}).update(port=port, host="127.0.0.1", enabled=True, **({"pilot_token": token} if token else {}))
+    data.setdefault("logging", {}).update(enabled=True, directory=str(log_dir or work / "logs"))
     if seed is not None:
         data["seed"] = seed
     if environment is not None:

@@ -17,7 +17,7 @@ from lotsen.planning import GeoOrigin
 from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Executor, Node
-from lotsen.sim import DEFAULT_BOAT, GnssConfig, ImuConfig, SimConfig, SimulatedBoat, Simulator
+from lotsen.sim import DEFAULT_BOAT, GnssConfig, ImuConfig, Plant, SimConfig, SimulatedBoat, Simulator
 from lotsen.stack.config import StackConfig, stack_config
 
 #: the repository's examples (demonstration routes for `make run` and the harnesses)
@@ -64,7 +64,7 @@ def model_info(config: LaunchConfig, model: VesselModel, stamp_s: float = 0.0) -
                if isinstance(v, (int, float)) and not isinstance(v, bool)}
         verdict, source = loaded.verdict, loaded.describe()
         modified = datetime.fromtimestamp(Path(path).stat().st_mtime, tz=timezone.utc).isoformat(timespec="seconds")
-    boat = simulated_boat(config, model).describe(model.params) if config.mode == "sim" else ""
+    boat = boat_description(config, model) if config.mode == "sim" else ""
     return ModelInfo(stamp_s=stamp_s, source=source, file_modified_utc=modified,
                      parameters=model.params.to_dict(), std=std, verdict=verdict, boat=boat)
 
@@ -123,9 +123,39 @@ def simulated_boat(config: LaunchConfig, model: VesselModel | None = None) -> Si
     return replace(boat, limits=limits, **changes)
 
 
-def simulator_from_config(config: LaunchConfig, model: VesselModel | None = None) -> Simulator:
-    """The simulated boat of the config (never the model object the controllers use)."""
+def physics_plant(config: LaunchConfig, realtime: bool = False) -> Plant | None:
+    """The external physics of `extra.physics.address` as a plant (not yet connected: it connects
+    when the simulator places the boat), or None: lotsen's own simulated boat. `realtime`: at
+    wall-clock pace (a frame's wait holds up the control loop)."""
+    physics = stack_config(config).extra.physics
+    if physics.address is None:
+        return None
+    from lotsen.physics.client import UdpPhysics  # sockets only on this path
+
+    return UdpPhysics(physics, dt_s=config.sim.dt_s, realtime=realtime)
+
+
+def simulator_from_config(config: LaunchConfig, model: VesselModel | None = None,
+                          realtime: bool = False) -> Simulator:
+    """The simulated boat of the config (never the model object the controllers use): lotsen's own
+    (`sim.boat`), or the external physics of `extra.physics` behind lotsen's sensor models."""
+    plant = physics_plant(config, realtime)
+    if plant is not None:
+        try:
+            return Simulator(plant, config=sim_config(config), x0=config.sim.initial_state)
+        except Exception:
+            plant.close()
+            raise
     return Simulator(simulated_boat(config, model), config=sim_config(config), x0=config.sim.initial_state)
+
+
+def boat_description(config: LaunchConfig, model: VesselModel | None = None) -> str:
+    """One line for reports and the page: the simulated boat, or the external physics."""
+    address = stack_config(config).extra.physics.address
+    if address:
+        return f"external physics at {address}"
+    model = model or vessel_model(config)
+    return simulated_boat(config, model).describe(model.params)
 
 
 def resolve_origin(config: StackConfig) -> GeoOrigin | None:

@@ -12,12 +12,47 @@ import socket
 from typing import TYPE_CHECKING, Any
 
 from lotsen.errors import ConfigError
+from lotsen.stack.config import StackConfig
 from lotsen.stack.stack import Stack
 from lotsen.web.options import WebOptions
 from lotsen.web.tls import Certificate, ensure_certificate, fingerprint
 
 if TYPE_CHECKING:
     from lotsen.web.server import WebServer
+
+
+def pilot_credential_file(config: StackConfig) -> str:
+    """The file of the boat's pilot credential (lotsen.web.pairing): `extra.web.credential_file`,
+    else one per boat in $LOTSEN_CONFIG_DIR/pairing: the simulated boat by its name, the hardware
+    as the one boat of this computer."""
+    from lotsen.stack.identity import run_identities
+    from lotsen.web.pairing import credential_path
+
+    if config.extra.web.credential_file:
+        return os.path.expanduser(config.extra.web.credential_file)
+    boat = run_identities(config)[0] if config.mode == "sim" else "boat"
+    return str(credential_path(boat))
+
+
+def paired_config(config: StackConfig) -> tuple[StackConfig, list[str]]:
+    """`config` with the boat's pilot credential when web.pilot_token is not set: the credential
+    file (made now if there is none) named in `extra.web.credential_file` for the web process (it
+    re-reads it), and its value in web.pilot_token for the core (ROS 2 commands). Returns the
+    config and what was found, for the console (unchanged without a page, or with a token)."""
+    from dataclasses import replace
+
+    from lotsen.web.pairing import PilotCredential
+
+    if not config.web.enabled or config.web.pilot_token:
+        if config.web.pilot_token and config.extra.web.credential_file:
+            raise ConfigError("web.pilot_token and extra.web.credential_file are both set: the page takes one "
+                              "credential; remove one of them")
+        return config, []
+    path = pilot_credential_file(config)
+    cred, created = PilotCredential.load_or_create(path)
+    extra = replace(config.extra, web=replace(config.extra.web, credential_file=path))
+    return replace(config, extra=extra, web=replace(config.web, pilot_token=cred.current())), \
+        ["new" if created else "kept", path]
 
 
 def check_web_host(host: str) -> None:
@@ -100,4 +135,25 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     if options.host not in ("127.0.0.1", "localhost", "::1"):
         banner.append(f"warning: the operator interface is reachable from the network ({options.host})")
     stack.services.setdefault("on_shutdown", []).append(server.stop)
+    if config.extra.mavlink.endpoints:
+        add_mavlink(stack, hub, options.pilot_token)
     return server
+
+
+def add_mavlink(stack: Stack, hub: Any, pilot_token: str) -> Any:
+    """The MAVLink endpoint (`extra.mavlink`, `lotsen run --mavlink URL`) on the web server's hub:
+    the same bus, pilot seat, control handler and planner as the page; signing with the page's
+    pilot token (one credential)."""
+    from lotsen.web.mavlink.endpoint import MavlinkEndpoint
+
+    config = stack.config
+    fs = config.extra.failsafes
+    endpoint = MavlinkEndpoint(hub, config.extra.mavlink, pilot_token, stack.origin, stack.model.params.to_dict(),
+                               fs, config.nodes.controller, config.nodes.control_rate_hz,
+                               config.nodes.command_deadline_s)
+    assert hub.loop is not None, "the web server starts (and its hub gets its event loop) before the endpoint"
+    endpoint.start(hub.loop)
+    stack.services["mavlink"] = endpoint
+    stack.services.setdefault("banner", []).extend(endpoint.banner())
+    stack.services.setdefault("on_shutdown", []).append(endpoint.stop)
+    return endpoint

@@ -17,7 +17,9 @@ def __getattr__(name: str) -> Any:
         from lotsen.supervisor import failsafes as module
     elif name == "Mode":
         from lotsen.supervisor import modes as module
-    elif name in ("SupervisorConfig", "SupervisorInputs", "SupervisorNode", "path_message"):
+    elif name == "SupervisorInputs":
+        from lotsen.supervisor import inputs as module
+    elif name in ("SupervisorConfig", "SupervisorNode", "path_message"):
         from lotsen.supervisor import node as module
     else:
         raise AttributeError(f"module 'lotsen.supervisor' has no attribute {name!r}")

@@ -28,11 +28,10 @@ from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.model.actuators import advance_motors
 from lotsen.settings import value_range as _r
 
-if TYPE_CHECKING:  # the inputs are defined with the node, the modes with their controllers;
-    # monitors only read them (and the web server and the launcher import this module for
-    # FailsafeConfig without the controllers)
+if TYPE_CHECKING:  # monitors only read the inputs and ask the mode what it is; the web server and
+    # the launcher import this module for FailsafeConfig without the controllers the modes run
+    from lotsen.supervisor.inputs import SupervisorInputs
     from lotsen.supervisor.modes import Mode
-    from lotsen.supervisor.node import SupervisorInputs
 
 
 class FailsafeAction(StrEnum):
@@ -49,7 +48,7 @@ class FailsafeAction(StrEnum):
 FOLLOWING = (ModeName.AUTO, ModeName.RETURN)  # the modes that follow a path
 UNDER_WAY = FOLLOWING + (ModeName.EXPERIMENT,)  # the modes in which the boat moves by itself
 #: pre-arm checks an expert may skip (lotsen.supervisor.prearm; the ESCs are always checked)
-SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link"]
+SkippablePrearmCheck = Literal["battery", "position", "gnss", "heading", "route", "pilot_link", "storage"]
 
 
 @dataclass(frozen=True)
@@ -110,6 +109,10 @@ class FailsafeConfig:
     prearm_skip: tuple[SkippablePrearmCheck, ...] = ()
     # expert override: failed checks that can be overridden are logged and alerted, not refused
     prearm_override: bool = False
+    # storage: the recorder's disk (its RecorderStatus) with less free space than this, a write
+    # failure, or a recorder silent for storage_silent_s: an alert, and a failed pre-arm check
+    storage_min_free_mb: float = field(default=50.0, metadata=_r(0.0, 1e6))
+    storage_silent_s: float = field(default=5.0, metadata=_r(1.0, 600.0))
     # RC receiver: no rc/override for this long counts as a lost RC link (the driver itself
     # reports a lost link after its lost_after_s); while the RC has control: neutral
     rc_timeout_s: float = field(default=0.3, metadata=_r(0.1, 0.4))
@@ -173,6 +176,9 @@ class Monitor:
     name = "monitor"
     severity = "warning"
     acts_while_active = False
+    # the alert is raised again when the reason changes while the failsafe is active: the storage
+    # check's "low on space" that becomes "the write failed" (not for reasons that count seconds)
+    realert_on_change = False
 
     def __init__(self, persist_s: float, clear_s: float, actions: dict[ModeName, FailsafeAction]) -> None:
         self.condition = PersistentCondition(persist_s, clear_s)
@@ -452,21 +458,26 @@ class GeofenceMonitor(Monitor):
         self.inset_m = cfg.geofence_inset_m
         self.in_manual = cfg.geofence_in_manual
         self.max_position_std_m = cfg.max_position_std_m
-        self._regions: tuple[Any, Any, Any] = (None, None, None)  # (route, fence, inset), once per route
+        self._regions: tuple[Any, Any, Any] = ((), None, None)  # (routes, fence, inset), once per route
 
-    def _fence(self, route: Any) -> tuple[Any, Any]:
-        """The region outside which the fence trips, and the one the boat holds in after a breach."""
-        if self._regions[0] is not route:
-            free = route.free_region()
+    def _fence(self, routes: tuple[Any, ...]) -> tuple[Any, Any]:
+        """The region outside which the fence trips, and the one the boat holds in after a breach:
+        the free water of the route in use and of the boat's configured area together."""
+        known = self._regions[0]
+        if len(known) != len(routes) or any(a is not b for a, b in zip(known, routes)):  # by identity: cheap
+            free = routes[0].free_region()
+            for r in routes[1:]:
+                free = free.intersection(r.free_region())
             inner = free.buffer(-self.inset_m)
-            self._regions = (route, free.buffer(self.margin_m), free if inner.is_empty else inner)
+            self._regions = (routes, free.buffer(self.margin_m), free if inner.is_empty else inner)
         return self._regions[1], self._regions[2]
 
     def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
         s = inputs.state
-        if inputs.route is None or s is None or not inputs.position_trusted(self.max_position_std_m):
+        routes = inputs.fence_regions()
+        if not routes or s is None or not inputs.position_trusted(self.max_position_std_m):
             return False, ""
-        outside = not self._fence(inputs.route)[0].contains(Point(s.north_m, s.east_m))
+        outside = not self._fence(routes)[0].contains(Point(s.north_m, s.east_m))
         return outside, f"position ({s.north_m:.1f}, {s.east_m:.1f}) outside the navigable area"
 
     def action_for(self, mode: "Mode") -> FailsafeAction:
@@ -479,7 +490,7 @@ class GeofenceMonitor(Monitor):
         thrust, not by the weak sideways one."""
         s = inputs.state
         p = Point(s.north_m, s.east_m)
-        q = nearest_points(self._fence(inputs.route)[1], p)[0]
+        q = nearest_points(self._fence(inputs.fence_regions())[1], p)[0]
         heading = math.atan2(q.y - p.y, q.x - p.x) if p.distance(q) > 0.05 else s.heading_rad
         return (q.x, q.y, heading)
 
@@ -523,6 +534,40 @@ class ControllerMonitor(Monitor):
         return False, ""  # event-driven: `observe`
 
 
+def storage_problem(inputs: "SupervisorInputs", t: float, cfg: FailsafeConfig) -> str:
+    """What is wrong with the recorder's disk, in the operator's words ("" = nothing, or no
+    recorder in this run): a write failure and what was kept, too little free space, silence."""
+    r = inputs.recorder
+    if r is None:
+        return ""
+    if r.error:
+        return f"{r.error}; recording stopped, kept {r.kept}"
+    age = t - inputs.recorder_arrival_s
+    if age > cfg.storage_silent_s:
+        return f"no word from the recorder for {age:.0f} s (logs in {r.directory})"
+    if 0 <= r.free_bytes < cfg.storage_min_free_mb * 1e6:
+        return (f"the log disk ({r.directory}) has {r.free_bytes / 1e6:.1f} MB free, below the "
+                f"{cfg.storage_min_free_mb:g} MB a run needs (storage_min_free_mb)")
+    return ""
+
+
+class StorageMonitor(Monitor):
+    """The log disk full, failing or silent (`storage_problem`): reported only (an alert on every
+    page and in the log); the boat goes on as it was, and the pre-arm check refuses the next arm."""
+
+    name = "storage"
+    severity = "error"
+    realert_on_change = True
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        super().__init__(0.0, 3.0, {})
+        self.cfg = cfg
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        why = storage_problem(inputs, t, self.cfg)
+        return bool(why), why
+
+
 def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> list[Monitor]:
     """The failsafe table of docs/failsafes.md that is checked every tick, in order (dead
     reckoning after the monitors it follows up on). The controller monitor is separate: it
@@ -541,6 +586,7 @@ def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMI
         BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s,
                        _in((ModeName.AUTO, ModeName.HOLD, ModeName.EXPERIMENT), FailsafeAction.RETURN), "warning"),
         GeofenceMonitor(cfg),
+        StorageMonitor(cfg),
     ]
 
 

@@ -20,17 +20,42 @@ operator can still drive by keyboard, the boat does not move by itself.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from lotsen.control import HoldTarget
 from lotsen.errors import LotsenError
 from lotsen.messages import ControllerStatus, MagCalibrationResult, ModeName, ThrustCommand
 from lotsen.model import wrap_angle
-
-if TYPE_CHECKING:
-    from lotsen.supervisor.node import SupervisorNode
+from lotsen.supervisor.inputs import SupervisorInputs
 
 Output = tuple[ThrustCommand, "ControllerStatus | None"]
+
+
+class Helm(Protocol):
+    """What a mode may use of the supervisor that runs it (`node.SupervisorNode` is one): the
+    modes are below the node, so they name what they need instead of importing it."""
+
+    config: Any  # node.SupervisorConfig
+    inputs: SupervisorInputs
+    armed: bool
+    stopped: str
+    mode: "Mode"
+    modes: dict[ModeName, "Mode"]
+    failsafes: Any  # failsafes.FailsafeState
+    allocator: Any
+    station_keeper: Any
+    follower: Any
+    fallback: Any
+    active_path: Any
+    mag_calibrator: Any
+    ctx: Any
+
+    def set_mode(self, mode: "Mode", reason: str) -> None: ...
+    def enter_hold(self, t: float, reason: str, target: HoldTarget | None = None) -> None: ...
+    def send_command(self, t: float, cmd: ThrustCommand) -> None: ...
+    def watch_controller(self, t: float, status: ControllerStatus, solve_ms: float) -> None: ...
+    def position_ok(self) -> bool: ...
+    def publish_calibration(self, result: MagCalibrationResult) -> None: ...
 
 
 def neutral(t: float, source: str) -> ThrustCommand:
@@ -51,13 +76,13 @@ class Mode:
     # alone and operator requests other than the e-stop are refused with this reason
     human_in_control = ""
 
-    def enter(self, sup: "SupervisorNode", t: float) -> None:
+    def enter(self, sup: "Helm", t: float) -> None:
         pass
 
-    def exit(self, sup: "SupervisorNode", t: float) -> None:
+    def exit(self, sup: "Helm", t: float) -> None:
         pass
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         return neutral(t, self.name.lower()), None
 
 
@@ -65,10 +90,10 @@ class Manual(Mode):
     name = ModeName.MANUAL
     requires_armed = False  # selectable disarmed; keys give thrust only when armed
 
-    def enter(self, sup: "SupervisorNode", t: float) -> None:
+    def enter(self, sup: "Helm", t: float) -> None:
         sup.inputs.manual = None  # keys held before the switch do not count
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         fs = sup.config.failsafes
         m = sup.inputs.manual
         if not sup.armed:
@@ -96,10 +121,10 @@ class Hold(Mode):
     def __init__(self) -> None:
         self.target: HoldTarget | None = None
 
-    def enter(self, sup: "SupervisorNode", t: float) -> None:
+    def enter(self, sup: "Helm", t: float) -> None:
         sup.station_keeper.reset()
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         return sup.station_keeper.update(t, sup.inputs.state, self.target)
 
 
@@ -112,7 +137,7 @@ class FollowPath(Mode):
     moving = True
     fenced = True
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         follower = sup.fallback or sup.follower
         w0 = sup.ctx.work()
         cmd, status = follower.update(t, sup.inputs.state)
@@ -146,10 +171,10 @@ class Calibrate(Mode):
         self.last_heading: float | None = None
         self.start_s = 0.0
 
-    def enter(self, sup: "SupervisorNode", t: float) -> None:
+    def enter(self, sup: "Helm", t: float) -> None:
         self.samples, self.travel_rad, self.last_heading, self.start_s = [], 0.0, None, t
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         c = sup.config
         s = sup.inputs.state
         if s is not None and math.isfinite(s.heading_rad):
@@ -162,7 +187,7 @@ class Calibrate(Mode):
             return neutral(t, "calibration:done"), None
         return ThrustCommand(stamp_s=t, nt_rps=c.calibration_bow_rps, source="calibration"), None
 
-    def finish(self, sup: "SupervisorNode", t: float, turned: bool) -> None:
+    def finish(self, sup: "Helm", t: float, turned: bool) -> None:
         result = MagCalibrationResult(stamp_s=t, ok=False, text="calibration manoeuvre timed out")
         if turned and sup.mag_calibrator is not None:
             try:
@@ -184,11 +209,11 @@ class Estop(Mode):
     requires_armed = False
     human_in_control = "emergency stop is latched; reset it first"
 
-    def enter(self, sup: "SupervisorNode", t: float) -> None:
+    def enter(self, sup: "Helm", t: float) -> None:
         sup.armed = False
         sup.send_command(t, neutral(t, "estop"))  # now, not on the next tick
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         return neutral(t, "estop"), None
 
 
@@ -200,7 +225,7 @@ class Rc(Mode):
     requires_armed = False
     human_in_control = "the RC transmitter has control"
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         rc = sup.inputs.rc
         if rc is None or rc.link != "ok" or t - sup.inputs.rc_arrival_s > sup.config.failsafes.rc_timeout_s:
             return neutral(t, "rc:link-lost"), None
@@ -217,7 +242,7 @@ class Experiment(Mode):
     requires_heading = True  # the experiment's zigzag triggers and its record need the heading
     fenced = True
 
-    def update(self, sup: "SupervisorNode", t: float) -> Output:
+    def update(self, sup: "Helm", t: float) -> Output:
         cmd = sup.inputs.experiment
         if cmd is None or t - sup.inputs.experiment_arrival_s > sup.config.failsafes.manual_timeout_s:
             return neutral(t, "experiment:stale"), None

@@ -13,28 +13,30 @@ predicates; a refusal is an `Alert` the operator sees, not only a log line.
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
-from shapely import contains_xy
+from shapely import Point, contains_xy
 
 from lotsen.control import ControlConfig, HoldTarget, ThrustAllocator, make_path_follower, make_station_keeper
 from lotsen.errors import LotsenError
 from lotsen.messages import (
-    OPERATOR_ACTIONS, ActuatorState, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
+    OPERATOR_ACTIONS, ActuatorState, CommandAck, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
     MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
-    RcOverride, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
+    RcOverride, RecorderStatus, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
-from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, all_finite
+from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel
 from lotsen.planning import PlannerConfig, plan_return_route
 from lotsen.planning.exchange import path_from_message
 from lotsen.planning.io import route_from_dict, route_to_dict
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.supervisor.failsafes import (
     ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ThrusterMonitor,
-    monitor, standard_monitors,
+    monitor, standard_monitors, storage_problem,
 )
+from lotsen.supervisor.inputs import SupervisorInputs, finite_state as _finite_state
 from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
 from lotsen.supervisor.prearm import FailedCheck, PrearmInputs, blocking, describe, prearm_failures, route_corridor_m
 
@@ -46,6 +48,8 @@ REQUESTED_MODE = {"auto": ModeName.AUTO, "hold": ModeName.HOLD, "return": ModeNa
 PREARM_ACTIONS = ("arm", "auto", "experiment")  # the requests pre-arm checks guard
 GEOFENCE_HOLD_REASON = "failsafe: geofence, holding inside the area"
 SEVERITY_ORDER = ("info", "warning", "error", "critical")
+#: request ids answered, kept to answer a resent request again without acting twice
+ANSWERS_KEPT = 256
 
 
 @dataclass(frozen=True)
@@ -65,42 +69,6 @@ class SupervisorConfig:
     route_fence_tolerance_m: float = 0.05  # a received path may touch the area's edge by this much
     failsafes: FailsafeConfig = field(default_factory=FailsafeConfig)
     planner: PlannerConfig = field(default_factory=PlannerConfig)  # the return to the harbour
-
-
-@dataclass
-class SupervisorInputs:
-    """The latest of everything the supervisor listens to, with arrival times (runtime clock)."""
-
-    state: VesselState | None = None
-    manual: ManualCommand | None = None
-    manual_arrival_s: float = -math.inf
-    experiment: ThrustCommand | None = None  # the running identification experiment's command
-    experiment_arrival_s: float = -math.inf
-    link: LinkStatus | None = None
-    link_arrival_s: float = -math.inf
-    rc: RcOverride | None = None
-    rc_arrival_s: float = -math.inf
-    rc_takeover: bool = False  # the takeover switch as last seen over a good link
-    fix: GnssFix | None = None
-    last_usable_fix_s: float | None = None
-    battery: BatteryStatus | None = None
-    actuators: ActuatorState | None = None
-    health: Any = None  # EstimatorHealth (lotsen.fusion) when the estimator publishes one
-    route: Any = None  # the route in use (its navigable area and obstacles), None without one
-
-    @property
-    def escs_armed(self) -> bool:
-        return self.actuators is not None and bool(self.actuators.escs_armed)
-
-    def position_trusted(self, max_position_std_m: float) -> bool:
-        """A finite state estimate whose position std is within the bound and whose integrity
-        monitor (when there is one) trusts the position."""
-        s = self.state
-        if s is None or not _finite_state(s):
-            return False
-        if len(s.std) >= 2 and max(s.std[0], s.std[1]) > max_position_std_m:
-            return False
-        return self.health is None or bool(self.health.position_ok)
 
 
 class SupervisorNode(Node):
@@ -154,6 +122,7 @@ class SupervisorNode(Node):
         self.mag_review: MagCalibrationResult | None = None  # a fresh fit in use, awaiting accept/reject
         self._heading_calibration_before = heading_calibration
         self._corridor: tuple[Any, Any, float] = (None, None, math.inf)
+        self._answered: OrderedDict[str, CommandAck] = OrderedDict()  # request_id -> its answer
 
     @property
     def route(self) -> Any:
@@ -162,6 +131,16 @@ class SupervisorNode(Node):
     @route.setter
     def route(self, route: Any) -> None:
         self.inputs.route = route
+
+    @property
+    def fence(self) -> Any:
+        """The boat's own navigable area (a Route whose area and obstacles count): the launch
+        config's route area; None when the config has none. Set once at start."""
+        return self.inputs.fence
+
+    @fence.setter
+    def fence(self, route: Any) -> None:
+        self.inputs.fence = route
 
     @property
     def hold_target(self) -> HoldTarget | None:
@@ -182,6 +161,7 @@ class SupervisorNode(Node):
         ctx.subscribe(Topic.IMU_MAG, self._on_mag)
         ctx.subscribe(Topic.RPM, self._on_rpm)
         ctx.subscribe(Topic.ACTUATORS, self._on_actuators)
+        ctx.subscribe(Topic.RECORDER, self._on_recorder)
         health_topic = getattr(Topic, "ESTIMATOR_HEALTH", None)
         if health_topic is not None:
             ctx.subscribe(health_topic, self._on_health)
@@ -253,6 +233,9 @@ class SupervisorNode(Node):
     def _on_actuators(self, msg: ActuatorState) -> None:
         self.inputs.actuators = msg
 
+    def _on_recorder(self, msg: RecorderStatus) -> None:
+        self.inputs.recorder, self.inputs.recorder_arrival_s = msg, self.ctx.now()
+
     def _on_health(self, msg: Any) -> None:
         self.inputs.health = msg
 
@@ -272,6 +255,7 @@ class SupervisorNode(Node):
             route = route_from_dict(msg.route)
             path = path_from_message(msg)
             self._check_path_inside(route, path)
+            self._check_path_inside(self.fence, path, "of the boat (its launch config)")
         except LotsenError as exc:
             self.counters["routes_refused"] += 1
             self._refuse("route", str(exc))
@@ -284,17 +268,28 @@ class SupervisorNode(Node):
         self._publish_route()
         self._publish_status()
 
-    def _check_path_inside(self, route: Any, path: Any) -> None:
-        """A received path must lie in the route's navigable water (the planner's promise, checked)."""
-        if route.area is None and not route.obstacles:
+    def _check_path_inside(self, route: Any, path: Any, whose: str = "of the route") -> None:
+        """A received path must lie in the route's navigable water (the planner's promise, checked)
+        and in the boat's own (`fence`), whatever area the route itself declares: a page that
+        cleared or widened the area cannot send the boat beyond the configured one."""
+        if route is None or (route.area is None and not route.obstacles):
             return
         free = route.free_region().buffer(self.config.route_fence_tolerance_m)
         step = max(1, len(path) // 2000)
         inside = contains_xy(free, path.north_m[::step], path.east_m[::step])
         if not np.all(inside):
             i = int(np.argmin(inside)) * step
-            raise LotsenError(f"route: the path leaves the navigable area at ({path.north_m[i]:.1f}, "
-                              f"{path.east_m[i]:.1f}) m")
+            d = free.distance(Point(path.north_m[i], path.east_m[i]))
+            raise LotsenError(f"route: the path leaves the navigable area {whose} at ({path.north_m[i]:.1f}, {path.east_m[i]:.1f}) m "
+                              f"({d:.1f} m outside); the boat keeps the route it held")
+
+    def return_route(self) -> Any:
+        """The route the return to the harbour is planned in: the route in use, inside the boat's
+        own area when the route brought none."""
+        r, f = self.route, self.fence
+        if r is None or f is None or r.area is not None:
+            return r
+        return replace(r, area=f.area, obstacles=tuple(r.obstacles) + tuple(f.obstacles))
 
     def set_route(self, route: Any, path: Any, route_id: str = "", node_s: tuple[float, ...] = ()) -> None:
         """Hold `route` and its planned `path` (the launch config's route, or one received)."""
@@ -351,15 +346,32 @@ class SupervisorNode(Node):
         return ""
 
     def _on_operator(self, cmd: OperatorCommand) -> None:
+        """One operator request: refused with the reason, or done; with a request_id it is answered
+        by a CommandAck (operator/ack), and a resent id is answered again without acting twice."""
+        rid = cmd.request_id
+        if rid and rid in self._answered:
+            self.ctx.publish(Topic.OPERATOR_ACK, replace(self._answered[rid], stamp_s=self.ctx.now()))
+            return
+        why = self._operator(cmd)
+        if rid:
+            ack = CommandAck(stamp_s=self.ctx.now(), request_id=rid, action=cmd.action, accepted=not why,
+                             reason=why, mode=str(self.mode.name), armed=self.armed)
+            self._answered[rid] = ack
+            while len(self._answered) > ANSWERS_KEPT:
+                self._answered.popitem(last=False)
+            self.ctx.publish(Topic.OPERATOR_ACK, ack)
+
+    def _operator(self, cmd: OperatorCommand) -> str:
+        """Carry out one request; the reason when it is refused, "" when done."""
         action = cmd.action
         if action in ("rtk_start", "rtk_stop", "logging_on", "logging_off") and action in OPERATOR_ACTIONS:
-            return  # handled by the GNSS driver / simulated receiver and the recorder
+            return ""  # handled by the GNSS driver / simulated receiver and the recorder
         why = self.why_not(action)
         prearm = self.prearm_failures(action) if action in PREARM_ACTIONS and not self.mode.human_in_control \
             else []
         if why:
             self._refuse(action, why, **({"prearm_failed": [f.id for f in prearm]} if prearm else {}))
-            return
+            return why
         t = self.ctx.now()
         by = f"requested by {cmd.source}"
         if prearm:  # accepted with failing checks: only the expert override does that
@@ -397,6 +409,7 @@ class SupervisorNode(Node):
             self.ctx.publish(Topic.MAG_CALIBRATION, replace(self.mag_review, stamp_s=t, decision=decision))
             self.mag_review = None
         self._publish_status()
+        return ""
 
     def _refuse(self, action: str, why: str, **data: Any) -> None:
         self.counters["refused_requests"] += 1
@@ -414,7 +427,7 @@ class SupervisorNode(Node):
                             heading_usable=self._heading_ok(), health=i.health, fix=i.fix,
                             heading_calibration=self.heading_calibration, battery=i.battery, route=self.route,
                             path=self.path, corridor_m=corridor, link=i.link, link_age_s=t - i.link_arrival_s,
-                            rc=i.rc)
+                            rc=i.rc, storage=storage_problem(i, t, self.config.failsafes))
 
     def prearm_failures(self, action: str) -> list[FailedCheck]:
         """The failed pre-arm checks of `action` (arm, auto); prearm_skip as in prearm.prearm_failures."""
@@ -479,7 +492,7 @@ class SupervisorNode(Node):
             self.enter_hold(t, f"{reason}: no route/harbour known, holding instead")
             return
         try:
-            path = plan_return_route(self.route, s.north_m, s.east_m, s.heading_rad, self.config.planner)
+            path = plan_return_route(self.return_route(), s.north_m, s.east_m, s.heading_rad, self.config.planner)
         except LotsenError as exc:
             self.ctx.log("error", f"return to harbour cannot be planned: {exc}")
             self.alert("error", "return", f"return to harbour cannot be planned: {exc}")
@@ -537,8 +550,13 @@ class SupervisorNode(Node):
         return mode.update(self, t)
 
     # ------------------------------------------------------------------ failsafes
-    def _flag(self, mon_name: str, on: bool, reason: str, severity: str) -> bool:
+    def _flag(self, mon_name: str, on: bool, reason: str, severity: str, realert: bool = False) -> bool:
+        before = self.failsafes.active.get(mon_name)
         became_on, became_off = self.failsafes.set(mon_name, on, reason)
+        # what is wrong changed in kind (its first words; not a figure that counts down)
+        if realert and on and not became_on and before is not None and before[:16] != reason[:16]:
+            self.ctx.log("warning", f"failsafe {mon_name}: {reason}", failsafe=mon_name)
+            self.alert(severity, f"failsafe:{mon_name}", f"{mon_name}: {reason}")
         if became_on:
             self.failsafe_history.append(f"{mon_name}: {reason} at {self.ctx.now():.2f} s")
             self.ctx.log("warning", f"failsafe {mon_name}: {reason}", failsafe=mon_name)
@@ -561,7 +579,8 @@ class SupervisorNode(Node):
     def _check_failsafes(self, t: float) -> None:
         for mon in self.monitors:
             active = mon.update(self.inputs, t)
-            if self._flag(mon.name, active, mon.reason, mon.severity) or (active and mon.acts_while_active):
+            if self._flag(mon.name, active, mon.reason, mon.severity, mon.realert_on_change) or \
+                    (active and mon.acts_while_active):
                 self._act(t, mon, mon.action_for(self.mode))
 
     def _act(self, t: float, mon: Monitor, action: FailsafeAction) -> None:
@@ -645,10 +664,6 @@ def _with_controller(config: Any, name: str) -> Any:
 
 def _clip1(v: float) -> float:
     return min(max(float(v), -1.0), 1.0)
-
-
-def _finite_state(s: VesselState) -> bool:
-    return all_finite(*s.as_array_tuple())
 
 
 def _time_to_end(path: Any, min_speed_mps: float = 0.05) -> np.ndarray:

@@ -28,11 +28,11 @@ from lotsen.messages import BatteryStatus, GnssFix, GnssFixType, LinkStatus, RcO
 from lotsen.supervisor.failsafes import FailsafeConfig, SkippablePrearmCheck
 
 #: every check id, in the order the failures are listed
-CHECK_IDS: tuple[str, ...] = ("escs", "battery", "position", "gnss", "heading", "route", "pilot_link")
+CHECK_IDS: tuple[str, ...] = ("escs", "battery", "storage", "position", "gnss", "heading", "route", "pilot_link")
 SKIPPABLE: tuple[str, ...] = typing.get_args(SkippablePrearmCheck)
 #: the checks each request runs
-CHECKS_FOR: dict[str, tuple[str, ...]] = {"arm": ("battery",), "auto": CHECK_IDS,
-                                          "experiment": ("escs", "battery", "position", "gnss", "heading")}
+CHECKS_FOR: dict[str, tuple[str, ...]] = {"arm": ("battery", "storage"), "auto": CHECK_IDS,
+                                          "experiment": ("escs", "battery", "storage", "position", "gnss", "heading")}
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,7 @@ class PrearmInputs:
     link: LinkStatus | None = None
     link_age_s: float = math.inf  # since the pilot's LinkStatus arrived
     rc: RcOverride | None = None
+    storage: str = ""  # failsafes.storage_problem: what is wrong with the log disk ("" = fine)
 
 
 def route_corridor_m(route: Any, path: Any) -> float:
@@ -206,6 +207,11 @@ def check_route(inp: PrearmInputs, cfg: FailsafeConfig) -> list[FailedCheck]:
     return out
 
 
+def check_storage(inp: PrearmInputs, cfg: FailsafeConfig) -> list[FailedCheck]:
+    """The log disk: a run whose recording stops (or cannot start) leaves nothing to learn from."""
+    return [FailedCheck("storage", f"storage: {inp.storage}")] if inp.storage else []
+
+
 def check_pilot_link(inp: PrearmInputs, cfg: FailsafeConfig) -> list[FailedCheck]:
     """Someone can take over: the page's pilot heard within link_timeout_s, or the RC receiver."""
     link_ok = inp.link is not None and inp.link.pilot_connected and inp.link_age_s <= cfg.link_timeout_s
@@ -218,7 +224,7 @@ def check_pilot_link(inp: PrearmInputs, cfg: FailsafeConfig) -> list[FailedCheck
 
 CHECKS: dict[str, Any] = {"escs": check_escs, "battery": check_battery, "position": check_position,
                           "gnss": check_gnss, "heading": check_heading, "route": check_route,
-                          "pilot_link": check_pilot_link}
+                          "pilot_link": check_pilot_link, "storage": check_storage}
 
 
 def prearm_failures(action: str, inp: PrearmInputs, cfg: FailsafeConfig) -> list[FailedCheck]:

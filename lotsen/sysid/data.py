@@ -58,10 +58,6 @@ VALUE_LIMITS: dict[str, tuple[float, str]] = {
     "n2": (500.0, "rev/s"), "nt": (500.0, "rev/s"), "north": (1e5, "m"), "east": (1e5, "m"),
     "psi": (1e4, "rad"), "r": (100.0, "rad/s"), "u": (50.0, "m/s"), "v": (50.0, "m/s")}
 T_LIMIT_S = 1e10  # a POSIX time stamp is 1.8e9 s
-# integration step limit where the inputs are reconstructed piecewise linearly: a step uses its average
-# input, so the steps must resolve the motion within a 20 ms (50 Hz) input interval (measured on the
-# independent simulator, 600 s: kappa 10.7 bounds off with the hold, 3.7 at 10 ms steps, 2.1 at 5 ms)
-ACHIEVED_H_MAX_S = 0.005
 
 
 @dataclass
@@ -175,19 +171,19 @@ def _reconstruct_inputs(t: np.ndarray, inputs: np.ndarray, kind: str) -> tuple[n
     return U, slopes
 
 
-def step_limit(seg: Segment, h_max: float) -> float:
-    """The integration step limit for a segment (finer where the inputs change within a row)."""
-    return h_max if seg.input_slopes is None else min(h_max, ACHIEVED_H_MAX_S)
-
-
-def step_inputs(seg: Segment, k: int | np.ndarray, frac: float | np.ndarray) -> np.ndarray:
-    """Input used by an integration step inside row interval k of `seg` whose midpoint lies at
-    fraction `frac` of the interval (the step average of the reconstructed input)."""
-    U = seg.inputs[k]
+def step_input_lines(seg: Segment, k: int | np.ndarray, frac: float | np.ndarray) -> np.ndarray:
+    """The input of an integration step inside row interval k of `seg` that starts at fraction `frac`
+    of the interval, as a line [u0 (5), du (5)]: u(s) = u0 + du s for s in the step (held: du = 0).
+    Within a row interval the reconstruction is exactly this line, so an integrator that evaluates
+    it at its stages (lotsen.sysid.sensitivity) integrates the reconstructed input exactly."""
+    U = np.atleast_2d(seg.inputs[k])
     if seg.input_slopes is None:
-        return U
-    dt = np.append(np.diff(seg.t), 0.0)[k]
-    return U + seg.input_slopes[k] * np.asarray(frac * dt)[..., None]
+        out = np.concatenate([U, np.zeros_like(U)], axis=-1)
+    else:
+        dt = np.append(np.diff(seg.t), 0.0)[k]
+        slope = np.atleast_2d(seg.input_slopes[k])
+        out = np.concatenate([U + slope * np.atleast_1d(np.asarray(frac * dt))[:, None], slope], axis=-1)
+    return out[0] if np.ndim(k) == 0 else out
 
 
 def check_record(record: IdRecord) -> None:

@@ -26,7 +26,7 @@ import numpy as np
 
 from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, geometry_tuple
 from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment
-from lotsen.sysid.sensitivity import NS, NTHETA, NTHETA_LAKE, NX_LAKE, _build_step_functions, make_grid
+from lotsen.sysid.sensitivity import NS, NTHETA, NTHETA_LAKE, NU, NX_LAKE, _build_step_functions, make_grid
 
 CHUNK = 2048  # steps per call: memory per call ~ CHUNK * 1.3 kB whatever the record length
 _KERNELS: dict[tuple, "StepKernels"] = {}
@@ -103,7 +103,7 @@ class StepKernels:
         # inputs (column-major CasADi matrices = C-ordered numpy arrays with the dimensions reversed)
         self.x0 = np.zeros(nx)
         self.S0 = np.zeros((ns, nx))
-        self.U = np.zeros((L, 5))
+        self.U = np.zeros((L, 2 * NU))  # the input's line over each step (u0, du)
         self.TH = np.zeros((L, nth))
         self.H = np.zeros(L)
         self.RS = np.zeros(L)
@@ -131,7 +131,7 @@ class StepKernels:
     def run_record(self, theta: Sequence[float], h: np.ndarray, U: np.ndarray, reset: np.ndarray,
                    reset_step: np.ndarray, reset_states: np.ndarray, need: np.ndarray,
                    sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """A whole grid of steps (h, U: n_steps x 5, reset) chunk by chunk: the state starts from
+        """A whole grid of steps (h, U: n_steps x 10 input lines, reset) chunk by chunk: the state starts from
         `reset_states[i]` at step `reset_step[i]` (sorted), and the states (and with `sens` the
         sensitivities, len(need) x nx x ns) after the steps `need` (sorted) are returned."""
         L, n_steps = self.chunk, len(h)
@@ -188,7 +188,7 @@ class WindowSimulator:
 
     def _run(self, theta: Sequence[float], x0s: np.ndarray, sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
         g = self.grid
-        return self.k.run_record(theta, g.h, g.U.T, g.reset, g.window_start_step,  # U: 5 x n -> n x 5 view
+        return self.k.run_record(theta, g.h, g.U.T, g.reset, g.window_start_step,  # U: 10 x n -> n x 10 view
                                  np.asarray(x0s, dtype=float).reshape(-1, 6), g.sample_step, sens)
 
     def simulate(self, theta: Sequence[float], x0s: np.ndarray) -> np.ndarray:

@@ -50,8 +50,7 @@ from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters, geometry_tuple
 from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import (
-    OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_inputs,
-    step_limit,
+    OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_input_lines,
 )
 from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
@@ -67,17 +66,18 @@ CONTINUITY_TOL = 1e-3
 X_SCALE = np.array([0.01, 0.01, 0.01, 0.01, 0.01, 0.003])
 # the lake model (`lake=True`): the gust factor's scale, and the environment's start, scale and prior
 GUST_SCALE = 0.05
-ENV_START = np.array([0.0, 0.0, 0.0, 0.0, *wind_drag_coefficients()])
-ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *wind_drag_coefficients()])
+_K_WIND = np.array([*wind_drag_coefficients(), 0.1 * wind_drag_coefficients()[1]])  # k_Nv: a 0.1 m arm
+ENV_START = np.array([0.0, 0.0, 0.0, 0.0, *_K_WIND[:3], 0.0])
+ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *_K_WIND])
 # priors that keep the problem regular in calm air (no wind: the drag coefficients are undetermined)
 # and break the near-degeneracy of drag coefficient and wind speed (k W^2): coefficients within
 # `wind_coefficient_spread` (relative) of the nominal hull's (WindCoefficients: areas measured on the
 # hull, C_X, C_Y, C_N from the literature), wind and current within 10 and 1 m/s. Measured on a lake
 # record (docs/sysid.md): with a 30 % or 5 % spread the estimate falls into a wrong basin (wind too
 # weak, drag too high, Y_v/Y_vv/N_v absorbing the difference); with 1 % it finds the truth's basin.
-ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *wind_drag_coefficients()])  # x wind_coefficient_spread
-ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0])
-ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0])
+ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *_K_WIND])  # the coefficients' x wind_coefficient_spread
+ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0, -1.0])
+ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0, 1.0])
 # The yaw-rate output's constant offset, one per record (`gyro_bias=True`): r_measured = r + b. A gyro
 # bias calibrated "at rest" is wrong by the yaw rate the boat had then (on a lake the wind turns a
 # drifting boat: 0.02-0.06 rad/s on the lake records, 7-20 x the gyro noise), and the stack's records
@@ -93,7 +93,8 @@ GYRO_BIAS_LIMIT = 0.5
 class ShootingGrid:
     """Integration steps of all shooting intervals of all segments, flattened.
 
-    Step j integrates over h[j] with the input U[j] (held); reset[j] = 1 marks the first,
+    Step j integrates over h[j] with the input line U[j] = [u0, du] (lotsen.sysid.data.step_input_lines);
+    reset[j] = 1 marks the first,
     zero-length step of an interval, which loads its node state. Node i starts at step
     node_step[i]; if it has a successor in its segment (has_next[i]) its interval ends after
     step end_step[i]. Measurement k (row meas_row[k] of segment meas_seg[k]) is reached after
@@ -101,7 +102,7 @@ class ShootingGrid:
     """
 
     h: np.ndarray
-    U: np.ndarray  # n_steps x 5
+    U: np.ndarray  # n_steps x 10
     reset: np.ndarray
     node_step: np.ndarray
     node_time: np.ndarray
@@ -145,7 +146,7 @@ def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 
         is_node[nodes] = True
         dt = np.diff(t)
         m = np.zeros(n, int)
-        m[:-1] = np.maximum(1, np.ceil(dt / step_limit(seg, h_max) - 1e-9).astype(int))
+        m[:-1] = np.maximum(1, np.ceil(dt / h_max - 1e-9).astype(int))
         m[:-1][dt == 0] = 0
         count = m + is_node
         start = np.concatenate([[0], np.cumsum(count)[:-1]])
@@ -155,9 +156,9 @@ def build_grid(segments: Sequence[Segment], node_s: float = 2.0, h_max: float = 
         rs = is_node[step_row] & (j_in_row == 0)
         hh = np.where(rs, 0.0, np.append(dt, 0.0)[step_row] / np.maximum(m[step_row], 1))
         hs.append(hh)
-        # the step average of the reconstructed input (held: the row's value; docs/sysid.md, "Data")
-        sub = j_in_row - is_node[step_row]
-        Us.append(step_inputs(seg, step_row, (sub + 0.5) / np.maximum(m[step_row], 1)))
+        # the reconstructed input's line over each step (held: the row's value; docs/sysid.md, "Data")
+        sub = np.maximum(j_in_row - is_node[step_row], 0)
+        Us.append(step_input_lines(seg, step_row, sub / np.maximum(m[step_row], 1)))
         resets.append(rs.astype(float))
         # the step after which row k's state is reached
         row_step = np.where(is_node, start, start - 1)
@@ -504,17 +505,22 @@ class MultipleShootingResult:
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
-                mu: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                mu: float, active: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The damped Gauss-Newton step; `active` (per free parameter) holds those at a bound fixed."""
     Hss, Hsp, Hpp, gs, gp = blocks
     lu = prob.factor_A(Hss, lin.Gx, Ds, mu)
     rhs_w = np.concatenate([-gs.ravel(), -lin.c.ravel()])
     F, AinvB, Ainv_rw, r = prob.reduced(lu, Hsp, lin.Gp, Hpp + mu * np.diag(Dp), rhs_w, -gp)
     nf = len(gp)
     if nf:
-        try:
-            dp = np.linalg.solve(F, r)
-        except np.linalg.LinAlgError:
-            dp = np.linalg.lstsq(F, r, rcond=None)[0]
+        keep = np.ones(nf, bool) if active is None else ~active
+        dp = np.zeros(nf)
+        if keep.any():
+            Fk, rk = F[np.ix_(keep, keep)], r[keep]
+            try:
+                dp[keep] = np.linalg.solve(Fk, rk)
+            except np.linalg.LinAlgError:
+                dp[keep] = np.linalg.lstsq(Fk, rk, rcond=None)[0]
     else:
         dp = np.zeros(0)
     w = Ainv_rw - AinvB @ dp
@@ -852,8 +858,20 @@ def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.nd
         # defects kept below the tolerance.
         continuous = lin.c.size == 0 or float(np.max(np.abs(lin.c))) < CONTINUITY_TOL
         accepted = False
+        # bounds by an active set: a parameter at its bound whose step points outward is held there for
+        # this step, and the others' step is computed without it (clipping the full step instead moves
+        # the rest as if the bounded one had moved: on a hull whose best fit leans on a bound, such as
+        # X_u at its floor, the damping then grows until the estimate crawls and never converges)
+        th_f = theta[free]
+        at_lo, at_hi = th_f <= lo[free] + 1e-12 * np.abs(lo[free]), th_f >= hi[free] - 1e-12 * np.abs(hi[free])
         for trial in range(14):
-            ds, dp, lam = _solve_step(prob, lin, blocks, Ds, Dp, mu)
+            active = np.zeros(len(free), bool)
+            for _ in range(len(free) + 1):
+                ds, dp, lam = _solve_step(prob, lin, blocks, Ds, Dp, mu, active)
+                out = ~active & ((at_lo & (dp < 0)) | (at_hi & (dp > 0)))
+                if not out.any():
+                    break
+                active |= out
             alpha = 1.0 if trial < 6 else 0.5 ** (trial - 5)
             if lam.size:
                 nu = max(nu, 1.2 * float(np.max(np.abs(lam))))
@@ -871,7 +889,7 @@ def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.nd
                 # second-order correction (Maratos effect): the step met the linearised continuity, but
                 # the intervals' curvature left larger defects; one more solve with the same
                 # factorisation, no gradient and the new defects, pulls the trajectory back together
-                soc = _solve_step(prob, replace(lin, c=lin_new.c), (*blocks[:3], 0.0 * gs, 0.0 * gp), Ds, Dp, mu)
+                soc = _solve_step(prob, replace(lin, c=lin_new.c), (*blocks[:3], 0.0 * gs, 0.0 * gp), Ds, Dp, mu, active)
                 th_soc = th_new.copy()
                 th_soc[free] = np.clip(th_new[free] + soc[1] * tscale[free], lo[free], hi[free])
                 nodes_soc = nodes_new + soc[0] * prob.xscale[None, :]
@@ -1006,7 +1024,7 @@ def average_over_model_choice(first: IdentificationResult, second: Identificatio
     d = np.array([getattr(second.params, n) for n in names]) - v1
     mean = v1 + d / 2.0
     cov = (np.asarray(first.covariance, float) + np.asarray(second.covariance, float)) / 2.0 + np.outer(d, d) / 4.0
-    std = {n: float(math.sqrt(cov[i, i])) for i, n in enumerate(names)}
+    std = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
     shift = {n: float(d[i] / first.std[n]) if first.std[n] > 0 else math.inf for i, n in enumerate(names)}
     details = replace(first.details, gust_interval_shift=shift) if first.details is not None else None
     params = first.params.with_updates(**{n: float(v) for n, v in zip(names, mean)})

@@ -1,8 +1,12 @@
 """Simulation of the grey-box model over identification windows, with forward sensitivities.
 
 The model equations come from `lotsen.model.symbolic_rhs` (the very code the simulator runs,
-re-bound to CasADi), integrated by classical RK4 with inputs held between samples. One CasADi
-step function propagates the state and its sensitivity
+re-bound to CasADi), integrated by classical RK4. Within a step the input is a line,
+u(s) = u0 + du s (du = 0 for held commands; the reconstructed achieved values of lotsen.sysid.data
+are linear within each row interval, and steps never cross a row), and RK4 evaluates it at its
+stages s = 0, h/2, h: exact for the reconstruction, so the steps need not resolve the actuators'
+motion (5-ms steps of the step-average input did that before, 4-12x the steps). One CasADi step
+function propagates the state and its sensitivity
 
     S = d x / d [x0 (6), theta (18)],   S_{j+1} = dPhi/dx S_j + [0, dPhi/dtheta]
 
@@ -23,18 +27,19 @@ from typing import Any, Sequence
 import numpy as np
 
 from lotsen.model import symbolic_rhs
-from lotsen.sysid.data import Segment, step_inputs, step_limit
+from lotsen.sysid.data import Segment, step_input_lines
 
 NTHETA = 18
+NU = 5
 NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
 # The lake model (lotsen.sysid.multiple, `lake=True`): the state gets two entries per shooting interval,
 # the gust factors g (along the mean wind) and h (across it; dg/dt = dh/dt = 0), and theta 7
 # environment entries: the earth-frame current (c_N, c_E), the earth-frame velocity of the air
-# w = (w_N, w_E) and the wind drag coefficients (k_X, k_Y, k_N) of
+# w = (w_N, w_E) and the wind drag coefficients (k_X, k_Y, k_N, k_Nv) of
 # lotsen.model.environment.apparent_wind_force. In the interval the air moves with g w + h (-w_E, w_N):
 # gusts change the wind's speed (g) and turn it (h ~ the turn in radians; a 10 deg wander swings the
 # cross-wind by 17 % of the speed, as much as the gusts change it).
-ENV_NAMES = ("current_n", "current_e", "wind_n", "wind_e", "k_wind_x", "k_wind_y", "k_wind_n")
+ENV_NAMES = ("current_n", "current_e", "wind_n", "wind_e", "k_wind_x", "k_wind_y", "k_wind_n", "k_wind_nv")
 NX_LAKE = 8
 NTHETA_LAKE = NTHETA + len(ENV_NAMES)
 
@@ -52,28 +57,30 @@ def _build_step_functions(geom: tuple[float, ...], jit: bool, lake: bool = False
     f = symbolic_rhs(ca)
     nx, nth = (NX_LAKE, NTHETA_LAKE) if lake else (6, NTHETA)
     x = ca.SX.sym("x", nx)
-    u = ca.SX.sym("u", 5)
+    u = ca.SX.sym("u", 2 * NU)  # the input's line over the step: u0 (5), du (5)
     th = ca.SX.sym("theta", nth)
     h = ca.SX.sym("h")
     rho = ca.SX.sym("reset")
     xr = ca.SX.sym("xr", nx)
     S = ca.SX.sym("S", nx, nx + nth)
-    ul, thl = ca.vertsplit(u), ca.vertsplit(th)
+    thl = ca.vertsplit(th)
+    u0, du = u[:NU], u[NU:]
 
-    def rhs(xx: Any) -> Any:
+    def rhs(xx: Any, s: Any) -> Any:
         xl = ca.vertsplit(xx)
+        ul = ca.vertsplit(u0 + s * du)
         if not lake:
             return ca.vertcat(*f(xl, ul, thl, geom))
         g, c = xl[6], xl[7]
         tau = apparent_wind_force(xl[2], xl[3], xl[4], g * thl[20] - c * thl[21], g * thl[21] + c * thl[20],
-                                  thl[22], thl[23], thl[24], ca.cos, ca.sin, ca.sqrt)
+                                  thl[22], thl[23], thl[24], thl[25], ca.cos, ca.sin, ca.sqrt)
         return ca.vertcat(*f(xl[:6], ul, thl[:NTHETA], geom, (thl[18], thl[19]), tau), 0, 0)
 
-    k1 = rhs(x)
-    k2 = rhs(x + h / 2 * k1)
-    k3 = rhs(x + h / 2 * k2)
-    k4 = rhs(x + h * k3)
-    xn = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)  # classical RK4, input held
+    k1 = rhs(x, 0)
+    k2 = rhs(x + h / 2 * k1, h / 2)
+    k3 = rhs(x + h / 2 * k2, h / 2)
+    k4 = rhs(x + h * k3, h)
+    xn = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)  # classical RK4, the input's line at the stages
     phi = ca.Function("phi", [x, u, th, h], [xn, ca.jacobian(xn, x), ca.jacobian(xn, th)])
     xs = (1 - rho) * x + rho * xr  # window start: load the initial state
     xn_s, Jx_s, Jt_s = phi(xs, u, th, h)
@@ -100,7 +107,8 @@ def jit_available() -> bool:
 class StepGrid:
     """All integration steps of a list of windows, flattened.
 
-    Step j integrates over h[j] with input U[:, j]; `reset[j]` = 1 marks a window's first
+    Step j integrates over h[j] with the input line U[:, j] (u0, du; lotsen.sysid.data.step_input_lines);
+    `reset[j]` = 1 marks a window's first
     (zero-length) step, which loads that window's initial state. `sample_step[i]` is the step after
     which sample i (global numbering over windows) is reached; `window_of_sample[i]` its window.
     """
@@ -124,16 +132,16 @@ def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
     for w, seg in enumerate(windows):
         wstart.append(len(hs))
         hs.append(0.0)
-        us.append(seg.inputs[0])
+        us.append(step_input_lines(seg, 0, 0.0))
         reset.append(1.0)
         sstep.append(len(hs) - 1)
         wos.append(w)
         for k in range(len(seg.t) - 1):
             dt = float(seg.t[k + 1] - seg.t[k])
-            m = max(1, int(math.ceil(dt / step_limit(seg, h_max) - 1e-9)))
+            m = max(1, int(math.ceil(dt / h_max - 1e-9)))
             for i in range(m):
                 hs.append(dt / m)
-                us.append(step_inputs(seg, k, (i + 0.5) / m))  # held, or the step average (data.py)
+                us.append(step_input_lines(seg, k, i / m))  # held, or the reconstruction's line (data.py)
                 reset.append(0.0)
             sstep.append(len(hs) - 1)
             wos.append(w)

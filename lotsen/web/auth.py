@@ -10,10 +10,14 @@ Rules (docs/web.md, "Access rules"):
   can be replaced by `auth` with `takeover: true`; the old connection is told it lost the seat.
 - Guessing: each address (an IPv4 address, an IPv6 /64) may send `AUTH_BURST` wrong tokens at once
   and then one every `1 / AUTH_RATE_PER_S` seconds, across all its connections; while its budget is
-  spent every `auth` from it is refused unchecked. A right token costs nothing (a pilot reloading
-  the page is never throttled by its own reconnections). A connection is closed after
-  `MAX_AUTH_FAILURES` wrong tokens. A stranger at another address cannot use up the pilot's
-  attempts. The real protection is the token's strength: >= 128 bits (`check_token_strength`).
+  spent a wrong token is answered `rate_limited` and closes its connection at once (each further
+  guess costs a new WebSocket handshake). The right token is checked first and is never
+  throttled, also when another client behind the same address (a phone hotspot, a NAT) spent the
+  budget. A connection is closed after `MAX_AUTH_FAILURES` wrong tokens. The real protection is
+  the credential's strength: >= 128 bits (`check_token_strength`), which no online guessing at any
+  rate gets near; the budget keeps a guesser's noise out of the logs and the CPU.
+- The credential may be replaced while the server runs (`lotsen pair --new`, lotsen.web.pairing):
+  `PilotSeat` reads it through a callable, and a pilot seated with the old one loses the seat.
 """
 
 from __future__ import annotations
@@ -152,10 +156,13 @@ class SeatChange:
 class PilotSeat:
     """Who the pilot is and when the pilot was last heard. Used from the server's event loop only."""
 
-    def __init__(self, token: str, link_timeout_s: float, clock: Callable[[], float]) -> None:
-        if not token:
+    def __init__(self, token: str | Callable[[], str], link_timeout_s: float, clock: Callable[[], float]) -> None:
+        """`token`: the pilot credential, or a callable returning the one in force now (a paired
+        boat's credential file, re-read when it changes)."""
+        self._credential = token if callable(token) else (lambda: token)
+        if not self._credential():
             raise ValueError("pilot token must not be empty")
-        self._token = token
+        self._holder_token = ""
         self.link_timeout_s = link_timeout_s
         self._clock = clock
         self.holder: object | None = None
@@ -169,10 +176,26 @@ class PilotSeat:
         return self._clock() - self.last_heard_s if self.holder is not None else float("inf")
 
     def stale(self) -> bool:
-        return self.holder is not None and self.silent_s() > self.link_timeout_s
+        """The pilot is silent beyond its limit: the seat's, or the holder's own `link_timeout_s`
+        (a ground station heartbeats at 1 Hz: lotsen.web.mavlink)."""
+        limit = getattr(self.holder, "link_timeout_s", None) or self.link_timeout_s
+        return self.holder is not None and self.silent_s() > limit
+
+    def token_ok(self, token: str) -> bool:
+        """Is `token` the pilot credential in force now (constant-time comparison)?"""
+        current = self._credential()
+        return bool(current) and token_matches(token, current)
+
+    def current_token(self) -> str:
+        """The credential in force (for the pilot's pairing QR code only)."""
+        return self._credential()
+
+    def holder_revoked(self) -> bool:
+        """The seat is held with a credential that has since been replaced (`lotsen pair --new`)."""
+        return self.holder is not None and not self.token_ok(self._holder_token)
 
     def claim(self, session: object, token: str, takeover: bool = False) -> SeatChange:
-        if not token_matches(token, self._token):
+        if not self.token_ok(token):
             raise AuthError("bad_token", "auth: wrong pilot token")
         if self.holder is session:
             self.heard(session)
@@ -188,6 +211,7 @@ class PilotSeat:
                                 "press Take over to take the controls")
             previous = self.holder
         self.holder = session
+        self._holder_token = token
         self.ever_held = True
         self.heard(session)
         return SeatChange(previous=previous)

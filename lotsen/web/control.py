@@ -13,6 +13,8 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import itertools
+import re
+import secrets
 from dataclasses import dataclass, field
 from typing import Any, Awaitable, Callable
 
@@ -47,6 +49,8 @@ class Session:
     manual_active: bool = False  # the last manual command was non-zero
     close_requested: str = ""  # reason, when the hub should close the socket
     last_rate_error_s: float = -1e9
+    source: str = "web"  # who asks, in OperatorCommand.source ("mavlink:255" for a ground station)
+    link_timeout_s: float | None = None  # own silence limit as pilot (a ground station's); None: the seat's
 
 
 async def _to_thread(fn: Callable[..., Any], *args: Any) -> Any:
@@ -94,6 +98,7 @@ class ControlHandler:
         self.last_upload: dict | None = None  # {"route_id", "route", "detours"} of the pilot's last upload
         self.settings = Settings(self.planner_config)  # the parameter sheet (lotsen.web.settings)
         self.broadcast = broadcast or (lambda m: None)  # a message to every page
+        self._instance = secrets.token_hex(4)  # request ids of this process never repeat an earlier one's
 
     # -- connection life cycle ---------------------------------------------------------------
     def open_session(self, address: str = "?") -> Session:
@@ -113,8 +118,15 @@ class ControlHandler:
         self.publish(Topic.MANUAL, ManualCommand(stamp_s=self.clock(), surge=0.0, sway=0.0, yaw=0.0))
 
     def link_tick(self) -> LinkStatus:
-        """Called at ~5 Hz: publish the pilot's liveness; a silent pilot's driving is zeroed once."""
+        """Called at ~5 Hz: publish the pilot's liveness; a silent pilot's driving is zeroed once;
+        a pilot seated with a credential that was replaced since (`lotsen pair --new`) loses the seat."""
         holder = self.seat.holder
+        if holder is not None and self.seat.holder_revoked():
+            self.seat.release(holder)
+            self._stop_manual(holder if isinstance(holder, Session) else None)
+            self.notify(holder, {"type": "pilot", "pilot": False, "revoked": True,
+                                 "reason": "the pilot credential was replaced on the boat (lotsen pair --new): pair again"})
+            holder = None
         if isinstance(holder, Session) and holder.manual_active and self.seat.stale():
             self._stop_manual(holder)
         # a pilot that is connected but silent (frozen tab, half-open Wi-Fi) counts as gone
@@ -202,20 +214,22 @@ class ControlHandler:
                                             "(manual 30/s, ping 20/s, others 5/s)")]
 
     def _on_auth(self, session: Session, msg: Message) -> list[dict]:
-        if not self.auth_guard.allow(session.address):
+        # the right credential first: it is never throttled, also when another client behind the
+        # same address spent the guessing budget (a phone hotspot, one NAT for the jetty)
+        if not self.seat.token_ok(msg.fields["token"]):
+            spent = not self.auth_guard.allow(session.address)
             session.auth_failures += 1
-            if session.auth_failures >= MAX_AUTH_FAILURES:
-                session.close_requested = "too many token attempts"
-            return [_error(msg.id, "rate_limited", "auth: too many wrong tokens from your address "
-                           f"(5, then one every {self.auth_guard.wait_s():g} s); wait and try again")]
+            if not spent:
+                self.auth_guard.failed(session.address)
+            if spent or session.auth_failures >= MAX_AUTH_FAILURES:
+                session.close_requested = "too many wrong tokens"
+            if spent:
+                return [_error(msg.id, "rate_limited", "auth: too many wrong tokens from your address "
+                               f"(5, then one every {self.auth_guard.wait_s():g} s); wait and try again")]
+            return [_error(msg.id, "bad_token", "auth: wrong pilot token")]
         try:
             change = self.seat.claim(session, msg.fields["token"], msg.fields.get("takeover", False))
         except AuthError as exc:
-            if exc.code == "bad_token":
-                self.auth_guard.failed(session.address)
-                session.auth_failures += 1
-                if session.auth_failures >= MAX_AUTH_FAILURES:
-                    session.close_requested = "too many wrong tokens"
             return [_error(msg.id, exc.code, str(exc))]
         if change.previous is not None:
             if isinstance(change.previous, Session):
@@ -234,9 +248,12 @@ class ControlHandler:
 
     def _on_command(self, session: Session, msg: Message) -> list[dict]:
         action = msg.fields["action"]
-        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source="web"))
-        # "requested", not "done": the supervisor decides; a refusal comes back as an Alert
-        return [{"type": "ack", "id": msg.id, "action": action}]
+        # the page's id of this press; without one, one of ours (the boat answers each id once)
+        request = msg.fields.get("request") or f"web-{self._instance}-{next(_ids)}"
+        self.publish(Topic.OPERATOR, OperatorCommand(stamp_s=self.clock(), action=action, source=session.source,
+                                                     request_id=request))
+        # "requested", not "done": the boat's own answer comes as `confirmed` (operator/ack)
+        return [{"type": "ack", "id": msg.id, "action": action, "request": request}]
 
     def _on_manual(self, session: Session, msg: Message) -> list[dict]:
         f = msg.fields
@@ -268,8 +285,19 @@ class ControlHandler:
         return [{"type": "export_result", "id": msg.id, "format": msg.fields["format"], "text": text}]
 
     async def _on_import(self, session: Session, msg: Message) -> list[dict]:
-        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"])
+        route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"], self.origin)
         return [{"type": "import_result", "id": msg.id, "route": route}]
+
+    def _on_pair_qr(self, session: Session, msg: Message) -> list[dict]:
+        """The QR code of the pairing address on the page's own origin (the pilot shows it to pair
+        another phone; it carries the credential the pilot already holds)."""
+        origin = msg.fields["origin"]
+        if not re.fullmatch(r"https?://[A-Za-z0-9.\-\[\]:]{1,180}", origin):
+            raise LotsenError(f"pair_qr: origin {origin[:60]!r} is not scheme://host[:port]")
+        from lotsen.web.pairing import pairing_url, qr_svg
+
+        url = pairing_url(origin, self.seat.current_token())
+        return [{"type": "pair_qr", "id": msg.id, "url": url, "svg": qr_svg(url)}]
 
     def _on_tiles_preload(self, session: Session, msg: Message) -> list[dict]:
         """Starts the download in the background (progress as `tiles_progress` to every page)."""

@@ -31,6 +31,7 @@ from lotsen.web.admission import choose_evictions
 from lotsen.web.auth import AuthGuard, PilotSeat, address_key
 from lotsen.web.control import ControlHandler, Publish, RunBlocking, Session, TileJobs, _to_thread
 from lotsen.web.options import WebOptions
+from lotsen.web.pairing import PilotCredential
 from lotsen.web.telemetry import TOPICS, TelemetryState
 from lotsen.web.tiles import Preloader, PreloadProgress, TileStore
 from lotsen.web.validation import MAX_MESSAGE_CHARS, VIEWER_ALLOWED, VIEWER_MAX_MESSAGE_CHARS
@@ -151,7 +152,9 @@ class Hub:
         self.options = options
         self.origin = origin
         self.period_s = 1.0 / options.telemetry_rate_hz
-        self.seat = PilotSeat(options.pilot_token, options.link_timeout_s, clock)
+        # the boat's credential file when paired (re-read when `lotsen pair --new` replaces it)
+        credential = PilotCredential(options.credential_file).current if options.credential_file else options.pilot_token
+        self.seat = PilotSeat(credential, options.link_timeout_s, clock)
         self.tiles = TileService(self, options) if options.tile_dir else None
         self.handler = ControlHandler(self.seat, publish, clock, planner_config=planner_config,
                                       run_blocking=run_blocking, notify=self._notify, origin=origin,

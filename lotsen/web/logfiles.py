@@ -51,6 +51,8 @@ def resolve_log(directory: str | Path, name: str) -> Path | None:
     if not directory or not LOG_NAME.match(name):
         return None
     root = Path(directory).resolve()
+    if (root / name).is_symlink():  # never a link, wherever it points (as in the list)
+        return None
     p = (root / name).resolve()
     if p.parent != root or not p.is_file():
         return None

@@ -40,6 +40,9 @@ class WebExtra:
     # any page that reaches the server may press the emergency stop (not only the pilot): a second
     # person on the jetty can stop the boat; off by default, where a viewer only watches
     viewer_may_estop: bool = False
+    # the boat's pilot credential (lotsen.web.pairing), used when web.pilot_token is not set; None:
+    # $LOTSEN_CONFIG_DIR/pairing/<boat>.credential (~/.config/lotsen by default)
+    credential_file: str | None = None
     # TLS: `lotsen run --tls` creates a self-signed pair in tls_dir once (lotsen.web.tls), or serves
     # the given certificate and key; setting both files turns TLS on without the flag
     tls_dir: str = "~/.config/lotsen/tls"
@@ -80,6 +83,7 @@ class WebOptions:
     tile_max_zoom: int = 19
     battery_capacity_ah: float | None = None
     viewer_may_estop: bool = False
+    credential_file: str = ""  # the boat's credential file (re-read when it changes); "" = a fixed token
     tls_dir: str = ""
     tls_certfile: str | None = None
     tls_keyfile: str | None = None
@@ -94,6 +98,11 @@ class WebOptions:
         extra = extra or WebExtra()
         web = config.web
         token = web.pilot_token
+        paired = bool(extra.credential_file)
+        if paired:  # the boat's own credential (lotsen.web.pairing): read here, re-read by the seat
+            from lotsen.web.pairing import PilotCredential
+
+            token = PilotCredential(os.path.expanduser(extra.credential_file)).current()
         generated = not token
         if generated:
             token = secrets.token_urlsafe(16)  # 128 random bits, 22 characters
@@ -108,6 +117,7 @@ class WebOptions:
                    tile_url=extra.tile_url, tile_attribution=extra.tile_attribution,
                    tile_max_count=extra.tile_max_count, tile_max_zoom=extra.tile_max_zoom,
                    battery_capacity_ah=extra.battery_capacity_ah, viewer_may_estop=extra.viewer_may_estop,
+                   credential_file=os.path.expanduser(extra.credential_file) if paired else "",
                    tls_dir=os.path.expanduser(extra.tls_dir) if extra.tls_dir else "",
                    tls_certfile=extra.tls_certfile and os.path.expanduser(extra.tls_certfile),
                    tls_keyfile=extra.tls_keyfile and os.path.expanduser(extra.tls_keyfile),

@@ -14,6 +14,7 @@ from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import parse_json, parse_yaml
 from lotsen.planning import GeoOrigin, PlannerConfig, plan_route
 from lotsen.planning.exchange import planned_route_message, route_id
+from lotsen.planning.formats import GROUND_STATION_FORMATS, read_route_text, write_route_text
 from lotsen.planning.io import route_from_dict, route_from_geojson, route_to_dict, route_to_geojson
 from lotsen.web.validation import ValidationError, check_json_tree
 
@@ -160,16 +161,25 @@ def plan_for_upload(route_data: dict, config: PlannerConfig | None = None, stamp
 
 
 def export_route(route_data: dict, fmt: str, origin: GeoOrigin | None = None) -> str:
-    """YAML or GeoJSON text of a drawn route (validated first). GeoJSON needs a geographic
-    origin: the route's own, else `origin` (the stack's GNSS origin). Raises LotsenError."""
+    """YAML, GeoJSON or a ground station's file (.plan, QGC WPL 110, KML, GPX) of a drawn route
+    (validated first). All but YAML need a geographic origin: the route's own, else `origin`
+    (the stack's GNSS origin). Raises LotsenError."""
     route = route_from_dict(route_data)
+    if fmt in GROUND_STATION_FORMATS:
+        return write_route_text(route, fmt, origin)[0]
     if fmt == "geojson":
         return json.dumps(route_to_geojson(route, origin=route.origin or origin), indent=1)
     return yaml.safe_dump(route_to_dict(route), sort_keys=False, default_flow_style=None)
 
 
-def import_route(text: str, fmt: str) -> dict:
-    """Route dict from YAML or GeoJSON text. Raises LotsenError with the location of the problem."""
+def import_route(text: str, fmt: str, origin: GeoOrigin | None = None) -> dict:
+    """Route dict from YAML, GeoJSON or a ground station's file text (in the frame of `origin`, the
+    stack's, so the route lands where the page draws the boat). Raises LotsenError with the
+    location of the problem."""
+    if fmt in GROUND_STATION_FORMATS:
+        if text.lstrip().startswith("QGC WPL"):
+            fmt = "wpl"
+        return route_to_dict(route_from_dict(read_route_text(text, fmt, origin, where="import")))
     if fmt == "geojson":
         data = parse_json(text, "import", ConfigError)
     else:

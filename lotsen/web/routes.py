@@ -102,10 +102,9 @@ def create_app(hub: Hub) -> FastAPI:
     async def tile(z: int, x: int, y: int) -> Response:
         if hub.tiles is None or not valid_tile(z, x, y):
             return Response(status_code=404)
-        p = hub.tiles.store.path(z, x, y)
-        if not p.is_file():
+        data = await asyncio.to_thread(hub.tiles.store.read, z, x, y)
+        if data is None:
             return Response(status_code=404)
-        data = await asyncio.to_thread(p.read_bytes)
         return Response(data, media_type=tile_image_type(data) or "application/octet-stream",
                         headers={"Cache-Control": "public, max-age=86400"})
 

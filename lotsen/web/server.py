@@ -34,13 +34,43 @@ def _is_local_address(text: str) -> bool:
         return False
 
 
+#: header limits (uvicorn's httptools parser takes headers of any size): one header line, all of them
+MAX_HEADER_BYTES = 8 * 1024
+MAX_HEADERS_BYTES = 32 * 1024
+MAX_HEADER_COUNT = 100
+#: headers that must come once: two Host headers let a check read one and a proxy or the app the other
+SINGLE_HEADERS = frozenset({b"host", b"origin", b"content-length", b"transfer-encoding", b"upgrade",
+                            b"sec-websocket-key", b"sec-websocket-version", b"authorization", b"cookie"})
+
+
+def header_problem(headers: Any) -> tuple[int, str] | None:
+    """(status, reason) when the request's headers are refused: a duplicate of a header that must
+    come once (400), too many or too large (431 Request Header Fields Too Large); None when fine."""
+    seen: set[bytes] = set()
+    total = 0
+    for count, (k, v) in enumerate(headers, 1):
+        size = len(k) + len(v) + 4
+        total += size
+        if size > MAX_HEADER_BYTES:
+            return 431, f"header {k[:40].decode('latin-1')!r} is {size} bytes (at most {MAX_HEADER_BYTES})"
+        if total > MAX_HEADERS_BYTES or count > MAX_HEADER_COUNT:
+            return 431, f"headers too large (at most {MAX_HEADERS_BYTES} bytes in {MAX_HEADER_COUNT} headers)"
+        if k in SINGLE_HEADERS:
+            if k in seen:
+                return 400, f"header {k.decode('latin-1')!r} given twice"
+            seen.add(k)
+    return None
+
+
 class HostGuard:
     """Refuses requests whose Host header names no one this server serves: DNS rebinding (a page
     of evil.example whose name then resolves to the boat) sends `Host: evil.example` with its own
     origin, so only the Host header tells it apart. Served: localhost (and *.localhost), this
     machine's names (host name, its .local and its full name), the configured bind host, and IP
     literals of this machine's addresses, and the configured `extra.web.allowed_hosts`. HTTP gets 421 Misdirected Request; a WebSocket
-    handshake is refused before it is accepted (421 where the server can say so, else 403)."""
+    handshake is refused before it is accepted (421 where the server can say so, else 403).
+    It also refuses duplicated single headers (a second Host is never read past) and oversized
+    headers (`header_problem`)."""
 
     def __init__(self, app: Callable[..., Awaitable[None]], bind_host: str,
                  allowed_hosts: tuple[str, ...] = ()) -> None:
@@ -65,16 +95,19 @@ class HostGuard:
     async def __call__(self, scope: dict, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
         if scope["type"] not in ("http", "websocket"):
             return await self.app(scope, receive, send)
+        problem = header_problem(scope.get("headers", ()))
         host = next((v.decode("latin-1") for k, v in scope.get("headers", ()) if k == b"host"), None)
-        if self.allows(host):
+        if problem is None and self.allows(host):
             return await self.app(scope, receive, send)
-        body = f"421 Misdirected Request: this server does not serve the host {host!r}\n".encode()[:300]
+        status, why = problem or (421, f"this server does not serve the host {host!r}")
+        text = {400: "Bad Request", 421: "Misdirected Request", 431: "Request Header Fields Too Large"}[status]
+        body = f"{status} {text}: {why}\n".encode()[:300]
         headers = [(b"content-type", b"text/plain; charset=utf-8"), (b"content-length", str(len(body)).encode())]
         if scope["type"] == "http":
-            await send({"type": "http.response.start", "status": 421, "headers": headers})
+            await send({"type": "http.response.start", "status": status, "headers": headers})
             await send({"type": "http.response.body", "body": body})
         elif "websocket.http.response" in scope.get("extensions", {}):
-            await send({"type": "websocket.http.response.start", "status": 421, "headers": headers})
+            await send({"type": "websocket.http.response.start", "status": status, "headers": headers})
             await send({"type": "websocket.http.response.body", "body": body})
         else:
             await send({"type": "websocket.close", "code": 1008})

@@ -10,14 +10,14 @@ from collections import deque
 from typing import Any
 
 from lotsen.messages import (
-    ActuatorState, Alert, BatteryStatus, ControllerStatus, GnssFix, GnssFixType, LogEvent, MagCalibrationResult,
-    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RouteMessage, SupervisorStatus, ThrustCommand,
+    ActuatorState, Alert, BatteryStatus, CommandAck, ControllerStatus, GnssFix, GnssFixType, LogEvent, MagCalibrationResult,
+    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RecorderStatus, RouteMessage, SupervisorStatus, ThrustCommand,
     Topic, VesselState,
 )
 
 TOPICS = (Topic.STATE, Topic.TRUTH, Topic.CONTROL_STATUS, Topic.SUPERVISOR, Topic.GNSS, Topic.BATTERY,
           Topic.SHIP_COMMAND, Topic.ACTUATORS, Topic.PATH, Topic.ROUTE, Topic.ACTIVE_ROUTE, Topic.LOG, Topic.RC,
-          Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL)
+          Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL, Topic.OPERATOR_ACK, Topic.RECORDER)
 
 #: the estimate is shown when it is this fresh; otherwise the simulator's truth (simulation only)
 STATE_FRESH_S = 1.0
@@ -198,6 +198,13 @@ class TelemetryState:
             if len(self.events) < 100:
                 self.events.append(a)
             return
+        elif topic == Topic.OPERATOR_ACK and isinstance(msg, CommandAck):
+            # the boat's answer to a request (every page: each matches its own request ids)
+            self.events.append({"type": "confirmed", "t": num(msg.stamp_s), "request": str(msg.request_id)[:40],
+                                "action": str(msg.action)[:30], "accepted": bool(msg.accepted),
+                                "reason": str(msg.reason)[:MAX_LOG_TEXT], "mode": str(msg.mode)[:20],
+                                "armed": bool(msg.armed)})
+            return
         elif topic == Topic.LOG and isinstance(msg, LogEvent):
             if len(self.events) < 50:  # a storm of log events must not flood the browsers
                 self.events.append(log_json(msg))
@@ -282,6 +289,11 @@ class TelemetryState:
             if isinstance(m, (ThrustCommand, ActuatorState)):
                 out[key] = {"t": num(m.stamp_s), "a1": num(m.alpha1_rad), "a2": num(m.alpha2_rad),
                             "n1": num(m.n1_rps, 2), "n2": num(m.n2_rps, 2), "nt": num(m.nt_rps, 2)}
+        r = L.get(Topic.RECORDER)
+        if isinstance(r, RecorderStatus):
+            out["rec"] = {"t": num(r.stamp_s), "recording": bool(r.recording), "file": str(r.file)[:200],
+                          "free": int(r.free_bytes), "written": int(r.written_bytes), "error": str(r.error)[:300],
+                          "kept": str(r.kept)[:300], "dir": str(r.directory)[:200]}
         rc = L.get(Topic.RC)
         if isinstance(rc, RcOverride):
             out["rc"] = {"t": num(rc.stamp_s), "active": rc.active, "estop": rc.estop, "link": rc.link}

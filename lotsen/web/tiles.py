@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 import tempfile
 import threading
 import urllib.error
@@ -89,6 +90,28 @@ class TileStore:
 
     def has(self, z: int, x: int, y: int) -> bool:
         return self.path(z, x, y).is_file()
+
+    def read(self, z: int, x: int, y: int) -> bytes | None:
+        """A cached tile's bytes, or None. Never follows a link out of the cache: the file and its
+        folders must resolve inside the cache folder (a link in the cache pointing at /etc/passwd
+        was served to anyone, issue 41), and the file is opened without following a last link."""
+        p = self.path(z, x, y)
+        try:
+            root = self.root.resolve(strict=True)
+            real = p.resolve(strict=True)
+        except (OSError, RuntimeError):
+            return None
+        if not real.is_relative_to(root) or p.is_symlink():
+            return None
+        try:
+            fd = os.open(real, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except OSError:
+            return None
+        with os.fdopen(fd, "rb") as f:
+            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+                return None
+            data = f.read(MAX_TILE_BYTES + 1)
+        return data if len(data) <= MAX_TILE_BYTES else None
 
     def write(self, z: int, x: int, y: int, data: bytes) -> None:
         p = self.path(z, x, y)

@@ -14,8 +14,8 @@ command       action: one of lotsen.messages.OPERATOR_ACTIONS          pilot
 manual        surge, sway, yaw: numbers in [-1, 1]                     pilot
 plan          route: route dict (docs/planning.md schema)              pilot
 route         route: route dict -> PlannedRoute (upload)               pilot
-export        route: route dict, format: "yaml" | "geojson"            anyone
-import        text: str, format: "yaml" | "geojson"                    anyone
+export        route: route dict, format: ROUTE_FORMATS                  anyone
+import        text: str, format: ROUTE_FORMATS                         anyone
 tiles_preload south, west, north, east (deg), zoom_min, zoom_max        pilot
 tiles_cancel                                                           pilot
 params        name: an editable setting (lotsen.web.settings), value: number pilot
@@ -36,6 +36,9 @@ from typing import Any
 
 from lotsen.messages import OPERATOR_ACTIONS
 from lotsen.planning.route import MAX_COORDINATE_M
+
+#: route files the page reads and writes: lotsen's own and the ground stations' (lotsen.planning.formats)
+ROUTE_FORMATS = ("yaml", "geojson", "plan", "wpl", "kml", "gpx")
 from lotsen.web.settings import EDITABLE_NAMES
 
 MAX_MESSAGE_CHARS = 512 * 1024
@@ -76,22 +79,25 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "auth": {"token": Field("str", max_len=MAX_TOKEN_CHARS), "takeover": Field("bool", required=False)},
     "release": {},
     "ping": {"t": Field("number", required=False)},
-    "command": {"action": Field("enum", choices=OPERATOR_ACTIONS)},
+    # request: the page's id of this press (a resend carries the same one; the boat acts once)
+    "command": {"action": Field("enum", choices=OPERATOR_ACTIONS), "request": Field("str", required=False, max_len=40)},
     "manual": {"surge": _NUM_UNIT, "sway": _NUM_UNIT, "yaw": _NUM_UNIT},
     "plan": {"route": Field("route")},
     "route": {"route": Field("route")},
-    "export": {"route": Field("route"), "format": Field("enum", choices=("yaml", "geojson"))},
-    "import": {"text": Field("str", max_len=MAX_IMPORT_CHARS), "format": Field("enum", choices=("yaml", "geojson"))},
+    "export": {"route": Field("route"), "format": Field("enum", choices=ROUTE_FORMATS)},
+    "import": {"text": Field("str", max_len=MAX_IMPORT_CHARS), "format": Field("enum", choices=ROUTE_FORMATS)},
     "tiles_preload": {"south": Field("number", lo=-85.0, hi=85.0), "north": Field("number", lo=-85.0, hi=85.0),
                       "west": Field("number", lo=-180.0, hi=180.0), "east": Field("number", lo=-180.0, hi=180.0),
                       "zoom_min": Field("int", lo=0, hi=22), "zoom_max": Field("int", lo=0, hi=22)},
     "tiles_cancel": {},
     "params": {"name": Field("enum", choices=EDITABLE_NAMES), "value": Field("number", lo=-1e6, hi=1e6)},
+    # the pairing QR code for another phone: the page's own origin (scheme://host:port)
+    "pair_qr": {"origin": Field("str", max_len=200)},
 }
 
 #: everything that plans, commands or downloads on the boat's behalf needs the pilot seat
 PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel",
-                        "params"})
+                        "params", "pair_qr"})
 #: what a viewer may send (docs/web.md, "Access rules")
 VIEWER_ALLOWED = frozenset(SCHEMAS) - PILOT_ONLY
 

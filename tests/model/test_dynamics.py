@@ -176,3 +176,24 @@ def test_wind_force_directions():
     assert (X, Y, N) == (0.0, 0.0, 0.0)
     X, Y, N = wind_force(0.0, 0.0, 0.0, Environment(wind_speed_mps=6.0, wind_from_deg=0.0))  # head wind
     assert X < 0 and abs(Y) < 1e-9
+
+
+def test_array_tau_is_the_simulators_thruster_force_on_arrays():
+    """lotsen.model.array_tau (the equation-error regressors) runs the very thruster code on arrays of
+    samples: the same forces as the float path, sample by sample, with astern thrust weaker too."""
+    import dataclasses
+
+    from lotsen.model import DEFAULT_GEOMETRY
+    from lotsen.model.dynamics import array_tau, thruster_forces
+
+    rng = np.random.default_rng(3)
+    n = 40
+    nu = [rng.uniform(-1, 1.5, n), rng.uniform(-0.3, 0.3, n), rng.uniform(-0.6, 0.6, n)]
+    inp = [rng.uniform(-0.7, 0.7, n), rng.uniform(-0.7, 0.7, n), rng.uniform(-100, 100, n),
+           rng.uniform(-100, 100, n), rng.uniform(-80, 80, n)]
+    theta = DEFAULT_PARAMETERS.to_vector()
+    geom = dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=0.8)
+    tX, tY, tN = array_tau(nu, inp, theta, geom)
+    for k in range(n):
+        ref = thruster_forces([c[k] for c in nu], [c[k] for c in inp], theta, geom)
+        np.testing.assert_allclose((tX[k], tY[k], tN[k]), ref, rtol=1e-12, atol=1e-12)

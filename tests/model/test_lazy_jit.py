@@ -17,11 +17,11 @@ def test_importing_the_model_planning_and_the_web_server_does_not_import_numba()
 def test_the_first_kernel_call_compiles_every_kernel_and_rebinds_them():
     out = _run("import sys\n"
                "from lotsen.model import VesselModel, dynamics\n"
-               "from lotsen.sim import simulator\n"
+               "from lotsen.sim import plant\n"
                "from lotsen.model._jit import JIT_ENABLED, LazyKernel\n"
                "before = isinstance(dynamics.rk4_step, LazyKernel)\n"
                "x = VesselModel().step((0.1,) * 6, (0.1,) * 5, 0.1)\n"
-               "print(JIT_ENABLED, before, type(dynamics.rk4_step).__name__, type(simulator._plant_step).__name__,"
+               "print(JIT_ENABLED, before, type(dynamics.rk4_step).__name__, type(plant._plant_step).__name__,"
                " 'numba' in sys.modules)")
     jit, before, rk4, plant, loaded = out.split()
     if jit == "True":

@@ -26,6 +26,8 @@ BAD = {
     "ros2": ({"domain_id": "seven"}, "extra.ros2.domain_id: expected an integer"),
     "hardware": ({"gnss": {"baudrat": 9600}}, "extra.hardware.gnss.baudrat: unknown key (did you mean 'baudrate'?)"),
     "emulated": ("yes", "extra.emulated: expected true or false, got 'yes'"),
+    "mavlink": ({"endpoints": ["udp:14550"]}, "extra.mavlink.endpoints[0]: 'udp:14550' is not a MAVLink connection"),
+    "physics": ({"servos": {"n_full_rps": 0}}, "extra.physics.servos.n_full_rps: 0.0 outside the allowed range"),
 }
 
 

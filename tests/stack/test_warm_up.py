@@ -31,4 +31,4 @@ def test_the_core_compiles_nothing_once_its_loop_runs() -> None:
     after = _signatures()
     compiled = {k: (before.get(k, 0), n) for k, n in after.items() if n != before.get(k, 0)}
     assert not compiled, f"compiled inside the control loop (name: signatures before -> after): {compiled}"
-    assert before.get("lotsen.sim.simulator._plant_step_py"), "the simulated boat's step was not warmed up"
+    assert before.get("lotsen.sim.plant._plant_step_py"), "the simulated boat's step was not warmed up"

@@ -7,7 +7,7 @@ from dataclasses import replace
 from lotsen.messages import OperatorCommand, PlannedRoute, RouteMessage, Topic
 from lotsen.planning import plan_route
 from lotsen.planning.exchange import planned_route_message, route_id
-from lotsen.planning.io import load_route, route_to_dict
+from lotsen.planning.io import load_route, route_from_dict, route_to_dict
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection
 from lotsen.stack.launch import build_stack
 from lotsen.stack.stack import example_route
@@ -107,3 +107,63 @@ def test_routes_that_are_not_planned_or_leave_the_area_are_refused():
     stack.bus.publish(Topic.ROUTE, broken)
     assert sup.path is None and "strictly increasing" in seen[Topic.ALERT][-1].text
     assert sup.counters["routes_refused"] == 2
+
+
+def test_the_configured_area_is_the_boats_own_whatever_area_the_route_declares():
+    """issue 41 item 4: the page cleared the area and a typo (north 500 for 50) planned a 998 m
+    route that the boat accepted. With an area in the launch config the boat refuses any path
+    leaving it, with or without an area of the route's own, or with a wider one; a route inside
+    it without an area is accepted, and the geofence and the return keep to the configured area."""
+    stack, sup, seen = make(example_route("figure_eight"))  # area 40 m x 40 m
+    stack.executor.run_until(0.5)
+    held = sup.route_id
+    assert sup.fence is not None and held
+    base = {"harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0}}
+    typo = {**base, "nodes": [{"north": 500.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5}]}
+    wide = {**typo, "area": [[-10, -10], [600, -10], [600, 60], [-10, 60]]}
+    for r in (typo, wide):
+        route = route_from_dict(r)
+        stack.bus.publish(Topic.ROUTE, planned_route_message(route, plan_route(route), stamp_s=0.5, source="web"))
+        alert = seen[Topic.ALERT][-1]
+        assert alert.code == "refused:route" and "leaves the navigable area of the boat" in alert.text, alert.text
+        assert sup.route_id == held  # the boat keeps the route it held
+    inside = route_from_dict({**base, "nodes": [{"north": 30.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5}]})
+    msg = planned_route_message(inside, plan_route(inside), stamp_s=0.6, source="web")
+    stack.bus.publish(Topic.ROUTE, msg)
+    assert sup.route_id == msg.route_id and sup.route.area is None
+    assert sup.return_route().area == sup.fence.area  # the return is planned inside the configured area
+    # the geofence acts on the configured area although the route has none
+    sup.inputs.state = replace(stack.bus.latest[Topic.STATE], north_m=60.0, east_m=20.0)
+    assert sup.geofence.check(sup.inputs, 1.0)[0]
+
+
+def test_each_request_is_answered_once_and_a_resent_one_is_not_done_twice():
+    """issue 41 item 2: the page resends an unconfirmed e-stop (or mode change) with the same id
+    until the boat answers; the boat acts on an id once and answers every copy."""
+    stack, sup, seen = make(example_route("figure_eight"))
+    acks = []
+    stack.bus.subscribe(Topic.OPERATOR_ACK, acks.append)
+    stack.executor.run_until(1.5)
+
+    def request(action, rid):
+        stack.bus.publish(Topic.OPERATOR, OperatorCommand(stamp_s=stack.executor.clock.now(), action=action,
+                                                          source="web", request_id=rid))
+        return acks[-1]
+
+    a = request("arm", "p-1")
+    assert a.accepted and a.request_id == "p-1" and a.armed and sup.armed
+    a = request("auto", "p-2")
+    assert a.accepted and a.mode == "AUTO"
+    stack.executor.run_for(5.0)
+    progress = sup.follower.progress_m
+    assert progress > 0.5
+    again = request("auto", "p-2")  # the same press resent: answered, not restarted from the start
+    assert again.accepted and again.mode == "AUTO" and sup.follower.progress_m >= progress
+    r = request("reset_estop", "p-3")
+    assert not r.accepted and r.reason == "no emergency stop to reset"
+    e = request("estop", "p-4")
+    assert e.accepted and e.mode == "ESTOP" and not e.armed
+    n = len([x for x in seen[Topic.ALERT] if x.code == "estop"])
+    assert request("estop", "p-4").accepted and len([x for x in seen[Topic.ALERT] if x.code == "estop"]) == n
+    op(stack, "manual")  # no request id: no answer (harnesses, older pages)
+    assert acks[-1].request_id == "p-4"

@@ -36,23 +36,24 @@ def test_lake_step_matches_the_float_model_and_finite_differences():
     geom = geometry_tuple()
     step, step_sens = _build_step_functions(geom, False, lake=True)
     theta = np.array(DEFAULT_PARAMETERS.to_vector())
-    env = np.array([0.05, -0.07, 2.0, -3.0, *wind_drag_coefficients()])
+    env = np.array([0.05, -0.07, 2.0, -3.0, *wind_drag_coefficients(), 0.012])  # k_Nv: a moment arm too
     th = np.concatenate([theta, env])
     x = np.array([1.0, 2.0, 0.4, 0.6, 0.05, 0.1, 1.2, 0.15])  # gust factors 1.2 along, 0.15 across
     wn, we = 1.2 * 2.0 + 0.15 * 3.0, 1.2 * -3.0 + 0.15 * 2.0  # g w + h (-w_E, w_N)
-    u = np.array([0.1, 0.1, 60.0, 55.0, 20.0])
+    u_held = np.array([0.1, 0.1, 60.0, 55.0, 20.0])
+    u = np.concatenate([u_held, np.zeros(5)])  # the input's line over the step: held
     h = 0.01
     x1 = np.array(step(x, u, th, h, 0.0, np.zeros(8))).ravel()
     # the float model: current through vessel_rhs, wind through apparent_wind_force with g * w
     tau = apparent_wind_force(x[2], x[3], x[4], wn, we, *env[4:])
 
     def f(xx):
-        return np.array(vessel_rhs(xx, u, theta, current_ne=(env[0], env[1]), tau_ext=tau))
+        return np.array(vessel_rhs(xx, u_held, theta, current_ne=(env[0], env[1]), tau_ext=tau))
 
     # one RK4 step with the wind force re-evaluated at the stages
     def rhs(xx):
         t = apparent_wind_force(xx[2], xx[3], xx[4], wn, we, *env[4:])
-        return np.array(vessel_rhs(xx, u, theta, current_ne=(env[0], env[1]), tau_ext=t))
+        return np.array(vessel_rhs(xx, u_held, theta, current_ne=(env[0], env[1]), tau_ext=t))
 
     x6 = x[:6]
     k1 = rhs(x6)
@@ -76,7 +77,7 @@ def test_lake_step_matches_the_float_model_and_finite_differences():
             xx = np.array(step(xx, u, thv, h, 0.0, np.zeros(8))).ravel()
         return xx
 
-    for j in (18, 19, 20, 21, 22, 23, 24, 5, 11):
+    for j in (18, 19, 20, 21, 22, 23, 24, 25, 5, 11):
         d = 1e-6 * max(abs(th[j]), 1e-3)
         tp, tm = th.copy(), th.copy()
         tp[j] += d

@@ -37,10 +37,10 @@ class RunningStack:
 
 
 def start_stack(parts: tuple[str, ...] | None = (), extra_web: dict | None = None, tls: bool = False,
-                log_dir: str = "", **web: Any) -> RunningStack:
+                log_dir: str = "", route: str | None = None, extra: dict | None = None, **web: Any) -> RunningStack:
     cfg = LaunchConfig(web=WebSection(port=0, pilot_token=web.pop("pilot_token", TOKEN), **web),
                        logging=LoggingSection(enabled=False, **({"directory": log_dir} if log_dir else {})),
-                       extra={"web": extra_web} if extra_web else {})
+                       route=route, extra={**(extra or {}), **({"web": extra_web} if extra_web else {})})
     stack = build_stack(cfg, realtime=True, parts=parts)
     if "web" not in stack.services:  # not registered as a part (yet): attach it here
         add_web(stack, tls=tls)

@@ -85,8 +85,9 @@ def test_a_viewer_may_stop_the_boat_only_when_the_config_allows_it():
     assert code(send(h, viewer, {"type": "command", "action": "estop"})) == "not_pilot"
     assert published == []
     h.viewer_may_estop = True
-    assert send(h, viewer, {"type": "command", "action": "estop"})[0] == {"type": "ack", "id": None, "action": "estop"}
-    assert [(t, m.action) for t, m in published] == [(Topic.OPERATOR, "estop")]
+    reply = send(h, viewer, {"type": "command", "action": "estop", "request": "page-7"})[0]
+    assert reply == {"type": "ack", "id": None, "action": "estop", "request": "page-7"}
+    assert [(t, m.action, m.request_id) for t, m in published] == [(Topic.OPERATOR, "estop", "page-7")]
     for action in ("auto", "reset_estop", "arm"):
         assert code(send(h, viewer, {"type": "command", "action": action})) == "not_pilot"
     assert code(send(h, viewer, {"type": "manual", "surge": 0.5, "sway": 0, "yaw": 0})) == "not_pilot"
@@ -186,8 +187,11 @@ def test_valid_pilot_messages_publish_the_bus_messages():
     published.clear()
     for action in OPERATOR_ACTIONS:
         clock.t += 0.5
-        assert send(h, s, {"type": "command", "action": action, "id": 7}) == [{"type": "ack", "id": 7, "action": action}]
+        reply, = send(h, s, {"type": "command", "action": action, "id": 7})
+        assert {k: reply[k] for k in ("type", "id", "action")} == {"type": "ack", "id": 7, "action": action}
     assert [m.action for _, m in published] == list(OPERATOR_ACTIONS)
+    ids = [m.request_id for _, m in published]  # a request id of the server's own when the page gave none
+    assert len(set(ids)) == len(ids) and all(i.startswith("web-") for i in ids)
     assert all(t == Topic.OPERATOR and isinstance(m, OperatorCommand) for t, m in published)
     published.clear()
     send(h, s, {"type": "manual", "surge": 1, "sway": -0.5, "yaw": 0.25})
@@ -488,6 +492,39 @@ def test_the_right_token_is_never_throttled_by_reconnections():
         s = h.open_session("192.0.2.9")
         assert send(h, s, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
         h.close_session(s)
+
+
+def test_the_right_token_gets_the_seat_after_a_neighbour_spent_the_addresss_guessing_budget():
+    """issue 41 item 10: a stranger behind the same address (one hotspot, one NAT) spent the
+    budget: its wrong tokens are refused `rate_limited` and close their connection at once, the
+    pilot's right one is taken at once."""
+    h, _, _, _ = make()
+    for i in range(8):
+        s = h.open_session("192.0.2.7")
+        reply = send(h, s, {"type": "auth", "token": f"guess{i}"})[0]
+        if i >= 5:
+            assert reply["code"] == "rate_limited" and s.close_requested  # one guess per handshake
+    pilot_session = h.open_session("192.0.2.7")
+    assert send(h, pilot_session, {"type": "auth", "token": TOKEN})[0]["type"] == "auth_ok"
+
+
+def test_a_replaced_credential_takes_the_seat_from_the_pilot_seated_with_the_old_one():
+    """`lotsen pair --new` on the boat while a page is the pilot: the page loses the seat (told
+    why) and the old credential no longer authenticates; the new one does."""
+    clock = FakeClock()
+    current = [TOKEN]
+    notified: list[tuple[object, dict]] = []
+    published: list = []
+    h = ControlHandler(PilotSeat(lambda: current[0], 1.0, clock), lambda t, m: published.append((t, m)), clock,
+                       run_blocking=_inline, notify=lambda s, m: notified.append((s, m)), auth_guard=AuthGuard(clock))
+    s = pilot(h)
+    h.link_tick()
+    assert h.seat.is_pilot(s) and not notified
+    current[0] = "a brand new credential of the boat"
+    h.link_tick()
+    assert not h.seat.is_pilot(s) and notified[-1][1]["revoked"] is True
+    assert code(send(h, h.open_session(), {"type": "auth", "token": TOKEN})) == "bad_token"
+    assert send(h, h.open_session("10.0.0.2"), {"type": "auth", "token": current[0]})[0]["type"] == "auth_ok"
 
 
 def test_large_frames_are_charged_before_decoding():

@@ -41,6 +41,35 @@ def test_a_page_asked_for_by_another_name_is_refused(running):
     assert _get(port, "evil.example", "/static/app.js") in (400, 421)
 
 
+def _raw(port: int, head: bytes) -> int:
+    """Send a raw request head; the response's status code."""
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(head + b"\r\n")
+        data = b""
+        while b"\r\n" not in data:
+            chunk = s.recv(4096)
+            if not chunk:
+                break
+            data += chunk
+    return int(data.split(b" ", 2)[1])
+
+
+def test_duplicate_and_oversized_headers_are_refused(running):
+    """issue 41 item 10: the Host check read only the first of two Host headers; a 200 kB header was
+    accepted. Both refused now (400, 431), on the page and the WebSocket alike."""
+    port = running.port
+    ok = b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+    assert _raw(port, ok) == 200
+    assert _raw(port, b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nHost: evil.example\r\n") == 400
+    assert _raw(port, b"GET / HTTP/1.1\r\nHost: evil.example\r\nHost: 127.0.0.1\r\n") == 400
+    assert _raw(port, ok + b"X-Pad: " + b"a" * 200_000 + b"\r\n") == 431
+    assert _raw(port, ok + b"".join(b"X-Pad-%d: %s\r\n" % (i, b"a" * 4000) for i in range(12))) == 431
+    ws = (b"GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+          b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n")
+    assert _raw(port, ws) in (400, 403)
+    assert _raw(port, ws.replace(b"Host: 127.0.0.1\r\nHost: 127.0.0.1\r\n", b"Host: 127.0.0.1\r\n")) == 101
+
+
 def test_a_websocket_from_a_rebound_name_is_refused_before_it_opens(running):
     with connect(running.ws_url, open_timeout=5) as ws:  # the served name: the socket opens
         ws.send('{"type": "ping", "id": 1}')

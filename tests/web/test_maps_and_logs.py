@@ -136,6 +136,15 @@ def test_the_pilot_preloads_tiles_that_the_boat_then_serves(tmp_path, tile_serve
         status, headers, body = _get(f"{base}/tiles/16/{x}/{y}.png")
         assert status == 200 and body == PNG and headers["content-type"] == "image/png"
         assert _get(f"{base}/tiles/16/0/0.png")[0] == 404 and _get(f"{base}/tiles/3/9/9.png")[0] == 404
+        # issue 41: a link in the cache never leads out of it (a file link, a folder link)
+        secret = tmp_path / "secret.png"
+        secret.write_bytes(PNG + b"the boat's secrets")
+        (tmp_path / "tiles" / "16" / "0").mkdir(parents=True)
+        (tmp_path / "tiles" / "16" / "0" / "0.png").symlink_to(secret)
+        (tmp_path / "tiles" / "13").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+        (tmp_path / "elsewhere" / "1").mkdir(parents=True)
+        (tmp_path / "elsewhere" / "1" / "1.png").write_bytes(PNG)
+        assert _get(f"{base}/tiles/16/0/0.png")[0] == 404 and _get(f"{base}/tiles/13/1/1.png")[0] == 404
     finally:
         stop_stack(rs)
 
@@ -161,6 +170,10 @@ def test_logs_are_listed_and_downloaded_and_nothing_else_is(tmp_path):
     (tmp_path / "inner" / "hidden.mcap").write_bytes(b"x")
     assert [e["name"] for e in list_logs(tmp_path)] == ["2026-11-23_run.mcap"]
     assert resolve_log(tmp_path, "../secret.mcap") is None and resolve_log(tmp_path, "notes.txt") is None
+    outside = tmp_path.parent / f"{tmp_path.name}-outside.mcap"
+    small_mcap(outside)
+    (tmp_path / "leak.mcap").symlink_to(outside)  # a link out of the folder is neither listed nor served
+    assert resolve_log(tmp_path, "leak.mcap") is None
     rs = start_stack(log_dir=str(tmp_path))
     try:
         base = rs.url.rstrip("/")
@@ -172,7 +185,7 @@ def test_logs_are_listed_and_downloaded_and_nothing_else_is(tmp_path):
         assert status == 200 and body.startswith(b"\x89MCAP0") and len(body) == size  # a closed file: as it is
         assert headers["access-control-allow-origin"] == "https://app.foxglove.dev"
         assert "attachment" in headers["content-disposition"]
-        for bad in ("notes.txt", "..%2Fnotes.txt", "inner%2Fhidden.mcap", "%2Fetc%2Fpasswd"):
+        for bad in ("notes.txt", "..%2Fnotes.txt", "inner%2Fhidden.mcap", "%2Fetc%2Fpasswd", "leak.mcap"):
             assert _get(f"{base}/logs/{bad}")[0] == 404, bad
     finally:
         stop_stack(rs)

@@ -79,7 +79,9 @@ def test_pilot_controls_reach_the_bus_and_link_status_is_published(running):
         ws.send(json.dumps({"type": "auth", "token": TOKEN, "id": 1}))
         assert recv_until(ws, lambda m: m.get("id") == 1)["type"] == "auth_ok"
         ws.send(json.dumps({"type": "command", "action": "hold", "id": 2}))
-        assert recv_until(ws, lambda m: m.get("id") == 2) == {"type": "ack", "id": 2, "action": "hold"}
+        ack = recv_until(ws, lambda m: m.get("id") == 2)
+        assert {k: ack[k] for k in ("type", "id", "action")} == {"type": "ack", "id": 2, "action": "hold"}
+        assert ack["request"].startswith("web-")  # the id the boat will answer (none given by this client)
         ws.send(json.dumps({"type": "manual", "surge": 0.4, "sway": 0.0, "yaw": -0.1}))
         wait_for(lambda: any(m.surge == 0.4 for m in running.messages(Topic.MANUAL)))
         wait_for(lambda: any(isinstance(m, LinkStatus) and m.pilot_connected for m in running.messages(Topic.LINK)))
@@ -176,13 +178,20 @@ def test_banner_shows_url_and_token_and_the_token_is_never_in_a_url(running):
 
 
 def test_repeated_wrong_tokens_close_the_connection_and_block_the_address(running):
-    """Last in this module: it spends 127.0.0.1's wrong-token budget (one more every 2 s)."""
+    """Last in this module: it spends 127.0.0.1's wrong-token budget (one more every 2 s); the right
+    token still gets the seat (issue 41)."""
     with connect(running.ws_url) as ws:
         for i in range(5):
             ws.send(json.dumps({"type": "auth", "token": f"guess-{i}"}))
         with pytest.raises(ConnectionClosed):
             for _ in range(200):
                 ws.recv(timeout=2)
-    with connect(running.ws_url) as ws:  # a new connection from the same address: refused unchecked
-        ws.send(json.dumps({"type": "auth", "token": TOKEN, "id": 1}))
+    with connect(running.ws_url) as ws:  # a new guess from the same address: refused, and the socket closed
+        ws.send(json.dumps({"type": "auth", "token": "guess-5", "id": 1}))
         assert recv_until(ws, lambda m: m.get("id") == 1)["code"] == "rate_limited"
+        with pytest.raises(ConnectionClosed):
+            for _ in range(200):
+                ws.recv(timeout=2)
+    with connect(running.ws_url) as ws:  # the right credential from that address: never throttled (issue 41)
+        ws.send(json.dumps({"type": "auth", "token": TOKEN, "id": 2}))
+        assert recv_until(ws, lambda m: m.get("id") == 2)["type"] == "auth_ok"

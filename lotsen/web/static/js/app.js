@@ -1,6 +1,6 @@
 // lotsen operator interface: connection to the boat, HUD and alerts, route editor with undo,
 // upload with read-back, operation (arm, modes, keyboard), offline map tiles, logs.
-import { RouteModel, parseField, routeDiff, LIMITS } from "./route.js";
+import { RouteModel, parseField, routeDiff, longLegs, LIMITS } from "./route.js";
 import { MapView } from "./map.js";
 import { StripChart } from "./plot.js";
 import { KeyboardDriver, PERIOD_MS } from "./keys.js";
@@ -23,8 +23,32 @@ const state = {
   uploadedId: null,       // the last upload seen on the bus (any page)
   defaultSpeed: 0.5, uploadedDetours: [], uploadRefused: null, lastT: null, lastFrameMs: null, stale: true,
   viewTouched: false, fits: 0, tilesIndex: null, tileProgress: null, logList: [], lastRequest: null,
+  requests: new Map(),    // request id -> {action, t0, lastSend, sends, answer}: every press until the boat answers
+  paired: false,          // this device keeps the boat's pilot credential (scanned QR code or a token that worked)
 };
 window.lotsen = state;   // for debugging and the browser tests
+
+// -- pairing: the boat's pilot credential kept on this device ---------------------------------
+// A phone pairs by opening the address of the boat's QR code, http://boat:8080/#pair=<credential>:
+// the fragment never reaches a server; it is taken off the address bar at once and kept in this
+// browser's storage for this boat's address, and the page takes the controls with it at every
+// (re)connect: after a restart of the boat's computer the phone is the pilot again by itself.
+const PAIR_KEY = "lotsen.pilot-credential";
+function storedCredential() { try { return localStorage.getItem(PAIR_KEY); } catch (e) { return null; } }
+function storeCredential(token) {
+  try { if (token) localStorage.setItem(PAIR_KEY, token); else localStorage.removeItem(PAIR_KEY); } catch (e) { /* private mode */ }
+  state.paired = !!token;
+  const f = document.querySelector("#btn-forget"); if (f) f.hidden = !token;
+}
+(function takePairingFromAddress() {
+  const m = /(?:^#|&)pair=([^&]+)/.exec(location.hash);
+  if (m) {
+    storeCredential(decodeURIComponent(m[1]));
+    history.replaceState(null, "", location.pathname + location.search);
+  }
+  state.token = storedCredential();
+  state.paired = !!state.token;
+})();
 
 const route = new RouteModel();
 const tiles = new TileLayer(() => map.invalidate());
@@ -93,9 +117,13 @@ function onMessage(m) {
     case "telemetry": onTelemetry(m); break;
     case "hello": onHello(m); break;
     case "pong": if (m.t != null) state.rttMs = performance.now() - m.t; break;
-    case "auth_ok": state.pilot = true; alerts.clear("web:seat"); alerts.clear("web:bad_token"); setRole(); toast("you are the pilot"); schedulePlan(); break;
+    case "auth_ok":
+      state.pilot = true; alerts.clear("web:seat"); alerts.clear("web:bad_token"); alerts.clear("web:pairing");
+      if (state.token) storeCredential(state.token);   // this device remembers the credential that worked
+      setRole(); toast("you are the pilot"); schedulePlan(); break;
     case "pilot":
       state.pilot = !!m.pilot;
+      if (m.revoked) { storeCredential(null); alerts.push({ severity: "error", code: "web:pairing", text: `controls lost: ${m.reason}` }); }
       if (!m.pilot && m.reason !== "released") { state.token = null; alerts.push({ severity: "error", code: "web:seat", text: `controls lost: ${m.reason}` }); }
       setRole(); if (m.reason === "released") toast("controls released"); break;
     case "path": map.activePath = m; map.activeDetours = detoursOnPath(); map.invalidate(); maybeFit(); break;
@@ -106,7 +134,8 @@ function onMessage(m) {
     case "alert": onAlert(m); break;
     case "log": onLog(m); break;
     case "magcal": onMagcal(m); break;
-    case "ack": state.lastRequest = { action: m.action, t: performance.now() }; toast(`requested: ${m.action} (waiting for the boat)`); break;
+    case "ack": { const r = state.requests.get(m.request); if (r) r.server = true; state.lastRequest = { action: m.action, t: performance.now() }; renderRequests(); break; }
+    case "confirmed": onConfirmed(m); break;
     case "tiles_progress": onTileProgress(m); break;
     case "evicted": alerts.push({ severity: "warning", code: "web:evicted", text: `disconnected by the boat's server: ${m.reason}; reconnecting` }); break;
     case "error": onError(m); break;
@@ -133,6 +162,10 @@ function onHello(m) {
 
 function onError(m) {
   if (m.code === "pilot_busy") $("#btn-takeover").hidden = !/silent/.test(m.error);
+  if (m.code === "bad_token" && state.paired && state.token === storedCredential()) {
+    storeCredential(null);   // the boat's credential was replaced (lotsen pair --new): this pairing is void
+    alerts.push({ severity: "error", code: "web:pairing", text: "this device's pairing is no longer valid (the boat's credential was replaced): scan the boat's new QR code or type the credential" });
+  }
   if (m.code === "bad_token") state.token = null;
   const sev = ["rate_limited", "busy"].includes(m.code) ? "warning" : "error";
   alerts.push({ severity: sev, code: `web:${m.code}`, text: m.error });
@@ -198,6 +231,9 @@ function checkStale() {
   if (document.body.classList.contains("stale") !== stale) {
     document.body.classList.toggle("stale", stale);
     map.stale = stale; map.invalidate();
+    state.stale = stale;
+    if (stale) driver.stop();   // no driving on old state
+    updateButtons(); renderNext();   // what would start motion is not offered on old state
   }
   state.stale = stale;
   const c = $("#conn");
@@ -285,6 +321,11 @@ function renderHud(f) {
   if (c) setV("#hud-ctrl", `${c.controller} ${c.status} · solve ${c.solve_ms != null ? c.solve_ms.toFixed(1) : "?"} ms · xte ${c.xte != null ? c.xte.toFixed(2) : "?"} m`, c.status === "ok" ? "" : "warn");
   const ll = p && state.origin ? ` · ${fmtLatLon(...neToLatLon(p.n, p.e, state.origin))}` : "";
   setV("#hud-pose", p ? `N ${p.n.toFixed(2)} E ${p.e.toFixed(2)} (${p.src || "?"})${ll}` : "-");
+  // beside the drive pad: what the driver watches
+  $("#dh-mode").textContent = s ? s.mode : "?";
+  $("#dh-speed").textContent = sog == null ? "-" : `${sog.toFixed(2)} m/s`;
+  $("#dh-heading").textContent = p ? `${heading360(p.psi)}°` : "-";
+  $("#dh-armed").textContent = s ? (s.armed ? "ARMED" : "disarmed") : "";
   // supervisor warnings not already shown as alerts
   const shown = new Set([...alerts.items.keys()].map(k => k.replace(/^failsafe:/, "")));
   const warn = [...(s ? s.warnings : [])].filter(w => !shown.has(w.split(":")[0]) && !(w.startsWith("link_lost") && !l.ever));
@@ -305,6 +346,8 @@ function actionState(action) {
   if (!state.pilot) return action === "estop" && viewerMayStop() ? { ok: true, why: "" }
     : { ok: false, why: action === "estop" ? ESTOP_PILOT_ONLY : "take the controls first (pilot token)" };
   if (action === "estop") return { ok: true, why: "" };
+  // nothing that would start motion on old state: the boat may not be where the page shows it
+  if (state.stale && MOTION_ACTIONS.includes(action)) return { ok: false, why: `no live data from the boat (${staleText()}): the state shown is old` };
   const s = state.telemetry && state.telemetry.sup;
   if (!s || (!s.available.length && !Object.keys(s.blocked).length)) return { ok: true, why: "" };   // an older core: no list
   if (s.available.includes(action)) return { ok: true, why: "" };
@@ -312,26 +355,57 @@ function actionState(action) {
 }
 state.actionState = actionState;
 const ESTOP_PILOT_ONLY = "only the pilot can stop the boat — take controls";
+const MOTION_ACTIONS = ["auto", "return", "arm", "manual", "calibrate_mag", "experiment", "reset_estop"];
+function staleText() {
+  return !state.connected ? "offline" : state.lastFrameMs == null ? "no data yet" : `no data for ${((performance.now() - state.lastFrameMs) / 1000).toFixed(0)} s`;
+}
 // extra.web.viewer_may_estop: any page that reaches the boat may stop it (a second person on the jetty)
 function viewerMayStop() { return !!(state.hello && state.hello.viewer_may_estop); }
 
 function renderEstop() {   // always clickable (a viewer's tap explains and offers the token field)
   const b = $("#estop"), a = actionState("estop");
-  const why = a.ok ? "" : a.why;
+  const pending = unconfirmed("estop");
+  const why = pending ? `NOT CONFIRMED by the boat (${(pending / 1000).toFixed(1)} s) — sending again` : a.ok ? "" : a.why;
+  b.classList.toggle("unconfirmed", !!pending);
   b.classList.toggle("off", !a.ok);
   b.setAttribute("aria-disabled", String(!a.ok));
   if ($("#estop-why").textContent !== why) $("#estop-why").textContent = why;
 }
 
+// each button's own tooltip, kept before any reason replaces it (a button without one had kept
+// "not connected to the boat" once enabled)
+$$("[data-action]").forEach(b => { if (!b.hasAttribute("data-tip")) b.setAttribute("data-tip", b.title || ""); });
+
+function renderToggles() {   // RTK and logging: the state shown, one button each that switches it
+  const f = state.telemetry || {}, g = f.gnss, rec = f.rec;
+  const rtkOn = g ? /^RTK/.test(g.fix) : null;
+  const logOn = rec ? !!rec.recording : (state.recording ? state.recording.length > 0 : null);
+  for (const [sel, on, name, what] of [["#tog-rtk", rtkOn, "RTK", g ? g.fix : "no GNSS data"],
+                                       ["#tog-log", logOn, "Logging", rec && rec.error ? "FAILED: " + rec.error : rec && rec.file ? rec.file : ""]]) {
+    const b = $(sel);
+    const action = on ? b.dataset.on : b.dataset.off;
+    if (b.dataset.action !== action) b.dataset.action = action;
+    b.setAttribute("aria-pressed", String(!!on));
+    const text = `${name}: ${on == null ? "?" : on ? "ON" : "off"} — ${on ? "tap to stop" : "tap to start"}`;
+    if (b.textContent !== text) b.textContent = text;
+    b.dataset.tip = `${name} is ${on == null ? "unknown" : on ? "on" : "off"}${what ? " (" + what + ")" : ""}`;
+  }
+}
+
 function updateButtons() {
+  renderToggles();
   $$("[data-action]").forEach(b => {
     const a = actionState(b.dataset.action);
     const enabled = b.id === "estop" ? true : a.ok;   // the e-stop button is always clickable (it explains)
     if (b.disabled === enabled) b.disabled = !enabled;
-    const tip = a.ok ? (b.dataset.tip || b.title || "") : `${b.dataset.action}: ${a.why}`;
-    if (!b.dataset.tip) b.dataset.tip = b.title || "";
-    if (b.title !== tip) b.title = tip;
+    const tip = a.ok ? b.dataset.tip : `${b.dataset.action}: ${a.why}`;
+    if (tip && b.title !== tip) b.title = tip; else if (!tip && b.hasAttribute("title")) b.removeAttribute("title");
   });
+  const s = state.telemetry && state.telemetry.sup;
+  $("#estop-reset").hidden = !(s && s.mode === "ESTOP" && state.pilot);   // the way out, beside the e-stop itself
+  const drive = actionState("manual");
+  $("#btn-drive").disabled = !state.pilot || (!drive.ok && !(s && s.mode === "MANUAL"));
+  $("#btn-drive").title = !state.pilot ? "take the controls first (pilot token)" : drive.ok || (s && s.mode === "MANUAL") ? "Manual mode and the drive pad" : `manual: ${drive.why}`;
   const use = $("#btn-use");
   const useWhy = !state.connected ? "not connected" : !state.pilot ? "take the controls first (pilot token)"
     : !route.complete() ? "the route needs a harbour and at least one node" : state.lastPlan && state.lastPlan.ok === false ? "the planner refused this route (see the errors)" : "";
@@ -369,7 +443,7 @@ function renderNext() {
 }
 $("#next-btn").onclick = () => {
   const a = $("#next-btn").dataset.act;
-  if (a === "upload") upload(); else if (a) command(a);
+  if (a === "upload") confirmUpload(); else if (a) command(a);
 };
 
 // -- roles ------------------------------------------------------------------------------------
@@ -403,6 +477,8 @@ $("#btn-auth").onclick = () => authenticate(false);
 $("#token").addEventListener("keydown", ev => { if (ev.key === "Enter") authenticate(false); });
 $("#btn-takeover").onclick = () => authenticate(true);
 $("#btn-release").onclick = () => { driver.stop(); send({ type: "release" }); state.token = null; };
+$("#btn-forget").onclick = () => { storeCredential(null); state.token = null; toast("this device forgot the boat's pilot credential"); };
+$("#btn-forget").hidden = !state.paired;
 
 // -- operator commands -------------------------------------------------------------------------
 function command(action) {
@@ -413,7 +489,64 @@ function command(action) {
   }
   const a = actionState(action);
   if (!a.ok) { alerts.push({ severity: "error", code: `web:blocked:${action}`, text: `${action} not possible: ${a.why}` }); return; }
-  send({ type: "command", action });
+  request_(action);
+}
+
+// -- every request until the boat answers ---------------------------------------------------------
+// Each press gets an id; the boat answers each id once (`confirmed`: accepted with the mode after it,
+// or refused with the reason). Unanswered after CONFIRM_MS the page says so plainly and sends it
+// again every RESEND_MS with the same id (the boat acts on it once): a frozen web server or a Wi-Fi
+// that drops packets keeps the socket open and would otherwise swallow the e-stop unseen. The
+// e-stop and disarm are sent until the boat answers; a mode change for MODE_RESEND_MS.
+const CONFIRM_MS = 1000, RESEND_MS = 500, MODE_RESEND_MS = 10000, KEEP_SENDING = ["estop", "disarm"];
+function newRequestId() {
+  const b = new Uint8Array(8); crypto.getRandomValues(b);
+  return "p" + Array.from(b, x => x.toString(16).padStart(2, "0")).join("");
+}
+function request_(action) {
+  const now = performance.now(), rid = newRequestId();
+  for (const r of state.requests.values()) if (!r.answer && r.action !== "estop") r.superseded = true;   // the newest press counts
+  state.requests.set(rid, { rid, action, t0: now, lastSend: now, sends: 1, answer: null });
+  send({ type: "command", action, request: rid });
+  renderRequests();
+}
+function onConfirmed(m) {
+  const r = state.requests.get(m.request);
+  if (!r || r.answer) return;
+  r.answer = m; r.tAnswer = performance.now();
+  renderRequests(); updateButtons();
+}
+function unconfirmed(action) {   // ms an unanswered request of `action` has waited past CONFIRM_MS (0: none)
+  const now = performance.now();
+  let worst = 0;
+  for (const r of state.requests.values()) if (r.action === action && !r.answer && !r.superseded && now - r.t0 >= CONFIRM_MS) worst = Math.max(worst, now - r.t0);
+  return worst;
+}
+state.unconfirmed = unconfirmed;
+function requestTick() {
+  const now = performance.now();
+  for (const [rid, r] of state.requests) {
+    if (r.answer || r.superseded) { if (now - (r.tAnswer || r.t0) > 8000) state.requests.delete(rid); continue; }
+    const keep = KEEP_SENDING.includes(r.action) || now - r.t0 < MODE_RESEND_MS;
+    if (keep && now - r.lastSend >= RESEND_MS && send({ type: "command", action: r.action, request: rid }) !== null) { r.lastSend = now; r.sends++; }
+    if (!keep) r.gaveUp = true;
+  }
+  renderRequests(); renderEstop();
+}
+setInterval(requestTick, 250);
+function renderRequests() {
+  const now = performance.now(), el = $("#cmdstate");
+  const list = [...state.requests.values()].filter(r => !r.superseded);
+  // what the operator must see first: an unanswered e-stop, then the newest request
+  const r = list.find(x => x.action === "estop" && !x.answer) || list[list.length - 1];
+  let text = "", cls = "";
+  if (r && !r.answer && r.gaveUp) { text = `${r.action}: NOT CONFIRMED by the boat after ${((now - r.t0) / 1000).toFixed(0)} s — check the boat`; cls = "bad"; }
+  else if (r && !r.answer && now - r.t0 >= CONFIRM_MS) { text = `${r.action}: NOT CONFIRMED by the boat (${((now - r.t0) / 1000).toFixed(1)} s) — sending again`; cls = "unconfirmed"; }
+  else if (r && !r.answer) { text = `${r.action}: sent, waiting for the boat…`; cls = "wait"; }
+  else if (r && r.answer.accepted) { text = `✓ the boat confirmed ${r.action} (${r.answer.mode}${r.answer.armed ? ", armed" : ""})`; cls = "ok"; }
+  else if (r) { text = `✗ the boat refused ${r.action}: ${r.answer.reason}`; cls = "bad"; }
+  if (el.textContent !== text) el.textContent = text;
+  el.className = "cmdstate " + cls;
 }
 $$("[data-action]").forEach(b => b.addEventListener("click", () => {
   if (b.dataset.action === "estop") driver.stop();
@@ -423,7 +556,7 @@ $$("[data-action]").forEach(b => b.addEventListener("click", () => {
 // -- manual driving: keys, the on-screen pad, a gamepad ----------------------------------------
 const driver = new KeyboardDriver({
   send: (c) => send({ type: "manual", surge: round3(c.surge), sway: round3(c.sway), yaw: round3(c.yaw) }),
-  enabled: () => state.pilot && state.connected,
+  enabled: () => state.pilot && state.connected && !state.stale,
   gain: () => Number($("#gain").value),
   onChange: (keys, c, hint) => {
     $$("#drivepad [data-key]").forEach(s => s.classList.toggle("on", keys.has(s.dataset.key)));
@@ -452,14 +585,26 @@ $$("#drivepad [data-drive]").forEach(b => {
 
 function renderDriveState() {
   const s = state.telemetry && state.telemetry.sup;
+  const manual = actionState("manual");
   const why = !state.connected ? "not connected to the boat" : !state.pilot ? "take the controls (pilot token) to drive"
-    : !s ? "waiting for the boat's status" : s.mode !== "MANUAL" ? `the boat is in ${s.mode}: press Manual to drive`
+    : state.stale ? `no live data from the boat (${staleText()}): not driving on old state`
+    : !s ? "waiting for the boat's status"
+    : s.mode === "ESTOP" ? "emergency stop latched: Reset e-stop (beside the e-stop), then Drive (Manual) and Arm"
+    : s.mode !== "MANUAL" ? (manual.ok ? `the boat is in ${s.mode}: tap Drive (Manual)` : `the boat is in ${s.mode}; Manual: ${manual.why}`)
     : !s.armed ? "arm first (thrust allowed)" : "";
   const el = $("#drivestate");
   const text = why || "hold a button to drive; lift to stop";
   if (el.textContent !== text) el.textContent = text;
   $("#drivepad").classList.toggle("off", !!why);
 }
+
+// one tap from the first screen: Manual, the Operate tab, the pad in view with mode, speed and heading beside it
+$("#btn-drive").onclick = () => {
+  const s = state.telemetry && state.telemetry.sup;
+  if (!s || s.mode !== "MANUAL") command("manual");
+  showTab("operate");
+  $("#drivebox").scrollIntoView({ block: "start", behavior: "instant" });
+};
 
 // gamepad (standard mapping): left stick ahead/astern and sideways, right stick turn, only while
 // a shoulder button (the dead-man) is held; polled with the page visible and focused
@@ -539,14 +684,16 @@ async function plan() {
     const det = res.detours || [];
     map.draftDetours = det;
     const vmax = Math.max(...res.path.v);
+    const long = longLegs(route);
     setPlanStatus(`planned: ${res.length_m.toFixed(1)} m, about ${fmtDuration(res.duration_s)}, up to ${vmax.toFixed(2)} m/s` +
-      det.map(d => `\ndetour: ${d.leg} goes round an obstacle or the area edge (${d.length_m.toFixed(1)} m of path, ${d.straight_m.toFixed(1)} m in a straight line)`).join(""), "ok");
+      det.map(d => `\ndetour: ${d.leg} goes round an obstacle or the area edge (${d.length_m.toFixed(1)} m of path, ${d.straight_m.toFixed(1)} m in a straight line)`).join("") +
+      long.map(l => `\ncheck: ${longLegText(l)}`).join(""), long.length ? "warn" : "ok");
     const r = res.start_ramp;
     $("#rampinfo").textContent = r && r.speed_mps > 0 ? `leaves the harbour from rest: 0 → ${r.speed_mps} m/s in ${r.distance_m} m (${r.time_s} s at ${r.accel_mps2} m/s²), then the node speeds` : "";
   } else {
     route.errors = res.errors || [{ kind: "route", message: res.error || "planning failed" }];
     map.draftPath = null; map.draftDetours = [];
-    setPlanStatus(route.errors.map(e => e.message).join("\n"), "bad");
+    setPlanStatus(route.errors.map(e => e.message).join("\n") + longLegs(route).map(l => `\ncheck: ${longLegText(l)}`).join(""), "bad");
   }
   map.invalidate(); renderTable(); updateButtons();
 }
@@ -616,16 +763,42 @@ function renderNodeGeo() {
   $("#geo-lat").classList.remove("invalid"); $("#geo-lon").classList.remove("invalid");
 }
 
-function fieldError(inp, text) {
+// a refused entry: marked (aria-invalid, described by its message) and the message right beside
+// the field, with a Restore button (a phone keyboard has no Esc); `restore`: the value in use
+let errSeq = 0;
+function fieldError(inp, text, restore) {
   inp.classList.toggle("invalid", !!text);
   inp.title = text || "";
   $("#fielderr").textContent = text || "";
+  let box = inp.dataset.errId ? document.getElementById(inp.dataset.errId) : null;
+  if (!text) {
+    if (box) box.remove();
+    inp.removeAttribute("aria-invalid"); inp.removeAttribute("aria-describedby"); delete inp.dataset.errId;
+    return;
+  }
+  if (!box) {
+    box = document.createElement("div");
+    box.className = "fielderr-inline"; box.id = `fielderr-${++errSeq}`; box.setAttribute("role", "alert");
+    (inp.closest("label") || inp).insertAdjacentElement("afterend", box);
+    inp.dataset.errId = box.id;
+  }
+  const html = `<span>${esc(text)}</span>` + (restore !== undefined ? `<button type="button" class="restore">Restore ${esc(String(restore))}</button>` : "");
+  if (box.innerHTML !== html) box.innerHTML = html;
+  const btn = box.querySelector("button.restore");
+  if (btn) {
+    const back = () => { inp.value = String(restore); fieldError(inp, ""); };
+    // on the finger's touch, before the field loses the focus (its change event would refuse again)
+    btn.onpointerdown = (ev) => { ev.preventDefault(); back(); };
+    btn.onclick = back;
+  }
+  inp.setAttribute("aria-invalid", "true"); inp.setAttribute("aria-describedby", box.id);
 }
+state.fieldError = fieldError;
 
 // "new node speed" is checked like a table cell: a refused entry is marked and not used
 $("#default-speed").addEventListener("change", ev => {
   const inp = ev.target, res = parseField("speed_mps", inp.value);
-  if (res.error) { fieldError(inp, `new node ${res.error} (not applied: new nodes get ${state.defaultSpeed} m/s; Esc restores it)`); return; }
+  if (res.error) { fieldError(inp, `new node ${res.error} (not applied: new nodes get ${state.defaultSpeed} m/s; Restore or Esc brings it back)`, state.defaultSpeed); return; }
   state.defaultSpeed = res.value; fieldError(inp, "");
 });
 // Esc in a field cancels the edit: the value in use comes back
@@ -643,8 +816,8 @@ $("#nodetable").addEventListener("change", ev => {
   if (!p) return;
   const res = parseField(inp.dataset.f, inp.value);
   if (res.error) {
-    const keeps = tr.dataset.kind === "harbour" && inp.dataset.f === "speed_mps" ? "" : ` (not applied: the route keeps ${p[inp.dataset.f]}; Esc restores it)`;
-    fieldError(inp, `${tr.dataset.kind === "harbour" ? "harbour" : "node " + (Number(tr.dataset.i) + 1)} ${res.error}${keeps}`); inp.focus(); return;
+    const keeps = tr.dataset.kind === "harbour" && inp.dataset.f === "speed_mps" ? "" : ` (not applied: the route keeps ${p[inp.dataset.f]}; Restore or Esc brings it back)`;
+    fieldError(inp, `${tr.dataset.kind === "harbour" ? "harbour" : "node " + (Number(tr.dataset.i) + 1)} ${res.error}${keeps}`, p[inp.dataset.f]); inp.focus(); return;
   }
   fieldError(inp, "");
   p[inp.dataset.f] = res.value;
@@ -684,10 +857,29 @@ $("#polylist").addEventListener("change", ev => {
   route.changed();
 });
 
-$("#btn-clear").onclick = () => { route.clear(); toast("route cleared (Undo brings it back)"); };
+// Clear asks first: the nodes only (the usual), or the navigable area too
+$("#btn-clear").onclick = () => { $("#clearbox").hidden = false; $("#btn-clear-nodes").focus(); };
+$("#btn-clear-nodes").onclick = () => { $("#clearbox").hidden = true; route.clearNodes(); toast("nodes cleared, the area kept (Undo brings them back)"); };
+$("#btn-clear-all").onclick = () => { $("#clearbox").hidden = true; route.clear(); toast("route and area cleared (Undo brings them back)"); };
+$("#btn-clear-cancel").onclick = () => { $("#clearbox").hidden = true; };
 $("#btn-from-boat").onclick = () => { if (state.boatRoute) { route.fromDict(state.boatRoute.route); map.fit(); } };
 
 // -- upload and read-back ------------------------------------------------------------------------
+function longLegText(l) {
+  return `${l.leg} is ${l.length_m.toFixed(0)} m, ${(l.length_m / Math.max(l.median_m, 0.1)).toFixed(0)}x the other legs (median ${l.median_m.toFixed(0)} m): a typo?`;
+}
+// a leg much longer than the rest is flagged before upload: the upload waits for "Upload anyway"
+function confirmUpload() {
+  if (!route.complete()) { toast("the route needs a harbour and at least one node", true); return; }
+  const long = longLegs(route);
+  if (!long.length) { upload(); return; }
+  $("#uploadbox-text").textContent = long.map(longLegText).join("; ");
+  $("#uploadbox").hidden = false;
+}
+$("#btn-upload-anyway").onclick = () => { $("#uploadbox").hidden = true; upload(); };
+$("#btn-upload-cancel").onclick = () => { $("#uploadbox").hidden = true; };
+state.longLegs = () => longLegs(route);
+
 async function upload() {
   if (!route.complete()) { toast("the route needs a harbour and at least one node", true); return; }
   const sent = route.toDict();
@@ -708,7 +900,7 @@ async function upload() {
     renderReadback(`upload refused: ${res.error || "unknown"}`);
   }
 }
-$("#btn-use").onclick = upload;
+$("#btn-use").onclick = confirmUpload;
 
 function onReadback(m) {
   if (state.upload && m.route_id === state.upload.route_id) state.uploadRefused = null;
@@ -753,22 +945,35 @@ async function save(format) {
   if (!route.complete()) { toast("nothing to save: place the harbour and nodes", true); return; }
   const res = await request({ type: "export", format, route: route.toDict() });
   if (res.type !== "export_result") { alerts.push({ severity: "error", code: "web:export", text: res.error }); return; }
-  const blob = new Blob([res.text], { type: format === "yaml" ? "application/x-yaml" : "application/geo+json" });
+  const kind = FILE_KINDS[format];
+  const blob = new Blob([res.text], { type: kind.mime });
   const a = document.createElement("a");
   a.href = URL.createObjectURL(blob);
-  a.download = `route.${format === "yaml" ? "yaml" : "geojson"}`;
+  a.download = `route.${kind.suffix}`;
   a.click();
   setTimeout(() => URL.revokeObjectURL(a.href), 1000);
 }
+// lotsen's route files and the ground stations' (QGroundControl .plan, QGC WPL 110, KML, GPX)
+const FILE_KINDS = {
+  yaml: { suffix: "yaml", mime: "application/x-yaml" }, geojson: { suffix: "geojson", mime: "application/geo+json" },
+  plan: { suffix: "plan", mime: "application/json" }, wpl: { suffix: "waypoints", mime: "text/plain" },
+  kml: { suffix: "kml", mime: "application/vnd.google-earth.kml+xml" }, gpx: { suffix: "gpx", mime: "application/gpx+xml" },
+};
+function formatOf(name) {
+  const m = /\.([a-z]+)$/i.exec(name); const ext = m ? m[1].toLowerCase() : "";
+  return { yml: "yaml", yaml: "yaml", json: "geojson", geojson: "geojson", plan: "plan", waypoints: "wpl", wpl: "wpl",
+           txt: "wpl", kml: "kml", gpx: "gpx" }[ext] || "yaml";
+}
 $("#btn-save-yaml").onclick = () => save("yaml");
 $("#btn-save-geojson").onclick = () => save("geojson");
+$("#btn-save-other").onclick = () => save($("#save-format").value);
 
 $("#file-load").addEventListener("change", async ev => {
   const file = ev.target.files[0];
   ev.target.value = "";
   if (!file) return;
   const text = await file.text();
-  const format = /\.(geo)?json$/i.test(file.name) ? "geojson" : "yaml";
+  const format = formatOf(file.name);
   const res = await request({ type: "import", format, text });
   if (res.type === "import_result") { route.fromDict(res.route); map.fit(); toast(`loaded ${file.name}`); }
   else alerts.push({ severity: "error", code: "web:import", text: res.error });
@@ -944,6 +1149,15 @@ function detoursOnPath() {
 // pilot, checked by the server), controller and failsafes
 function onSettings(m) { state.settings = m; renderSettings(); }
 
+// the QR code that pairs a second phone (pilot only): this page's own address with the credential
+$("#btn-pair-qr").onclick = async () => {
+  const res = await request({ type: "pair_qr", origin: location.origin });
+  const box = $("#pair-qr");
+  if (res.type !== "pair_qr") { alerts.push({ severity: "error", code: "web:pair", text: res.error || "no QR code" }); return; }
+  box.innerHTML = `${res.svg}<p class="hint">scan with the phone's camera, or open ${esc(res.url)}</p>`;
+  box.hidden = false;
+};
+
 function renderSettings() {
   const md = state.model;
   if (md) {
@@ -986,12 +1200,13 @@ function setErr(inp, text) {
   $("#set-err").textContent = text;
 }
 
-$$("#tabs .tab").forEach(b => b.addEventListener("click", () => {
-  $$("#tabs .tab").forEach(x => x.classList.toggle("active", x === b));
-  $$(".tabpanel").forEach(p => { p.hidden = p.id !== `tab-${b.dataset.tab}`; });
-  if (b.dataset.tab === "logs") refreshLogs();
-  if (b.dataset.tab === "maps") { suggestZooms(); refreshTiles(); }
-}));
+function showTab(name) {
+  $$("#tabs .tab").forEach(x => x.classList.toggle("active", x.dataset.tab === name));
+  $$(".tabpanel").forEach(p => { p.hidden = p.id !== `tab-${name}`; });
+  if (name === "logs") refreshLogs();
+  if (name === "maps") { suggestZooms(); refreshTiles(); }
+}
+$$("#tabs .tab").forEach(b => b.addEventListener("click", () => showTab(b.dataset.tab)));
 
 $("#btn-sound").onclick = () => {
   const on = !alerts.sound;
@@ -999,6 +1214,13 @@ $("#btn-sound").onclick = () => {
   $("#btn-sound").textContent = on ? "sound on" : "sound off";
   $("#btn-sound").setAttribute("aria-pressed", String(on));
 };
+
+function placeToasts() {   // under the top bar: a toast never covers the mode and armed badges
+  const b = $("#topbar").getBoundingClientRect().bottom;
+  document.documentElement.style.setProperty("--toast-top", `${Math.round(b + 4)}px`);
+}
+window.addEventListener("resize", placeToasts);
+new ResizeObserver(placeToasts).observe($("#topbar"));
 
 let toastTimer = null;
 function toast(text, bad = false) {

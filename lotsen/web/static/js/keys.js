@@ -21,7 +21,9 @@ export class KeyboardDriver {
     this.spaceFlash = false;
     this.timer = null;
     this.editStart = new WeakMap();  // a field's value when it got the focus: what Esc restores
-    document.addEventListener("focusin", ev => { if (this.field(ev.target)) this.editStart.set(ev.target, ev.target.value); });
+    document.addEventListener("focusin", ev => {
+      if (this.field(ev.target) || (ev.target && ev.target.type === "range")) this.editStart.set(ev.target, ev.target.value);
+    });
     window.addEventListener("keydown", ev => this.keydown(ev));
     window.addEventListener("keyup", ev => this.keyup(ev));
     window.addEventListener("blur", () => this.stop());
@@ -54,7 +56,8 @@ export class KeyboardDriver {
     if (ev.code === "Escape") {
       ev.preventDefault();
       this.stop();
-      if (this.typing(ev)) {  // the habit "Esc cancels this edit": restore the field, never stop the boat
+      // the habit "Esc cancels this edit": restore the field (or the gain slider), never stop the boat
+      if (this.typing(ev) || (ev.target && ev.target.type === "range")) {
         const t = ev.target;
         if (this.editStart.has(t) && t.value !== this.editStart.get(t)) {
           t.value = this.editStart.get(t);

@@ -170,7 +170,30 @@ export class MapView {
       const h = this.editing() ? this.hit(x, y) : null;
       if (h && h.kind === "vertex") this.route.deleteVertex(h.poly, h.k);   // right-click deletes a corner
     });
+    // two fingers zoom and pan the map (never the page: the canvas has touch-action: none); a
+    // second finger ends whatever the first one was doing, and nothing is placed when they lift
+    this.pointers = new Map();
+    const endPointer = ev => {
+      this.pointers.delete(ev.pointerId);
+      if (this.pinch && this.pointers.size < 2) { this.pinch = null; this.drag = null; this.pinchEnded = true; }
+      if (this.pointers.size === 0) setTimeout(() => { this.pinchEnded = false; }, 0);
+    };
     c.addEventListener("pointerdown", ev => {
+      this.pointers.set(ev.pointerId, this.eventPos(ev));
+      if (this.pointers.size === 2) {
+        const [[x1, y1], [x2, y2]] = [...this.pointers.values()];
+        const cx = (x1 + x2) / 2, cy = (y1 + y2) / 2;
+        if (this.drag && this.drag.moved && this.drag.hit) this.route.commit();
+        this.drag = null;
+        this.pinch = { d0: Math.max(10, Math.hypot(x2 - x1, y2 - y1)), scale0: this.scale, world: this.toWorld(cx, cy) };
+        this.follow = false;
+        try { c.setPointerCapture(ev.pointerId); } catch (e) { /* synthetic */ }
+        return;
+      }
+      if (this.pointers.size > 2 || this.pinch) return;
+    });
+    c.addEventListener("pointerdown", ev => {
+      if (this.pinch || this.pointers.size > 1) return;
       c.focus();
       if (ev.button !== 0) return;
       const [x, y] = this.eventPos(ev);
@@ -184,6 +207,18 @@ export class MapView {
     });
     c.addEventListener("pointermove", ev => {
       const [x, y] = this.eventPos(ev);
+      if (this.pointers.has(ev.pointerId)) this.pointers.set(ev.pointerId, [x, y]);
+      if (this.pinch) {
+        if (this.pointers.size < 2) return;
+        const [[x1, y1], [x2, y2]] = [...this.pointers.values()];
+        const cx = (x1 + x2) / 2, cy = (y1 + y2) / 2;
+        this.scale = Math.min(400, Math.max(0.05, this.pinch.scale0 * Math.hypot(x2 - x1, y2 - y1) / this.pinch.d0));
+        const [n, e] = this.toWorld(cx, cy), [n0, e0] = this.pinch.world;   // the point under the fingers stays there
+        this.n0 += n0 - n; this.e0 += e0 - e;
+        this.opts.onPan && this.opts.onPan();
+        this.invalidate();
+        return;
+      }
       this.cursor = this.toWorld(x, y);
       this.opts.onInfo && this.opts.onInfo(this.cursor);
       const d = this.drag;
@@ -217,10 +252,13 @@ export class MapView {
       }
       this.invalidate();
     });
+    c.addEventListener("pointercancel", endPointer);
     c.addEventListener("pointerup", ev => {
+      const pinched = !!this.pinch || this.pinchEnded;
+      endPointer(ev);
       const d = this.drag;
       this.drag = null;
-      if (!d || d.button !== 0) return;
+      if (pinched || !d || d.button !== 0) return;
       if (d.moved) {   // the end of a drag is one undo step
         if (d.hit) { this.route.commit(); this.opts.onEdit && this.opts.onEdit(); }
         return;

@@ -108,6 +108,13 @@ export class RouteModel {
     this.changed();
   }
 
+  // the harbour and the nodes go; the navigable area and the obstacles stay (the usual "Clear")
+  clearNodes() {
+    this.harbour = null; this.nodes = [];
+    this.drawing = null; this.selected = null; this.errors = [];
+    this.changed();
+  }
+
   setHarbour(n, e) {
     const h = this.harbour ? this.harbour.heading_deg : 0;
     this.harbour = { north: n, east: e, heading_deg: h };
@@ -241,5 +248,23 @@ export function routeDiff(a, b, tol = 1e-6) {
     if (x !== y && !(x == null && y == null)) out.push(`${path}: ${JSON.stringify(x)} vs ${JSON.stringify(y)}`);
   };
   walk(a, b, "");
+  return out;
+}
+
+// legs much longer than the others (a typo: north 500 for 50): [{leg, length_m, median_m}]; a leg
+// counts when it is over `factor` times the median of the other legs and `min_extra_m` longer
+export function longLegs(route, factor = 3, minExtraM = 20) {
+  const chain = route.harbour ? [route.harbour, ...route.nodes] : [];
+  const lens = [];
+  for (let i = 1; i < chain.length; i++) lens.push(Math.hypot(chain[i].north - chain[i - 1].north, chain[i].east - chain[i - 1].east));
+  if (lens.length < 2) return [];
+  const out = [];
+  lens.forEach((L, i) => {
+    const others = lens.filter((_, j) => j !== i).sort((a, b) => a - b);
+    const m = others.length % 2 ? others[(others.length - 1) / 2] : (others[others.length / 2 - 1] + others[others.length / 2]) / 2;
+    if (L > factor * m && L - m > minExtraM) {
+      out.push({ leg: i === 0 ? "the leg from the harbour to node 1" : `the leg from node ${i} to node ${i + 1}`, length_m: L, median_m: m });
+    }
+  });
   return out;
 }
