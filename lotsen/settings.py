@@ -158,3 +158,4 @@ def with_unit(number: Number, name: str) -> Number:
 # Common quantities (one definition each; flags and files share them)
 SEED = Number(0, 2**32 - 1, integer=True)  # numpy's seeds
 PORT = Number(0, 65535, integer=True)  # 0: the system picks one
+RUN_DURATION = Number(0.1, 7 * 86400.0, "s")  # a command that runs until stopped, stopped after this: a week at most

@@ -26,6 +26,7 @@ from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import atomic_output, check_outputs, write_output
 from lotsen.harness.identification import lake_run, run_on_simulator
 from lotsen.model import DEFAULT_PARAMETERS, VesselModel, VesselParameters
+from lotsen.physics.config import address_flag as physics_address
 from lotsen.settings import SEED, Number
 from lotsen.sysid.data import save_csv
 from lotsen.sysid.experiment import check_experiment, load_experiment
@@ -209,7 +210,7 @@ def register(subparsers: Any) -> None:
     r.add_argument("--hardware", action="store_true",
                    help="run on the boat through its drivers (with the state estimate and the recorder)")
     r.add_argument("--emulated", action="store_true", help="with --hardware: the drivers' emulated twins")
-    r.add_argument("--physics", metavar="udp:HOST:PORT",
+    r.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="run on an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md; the channel map from --config's extra.physics), recorded on the stack: "
                         "--out RUN.mcap")

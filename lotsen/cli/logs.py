@@ -10,10 +10,7 @@ import threading
 from pathlib import Path
 
 from lotsen.errors import DataError, LotsenError
-from lotsen.settings import PORT, Number
-
-#: `--duration` of `lotsen record` (as `lotsen run --duration`)
-RECORD_DURATION = Number(0.1, 7 * 86400.0, "s")
+from lotsen.settings import PORT, RUN_DURATION, Number
 
 def _add_zenoh_args(p: argparse.ArgumentParser, default_vessel: str) -> None:
     g = p.add_argument_group("Zenoh (multi-process / multi-machine)")
@@ -72,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r = sub.add_parser("record", help="record topics received over Zenoh to MCAP (shore side)")
     r.add_argument("--out", default="logs", help="directory of the MCAP files (default logs)")
     r.add_argument("--subscribe", nargs="+", default=["*/**"], help="key patterns under lotsen/ (default */**)")
-    r.add_argument("--duration", type=RECORD_DURATION, help="stop after this many seconds (default: until Ctrl-C)")
+    r.add_argument("--duration", type=RUN_DURATION, help="stop after this many seconds (default: until Ctrl-C)")
     _add_zenoh_args(r, "shore")
     r.set_defaults(func=record)
 

@@ -25,6 +25,7 @@ from typing import Any
 from lotsen.cli.outputs import check_plot_name, save_plot
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
+from lotsen.physics.config import address_flag as physics_address
 from lotsen.settings import SEED, Number
 
 #: the environment's ranges are the config's (sim.environment), one definition
@@ -41,7 +42,7 @@ def register(subparsers: Any) -> None:
                     "last point, and report tracking errors and solver times.")
     p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
     p.add_argument("--sim", action="store_true", help="run on the simulated boat")
-    p.add_argument("--physics", metavar="udp:HOST:PORT",
+    p.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="fly an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md); its boat, water and wind are its own")
     p.add_argument("--config", metavar="CONFIG.yaml",

@@ -15,8 +15,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from lotsen.errors import ConfigError
+from lotsen.physics.config import address_flag as physics_address
 from lotsen.runtime.config import BoatSection
-from lotsen.settings import PORT, SEED, Number
+from lotsen.settings import PORT, RUN_DURATION, SEED
 from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.config import StackConfig, load_stack_config
 from lotsen.stack.identity import run_identities
@@ -24,10 +25,6 @@ from lotsen.stack.identity import run_identities
 # Only what the run lock needs is imported above (the typed config: the sections' dataclasses):
 # a second run on the same boat is refused before the launcher's heavy modules (numba, scipy,
 # osqp, FastAPI, ...) are loaded. Those are imported in the functions below, after the lock is taken.
-
-
-#: `--duration` of a run (and of `lotsen record`): a week at most (a longer run has no end set)
-RUN_DURATION = Number(0.1, 7 * 86400.0, "s")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -55,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "udpout:HOST:PORT (as ArduPilot SITL sends to 14550), udpin:HOST:PORT, tcpin:HOST:PORT, or a "
                         "serial device /dev/ttyUSB0[,57600]; repeatable; added to extra.mavlink.endpoints "
                         "(docs/mavlink.md)")
-    p.add_argument("--physics", metavar="udp:HOST:PORT",
+    p.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md; over the config's extra.physics.address)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")

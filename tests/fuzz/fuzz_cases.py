@@ -87,9 +87,13 @@ def write_text_seeds(folder: Path) -> None:
         (folder / f"exp_{name}").write_text((ex / "experiments" / name).read_text())
 
 
-#: command lines (run by the case runner in the seed folder) that make the recorded seeds
+#: command lines (run by the case runner in the seed folder) that make the recorded seeds and the
+#: route in the ground stations' formats (QGroundControl .plan, QGC WPL, KML, GPX)
+ROUTE_FORMATS = ("route.plan", "route.waypoints", "route.kml", "route.gpx", "route.geojson")
+GROUND_STATION_ROUTES = ROUTE_FORMATS[:-1]
 SEED_COMMANDS = (["experiment", "run", "exp.yaml", "--sim", "--out", "data.csv"],
-                 ["experiment", "run", "exp.yaml", "--sim", "--out", "run.mcap"])
+                 ["experiment", "run", "exp.yaml", "--sim", "--out", "run.mcap"],
+                 *(["plan", "route.yaml", "--export", name, "--origin", "57.6905,11.976"] for name in ROUTE_FORMATS))
 
 
 @contextmanager
@@ -101,7 +105,7 @@ def session(work: Path, seed_timeout_s: float = 300.0) -> Iterator[tuple[Any, di
     seeds_dir = work / "seeds"
     seeds_dir.mkdir(parents=True)
     write_text_seeds(seeds_dir)
-    with CaseRunner(env={"LOTSEN_RUNTIME_DIR": str(work / "runtime")}) as runner:
+    with CaseRunner(env={"LOTSEN_RUNTIME_DIR": str(work / "runtime"), "LOTSEN_CONFIG_DIR": str(work / "config")}) as runner:
         for argv in SEED_COMMANDS:
             made = runner.run(argv, seeds_dir, seed_timeout_s)
             if made.code != 0:
@@ -113,7 +117,7 @@ def seed_variants(seeds: dict[str, bytes], kind: str) -> list[str]:
     """Names of the seeds of `kind` (the main one and the extra examples)."""
     names = [n for n, k in SEED_FILES.items() if k == kind]
     if kind == "route":
-        names += [f"route_{n}" for n in EXTRA_ROUTES]
+        names += [f"route_{n}" for n in EXTRA_ROUTES] + list(ROUTE_FORMATS)
     if kind == "experiment":
         names += [f"exp_{n}" for n in EXTRA_EXPERIMENTS]
     return [n for n in names if n in seeds]
@@ -128,7 +132,10 @@ HOSTILE_YAML = [".nan", ".inf", "-.inf", "1.0e+308", "-1.0e+308", "1.0e-320", "1
 HOSTILE_JSON = ["NaN", "Infinity", "-Infinity", "1e308", "-1e308", "1e-320", "1" + "0" * 400]
 ODD_NUMBERS = ["-1", "0", "1.0e+9", "1.0e+7", "0.5", "-0.0", "3"]
 TEXT_KEYS = {"name", "label", "description", "type", "units", "verdict", "host", "directory", "route", "mode",
-             "fusion", "controller", "direction", "forbidden", "compression", "encoding"}
+             "fusion", "controller", "direction", "forbidden", "compression", "encoding",
+             # a QGroundControl .plan's own fields lotsen does not read (altitudes, numbering, versions)
+             "AltitudeMode", "Altitude", "AMSLAltAboveTerrain", "doJumpId", "hoverSpeed", "version", "firmwareType",
+             "vehicleType", "globalPlanAltitudeMode"}
 
 
 @dataclass
@@ -172,7 +179,10 @@ _MARK = "HOSTILEVALUEMARKER"  # a plain scalar: YAML writes it unquoted
 def structured_mutation(text: str, fmt: str, rng: random.Random) -> Mutation | None:
     """One number of the document replaced by a hostile or odd value, or a key dropped/renamed,
     or a number turned into text."""
-    data = json.loads(text) if fmt == "json" else yaml.safe_load(text)
+    try:
+        data = json.loads(text) if fmt == "json" else yaml.safe_load(text)
+    except (ValueError, yaml.YAMLError):  # not this format (a KML, a QGC WPL text): byte-level only
+        return None
     paths = _numeric_paths(data)
     if not paths:
         return None
@@ -298,8 +308,8 @@ def binary_mutation(data: bytes, rng: random.Random, magic: bytes = b"") -> Muta
     return Mutation(data[:k] + data[k:k + n] + data[k:], f"{n} bytes repeated at {k}", False)
 
 
-def mutate(kind: str, data: bytes, rng: random.Random) -> Mutation:
-    """One mutation of a seed of `kind`."""
+def mutate(kind: str, data: bytes, rng: random.Random, name: str = "") -> Mutation:
+    """One mutation of a seed of `kind` (`name`: its file name, whose suffix says JSON or YAML)."""
     from lotsen.files import MAX_DATA_BYTES, MAX_TEXT_BYTES
 
     if kind in ("mcap",):
@@ -310,12 +320,14 @@ def mutate(kind: str, data: bytes, rng: random.Random) -> Mutation:
         if rng.random() < 0.7:
             return csv_mutation(data.decode(), rng)
         return text_mutation(data, rng, MAX_DATA_BYTES)
-    fmt = "json" if kind in ("params", "calibration") else "yaml"
-    if rng.random() < 0.7:
-        m = structured_mutation(data.decode(), fmt, rng)
-        if m is not None:
-            return m
-    return text_mutation(data, rng, MAX_TEXT_BYTES)
+    fmt = "json" if kind in ("params", "calibration") or Path(name).suffix in (".json", ".geojson", ".plan") else "yaml"
+    m = structured_mutation(data.decode(), fmt, rng) if rng.random() < 0.7 else None
+    m = m or text_mutation(data, rng, MAX_TEXT_BYTES)
+    if name in GROUND_STATION_ROUTES:
+        # a ground station's file carries fields lotsen does not read (altitudes, unused mission
+        # parameters, rally altitudes): a hostile value there may be ignored; no crash all the same
+        m = Mutation(m.data, m.note, m.must_refuse and ("NUL" in m.note or "UTF-16" in m.note or "cap" in m.note))
+    return m
 
 
 # ------------------------------------------------------------------------------------------------
@@ -357,6 +369,9 @@ COMMANDS: tuple[Command, ...] = (
     Command(("gnss-replay",), ("gnss-replay", "capture.ubx", "--out", "fixes.csv"), {"capture.ubx": "ubx"}),
     Command(("check",), ("check", "--emulated", "--duration", "0.2"), cheap=False),
     Command(("recover",), ("recover", "run.mcap", "--out", "fixed.mcap", "--force"), {"run.mcap": "mcap"}),
+    Command(("physics-server",), ("physics-server", "config.yaml", "--port", "0", "--duration", "0.3"),
+            {"config.yaml": "config"}),
+    Command(("pair",), ("pair", "config.yaml"), {"config.yaml": "config"}),
 )
 COMMAND_BY_PATH = {c.path: c for c in COMMANDS}
 
@@ -394,6 +409,14 @@ FLAG_KINDS: dict[tuple[tuple[str, ...], str], str] = {
     (("gnss-replay",), "capture"): "in:ubx", (("gnss-replay",), "--out"): "out",
     (("check",), "config"): "in:config",
     (("recover",), "log"): "in:mcap", (("recover",), "--out"): "out",
+    (("run",), "--mavlink"): "text:mavlink", (("run",), "--physics"): "text:physics",
+    (("plan",), "--export"): "out", (("plan",), "--origin"): "text:latlon",
+    (("mission",), "--physics"): "text:physics", (("mission",), "--config"): "in:config",
+    (("experiment", "run"), "--physics"): "text:physics",
+    (("pair",), "config"): "in:config", (("pair",), "--host"): "text:page_host",
+    (("physics-server",), "config"): "in:config", (("physics-server",), "--host"): "text:bind",
+    (("physics-server",), "--boat"): "in:params", (("physics-server",), "--params"): "in:params",
+    (("physics-server",), "--current"): "text:speed_dir", (("physics-server",), "--wind"): "text:speed_dir",
 }
 
 #: hostile text for the composite flags (kind -> values; True: certainly invalid)
@@ -412,6 +435,14 @@ TEXT_VALUES: dict[str, list[tuple[str, bool]]] = {
                ("$*", False)],
     "name": [("", False), ("a/b", False), ("\u00e9" * 50, False), ("a*b", False), ("#", False)],
     "endpoint": [("tcp/256.1.1.1:1", False), ("nonsense", False), ("tcp/127.0.0.1:99999", False)],
+    "mavlink": [("nonsense", True), ("udpout:127.0.0.1:99999", True), ("", True), ("serial:", True)],
+    # a physics address: malformed ones refused at once by the flag; one with no physics behind it is
+    # refused once extra.physics.connect_timeout_s (10 s) passed without a state (a server may start later)
+    "physics": [("nonsense", True), ("udp:127.0.0.1:99999", True), ("udp::1", True), ("tcp:127.0.0.1:9002", True),
+                ("", True), ("udp:127.0.0.1:1", False)],
+    "latlon": [("91,0", True), ("nan,0", True), ("0", True), ("1e308,1", True), ("a,b", True), ("0,1e-320", True)],
+    "page_host": [("", False), ("a b", False), ("\u00e9" * 20, False)],  # only printed in the pairing address
+    "bind": [("not a host", True), ("8.8.8.8", True), ("", False), ("a" * 300, True)],
 }
 NUMBER_VALUES = [("nan", True), ("inf", True), ("-inf", True), ("1e308", True), ("-1e308", True), ("1e-320", True),
                  ("abc", True), ("", True), ("1" * 50, True), ("-1", False), ("0", False), ("1e9", False)]
@@ -633,10 +664,12 @@ def file_cases(seeds: dict[str, bytes], rng: random.Random, per_command: int,
         for _ in range(per_command):
             name, kind = rng.choice(reads)
             variant = rng.choice(seed_variants(seeds, kind) or [name])
-            m = mutate(kind, seeds[variant], rng)
-            argv = list(cmd.base)
-            cases.append(Case(cmd.path, argv, {name: m.data}, sorted(set(_base_inputs(cmd))),
-                              m.must_refuse, f"{name} ({variant}): {m.note}", cheap=cmd.cheap or m.must_refuse))
+            m = mutate(kind, seeds[variant], rng, variant)
+            # a variant in another format (route.plan for route.yaml) keeps its name: the suffix says how it is read
+            target = variant if Path(variant).suffix != Path(name).suffix else name
+            argv = [target if a == name else a for a in cmd.base]
+            cases.append(Case(cmd.path, argv, {target: m.data}, sorted(set(_base_inputs(cmd)) | {target}),
+                              m.must_refuse, f"{target} ({variant}): {m.note}", cheap=cmd.cheap or m.must_refuse))
     return cases
 
 
