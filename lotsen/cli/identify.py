@@ -37,7 +37,7 @@ from lotsen.files import check_outputs, write_output
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters
 from lotsen.runtime.config import VesselSection
 from lotsen.settings import Number
-from lotsen.sysid.identify import estimate_records, judge_identification, split_holdout
+from lotsen.sysid.identify import estimate_records, identify, judge_identification, split_holdout
 
 SCALE_DEFAULT = ("m11", 14.0)
 # Parameters that anchor the scale well when known (a fixed damping term such as Y_rv formally
@@ -113,11 +113,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     fixed = _parse_fix(args.fix or [])
     noise = _parse_noise(args.noise or [])
-    inputs = (*args.data, *(args.validate or ()), args.init)
+    inputs = (*args.data, *(args.validate or ()), args.init, args.in_use)
     check_outputs((args.out, args.report), inputs, ConfigError)  # never over a record (it was, exit 1)
     # the files first: a bad file is reported before any warning about the estimate
     init = load_parameter_file(args.init) if args.init else None
     theta0 = init.parameters if init else DEFAULT_PARAMETERS
+    in_use_file = load_parameter_file(args.in_use) if args.in_use else None
     records = [_with_kind(load_record(p), args.inputs) for p in args.data]
     validation = [_with_kind(load_record(p), args.inputs) for p in args.validate] if args.validate else None
     warnings: list[str] = []
@@ -141,24 +142,24 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     else:
         est_records = val_records = records
         warnings.append("validation on the estimation data (--holdout 0): fit figures are optimistic")
-    bar = tqdm(file=sys.stderr, desc=f"identify ({args.method} shooting)", unit="it", total=None,
-               disable=not sys.stderr.isatty())
-
-    def progress(i: int, cost: float) -> None:
-        bar.update(1)
-        bar.set_postfix(V=f"{cost:.5g}")
-
-    try:
+    progress = _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)")
+    in_use = in_use_file.parameters if in_use_file else theta0
+    if args.method == "single":
         res = estimate_records(est_records, theta0, fixed, method=args.method, lake=args.lake, geometry=geometry,
                                noise_std=noise, window_s=args.window, gap_s=args.gap, node_s=args.node,
                                max_iterations=args.max_iter, gust_std=args.gust_std,
                                estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
-                               progress=progress)
-    finally:
-        bar.close()
+                               progress=lambda i, cost: progress(f"iteration {i}: cost {cost:.5g}"))
+        ident = judge_identification(res)  # refuses (exit 2) rather than writing numbers the data do not determine
+    else:
+        ident = identify(est_records, val_records, theta0, fixed, lake=args.lake, geometry=geometry, in_use=in_use,
+                         noise_std=noise, gap_s=args.gap, node_s=args.node, max_iterations=args.max_iter,
+                         gust_std=args.gust_std, estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
+                         held_out=val_records is not est_records, progress=progress)
+    progress(None)
+    res = ident.result
     for d in res.identifiability.directions:
         print(f"identifiability: {d}", file=sys.stderr)
-    ident = judge_identification(res)  # refuses (exit 2) rather than writing numbers the data do not determine
     if res.identifiability.poorly_determined:
         warnings.append("poorly determined (95 % relative error above 5 %): "
                         + ", ".join(res.identifiability.poorly_determined))
@@ -189,14 +190,24 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         print("gyro offset per record (rad/s): " + ", ".join(
             f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(bias, res.details.gyro_bias_std)), file=sys.stderr)
     write_output(args.out, json.dumps(out, indent=2) + "\n", inputs, ConfigError, "parameter file")
-    print(f"{args.out}: {len(res.free_names)} parameters estimated ({res.method} shooting, {res.iterations} "
-          f"iterations, s^2 = {res.noise_factor:.3g})", file=sys.stderr)
+    how = (f"{res.method} shooting, {res.iterations} iterations, s^2 = {res.noise_factor:.3g}"
+           if res.method != "equation error" else "equation error: the equations of motion fitted to the record")
+    print(f"{args.out}: {len(res.free_names)} parameters estimated ({how})", file=sys.stderr)
     for n in res.free_names:
         v, sd = getattr(res.params, n), res.std[n]
         print(f"  {n:6s} {v: .6g} +- {1.96 * sd:.3g} (95 %, {196 * sd / abs(v) if v else math.inf:.2g} %)",
               file=sys.stderr)
+    if ident.prediction:
+        _print_prediction(ident)
     if args.report:
         _write_report(args, res, est_records, val_records, warnings, theta0, inputs)
+    if verdict.verdict == "predictive":
+        print(f"verdict: predictive — effective coefficients ({ident.estimator}): use them to predict and "
+              "control this boat, not as its physical values (the loaders accept the file, the page labels it):",
+              file=sys.stderr)
+        for r in verdict.reasons:
+            print(f"  - {r}", file=sys.stderr)
+        return 0
     if verdict.verdict == "refused":
         print(f"REFUSED: these coefficients must not be used ({args.out} is marked refused and the loaders "
               "refuse it):", file=sys.stderr)
@@ -208,6 +219,45 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     else:
         print("verdict: ok", file=sys.stderr)
     return 0
+
+
+def _progress_printer(title: str):  # type: ignore[no-untyped-def]
+    """Progress of a long command on stderr, on a terminal or not: a line per stage and every few
+    seconds otherwise (a log or CI never waits in silence); called with None at the end."""
+    import time
+
+    t0 = time.monotonic()
+    last = [t0 - 10.0]
+    tty = sys.stderr.isatty()
+
+    def progress(msg: str | None) -> None:
+        now = time.monotonic()
+        if msg is None:
+            if tty:
+                print(file=sys.stderr)
+            return
+        stage = not msg.startswith("iteration")
+        if stage or now - last[0] >= (0.5 if tty else 5.0):
+            last[0] = now
+            line = f"{title}: {now - t0:5.1f} s  {msg}"
+            if tty and not stage:
+                print("\r" + line[:100].ljust(100), end="", file=sys.stderr, flush=True)
+            else:
+                print(("\r" if tty else "") + line, file=sys.stderr, flush=True)
+
+    return progress
+
+
+def _print_prediction(ident) -> None:  # type: ignore[no-untyped-def]
+    """The held-out prediction errors of every model compared, in metres and degrees."""
+    first = next(iter(ident.prediction.values()))
+    hs = first.horizons_s
+    print(f"open-loop prediction of the held-out data ({first.n_windows} windows; RMS error after "
+          + ", ".join(f"{h:g}" for h in hs) + " s):", file=sys.stderr)
+    for name, sc in ident.prediction.items():
+        mark = " <- written" if name == ident.chosen else ""
+        print(f"  {name:15s} " + "  ".join(f"{sc.position_m[h]:6.2f} m {sc.heading_deg[h]:5.1f} deg" for h in hs)
+              + ("" if sc.stable else "  (diverges)") + mark, file=sys.stderr)
 
 
 def _write_report(args: argparse.Namespace, res, est_records: list, val_records: list, warnings: list[str],
@@ -239,11 +289,7 @@ def _write_report(args: argparse.Namespace, res, est_records: list, val_records:
         write_output(args.report, render_pdf(*report_args), inputs, ConfigError, "report")
     else:
         write_output(args.report, render_report(*report_args), inputs, ConfigError, "report")
-    shown = fit_val or fit_est
-    print(f"{args.report}: " + ("validation fit " + ", ".join(f"{k} {v:.1f} %" for k, v in fit_val.fit_percent.items())
-                                if fit_val else "written (no validation data)")
-          + (" (black-box: " + ", ".join(f"{k} {v:.1f} %" for k, v in bb.fit_percent.items()) + ")"
-             if bb is not None and shown is not None else ""), file=sys.stderr)
+    print(f"{args.report}: written" + ("" if fit_val else " (no validation data)"), file=sys.stderr)
 
 
 def _with_kind(record, kind: str | None):  # type: ignore[no-untyped-def]
@@ -272,7 +318,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--fixed-noise", action="store_true",
                    help="keep the assumed noise std (default: re-estimate each output's from its residuals)")
     p.add_argument("--report", help="report to write: self-contained HTML (.html) or PDF (.pdf)")
-    p.add_argument("--init", help="initial guess JSON (default: the documented defaults)")
+    p.add_argument("--init", help="initial guess JSON (default: the documented defaults); the estimate starts from "
+                                  "the equations of motion fitted to the record, so the answer does not depend on it")
+    p.add_argument("--in-use", metavar="PARAMS.json",
+                   help="the model the boat flies now, to compare predictions with (default: --init, else the "
+                        "documented defaults)")
     p.add_argument("--validate", nargs="+", help="held-out validation data files")
     p.add_argument("--holdout", type=Number(0.0, 0.85), default=0.2, help="fraction of each file held out (default 0.2)")
     p.add_argument("--window", type=Number(1.0, 600.0, "s"), default=10.0,

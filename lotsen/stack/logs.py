@@ -123,6 +123,9 @@ def add_recorder(stack: Any, config: RecorderConfig | None = None, start: bool |
     stack.services["recorder"] = rec
     stack.services.setdefault("on_shutdown", []).append(rec.close)
     if stack.config.logging.enabled if start is None else start:
+        # a folder that cannot exist (under a file, no permission) is the configuration's error, said at
+        # once; a disk that is full or fails when the file is written is a failure the run survives
+        ensure_log_directory(rec.config.directory)
         try:
             path = rec.start()
             stack.services.setdefault("banner", []).append(f"logging: recording to {path}")

@@ -281,7 +281,8 @@ class IdentificationResult:
 
     def to_json_dict(self) -> dict:
         d: dict = dict(self.params.to_dict())
-        d["std"] = {n: float(self.std[n]) for n in self.free_names}
+        # null where no interval exists (a coefficient at its bound): strict JSON has no Infinity
+        d["std"] = {n: float(self.std[n]) if math.isfinite(self.std[n]) else None for n in self.free_names}
         return d
 
 

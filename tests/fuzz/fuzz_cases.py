@@ -389,7 +389,7 @@ FLAG_KINDS: dict[tuple[tuple[str, ...], str], str] = {
     (("mission",), "--params"): "in:params", (("mission",), "--report"): "out", (("mission",), "--plot"): "out:plot",
     (("identify",), "data"): "in:data_csv", (("identify",), "--out"): "out", (("identify",), "--fix"): "text:fix",
     (("identify",), "--noise"): "text:noise", (("identify",), "--report"): "out", (("identify",), "--init"): "in:params",
-    (("identify",), "--validate"): "in:data_csv", (("identify",), "--reverse-thrust-ratio"): "number",
+    (("identify",), "--validate"): "in:data_csv", (("identify",), "--in-use"): "in:params", (("identify",), "--reverse-thrust-ratio"): "number",
     (("identify",), "--gnss-antenna"): "text:xy",
     (("experiment", "run"), "experiment"): "in:experiment", (("experiment", "run"), "--config"): "in:config",
     (("experiment", "run"), "--out"): "out", (("experiment", "run"), "--boat"): "in:params",

@@ -77,17 +77,16 @@ def test_the_lab_loop_refuses_a_model_the_record_does_not_support_and_accepts_on
     assert "identification refused these coefficients" in capsys.readouterr().err
     # the same record with the geometry a lab measures on the hull (antenna position by tape, astern
     # thrust by a bollard pull): the model explains the track and the core coefficients come within
-    # 5 %, but one 60-s PRBS, its correlated heading and rate weighted honestly, leaves more than four
-    # coefficients weakly determined: refused for that reason alone (the battery of the lab loop, in
-    # test_identified_parameters_track_within_20_percent_of_the_exact_model, is accepted)
+    # 5 %; one 60-s PRBS, its correlated heading and rate weighted honestly (sandwich intervals), leaves
+    # four coefficients weakly determined (Y_rv, N_vv, kappa, N_v): a "weak" answer naming them
     ant = DEFAULT_BOAT.gnss_antenna_m
     assert main(["identify", "lake.mcap", "--fix", f"m11={DEFAULT_BOAT.parameters.m11}", "--gnss-antenna",
                  f"{ant[0]},{ant[1]}", "--reverse-thrust-ratio", str(DEFAULT_BOAT.geometry.reverse_thrust_ratio),
-                 "--out", "measured.json"]) == 1
+                 "--out", "measured.json"]) == 0
     measured = json.loads((tmp_path / "measured.json").read_text())
     assert measured["identification"]["track_autocorr_1s"] < 0.5
-    assert [r.split(" (")[0] for r in measured["identification"]["reasons"]] == [
-        f"{len(measured['identification']['weakly_determined'])} coefficients are weakly determined"]
+    assert measured["verdict"] == "weak" and 1 <= len(measured["identification"]["weakly_determined"]) <= 4
+    assert not set(measured["identification"]["weakly_determined"]) & set(CORE_PARAMETERS)
     for n in CORE_PARAMETERS:
         true = getattr(DEFAULT_BOAT.parameters, n)
         assert abs(measured[n] - true) <= 0.05 * abs(true), (n, measured[n], true)

@@ -20,6 +20,14 @@ Two recording styles:
   commands. Rows carry either inputs or outputs, never both.
 
 Noise: north/east 0.01 m, psi 0.01 rad, r 0.003 rad/s (white, Gaussian).
+
+A lake (``Lake``, optional): current and wind in forms of this file's own, deliberately not lotsen's
+(lotsen.model.environment): a current that varies slowly in time (a constant part plus a sinusoid
+in each earth axis), the kinetics acting on the velocity relative to the water (Fossen's
+relative-velocity form, with the current's own rate of change); wind as quadratic drag per body axis
+of the apparent wind with its own moment arm (``wind_form="axis"``: tau = -[k_x u|u|, k_y v|v|,
+l k_y v|v|]) or an Isherwood-like cos/sin form with a sin(2 gamma) moment (``"fossen"``), gusts on the
+speed (Ornstein-Uhlenbeck) and a wandering direction, all seeded.
 """
 
 from __future__ import annotations
@@ -47,9 +55,98 @@ def perturbed(rng: np.random.Generator, spread: float = 0.15, keep: tuple[str, .
     return {n: v if n in keep else v * float(rng.uniform(1 - spread, 1 + spread)) for n, v in DEFAULTS.items()}
 
 
-def rhs(x: tuple, a: tuple, p: dict) -> tuple:
-    """x_dot of vessel-model.md for state x = (N, E, psi, u, v, r), actuators a = (alpha1, alpha2, n1, n2, nt)."""
-    _, _, psi, u, v, r = x
+@dataclass(frozen=True)
+class Lake:
+    """Current and wind of this file's own forms (module docstring). Directions: the current flows TO,
+    the wind comes FROM, degrees clockwise from north."""
+
+    current_mps: float = 0.0
+    current_to_deg: float = 0.0
+    current_variation_mps: float = 0.0  # amplitude of the slow variation in each earth axis
+    current_period_s: float = 240.0
+    wind_mps: float = 0.0
+    wind_from_deg: float = 0.0
+    gust_fraction: float = 0.25  # gust std / mean wind
+    gust_time_constant_s: float = 5.0
+    direction_std_deg: float = 15.0
+    direction_time_constant_s: float = 30.0
+    wind_form: str = "axis"  # "axis" | "fossen"
+    k_x: float = 0.02  # 1/2 rho_air C_X A_F
+    k_y: float = 0.09  # 1/2 rho_air C_Y A_L
+    moment_arm_m: float = 0.08  # "axis": the lateral centre of pressure ahead of the origin
+    k_n: float = 0.012  # "fossen": 1/2 rho_air C_N A_L L
+
+    def series(self, duration_s: float, seed: int, dt: float = 0.05) -> "LakeSeries":
+        """The environment on a grid, seeded: current (N, E) and its rate, wind velocity of the air (N, E)."""
+        rng = np.random.default_rng([seed, 4711])
+        t = np.arange(int(math.ceil(duration_s / dt)) + 2) * dt
+
+        def ou(std: float, tc: float) -> np.ndarray:
+            a = math.exp(-dt / tc)
+            w = rng.standard_normal(len(t)) * std * math.sqrt(1 - a * a)
+            out = np.empty(len(t))
+            out[0] = std * rng.standard_normal()
+            for k in range(1, len(t)):
+                out[k] = a * out[k - 1] + w[k]
+            return out
+
+        speed = np.maximum(0.0, self.wind_mps * (1.0 + ou(self.gust_fraction, self.gust_time_constant_s)))
+        frm = np.radians(self.wind_from_deg) + np.radians(ou(self.direction_std_deg, self.direction_time_constant_s))
+        wind = np.column_stack([-speed * np.cos(frm), -speed * np.sin(frm)])  # the air moves away from `frm`
+        a = math.radians(self.current_to_deg)
+        ph = rng.uniform(0, 2 * math.pi, 2)
+        om = 2 * math.pi / self.current_period_s
+        cur = np.column_stack([self.current_mps * math.cos(a) + self.current_variation_mps * np.sin(om * t + ph[0]),
+                               self.current_mps * math.sin(a) + self.current_variation_mps * np.sin(om * t + ph[1])])
+        cur_rate = np.column_stack([self.current_variation_mps * om * np.cos(om * t + ph[0]),
+                                    self.current_variation_mps * om * np.cos(om * t + ph[1])])
+        return LakeSeries(self, t, cur, cur_rate, wind)
+
+
+@dataclass
+class LakeSeries:
+    lake: Lake
+    t: np.ndarray
+    current: np.ndarray
+    current_rate: np.ndarray
+    wind: np.ndarray
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        k = min(int(t / (self.t[1] - self.t[0])), len(self.t) - 2)
+        f = (t - self.t[k]) / (self.t[1] - self.t[0])
+
+        def lerp(a: np.ndarray) -> np.ndarray:
+            return a[k] * (1 - f) + a[k + 1] * f
+
+        return lerp(self.current), lerp(self.current_rate), lerp(self.wind)
+
+    def wind_force(self, psi: float, u: float, v: float, wind_ne: np.ndarray) -> tuple[float, float, float]:
+        L = self.lake
+        c, s = math.cos(psi), math.sin(psi)
+        urw = u - (wind_ne[0] * c + wind_ne[1] * s)
+        vrw = v - (-wind_ne[0] * s + wind_ne[1] * c)
+        if L.wind_form == "axis":
+            fy = -L.k_y * vrw * abs(vrw)
+            return (-L.k_x * urw * abs(urw), fy, L.moment_arm_m * fy)
+        V2 = urw * urw + vrw * vrw
+        g = math.atan2(vrw, urw)  # the apparent wind's direction in the body frame
+        return (-L.k_x * V2 * math.cos(g), -L.k_y * V2 * math.sin(g), -L.k_n * V2 * math.sin(2 * g))
+
+
+def rhs(x: tuple, a: tuple, p: dict, env: "LakeSeries | None" = None, t: float = 0.0) -> tuple:
+    """x_dot of vessel-model.md for state x = (N, E, psi, u, v, r) (u, v over ground), actuators
+    a = (alpha1, alpha2, n1, n2, nt); with `env` the kinetics act on the velocity relative to the water
+    and the wind force is added."""
+    _, _, psi, ug, vg, r = x
+    cp, sp = math.cos(psi), math.sin(psi)
+    uc = vc = duc = dvc = 0.0
+    wX = wY = wN = 0.0
+    if env is not None:
+        cur, rate, wind = env.at(t)
+        uc, vc = cur[0] * cp + cur[1] * sp, -cur[0] * sp + cur[1] * cp
+        duc, dvc = rate[0] * cp + rate[1] * sp, -rate[0] * sp + rate[1] * cp
+        wX, wY, wN = env.wind_force(psi, ug, vg, wind)
+    u, v = ug - uc, vg - vc
     tX = tY = tN = 0.0
     g = HALF_RHO_AR * p["C_N"]
     for (lx, ly), al, n in zip(UNITS, a[:2], a[2:4]):
@@ -66,14 +163,15 @@ def rhs(x: tuple, a: tuple, p: dict) -> tuple:
     Ft = p["mu_t"] * a[4] * abs(a[4])
     tY += Ft
     tN += L_XT * Ft
+    tX, tY, tN = tX + wX, tY + wY, tN + wN
     m11, m22, m33 = p["m11"], p["m22"], p["m33"]
     u_dot = (m22 * v * r - p["X_u"] * u + p["X_uu"] * abs(u) * u + tX) / m11
     v_dot = (-m11 * u * r - p["Y_v"] * v - p["Y_r"] * r + p["Y_uv"] * abs(u) * v + p["Y_vv"] * abs(v) * v
              + p["Y_rv"] * abs(r) * v + tY) / m22
     r_dot = ((m11 - m22) * u * v - p["N_v"] * v + p["N_vv"] * abs(v) * v - p["N_r"] * r + p["N_rr"] * abs(r) * r
              + tN) / m33
-    cp, sp = math.cos(psi), math.sin(psi)
-    return (u * cp - v * sp, u * sp + v * cp, r, u_dot, v_dot, r_dot)
+    # ground velocity in the body frame: nu = nu_r + R^T c, d(R^T c)/dt = r [v_c, -u_c] + R^T c_dot
+    return (ug * cp - vg * sp, ug * sp + vg * cp, r, u_dot + r * vc + duc, v_dot - r * uc + dvc, r_dot)
 
 
 def command_levels(duration_s: float, rng: np.random.Generator, bit_s: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
@@ -107,13 +205,15 @@ def X_meas_a(Z: np.ndarray, T: np.ndarray, t: np.ndarray) -> np.ndarray:
 def generate(duration_s: float = 120.0, params: dict | None = None, seed: int = 0, style: str = "async",
              command_hz: float = 10.0, input_hz: float = 50.0, meas_hz: float = 8.0, tau_servo_s: float = 0.06,
              tau_motor_s: float = 0.08, meas_offset_s: float = 0.037, bit_s: float = 2.0,
-             noise: dict | None = None, x0: tuple = (0.0, 0.0, 0.3, 0.0, 0.0, 0.0)) -> Generated:
-    """Simulate and record one experiment (see the module docstring)."""
+             noise: dict | None = None, x0: tuple = (0.0, 0.0, 0.3, 0.0, 0.0, 0.0),
+             lake: Lake | None = None) -> Generated:
+    """Simulate and record one experiment (see the module docstring); `lake`: in current and wind."""
     from lotsen.sysid.data import IdRecord
 
     p = dict(DEFAULTS if params is None else params)
     noise = dict(NOISE if noise is None else noise)
     rng = np.random.default_rng(seed)
+    env = lake.series(duration_s, seed) if lake is not None else None
     t_sw, levels = command_levels(duration_s, rng, bit_s)
     # a small multisine on top of the levels, so that the commands change at every tick
     freqs = rng.uniform(0.2, 2.0, (5, 3))
@@ -160,7 +260,7 @@ def generate(duration_s: float = 120.0, params: dict | None = None, seed: int = 
 
         def f(t, zz, c=c):  # type: ignore[no-untyped-def]
             a = zz[6:11]
-            xd = rhs(tuple(zz[:6]), tuple(a), p)
+            xd = rhs(tuple(zz[:6]), tuple(a), p, env, t)
             ad = (c - a) / tau if tau is not None else np.zeros(5)
             return np.concatenate([xd, ad, a])
 

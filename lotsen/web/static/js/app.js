@@ -1163,7 +1163,8 @@ function renderSettings() {
   if (md) {
     const when = md.file_modified_utc ? ` (written ${md.file_modified_utc})` : "";
     $("#set-model").textContent = `${md.source === "default coefficients" ? "default coefficients (no parameter file)" : "parameter file " + md.source + when}` +
-      (md.verdict ? ` · identification verdict: ${md.verdict}` : " · no identification verdict") +
+      (md.verdict === "predictive" ? " · identification verdict: predictive (effective coefficients: they predict this boat, they are not its physical values)"
+        : md.verdict ? ` · identification verdict: ${md.verdict}` : " · no identification verdict") +
       (md.boat ? ` · simulated boat: ${md.boat}` : "");
     const rows = Object.entries(md.parameters || {}).map(([k, v]) => `<tr><td>${esc(k)}</td><td>${esc(fmtVal(v))}</td><td>${md.std && md.std[k] != null ? esc(fmtVal(md.std[k])) : ""}</td></tr>`).join("");
     const tb = $("#set-model-table tbody"); if (tb.innerHTML !== rows) tb.innerHTML = rows;

@@ -1,0 +1,431 @@
+"""Equation-error estimate: a start for the output-error estimate that depends on the data only.
+
+The output-error estimate (lotsen.sysid.multiple) is a local search. On a boat built like the model
+its start hardly matters; on a real hull (a 6-DOF plant whose resistance, lift and propellers are
+not the grey box's) Gauss-Newton from the documented defaults wandered to the parameter bounds and
+stopped unconverged, and two records of the same hull ended in different places. Here the
+equations of motion themselves are fitted, which is a linear least-squares problem in almost every
+coefficient and so has one answer whatever the start:
+
+    seed eq. (22) on the velocity relative to the water, nu_r = nu - R(psi)^T c:
+    m11 u_r' - m22 v_r r + X_u u_r - X_|u|u |u_r| u_r                               = tau_X + tau_wind,X
+    m22 v_r' + m11 u_r r + Y_v v_r + Y_r r - (Y_|u|v |u_r| + Y_|v|v |v_r| + Y_|r|v |r|) v_r = tau_Y + ...
+    m33 r' - (m11 - m22) u_r v_r + N_v v_r - N_|v|v |v_r| v_r + N_r r - N_|r|r |r| r = tau_N + ...
+    tau = mu_az A(kappa) + C_N B(kappa) + mu_t C      (the model's own thruster code, lotsen.model.array_tau)
+
+The motion comes from the record alone: smoothing splines through the fixes (north, east), the
+heading and the gyro (less its offset, from the heading's change) give u, v, r and their rates at the
+fixes. Every column is then low-pass filtered alike (a filter commutes with the linear combination,
+so the equation holds for the filtered columns while the noise of the differentiated positions is
+cut). For a given kappa (and, on a lake, current and air velocity) the rest is a bounded linear least
+squares (scipy's lsq_linear within the physical ranges), weighted per equation by its own residual
+spread; kappa, the current and the air velocity are found around it by a small bounded search.
+
+The result is biased (errors in the regressors, the smoothing), so it is a start, not an answer:
+the output-error estimate takes it from here (and keeps the better of it and the caller's start).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+from scipy.interpolate import make_smoothing_spline
+from scipy.ndimage import gaussian_filter1d
+from scipy.optimize import least_squares, lsq_linear, minimize
+
+from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
+from lotsen.model.dynamics import array_tau
+from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
+from lotsen.sysid.data import IdRecord, Segment, split_segments
+from lotsen.sysid.estimate import NAMES, parameter_bounds
+
+FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard deviation)
+# the splines' smoothing: lambda = 1 / (dt (2 pi f_c)^4) passes motion below f_c and cuts above it (a
+# smoothing spline's gain is 1 / (1 + lambda dt omega^4)); a 13 kg boat's motion lies below 1 Hz.
+# (Generalised cross-validation chose about the same and took 8 s per series in scipy's Python loop.)
+SMOOTHING_CUTOFF_HZ = 1.0
+EDGE_S = 1.5  # spline ends left out
+KAPPA_RANGE = (1e-3, 0.3)
+N_WIND = 4  # k_X, k_Y, k_N, k_Nv of lotsen.model.environment.apparent_wind_force
+# the wind's drag coefficients within this many times the nominal hull's: with a weak wind the apparent
+# wind is the boat's own motion and unbounded coefficients turn into hull damping (seen: 16 x nominal)
+WIND_COEFFICIENT_MAX = 4.0
+K_WIND_MAX = WIND_COEFFICIENT_MAX * np.array([*wind_drag_coefficients(), 0.2 * wind_drag_coefficients()[1]])
+# and the drag along and across the hull at least a quarter of the nominal hull's: a hull above water has
+# drag, and without this floor a wind of 0.5 m/s with large coefficients mimics hull damping in place of a
+# 4 m/s wind with the hull's own (the yaw moments may take either sign)
+K_WIND_MIN = np.array([0.25, 0.25, -1.0, -1.0]) * np.abs(K_WIND_MAX) / WIND_COEFFICIENT_MAX * np.array([1, 1, 4, 4])
+
+
+@dataclass
+class MotionSamples:
+    """The motion at the fixes, from splines: time, heading, ground velocity (body) and rates, inputs."""
+
+    t: np.ndarray
+    psi: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    r: np.ndarray
+    u_dot: np.ndarray
+    v_dot: np.ndarray
+    r_dot: np.ndarray
+    inputs: np.ndarray  # n x 5, the reconstructed inputs at t
+    segment: np.ndarray  # the segment of each sample (filtering stays within a segment)
+
+
+def _spline(t: np.ndarray, y: np.ndarray):  # type: ignore[no-untyped-def]
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.125
+    return make_smoothing_spline(t, y, lam=1.0 / (dt * (2.0 * math.pi * SMOOTHING_CUTOFF_HZ) ** 4))
+
+
+def motion_samples(segments: Sequence[Segment], gyro_bias: Sequence[float] | None = None) -> MotionSamples:
+    """The motion at every fix of every segment (module docstring); `gyro_bias` per segment."""
+    parts: list[tuple[np.ndarray, ...]] = []
+    for q, seg in enumerate(segments):
+        names = seg.output_names
+        iN, iE = names.index("north"), names.index("east")
+        fix = np.isfinite(seg.outputs[:, iN]) & np.isfinite(seg.outputs[:, iE])
+        if fix.sum() < 30:
+            continue
+        tf = seg.t[fix]
+        keep = np.concatenate([[True], np.diff(tf) > 1e-6])  # splines need increasing abscissae
+        rows = np.flatnonzero(fix)[keep]
+        tf = seg.t[rows]
+        sN, sE = _spline(tf, seg.outputs[rows, iN]), _spline(tf, seg.outputs[rows, iE])
+        dN, dE, aN, aE = sN.derivative(1)(tf), sE.derivative(1)(tf), sN.derivative(2)(tf), sE.derivative(2)(tf)
+        if "psi" in names:
+            ip = names.index("psi")
+            okp = np.isfinite(seg.outputs[:, ip])
+            tp = seg.t[okp]
+            kp = np.concatenate([[True], np.diff(tp) > 1e-6])
+            sp = _spline(tp[kp], np.unwrap(seg.outputs[okp, ip])[kp])
+            psi = sp(tf)
+            r_psi = sp.derivative(1)(tf)
+        else:  # course over ground as the heading
+            psi = np.unwrap(np.arctan2(dE, dN))
+            r_psi = np.gradient(psi, tf)
+        if "r" in names:
+            ir = names.index("r")
+            okr = np.isfinite(seg.outputs[:, ir])
+            tr = seg.t[okr]
+            kr = np.concatenate([[True], np.diff(tr) > 1e-6])
+            b = 0.0 if gyro_bias is None else float(gyro_bias[q])
+            sr = _spline(tr[kr], seg.outputs[okr, ir][kr] - b)
+            r, r_dot = sr(tf), sr.derivative(1)(tf)
+        else:
+            r, r_dot = r_psi, np.gradient(r_psi, tf)
+        c, s = np.cos(psi), np.sin(psi)
+        u, v = c * dN + s * dE, -s * dN + c * dE
+        # d/dt of R(psi)^T [N', E']: the rotation of the body frame adds r v, -r u
+        u_dot = c * aN + s * aE + r * v
+        v_dot = -s * aN + c * aE - r * u
+        inside = (tf >= tf[0] + EDGE_S) & (tf <= tf[-1] - EDGE_S)
+        U = seg.inputs[rows]
+        parts.append((tf[inside], psi[inside], u[inside], v[inside], r[inside], u_dot[inside], v_dot[inside],
+                      r_dot[inside], U[inside], np.full(int(inside.sum()), q)))
+    if not parts:
+        raise ValueError("no segment with enough fixes for the equation-error start")
+    cols = [np.concatenate([p[i] for p in parts]) for i in range(len(parts[0]))]
+    return MotionSamples(*cols[:8], np.vstack([p[8] for p in parts]), cols[9])
+
+
+def _filtered(x: np.ndarray, seg: np.ndarray, dt: float) -> np.ndarray:
+    out = np.empty_like(x)
+    sig = FILTER_SIGMA_S / dt
+    for q in np.unique(seg):
+        m = seg == q
+        out[m] = gaussian_filter1d(x[m], sig, axis=0, mode="nearest")
+    return out
+
+
+#: a lake's current varies slowly (wind-driven, seiches): piecewise linear in time with a knot every this
+#: many seconds, neighbouring knots tied by a random walk of CURRENT_WALK_MPS per knot interval
+CURRENT_KNOT_S = 90.0
+CURRENT_WALK_MPS = 0.02
+
+
+@dataclass
+class CurrentPath:
+    """An earth-frame current piecewise linear in time (knots `t`, values north and east)."""
+
+    t: np.ndarray
+    north: np.ndarray
+    east: np.ndarray
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """North, east and their rates at the times `t`."""
+        if len(self.t) == 1:
+            z = np.zeros_like(t)
+            return z + self.north[0], z + self.east[0], z, z
+        k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
+        dt = np.diff(self.t)[k]
+        sN, sE = np.diff(self.north)[k] / dt, np.diff(self.east)[k] / dt
+        return (self.north[k] + sN * (t - self.t[k]), self.east[k] + sE * (t - self.t[k]), sN, sE)
+
+    @property
+    def mean(self) -> tuple[float, float]:
+        return float(np.mean(self.north)), float(np.mean(self.east))
+
+
+@dataclass
+class EquationErrorResult:
+    params: VesselParameters
+    environment: np.ndarray | None  # lake: current (2), air velocity (2), wind coefficients (ENV_NAMES)
+    residual_std: np.ndarray  # per equation (X, Y, N), in N / N / N m
+    cost: float
+    std: dict[str, float]  # 1-sigma of the estimated coefficients (inf: at a bound)
+    free_names: tuple[str, ...]
+    current_path: CurrentPath | None = None  # lake: the current over the record
+
+
+def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float], geometry: VesselGeometry,
+                current: "tuple[float, float] | CurrentPath", wind: tuple[float, float] | None
+                ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
+    """Rows (3 n) of A theta_free = b and the free parameters' indices; wind coefficients last.
+    `current`: constant (north, east), or a CurrentPath (piecewise linear in time)."""
+    u, v, r = ms.u, ms.v, ms.r
+    c, s = np.cos(ms.psi), np.sin(ms.psi)
+    if isinstance(current, CurrentPath):
+        cN, cE, dN, dE = current.at(ms.t)
+    else:
+        cN, cE, dN, dE = current[0], current[1], 0.0, 0.0
+    uc, vc = cN * c + cE * s, -cN * s + cE * c
+    ur, vr = u - uc, v - vc
+    # nu_r' = nu' - r [v_c, -u_c] - R^T c' (the current turns with the body frame and drifts in time)
+    urd = ms.u_dot - r * vc - (dN * c + dE * s)
+    vrd = ms.v_dot + r * uc - (-dN * s + dE * c)
+    au, av, ar = np.abs(ur), np.abs(vr), np.abs(r)
+    inp = tuple(ms.inputs[:, i] for i in range(5))
+    nu = (ur, vr, r)
+
+    def tau_of(**unit: float) -> tuple[np.ndarray, ...]:
+        th = dict.fromkeys(NAMES, 0.0)
+        th.update(m11=1.0, m22=1.0, m33=1.0, kappa=kappa, **unit)
+        return array_tau(nu, inp, [th[n] for n in NAMES], geometry)
+
+    A_az, B_cn, C_t = tau_of(mu_az=1.0), tau_of(C_N=1.0), tau_of(mu_t=1.0)
+    z = np.zeros_like(u)
+    # columns per parameter: (X row, Y row, N row) such that sum_j theta_j col_j = 0 (+ thrust on the right)
+    cols = {
+        "m11": (urd, ur * r, -ur * vr), "m22": (-vr * r, vrd, ur * vr), "m33": (z, z, ms.r_dot),
+        "X_u": (ur, z, z), "X_uu": (-au * ur, z, z),
+        "Y_v": (z, vr, z), "Y_r": (z, r, z), "Y_uv": (z, -au * vr, z), "Y_vv": (z, -av * vr, z),
+        "Y_rv": (z, -ar * vr, z),
+        "N_v": (z, z, vr), "N_r": (z, z, r), "N_vv": (z, z, -av * vr), "N_rr": (z, z, -ar * r),
+        "kappa": (z, z, z),
+        "C_N": tuple(-b for b in B_cn), "mu_az": tuple(-a for a in A_az), "mu_t": tuple(-t for t in C_t),
+    }
+    free = [i for i, n in enumerate(NAMES) if i not in theta_fixed and n != "kappa"]
+    n = len(u)
+    A = np.zeros((3 * n, len(free) + (N_WIND if wind is not None else 0)))
+    b = np.zeros(3 * n)
+    for j, i in enumerate(free):
+        A[:, j] = np.concatenate(cols[NAMES[i]])
+    for i, val in theta_fixed.items():
+        if NAMES[i] != "kappa":
+            b -= val * np.concatenate(cols[NAMES[i]])
+    if wind is not None:  # tau_wind = sum_k k_j basis_j: the unit coefficients' forces, moved to the left
+        for j, unit in enumerate(np.eye(N_WIND)):
+            f = apparent_wind_force(ms.psi, u, v, wind[0], wind[1], *unit, cos=np.cos, sin=np.sin, sqrt=np.sqrt)
+            A[:, len(free) + j] = -np.concatenate([np.broadcast_to(x, u.shape) for x in f])
+    return A, b, free, n
+
+
+def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, float],
+                            theta0: VesselParameters, geometry: VesselGeometry = DEFAULT_GEOMETRY,
+                            gap_s: float = 1.0, lake: bool = False, gyro_bias: Sequence[float] | None = None,
+                            env0: Sequence[float] | None = None) -> EquationErrorResult:
+    """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
+    bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
+    wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
+    coefficients' values where `fixed` does not and kappa's start."""
+    segs = [s for r in records for s in split_segments(r, gap_s)]
+    per_segment_bias = None
+    if gyro_bias is not None:
+        rec_of_seg = [q for q, r in enumerate(records) for _ in split_segments(r, gap_s)]
+        per_segment_bias = [gyro_bias[q] for q in rec_of_seg]
+    ms = motion_samples(segs, per_segment_bias)
+    dt = float(np.median(np.diff(ms.t))) if len(ms.t) > 1 else 0.125
+    lo, hi = parameter_bounds()
+    theta_fixed = {NAMES.index(n): float(v) for n, v in fixed.items()}
+    kappa_fixed = "kappa" in fixed
+    last: tuple = ()
+
+    def solve(kappa: float, current: Any, wind: tuple[float, float] | None,
+              weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
+        """The bounded linear least squares at (kappa, current, wind): (weighted residuals 3 x n,
+        coefficients, free indices, residual std per equation)."""
+        nonlocal last
+        A, b, free, n = _regression(ms, kappa, theta_fixed, geometry, current, wind)
+        Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
+        bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
+        Af = Af.reshape(n, 3, -1).transpose(1, 0, 2) * weights[:, None, None]
+        bf = bf.T * weights[:, None]
+        nw = A.shape[1] - len(free)
+        lo_f = np.concatenate([lo[free], K_WIND_MIN[:nw]])
+        hi_f = np.concatenate([hi[free], K_WIND_MAX[:nw]])
+        Am, bm = Af.reshape(3 * n, -1), bf.ravel()
+        colscale = np.maximum(np.linalg.norm(Am, axis=0), 1e-12)
+        # the bounded problem on a triangular factor of the normal equations: the same minimiser, p rows
+        # instead of 3 n (|A x - b|^2 = |R x - q|^2 + const with R^T R = A^T A, R^T q = A^T b)
+        As = Am / colscale
+        G = As.T @ As
+        G[np.diag_indices_from(G)] += 1e-12 * np.trace(G)
+        R = np.linalg.cholesky(G).T
+        q = np.linalg.solve(R.T, As.T @ bm)
+        sol = lsq_linear(R, q, bounds=(lo_f * colscale, hi_f * colscale), method="bvls")
+        x = sol.x / colscale
+        res = (bm - Am @ x).reshape(3, n)
+        last = (Af, res, lo_f, hi_f)
+        return res, x, free, np.sqrt(np.mean(res ** 2, axis=1)) / weights
+
+    weights = np.array([1.0, 1.0, 10.0])  # N, N, N m: the moment's arm about 0.1 m
+    kappa0 = float(fixed.get("kappa", theta0.kappa))
+    lk_lo, lk_hi = math.log(KAPPA_RANGE[0]), math.log(KAPPA_RANGE[1])
+    lk0 = math.log(min(max(kappa0, KAPPA_RANGE[0]), KAPPA_RANGE[1]))
+
+    def kappa_of(lk: float) -> float:
+        return kappa0 if kappa_fixed else math.exp(min(max(lk, lk_lo), lk_hi))
+
+    if lake:
+        # the current's knots over the record (one path for all segments, in the record's time)
+        span = max(float(ms.t[-1] - ms.t[0]), 1.0)
+        n_knots = max(1, int(math.ceil(span / CURRENT_KNOT_S)) + 1)
+        knots = np.linspace(float(ms.t[0]), float(ms.t[-1]), n_knots) if n_knots > 1 else np.array([float(ms.t[0])])
+        env = np.asarray(env0, float)[:4] if env0 is not None else np.zeros(4)
+        # the random walk between knots, as rows beside the data's (which are correlated over ~2 s
+        # by the common filter: as many independent rows as that leaves, per knot interval)
+        walk_weight = math.sqrt(max(2.0 * math.sqrt(math.pi) * FILTER_SIGMA_S / dt, 1.0))
+
+        def unpack(z: np.ndarray) -> tuple[float, CurrentPath, tuple[float, float]]:
+            cur = CurrentPath(knots, z[3:3 + n_knots], z[3 + n_knots:])
+            return kappa_of(z[0]), cur, (float(z[1]), float(z[2]))
+
+        def residual(z: np.ndarray, w: np.ndarray) -> np.ndarray:
+            k, cur, wind = unpack(z)
+            res = solve(k, cur, wind, w)[0].ravel()
+            walk = np.concatenate([np.diff(cur.north), np.diff(cur.east)]) / CURRENT_WALK_MPS * walk_weight
+            return np.concatenate([res, walk])
+
+        def start(wind: tuple[float, float]) -> np.ndarray:
+            return np.concatenate([[lk0, wind[0], wind[1]], np.full(n_knots, env[0]), np.full(n_knots, env[1])])
+
+        # the wind's direction is the search's hardest part: a grid of air velocities (eight directions,
+        # two speeds) for the best start, then a bounded Gauss-Newton search over all of it
+        cands = [start((env[2], env[3]))] + [start((w * math.cos(a), w * math.sin(a)))
+                                             for a in np.arange(8) * math.pi / 4 for w in (2.0, 4.5)]
+        z = min(cands, key=lambda zz: float(np.sum(residual(zz, weights) ** 2)))
+        zlo = np.concatenate([[lk_lo, -30.0, -30.0], np.full(2 * n_knots, -1.0)])
+        zhi = np.concatenate([[lk_hi, 30.0, 30.0], np.full(2 * n_knots, 1.0)])
+        scale = np.concatenate([[0.5, 1.0, 1.0], np.full(2 * n_knots, 0.02)])
+        for _ in range(2):  # the second pass with each equation weighted by its own residual spread
+            sol = least_squares(residual, np.clip(z, zlo, zhi), bounds=(zlo, zhi), x_scale=scale, args=(weights,),
+                                diff_step=1e-3, xtol=1e-4, ftol=1e-5, max_nfev=30)
+            z = sol.x
+            _, _, _, rstd = solve(*unpack(z), weights)
+            weights = 1.0 / np.maximum(rstd, 1e-9)
+        kappa, current, wind = unpack(z)
+    else:
+        current, wind = (0.0, 0.0), None
+        kappa = kappa0
+        for _ in range(2):  # the second pass with each equation weighted by its own residual spread
+            if not kappa_fixed:
+                def cost(lk: float) -> float:
+                    return float(np.sum(solve(kappa_of(lk), current, wind, weights)[0] ** 2))
+
+                grid = np.linspace(lk_lo, lk_hi, 13)
+                g0 = grid[int(np.argmin([cost(g) for g in grid]))]
+                opt = minimize(lambda zz: cost(float(zz[0])), np.array([g0]), method="Nelder-Mead",
+                               options={"xatol": 1e-3, "maxiter": 100})
+                kappa = kappa_of(float(opt.x[0]))
+            _, _, _, rstd = solve(kappa, current, wind, weights)
+            weights = 1.0 / np.maximum(rstd, 1e-9)
+    res, x, free, rstd = solve(kappa, current, wind, weights)  # the final weights' regression
+    total = float(np.sum(res ** 2))
+    cov = _sandwich(*last, x, ms.segment)
+    std = {NAMES[i]: float(math.sqrt(cov[j, j])) if math.isfinite(cov[j, j]) else math.inf
+           for j, i in enumerate(free)}
+    if not kappa_fixed:
+        std["kappa"] = _profile_std(lambda k: float(np.sum(solve(k, current, wind, weights)[0] ** 2)), kappa,
+                                    float(np.median(np.diag(cov)[:len(free)]
+                                                    / np.maximum(_naive_var(last[0])[:len(free)], 1e-300))),
+                                    3 * len(ms.t) - len(x))
+    theta = np.array(theta0.to_vector(), float)
+    for i, val in theta_fixed.items():
+        theta[i] = val
+    theta[free] = x[:len(free)]
+    theta[NAMES.index("kappa")] = kappa
+    theta = np.clip(theta, lo, hi)
+    env_out = None
+    if lake:
+        cm = current.mean  # type: ignore[union-attr]
+        env_out = np.array([cm[0], cm[1], wind[0], wind[1], *x[len(free):]])  # type: ignore[index]
+    return EquationErrorResult(VesselParameters.from_vector(theta), env_out, rstd, total, std,
+                               tuple(NAMES[i] for i in free) + (() if kappa_fixed else ("kappa",)),
+                               current if lake else None)
+
+
+def _naive_var(Af: np.ndarray) -> np.ndarray:
+    """Diagonal of (A^T A)^-1 (the white-noise covariance per unit residual variance)."""
+    A = Af.reshape(-1, Af.shape[-1])
+    try:
+        return np.diag(np.linalg.inv(A.T @ A))
+    except np.linalg.LinAlgError:
+        return np.full(A.shape[1], np.inf)
+
+
+def _sandwich(Af: np.ndarray, res: np.ndarray, lo: np.ndarray, hi: np.ndarray, x: np.ndarray,
+              segment: np.ndarray) -> np.ndarray:
+    """Covariance of the regression's coefficients robust to correlated residuals: G^-1 M G^-1 with the
+    per-sample scores' covariance M by Newey-West (Bartlett weights up to twice the residuals'
+    correlation time, within segments). The columns are filtered (FILTER_SIGMA_S), so residuals stay
+    correlated over seconds whatever the model; a coefficient at its bound is held there (infinite
+    variance reported: its interval means nothing)."""
+    p = Af.shape[-1]
+    at_bound = (x <= lo + 1e-12 * np.abs(lo)) | (x >= hi - 1e-12 * np.abs(hi))
+    keep = ~at_bound
+    cov = np.full((p, p), np.inf)
+    if not keep.any():
+        return cov
+    A = Af[:, :, keep]  # 3 x n x k
+    S = np.einsum("enk,en->nk", A, res)  # per sample: the three equations' scores summed
+    G = np.einsum("enk,enl->kl", A, A)
+    r = res.sum(axis=0)
+    r = r - r.mean()
+    tau = 1.0
+    v = float(r @ r)
+    for lag in range(1, min(400, len(r) // 5)):
+        rho = float(r[:-lag] @ r[lag:]) / v if v > 0 else 0.0
+        if rho < 0.05:
+            break
+        tau += 2.0 * rho
+    L = int(max(1, min(round(2.0 * tau), len(S) // 10)))
+    M = S.T @ S
+    for lag in range(1, L + 1):
+        same = (segment[lag:] == segment[:-lag]).astype(float)
+        Gl = (S[:-lag] * same[:, None]).T @ S[lag:]
+        M += (1.0 - lag / (L + 1.0)) * (Gl + Gl.T)
+    try:
+        Gi = np.linalg.inv(G)
+    except np.linalg.LinAlgError:
+        Gi = np.linalg.pinv(G)
+    sub = Gi @ M @ Gi
+    idx = np.flatnonzero(keep)
+    cov[np.ix_(idx, idx)] = 0.5 * (sub + sub.T)
+    return cov
+
+
+def _profile_std(cost_of, kappa: float, inflation: float, dof: int) -> float:  # type: ignore[no-untyped-def]
+    """kappa's 1-sigma from the curvature of the profiled weighted cost (the rest re-solved at each
+    kappa), in log kappa, with the regression's own residual variance and the sandwich's inflation."""
+    h = 0.05
+    c0 = cost_of(kappa)
+    cp, cm = cost_of(min(kappa * math.exp(h), KAPPA_RANGE[1])), cost_of(max(kappa * math.exp(-h), KAPPA_RANGE[0]))
+    curv = (cp - 2 * c0 + cm) / (h * h)
+    s2 = c0 / max(dof, 1)
+    if curv <= 0 or not math.isfinite(curv):
+        return math.inf
+    return kappa * math.sqrt(2.0 * s2 * max(inflation, 1.0) / curv)
