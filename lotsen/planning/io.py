@@ -35,6 +35,7 @@ from lotsen.planning.route import GeoOrigin, HarbourNode, Region, Route, RouteNo
 
 _TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin"}
 _FINITE = Number(-sys.float_info.max, sys.float_info.max)
+_INDEX = Number(0, 100_000, integer=True)  # a GeoJSON feature's place in the route
 
 
 # --------------------------------------------------------------------------------------------
@@ -278,8 +279,8 @@ def route_from_geojson(data: Any, origin: GeoOrigin | None = None) -> Route:
         gtype = "Point" if role in ("harbour", "node") else "Polygon"
         if f["geometry"].get("type") != gtype:
             raise ConfigError(f"{where}: a {role} must be a {gtype}, got {_short(f['geometry'].get('type'))}")
-        if "index" in props:
-            _number(props["index"], f"{where}.properties.index")
+        if "index" in props:  # the order of the nodes: a whole number, not any float
+            _INDEX.check(props["index"], f"{where}.properties.index")
         by_role[role].append((j, f, props))
     if len(by_role["harbour"]) != 1:
         raise ConfigError(f"geojson: expected exactly one harbour point, got {len(by_role['harbour'])}")

@@ -148,6 +148,10 @@ class BoatSection:
     gnss_antenna_m: tuple[float, float] | None = None  # body x, y of the antenna
 
     def __post_init__(self) -> None:
+        if self.parameters:  # each coefficient in its physical range now, not when a boat is built
+            from lotsen.model.parameters import VesselParameters
+
+            VesselParameters.from_dict(self.parameters, source="sim.boat.parameters")
         if self.gnss_antenna_m is not None and max(abs(v) for v in self.gnss_antenna_m) > 2.0:
             raise ConfigError(f"sim.boat.gnss_antenna_m: {list(self.gnss_antenna_m)} is more than 2 m "
                               "from the hull's origin")
