@@ -153,9 +153,15 @@ def _direct_ellipse_fit(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         T = -np.linalg.solve(S3, S2.T)
     except np.linalg.LinAlgError:
         raise CalibrationError("magnetometer calibration: degenerate data (all points on a line or equal)") from None
-    Mred = S1 + S2 @ T
+    with np.errstate(all="ignore"):
+        Mred = S1 + S2 @ T
     C1 = np.array([[0.0, 0.0, 2.0], [0.0, -1.0, 0.0], [2.0, 0.0, 0.0]])
-    w, V = scipy.linalg.eig(Mred, C1)
+    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(Mred))):  # nearly singular: points (nearly) on a line
+        raise CalibrationError("magnetometer calibration: degenerate data (all points on a line or equal)")
+    try:
+        w, V = scipy.linalg.eig(Mred, C1)
+    except (ValueError, np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+        raise CalibrationError("magnetometer calibration: degenerate data (the ellipse fit has no solution)") from None
     V = np.real(V)
     cond = 4.0 * V[0] * V[2] - V[1] ** 2
     ok = np.where((cond > 0) & np.isfinite(np.real(w)))[0]
@@ -202,11 +208,17 @@ def fit_mag_calibration(mag_x: Sequence[float], mag_y: Sequence[float],
     xs, ys = (x - mx) / s, (y - my) / s
     A, B, C, D, E, F = _direct_ellipse_fit(xs, ys)
     Q = np.array([[A, B / 2.0], [B / 2.0, C]])
-    c_s = np.linalg.solve(2.0 * Q, -np.array([D, E]))  # gradient zero at the centre
-    k = float(c_s @ Q @ c_s - F)  # (p - c)' Q (p - c) = k
+    try:
+        c_s = np.linalg.solve(2.0 * Q, -np.array([D, E]))  # gradient zero at the centre
+    except np.linalg.LinAlgError:
+        raise CalibrationError("magnetometer calibration: the fitted conic has no centre (not an ellipse)") from None
+    with np.errstate(all="ignore"):
+        k = float(c_s @ Q @ c_s - F)  # (p - c)' Q (p - c) = k
     if k == 0.0 or not math.isfinite(k):
         raise CalibrationError("magnetometer calibration: the fitted conic is degenerate")
     Qn = Q / k  # (p - c)' Qn (p - c) = 1; the eigenvector's sign is arbitrary, k carries it
+    if not np.all(np.isfinite(Qn)):
+        raise CalibrationError("magnetometer calibration: the fitted conic is degenerate")
     evals, evecs = np.linalg.eigh(Qn)
     if evals.min() <= 0.0:
         raise CalibrationError("magnetometer calibration: the points do not lie on an ellipse")
