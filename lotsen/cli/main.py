@@ -84,6 +84,10 @@ def main(argv: list[str] | None = None) -> int:
     except LotsenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the machine's refusal (a name too long, a full disk, no permission): said plainly
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         return 130
 

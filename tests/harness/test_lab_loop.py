@@ -44,8 +44,8 @@ def test_mission_names_the_boat_and_the_model_and_labels_the_ideal_model(tmp_pat
 
 
 def test_run_takes_the_boat_and_the_model_from_the_command_line(tmp_path):
-    params = tmp_path / "p.json"
-    params.write_text(json.dumps({"m22": 30.0}))
+    params = tmp_path / "p.json"  # one coefficient given, the others taken from the defaults as the file says
+    params.write_text(json.dumps({"m22": 30.0, "defaults_for": [n for n in DEFAULT_PARAMETERS.names() if n != "m22"]}))
     config = load_config(ROOT / "config" / "sim.yaml")
     assert simulated_boat(config) == DEFAULT_BOAT and vessel_model(config).params == DEFAULT_PARAMETERS
     both = with_model_and_boat(config, str(params), str(params))
