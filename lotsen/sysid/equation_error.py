@@ -253,11 +253,14 @@ def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float
 def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, float],
                             theta0: VesselParameters, geometry: VesselGeometry = DEFAULT_GEOMETRY,
                             gap_s: float = 1.0, lake: bool = False, gyro_bias: Sequence[float] | None = None,
-                            env0: Sequence[float] | None = None, terms: Sequence[str] = ()) -> EquationErrorResult:
+                            env0: Sequence[float] | None = None, terms: Sequence[str] = (),
+                            hold: "EquationErrorResult | None" = None) -> EquationErrorResult:
     """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
     bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
     wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
-    coefficients' values where `fixed` does not and kappa's start."""
+    coefficients' values where `fixed` does not and kappa's start. `hold`: on a lake, another fit of the
+    same records whose kappa, current and wind are kept (only the linear part is solved again: the
+    optional terms' trial)."""
     segs = [s for r in records for s in split_segments(r, gap_s)]
     per_segment_bias = None
     if gyro_bias is not None:
@@ -342,18 +345,24 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         def start(wind: tuple[float, float]) -> np.ndarray:
             return np.concatenate([[lk0, wind[0], wind[1]], np.full(n_knots, env[0]), np.full(n_knots, env[1])])
 
-        # the wind's direction is the search's hardest part: a grid of air velocities (eight directions,
-        # two speeds) for the best start, then a bounded Gauss-Newton search over all of it
-        cands = [start((env[2], env[3]))] + [start((w * math.cos(a), w * math.sin(a)))
-                                             for a in np.arange(8) * math.pi / 4 for w in (2.0, 4.5)]
-        z = min(cands, key=lambda zz: float(np.sum(residual(zz, weights) ** 2)))
         zlo = np.concatenate([[lk_lo, -30.0, -30.0], np.full(2 * n_knots, -1.0)])
         zhi = np.concatenate([[lk_hi, 30.0, 30.0], np.full(2 * n_knots, 1.0)])
         scale = np.concatenate([[0.5, 1.0, 1.0], np.full(2 * n_knots, 0.02)])
+        held = hold is not None and hold.current_path is not None and len(hold.current_path.t) == n_knots
+        if held:  # another fit's kappa, wind and current (the optional terms' trial): the linear part only
+            z = np.concatenate([[math.log(min(max(hold.params.kappa, KAPPA_RANGE[0]), KAPPA_RANGE[1]))],  # type: ignore[union-attr]
+                                hold.environment[2:4], hold.current_path.north, hold.current_path.east])  # type: ignore[union-attr,index]
+        else:
+            # the wind's direction is the search's hardest part: a grid of air velocities (eight
+            # directions, two speeds) for the best start, then a bounded Gauss-Newton search over all of it
+            cands = [start((env[2], env[3]))] + [start((w * math.cos(a), w * math.sin(a)))
+                                                 for a in np.arange(8) * math.pi / 4 for w in (2.0, 4.5)]
+            z = min(cands, key=lambda zz: float(np.sum(residual(zz, weights) ** 2)))
         for _ in range(2):  # the second pass with each equation weighted by its own residual spread
-            sol = least_squares(residual, np.clip(z, zlo, zhi), bounds=(zlo, zhi), x_scale=scale, args=(weights,),
-                                diff_step=1e-3, xtol=1e-4, ftol=1e-5, max_nfev=30)
-            z = sol.x
+            if not held:
+                sol = least_squares(residual, np.clip(z, zlo, zhi), bounds=(zlo, zhi), x_scale=scale,
+                                    args=(weights,), diff_step=1e-3, xtol=1e-4, ftol=1e-5, max_nfev=30)
+                z = sol.x
             _, _, _, rstd = solve(*unpack(z), weights)
             weights = 1.0 / np.maximum(rstd, 1e-9)
         kappa, current, wind = unpack(z)
