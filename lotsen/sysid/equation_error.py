@@ -40,7 +40,7 @@ from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
 from lotsen.model.dynamics import array_tau
 from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
 from lotsen.sysid.data import IdRecord, Segment, split_segments
-from lotsen.sysid.estimate import NAMES, parameter_bounds, with_terms_off
+from lotsen.sysid.estimate import NAMES, IdentifiabilityError, parameter_bounds, with_terms_off
 
 FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard deviation)
 # the splines' smoothing: lambda = 1 / (dt (2 pi f_c)^4) passes motion below f_c and cuts above it (a
@@ -290,7 +290,13 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         lo_f = np.concatenate([lo[free], K_WIND_MIN[:nw]])
         hi_f = np.concatenate([hi[free], K_WIND_MAX[:nw]])
         Am, bm = Af.reshape(3 * n, -1), bf.ravel()
-        colscale = np.maximum(np.linalg.norm(Am, axis=0), 1e-12)
+        norms = np.linalg.norm(Am, axis=0)
+        dead = [NAMES[i] for j, i in enumerate(free) if norms[j] <= 1e-9 * norms.max()]
+        if dead and rows is None:  # a coefficient the record never exercised (a bow thruster never run)
+            raise IdentifiabilityError(f"the record holds no information on {', '.join(dead)} (nothing in it "
+                                       "moves the boat through them): fix those parameters (--fix NAME=VALUE) "
+                                       "or record data that excite them")
+        colscale = np.maximum(norms, 1e-12)
         # the bounded problem on a triangular factor of the normal equations: the same minimiser, p rows
         # instead of 3 n (|A x - b|^2 = |R x - q|^2 + const with R^T R = A^T A, R^T q = A^T b)
         As = Am / colscale

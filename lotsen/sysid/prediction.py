@@ -69,12 +69,14 @@ class PredictionScore:
         return float(np.hypot(*v)), float(math.degrees(math.atan2(v[1], v[0])) % 360.0), z
 
     def speed_dependence(self) -> tuple[float, float, float] | None:
-        """(median speed, RMS 10-s error of the windows starting slower, of those starting faster)."""
+        """(median speed, RMS error per metre travelled at the horizon of the windows starting slower,
+        of those starting faster): a model that explains the boat misses about alike per metre."""
         s, e = self.start_speed_mps, self.position_errors_m[:, -1] if len(self.position_errors_m) else None
         if e is None or len(s) < 10 or not np.all(np.isfinite(e)):
             return None
+        rel = e / np.maximum(s * self.horizon_s, 0.5)  # per metre travelled (at least 0.5 m)
         med = float(np.median(s))
-        lo, hi = e[s <= med], e[s > med]
+        lo, hi = rel[s <= med], rel[s > med]
         if len(lo) < 3 or len(hi) < 3:
             return None
         return med, float(np.sqrt(np.mean(lo ** 2))), float(np.sqrt(np.mean(hi ** 2)))
