@@ -41,8 +41,11 @@ def test_lotsen_run_flies_the_6dof_hull_through_the_protocol(tmp_path):
         assert port, line
         # the config's model has the antenna 5 cm ahead: the hull's receiver is placed there too
         physics = {"address": f"udp:127.0.0.1:{port.group(1)}", "gnss_antenna_m": [0.05, 0.0]}
-        report = run_live(LivePlan(config=CONFIG, idle_s=3.0, route=SHORT_ROUTE, extra_config={"physics": physics}),
-                          tmp_path)
+        # the hull's physics runs at real-time priority beside the core: on a loaded two-core machine the
+        # planner worker (nice, the lowest of the run) twice needed more than its 10-s budget for this
+        # short route; this test is about the seam, so the planner gets the time it needs
+        report = run_live(LivePlan(config=CONFIG, idle_s=3.0, route=SHORT_ROUTE,
+                                   extra_config={"physics": physics, "planning": {"time_s": 60.0}}), tmp_path)
     finally:
         server.terminate()
         server.wait(10)
