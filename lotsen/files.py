@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
 import re
+import stat
 import sys
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable, Iterator
 
 import yaml
 
@@ -39,14 +42,144 @@ def decode_text(data: bytes, path: str | Path, error: type[LotsenError] = Lotsen
     return text
 
 
-def read_text(path: str | Path, error: type[LotsenError] = LotsenError, what: str = "file") -> str:
-    """The UTF-8 text of `path` (`decode_text`); `error` names the file and the problem."""
+# Size caps of every file the project reads (docs/inputs.md). A file over its cap is refused before
+# a byte of it is parsed: PyYAML reads ~0.2 MB/s on the boat's class of CPU, so a 50 MB route file
+# ran for minutes. The caps are far above any real file of the kind.
+MAX_TEXT_BYTES = 512 * 1024  # configuration, route, experiment, schedule, parameter and calibration files
+MAX_DATA_BYTES = 64 * 1024 * 1024  # CSV records: identification data (~6 MB for 10 min), magnetometer turns
+MAX_CAPTURE_BYTES = 256 * 1024 * 1024  # raw receiver captures (UBX): a day of 8 Hz NAV-PVT is ~70 MB
+MAX_LOG_BYTES = 4 * 1024 * 1024 * 1024  # MCAP recordings, read as a stream
+
+
+def _size(n: int) -> str:
+    for unit, k in (("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
+        if n >= k:
+            return f"{n / k:.3g} {unit}"
+    return f"{n} bytes"
+
+
+def check_input_file(path: str | Path, limit: int, error: type[LotsenError] = LotsenError, what: str = "file") -> int:
+    """The size of `path`, a regular file of at most `limit` bytes; `error` naming the file
+    otherwise (missing, a folder, a device or pipe, which could block or never end, or too large)."""
     p = Path(path)
     try:
-        data = p.read_bytes()
+        st = p.stat()
     except OSError as exc:
-        raise error(f"{p}: cannot read {what}: {exc.strerror or exc}") from None
-    return decode_text(data, p, error, what)
+        raise error(f"{_short_name(str(p))}: cannot read {what}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise error(f"{p}: is a folder, not a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"{p}: not a regular file (a device or a pipe); the {what} must be a file")
+    if st.st_size > limit:
+        raise error(f"{p}: {_size(st.st_size)} is more than a {what} may be ({_size(limit)}); "
+                    "is it the right file?")
+    return st.st_size
+
+
+def read_bytes(path: str | Path, limit: int, error: type[LotsenError] = LotsenError, what: str = "file") -> bytes:
+    """The bytes of `path` (`check_input_file`), never more than `limit` (a file that grows meanwhile)."""
+    check_input_file(path, limit, error, what)
+    try:
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise error(f"{path}: more than a {what} may be ({_size(limit)})")
+    return data
+
+
+def read_text(path: str | Path, error: type[LotsenError] = LotsenError, what: str = "file",
+              limit: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of `path` (`decode_text`), at most `limit` bytes; `error` names the file and the problem."""
+    return decode_text(read_bytes(path, limit, error, what), Path(path), error, what)
+
+
+# ---------------------------------------------------------------------------------- outputs
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Are `a` and `b` one file (the same path, a hard link or a symbolic link to it)?"""
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):
+        return False
+
+
+def check_output(path: str | Path, inputs: Iterable[str | Path | None] = (), error: type[LotsenError] = LotsenError,
+                 what: str = "output") -> Path:
+    """`path` as an output a command may write, checked before any work: its folder exists, it is
+    not a folder, and it is none of `inputs` (the same path, a hard link or a symbolic link to one:
+    an output never destroys what the command reads)."""
+    text = str(path)
+    if not text.strip() or "\x00" in text:
+        raise error(f"{what}: {text!r} is not a file name")
+    try:
+        return _check_output(Path(path), inputs, error, what)
+    except OSError as exc:  # e.g. a name longer than the file system takes
+        raise error(f"{_short_name(text)}: cannot write the {what}: {exc.strerror or exc}") from None
+
+
+def _short_name(text: str) -> str:
+    return text if len(text) <= 120 else text[:100] + "..." + text[-15:]
+
+
+def _check_output(p: Path, inputs: Iterable[str | Path | None], error: type[LotsenError], what: str) -> Path:
+    if p.is_dir():
+        raise error(f"{p}: is a folder; give the {what} a file name")
+    if p.exists() and not p.is_file():  # a device (/dev/null), a FIFO, a socket: never replaced by a file
+        raise error(f"{p}: not a regular file; the {what} is written as a new file, give it a file name")
+    parent = p.parent
+    if not parent.is_dir():
+        raise error(f"{p}: cannot write the {what}: the folder {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise error(f"{p}: cannot write the {what}: no permission to write in {parent}")
+    for i in inputs:
+        if i is not None and str(i) and same_file(p, i):
+            how = "a link to it" if Path(i).absolute() != p.absolute() else "the same file"
+            raise error(f"{p}: the {what} would overwrite the input {i} ({how}); choose another name")
+    return p
+
+
+def check_outputs(outputs: Iterable[str | Path | None], inputs: Iterable[str | Path | None] = (),
+                  error: type[LotsenError] = LotsenError) -> None:
+    """`check_output` for each given output, and no two outputs the same file."""
+    given = [o for o in outputs if o is not None]
+    ins = list(inputs)
+    for k, o in enumerate(given):
+        check_output(o, ins, error)
+        for other in given[:k]:
+            if Path(o).absolute() == Path(other).absolute() or same_file(o, other):
+                raise error(f"{o}: given as two outputs of one command; choose two names")
+
+
+@contextmanager
+def atomic_output(path: str | Path, inputs: Iterable[str | Path | None] = (), error: type[LotsenError] = LotsenError,
+                  what: str = "output") -> Iterator[Path]:
+    """A temporary file beside `path` (same suffix, so writers that choose a format by it still
+    do) that replaces `path` by a rename when the block ends without an exception; otherwise it is
+    removed and `path` is left as it was. `check_output` first. OSError becomes `error`."""
+    p = check_output(path, inputs, error, what)
+    tmp = p.with_name(f".{p.stem}.{os.getpid()}.tmp{p.suffix}")
+    try:
+        yield tmp
+        if tmp.is_file():
+            with open(tmp, "rb+") as f:
+                os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except OSError as exc:
+        raise error(f"{p}: cannot write the {what}: {exc.strerror or exc}") from None
+    finally:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+
+
+def write_output(path: str | Path, data: str | bytes, inputs: Iterable[str | Path | None] = (),
+                 error: type[LotsenError] = LotsenError, what: str = "output") -> Path:
+    """Write `data` (text as UTF-8) to `path` atomically (`atomic_output`)."""
+    with atomic_output(path, inputs, error, what) as tmp:
+        tmp.write_bytes(data.encode("utf-8") if isinstance(data, str) else data)
+    return Path(path)
 
 
 # Limits of what a configuration, route or parameter file may hold. Real files nest < 10 levels

@@ -14,6 +14,8 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 
+from lotsen.settings import Number
+
 #: Seconds left out of the rate: the devices open, the GNSS receiver is configured, and what
 #: queued meanwhile arrives in bursts (in a 2-s check those bursts were most of the intervals:
 #: the GNSS read 24 Hz for 8, the RC receiver 218 Hz for 111).
@@ -24,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("check", help="pre-flight check: open each device, measure its rate and health")
     p.add_argument("config", nargs="?", help="launch config YAML with an extra.hardware section (default: built-in)")
     p.add_argument("--emulated", action="store_true", help="check against the emulated devices")
-    p.add_argument("--duration", type=float, default=2.0, help="seconds to read (default 2)")
+    p.add_argument("--duration", type=Number(0.1, 600.0, "s"), default=2.0, help="seconds to read (default 2)")
     p.set_defaults(func=run)
 
 
@@ -44,13 +46,10 @@ def format_table(rows: list, extra: dict[str, str]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from lotsen.stack.hardware import add_hardware_boat
-    from lotsen.errors import ConfigError
     from lotsen.stack.config import load_stack_config
     from lotsen.runtime.executor import RealtimeExecutor
     from lotsen.stack.stack import Stack, vessel_model
 
-    if not args.duration > 0:
-        raise ConfigError(f"--duration: must be > 0, got {args.duration}")
     config = replace(load_stack_config(args.config), mode="hardware")
     hw = config.extra.hardware
     stack = Stack(config=config, executor=RealtimeExecutor(), model=vessel_model(config))

@@ -23,10 +23,20 @@ from pathlib import Path
 from typing import Any
 
 from lotsen.errors import ConfigError, LotsenError
+from lotsen.files import atomic_output, check_outputs, write_output
 from lotsen.harness.identification import lake_run, run_on_simulator
 from lotsen.model import DEFAULT_PARAMETERS, VesselModel, VesselParameters
+from lotsen.physics.config import address_flag as physics_address
+from lotsen.settings import SEED, Number
 from lotsen.sysid.data import save_csv
 from lotsen.sysid.experiment import check_experiment, load_experiment
+
+#: the area check's margin inside the experiment's area
+MARGIN = Number(0.0, 100.0, "m")
+#: a designed experiment's input levels (duration / segment): beyond this the design runs for hours
+MAX_DESIGN_SEGMENTS = 200
+#: one side of a designed experiment's area (the area check's own limit: 2 km)
+AREA_SIDE = Number(2.0, 2000.0, "m")
 
 
 def load_params(path: str | None) -> VesselParameters:
@@ -36,13 +46,28 @@ def load_params(path: str | None) -> VesselParameters:
 
 
 def parse_area(text: str) -> tuple[float, float]:
-    try:
-        a, b = (float(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise ConfigError(f"--area {text!r}: expected NORTHxEAST in metres, e.g. 30x30") from None
-    if a <= 2 or b <= 2:
-        raise ConfigError(f"--area {text!r}: both sizes must exceed 2 m")
-    return a, b
+    parts = text.lower().split("x")
+    if len(parts) != 2:
+        raise ConfigError(f"--area {text[:40]!r}: expected NORTHxEAST in metres, e.g. 30x30")
+    return AREA_SIDE.parse(parts[0], "--area NORTH"), AREA_SIDE.parse(parts[1], "--area EAST")
+
+
+def _parameter_names(text: str | None) -> tuple[str, ...] | None:
+    """--fixed NAME,NAME: known coefficient names only."""
+    if text is None:
+        return None
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in VesselParameters.names()]
+    if unknown or not names:
+        raise ConfigError(f"--fixed {text[:60]!r}: {'unknown coefficient(s) ' + ', '.join(unknown[:5]) if unknown else 'no name'} "
+                          f"(known: {', '.join(VesselParameters.names())})")
+    return names
+
+
+def _run_inputs(args: argparse.Namespace, config_files: tuple[str, ...] = ()) -> tuple[str | None, ...]:
+    """The files `experiment run` reads: none of them may be its output."""
+    return (args.experiment, args.config, args.params, args.model_params,
+            None if args.boat == "ideal" else args.boat, *config_files)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -59,15 +84,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.hardware and Path(args.out).suffix.lower() == ".mcap":
         raise ConfigError(f"--out {args.out}: with --hardware the record is written as CSV (give RUN.csv; the "
                           "recorder's MCAP of the run lands in the log folder)")
-    if not args.sim and not args.hardware:
-        raise LotsenError("say where to run: --sim (simulated boat), --physics udp:HOST:PORT (an external physics) "
-                          "or --hardware [--emulated] (the boat's drivers)")
+    if args.sim == args.hardware:
+        raise LotsenError("say where to run, once: --sim (simulated boat), --physics udp:HOST:PORT (an external "
+                          "physics) or --hardware [--emulated] (the boat's drivers)")
+    if args.emulated and not args.hardware:
+        raise LotsenError("--emulated is for --hardware (the drivers' emulated twins); --sim runs the simulated boat")
+    check_outputs((args.out,), _run_inputs(args), ConfigError)
+    if args.config:  # read and checked whatever the run uses of it: a bad file is never ignored
+        from lotsen.stack.config import load_stack_config
+
+        load_stack_config(args.config)
     model = VesselModel(load_params(args.params))
     check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
                      margin_m=args.margin)
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise ConfigError(f"--out {args.out}: directory {out.parent} does not exist")
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
 
@@ -79,7 +109,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         config = with_model_and_boat(replace(load_stack_config(args.config), seed=args.seed), args.params, args.boat)
         config = with_physics(replace(config, mode="sim"), args.physics)
-        node = record_on_simulated_stack(exp, out, config)
+        from lotsen.stack.config import config_files
+
+        with atomic_output(out, _run_inputs(args, config_files(config)), ConfigError, "log") as tmp:
+            node = record_on_simulated_stack(exp, tmp, config)
         print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {boat_description(config, model)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
         if hasattr(node.plant, "silent_at_s"):  # an external physics
@@ -96,7 +129,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                          extra=replace(config.extra, emulated=bool(args.emulated)))
         node = run_on_stack(exp, config, realtime=not args.emulated)
         record = node.record()
-        save_csv(record, args.out)
+        save_csv(record, args.out, _run_inputs(args))
         where = "the emulated boat" if args.emulated else "the boat"
         print(f"{args.out}: {len(record.t)} rows, {record.t[-1] if len(record.t) else 0:.1f} s of '{exp.name}' "
               f"on {where}" + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
@@ -107,18 +140,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     boat = (SimulatedBoat.ideal_for(model) if args.boat == "ideal" else
             DEFAULT_BOAT.with_parameters(load_parameters(args.boat)) if args.boat else DEFAULT_BOAT)
     run = run_on_simulator(exp, boat, seed=args.seed, psi_noise_rad=args.psi_noise)
-    save_csv(run.record, args.out)
+    save_csv(run.record, args.out, _run_inputs(args))
     print(f"{args.out}: {len(run.record.t)} rows, {exp.duration_s:.1f} s of '{exp.name}' on the simulator "
           f"(gyro bias estimate {run.gyro_bias_estimate_radps:+.4f} rad/s)", file=sys.stderr)
     return 0
 
 
 def _cmd_lake(args: argparse.Namespace) -> int:
+    check_outputs((args.out, args.boat), (), ConfigError)
     lake = lake_run(args.seed, args.duration, args.current, args.wind)
     save_csv(lake.run.record, args.out)
     env = lake.environment
     if args.boat:
-        Path(args.boat).write_text(json.dumps(lake.boat.to_dict(), indent=2) + "\n")
+        write_output(args.boat, json.dumps(lake.boat.to_dict(), indent=2) + "\n", (args.out,), ConfigError, "boat file")
     print(f"{args.out}: {len(lake.run.record.t)} rows, {args.duration:.0f} s lake record (seed {args.seed}): current "
           f"{env.current_speed_mps:.3f} m/s towards {env.current_to_deg:.0f} deg, wind {env.wind_speed_mps:.1f} m/s "
           f"from {env.wind_from_deg:.0f} deg, gusts {env.wind_gust_std_mps:.2f} m/s over "
@@ -128,8 +162,12 @@ def _cmd_lake(args: argparse.Namespace) -> int:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
+    from lotsen.stack.stack import describe_parameters
+
     exp = load_experiment(args.experiment)
     pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin)
+    if args.params:
+        print(f"model: {describe_parameters(args.params)}")
     print(f"{args.experiment}: OK ({exp.duration_s:.1f} s, predicted north {pred.x[:, 0].min():.1f}..{pred.x[:, 0].max():.1f} m, "
           f"east {pred.x[:, 1].min():.1f}..{pred.x[:, 1].max():.1f} m, inside the area)")
     return 0
@@ -141,10 +179,15 @@ def _cmd_design(args: argparse.Namespace) -> int:
     from lotsen.sysid.design import DesignConfig, design_experiment
 
     size = parse_area(args.area)
+    fixed = _parameter_names(args.fixed)
+    if args.duration / args.segment > MAX_DESIGN_SEGMENTS:
+        raise ConfigError(f"--duration {args.duration:g} s / --segment {args.segment:g} s is "
+                          f"{args.duration / args.segment:.0f} input levels; a design has at most {MAX_DESIGN_SEGMENTS}")
+    check_outputs((args.out,), (args.params,), ConfigError)
     params = load_params(args.params)
     cfg = DesignConfig(duration_s=args.duration, area_size_m=size, segment_s=args.segment,
                        criterion=args.criterion, seed=args.seed, iterations=args.iterations,
-                       fixed=tuple(args.fixed.split(",")) if args.fixed else DesignConfig().fixed,
+                       fixed=fixed or DesignConfig().fixed,
                        robust_samples=args.robust_samples, robust_spread=args.robust_spread)
     from lotsen.cli.progress import progress_printer  # a line every few seconds off a terminal too
 
@@ -163,7 +206,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
     check_experiment(result.experiment, VesselModel(params), margin_m=0.0)
     from lotsen.sysid.experiment import experiment_to_dict
 
-    Path(args.out).write_text(yaml.safe_dump(experiment_to_dict(result.experiment), sort_keys=False, width=120))
+    write_output(args.out, yaml.safe_dump(experiment_to_dict(result.experiment), sort_keys=False, width=120),
+                 (args.params,), ConfigError, "experiment")
     print(f"{args.out}: {result.summary()}", file=sys.stderr)
     return 0
 
@@ -178,7 +222,7 @@ def register(subparsers: Any) -> None:
     r.add_argument("--hardware", action="store_true",
                    help="run on the boat through its drivers (with the state estimate and the recorder)")
     r.add_argument("--emulated", action="store_true", help="with --hardware: the drivers' emulated twins")
-    r.add_argument("--physics", metavar="udp:HOST:PORT",
+    r.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="run on an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md; the channel map from --config's extra.physics), recorded on the stack: "
                         "--out RUN.mcap")
@@ -194,37 +238,38 @@ def register(subparsers: Any) -> None:
     r.add_argument("--params", help="the model in use: the area check's prediction and, on the stack, the "
                                     "estimator (default: the default coefficients)")
     r.add_argument("--model-params", help="parameters of the model used for the area check (default: --params)")
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--psi-noise", type=float, default=0.01, help="heading noise std, rad (default 0.01)")
-    r.add_argument("--margin", type=float, default=1.0, help="area safety margin in metres (default 1)")
+    r.add_argument("--seed", type=SEED, default=0)
+    r.add_argument("--psi-noise", type=Number(0.0, 1.0, "rad"), default=0.01, help="heading noise std, rad (default 0.01)")
+    r.add_argument("--margin", type=MARGIN, default=1.0, help="area safety margin in metres (default 1)")
     r.set_defaults(func=_cmd_run)
     lk = sub.add_parser("lake", help="a simulated lake record: a 10-min PRBS on a boat that is not the default "
                                      "model, in current and gusty wind (for identify --lake)")
     lk.add_argument("--out", required=True, help="identification CSV to write")
     lk.add_argument("--boat", help="also write the boat's true parameters (a params JSON)")
-    lk.add_argument("--seed", type=int, default=0)
-    lk.add_argument("--duration", type=float, default=600.0, help="s (default 600)")
-    lk.add_argument("--current", type=float, default=None, help="m/s (default: random up to 0.1)")
-    lk.add_argument("--wind", type=float, default=None, help="mean wind, m/s (default: random up to 5)")
+    lk.add_argument("--seed", type=SEED, default=0)
+    lk.add_argument("--duration", type=Number(10.0, 3600.0, "s"), default=600.0, help="s (default 600)")
+    lk.add_argument("--current", type=Number(0.0, 2.0, "m/s"), default=None, help="m/s (default: random up to 0.1)")
+    lk.add_argument("--wind", type=Number(0.0, 20.0, "m/s"), default=None, help="mean wind, m/s (default: random up to 5)")
     lk.set_defaults(func=_cmd_lake)
     c = sub.add_parser("check", help="check limits and the predicted area of an experiment")
     c.add_argument("experiment")
     c.add_argument("--params", help="vessel parameters JSON for the prediction")
-    c.add_argument("--margin", type=float, default=1.0)
+    c.add_argument("--margin", type=MARGIN, default=1.0, help="area safety margin in metres (default 1)")
     c.set_defaults(func=_cmd_check)
     d = sub.add_parser("design", help="optimise an experiment's inputs for the Fisher information")
-    d.add_argument("--duration", type=float, default=60.0, help="experiment length, s")
+    d.add_argument("--duration", type=Number(5.0, 600.0, "s"), default=60.0, help="experiment length, s")
     d.add_argument("--area", default="30x30", help="allowed area NORTHxEAST in metres, centred on the start")
     d.add_argument("--out", required=True)
     d.add_argument("--params", help="current parameter estimate JSON (default: the defaults)")
-    d.add_argument("--segment", type=float, default=3.0, help="length of each piecewise-constant input level, s")
+    d.add_argument("--segment", type=Number(0.5, 60.0, "s"), default=3.0,
+                   help="length of each piecewise-constant input level, s")
     d.add_argument("--criterion", choices=("A", "D"), default="A",
                    help="A: minimise the sum of relative variances; D: maximise log det of the relative FIM")
-    d.add_argument("--iterations", type=int, default=40)
+    d.add_argument("--iterations", type=Number(1, 200, integer=True), default=40)
     d.add_argument("--fixed", help="comma-separated parameters treated as known (default: m11 only, the scale)")
-    d.add_argument("--robust-samples", type=int, default=3,
+    d.add_argument("--robust-samples", type=Number(1, 8, integer=True), default=3,
                    help="design for the prior and N-1 parameter sets around it (default 3; 1 = the prior only)")
-    d.add_argument("--robust-spread", type=float, default=0.15,
+    d.add_argument("--robust-spread", type=Number(0.0, 0.5), default=0.15,
                    help="relative spread of those parameter sets (default 0.15 = +-15 %%)")
-    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--seed", type=SEED, default=0)
     d.set_defaults(func=_cmd_design)

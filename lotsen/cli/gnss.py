@@ -8,6 +8,7 @@ The capture may mix UBX, NMEA, RTCM3 and garbage (e.g. `cat /dev/ttyAMA1 > captu
 counts of what was skipped go to stderr. A NAV-PVT claiming a physically impossible fix (latitude
 beyond 90 deg, zero accuracy, RTK fixed at metres, ...; `lotsen.drivers.ubx.implausible_fix`) is
 refused as the driver refuses it: not in the CSV, named on stderr with its iTOW and the reason.
+A capture without a single usable fix says so and exits 1 (the CSV holds only its header).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import Iterator
 
 from lotsen.errors import DataError
+from lotsen.files import MAX_CAPTURE_BYTES, check_input_file, check_output, write_output
 
 _MAX_REFUSALS_SHOWN = 20
 
@@ -46,8 +48,11 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.drivers.ubx import replay_stream
 
     path = Path(args.capture)
-    if not path.is_file():
+    if not path.exists():
         raise DataError(f"{path}: no such capture file")
+    check_input_file(path, MAX_CAPTURE_BYTES, DataError, "capture file")
+    if args.out:
+        check_output(args.out, (path,), DataError, "CSV")
     try:
         result = replay_stream(_chunks(path))
     except OSError as exc:
@@ -63,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
                      f"{f.fix_type.name},{_num(f.h_acc_m, '.3f')}")
     text = "\n".join(lines) + "\n"
     if args.out:
-        Path(args.out).write_text(text, encoding="utf-8")
+        write_output(args.out, text, (path,), DataError, "CSV")
     else:
         sys.stdout.write(text)
     c = result.counters
@@ -75,4 +80,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"gnss-replay: refused NAV-PVT at iTOW {pvt.itow_s:.3f} s: {why}", file=sys.stderr)
     if len(result.refused) > _MAX_REFUSALS_SHOWN:
         print(f"gnss-replay: ... and {len(result.refused) - _MAX_REFUSALS_SHOWN} more refused", file=sys.stderr)
+    if not result.fixes:
+        print(f"gnss-replay: {path}: not one usable NAV-PVT fix in the capture", file=sys.stderr)
+        return 1
     return 0

@@ -34,8 +34,10 @@ from typing import Any
 
 from lotsen.cli.progress import progress_printer as _progress_printer
 from lotsen.errors import ConfigError, LotsenError
-from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS
+from lotsen.files import check_outputs, write_output
+from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters
 from lotsen.runtime.config import VesselSection
+from lotsen.settings import Number
 from lotsen.sysid.identify import estimate_records, identify, judge_identification, split_holdout
 
 SCALE_DEFAULT = ("m11", 14.0)
@@ -56,18 +58,20 @@ def _ratio(text: str) -> float:
     return v
 
 
+_ANTENNA_M = Number(-1e3, 1e3, "m")  # finite; `vessel.gnss_antenna_m`'s own check: within 2 m of the origin
+_NOISE_STD = Number(1e-6, 10.0)  # m, rad or rad/s: the output's unit
+
+
 def _parse_antenna(text: str) -> tuple[float, float]:
     """--gnss-antenna X,Y, checked as `vessel.gnss_antenna_m` is."""
-    try:
-        x, y = (float(v) for v in text.split(","))
-    except ValueError:
-        raise ConfigError(f"--gnss-antenna {text!r}: expected two numbers X,Y in metres") from None
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise ConfigError(f"--gnss-antenna {text!r}: not finite")
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ConfigError(f"--gnss-antenna {text[:40]!r}: expected two numbers X,Y in metres")
+    x, y = _ANTENNA_M.parse(parts[0], "--gnss-antenna X"), _ANTENNA_M.parse(parts[1], "--gnss-antenna Y")
     try:
         return VesselSection(gnss_antenna_m=(x, y)).gnss_antenna_m
     except ConfigError as exc:
-        raise ConfigError(f"--gnss-antenna {text!r} (as {exc})") from None
+        raise ConfigError(f"--gnss-antenna {text[:40]!r} (as {exc})") from None
 
 
 def _parse_fix(items: list[str]) -> dict[str, float]:
@@ -80,11 +84,9 @@ def _parse_fix(items: list[str]) -> dict[str, float]:
         name, value = item.split("=", 1)
         name = name.strip()
         if name not in NAMES:
-            raise ConfigError(f"--fix {item!r}: unknown parameter {name!r} (known: {', '.join(NAMES)})")
-        try:
-            out[name] = float(value)
-        except ValueError:
-            raise ConfigError(f"--fix {item!r}: {value!r} is not a number") from None
+            raise ConfigError(f"--fix {item[:40]!r}: unknown parameter {name[:20]!r} (known: {', '.join(NAMES)})")
+        # the coefficient's physical range, as in a parameter file
+        out[name] = VesselParameters.__dataclass_fields__[name].metadata["number"].parse(value, f"--fix {name}")
     return out
 
 
@@ -92,21 +94,17 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
     out: dict[str, float] = {}
     for item in items:
         name, _, value = item.partition("=")
-        try:
-            v = float(value)
-        except ValueError:
-            v = math.nan
-        if not name or not (v > 0 and math.isfinite(v)):
-            raise ConfigError(f"--noise {item!r}: expected OUTPUT=STD with a positive number, e.g. --noise r=0.003")
-        out[name.strip()] = v
+        if not name.strip() or not value:
+            raise ConfigError(f"--noise {item[:40]!r}: expected OUTPUT=STD with a positive number, e.g. --noise r=0.003")
+        out[name.strip()] = _NOISE_STD.parse(value, f"--noise {name.strip()[:20]}")
     return out
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from lotsen.cli.experiment import load_params
     from lotsen.logs.export import sysid_record
+    from lotsen.stack.stack import load_parameter_file
     from lotsen.sysid.data import load_record, register_loader
 
     antenna = _parse_antenna(args.gnss_antenna) if args.gnss_antenna else (0.0, 0.0)
@@ -116,12 +114,18 @@ def _cmd_identify(args: argparse.Namespace) -> int:
 
     fixed = _parse_fix(args.fix or [])
     noise = _parse_noise(args.noise or [])
+    inputs = (*args.data, *(args.validate or ()), args.init, args.in_use)
+    check_outputs((args.out, args.report), inputs, ConfigError)  # never over a record (it was, exit 1)
     # the files first: a bad file is reported before any warning about the estimate
-    theta0 = load_params(args.init) if args.init else DEFAULT_PARAMETERS
+    init = load_parameter_file(args.init) if args.init else None
+    theta0 = init.parameters if init else DEFAULT_PARAMETERS
+    in_use_file = load_parameter_file(args.in_use) if args.in_use else None
     records = [_with_kind(load_record(p), args.inputs) for p in args.data]
     validation = [_with_kind(load_record(p), args.inputs) for p in args.validate] if args.validate else None
     args.recorded_on = _recorded_on([*args.data, *(args.validate or [])])
     warnings: list[str] = []
+    if init is not None and init.defaults_for:
+        warnings.append(f"initial guess {init.describe()}")
     if not any(n in fixed for n in SCALE_ANCHORS):
         if args.no_default_scale:
             from lotsen.sysid.estimate import check_scale_fixed
@@ -136,14 +140,12 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     if validation is not None:
         est_records, val_records = records, validation
     elif args.holdout > 0:
-        if not 0 < args.holdout < 0.9:
-            raise ConfigError("--holdout must be between 0 and 0.9")
         est_records, val_records = split_holdout(records, args.holdout)
     else:
         est_records = val_records = records
         warnings.append("validation on the estimation data (--holdout 0): fit figures are optimistic")
     progress = _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)")
-    in_use = load_params(args.in_use) if args.in_use else theta0
+    in_use = in_use_file.parameters if in_use_file else theta0
     if args.method == "single":
         res = estimate_records(est_records, theta0, fixed, method=args.method, lake=args.lake, geometry=geometry,
                                noise_std=noise, window_s=args.window, gap_s=args.gap, node_s=args.node,
@@ -155,7 +157,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         ident = identify(est_records, val_records, theta0, fixed, lake=args.lake, geometry=geometry, in_use=in_use,
                          noise_std=noise, gap_s=args.gap, node_s=args.node, max_iterations=args.max_iter,
                          gust_std=args.gust_std, estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
-                         held_out=val_records is not est_records, progress=progress)
+                         held_out=val_records is not est_records, terms=_parse_terms(args.terms), progress=progress)
     progress(None)
     res = ident.result
     for d in res.identifiability.directions:
@@ -191,7 +193,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
                                   "std": [float(b) for b in res.details.gyro_bias_std]}
         print("gyro offset per record (rad/s): " + ", ".join(
             f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(bias, res.details.gyro_bias_std)), file=sys.stderr)
-    Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
+    write_output(args.out, json.dumps(out, indent=2) + "\n", inputs, ConfigError, "parameter file")
     how = (f"{res.method} shooting, {res.iterations} iterations, s^2 = {res.noise_factor:.3g}"
            if res.method != "equation error" else "equation error: the equations of motion fitted to the record")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({how})", file=sys.stderr)
@@ -201,8 +203,10 @@ def _cmd_identify(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if ident.prediction:
         _print_prediction(ident)
+    for a in ident.advice or []:
+        print(f"advice: {a}", file=sys.stderr)
     if args.report:
-        _write_report(args, res, est_records, val_records, warnings, theta0)
+        _write_report(args, res, est_records, val_records, warnings, theta0, inputs)
     if verdict.verdict == "predictive":
         print(f"verdict: predictive — effective coefficients ({ident.estimator}): use them to predict and "
               "control this boat, not as its physical values (the loaders accept the file, the page labels it):",
@@ -223,6 +227,22 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _parse_terms(text: str) -> tuple[str, ...] | None:
+    """--terms: auto (None: chosen by held-out prediction), none, or names of optional model terms."""
+    from lotsen.model.parameters import OPTIONAL_TERMS
+
+    if text == "auto":
+        return None
+    if text == "none":
+        return ()
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    unknown = [n for n in names if n not in OPTIONAL_TERMS]
+    if unknown or not names:
+        raise ConfigError(f"--terms {text!r}: expected auto, none or a comma list of optional model terms "
+                          f"({', '.join(OPTIONAL_TERMS)})")
+    return names
+
+
 def _print_prediction(ident) -> None:  # type: ignore[no-untyped-def]
     """The held-out prediction errors of every model compared, in metres and degrees."""
     first = next(iter(ident.prediction.values()))
@@ -236,7 +256,7 @@ def _print_prediction(ident) -> None:  # type: ignore[no-untyped-def]
 
 
 def _write_report(args: argparse.Namespace, res, est_records: list, val_records: list, warnings: list[str],
-                  theta0) -> None:  # type: ignore[no-untyped-def]
+                  theta0, inputs: tuple = ()) -> None:  # type: ignore[no-untyped-def]
     from lotsen.errors import LotsenError as _LE
     from lotsen.sysid.blackbox import fit_narx, narx_fit
     from lotsen.sysid.report import render_pdf, render_report
@@ -263,9 +283,9 @@ def _write_report(args: argparse.Namespace, res, est_records: list, val_records:
                for p in args.data]
     report_args = (res, sources, fit_est, fit_val, bb, ra, warnings, theta0)
     if Path(args.report).suffix.lower() == ".pdf":
-        Path(args.report).write_bytes(render_pdf(*report_args))
+        write_output(args.report, render_pdf(*report_args), inputs, ConfigError, "report")
     else:
-        Path(args.report).write_text(render_report(*report_args))
+        write_output(args.report, render_report(*report_args), inputs, ConfigError, "report")
     print(f"{args.report}: written" + ("" if fit_val else " (no validation data)"), file=sys.stderr)
 
 
@@ -302,7 +322,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--fix", action="append", metavar="NAME=VALUE", help="hold a parameter at a known value")
     p.add_argument("--method", choices=("multiple", "single"), default="multiple",
                    help="multiple shooting over the whole record (default) or single shooting in --window windows")
-    p.add_argument("--node", type=float, default=2.0, help="multiple shooting: interval length, s (default 2)")
+    p.add_argument("--node", type=Number(0.2, 60.0, "s"), default=2.0,
+                   help="multiple shooting: interval length, s (default 2)")
     p.add_argument("--noise", action="append", metavar="OUTPUT=STD",
                    help="assumed noise std of an output (default north/east 0.01 m, psi 0.01 rad, r 0.003 rad/s)")
     p.add_argument("--fixed-noise", action="store_true",
@@ -314,11 +335,15 @@ def register(subparsers: Any) -> None:
                    help="the model the boat flies now, to compare predictions with (default: --init, else the "
                         "documented defaults)")
     p.add_argument("--validate", nargs="+", help="held-out validation data files")
-    p.add_argument("--holdout", type=float, default=0.2, help="fraction of each file held out (default 0.2)")
-    p.add_argument("--window", type=float, default=10.0,
+    p.add_argument("--holdout", type=Number(0.0, 0.85), default=0.2, help="fraction of each file held out (default 0.2)")
+    p.add_argument("--window", type=Number(1.0, 600.0, "s"), default=10.0,
                    help="single shooting and validation: simulation window length, s (default 10)")
-    p.add_argument("--gap", type=float, default=1.0, help="a time gap longer than this splits a record, s")
-    p.add_argument("--max-iter", type=int, default=60)
+    p.add_argument("--gap", type=Number(0.01, 3600.0, "s"), default=1.0,
+                   help="a time gap longer than this splits a record, s")
+    p.add_argument("--max-iter", type=Number(1, 1000, integer=True), default=60)
+    p.add_argument("--terms", default="auto", metavar="auto|none|NAME[,NAME]",
+                   help="optional model terms (X_uuu: surge resistance growing faster than speed squared): auto "
+                        "(default) turns each on where the held-out prediction shows the record needs it")
     p.add_argument("--gyro-offset", action="store_true",
                    help="estimate a constant offset of the yaw rate (r) per record with the coefficients "
                         "(always on with --lake)")
@@ -327,7 +352,7 @@ def register(subparsers: Any) -> None:
                         "factor per shooting interval with the parameters (records taken outside calm water); "
                         "estimated twice, with --node and 1.5 x --node gust intervals, and averaged over the two "
                         "(their difference is part of the intervals; twice the time)")
-    p.add_argument("--gust-std", type=float, default=0.3,
+    p.add_argument("--gust-std", type=Number(0.01, 2.0), default=0.3,
                    help="with --lake: prior spread of the per-interval gust factor on the wind speed (default 0.3)")
     p.add_argument("--reverse-thrust-ratio", type=_ratio, default=1.0, metavar="R",
                    help="astern thrust / ahead thrust at equal propeller speed, as measured (bollard pull) or "

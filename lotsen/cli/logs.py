@@ -10,6 +10,7 @@ import threading
 from pathlib import Path
 
 from lotsen.errors import DataError, LotsenError
+from lotsen.settings import PORT, RUN_DURATION, Number
 
 def _add_zenoh_args(p: argparse.ArgumentParser, default_vessel: str) -> None:
     g = p.add_argument_group("Zenoh (multi-process / multi-machine)")
@@ -38,12 +39,12 @@ def _topics(values: list[str] | None) -> list[str] | None:
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="re-publish a log on the bus (and to Foxglove / Zenoh)")
     p.add_argument("log", help="RUN.mcap")
-    p.add_argument("--speed", type=float, default=1.0, help="replay speed factor (default 1.0)")
+    p.add_argument("--speed", type=Number(0.01, 1000.0), default=1.0, help="replay speed factor (default 1.0)")
     p.add_argument("--topics", nargs="+", help="only these topics (default: all recorded lotsen topics)")
     p.add_argument("--exclude", nargs="+", default=[], help="topics not to replay")
     p.add_argument("--restamp", action="store_true", help="shift stamp_s to the replay clock")
     p.add_argument("--fast", action="store_true", help="simulated time: as fast as possible (with --record)")
-    p.add_argument("--foxglove", type=int, nargs="?", const=8765, metavar="PORT", help="serve live to Foxglove (default port 8765)")
+    p.add_argument("--foxglove", type=PORT, nargs="?", const=8765, metavar="PORT", help="serve live to Foxglove (default port 8765)")
     p.add_argument("--record", metavar="DIR", help="record what is replayed (e.g. with re-run nodes) to DIR")
     _add_zenoh_args(p, "replay")
     p.set_defaults(func=replay)
@@ -68,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r = sub.add_parser("record", help="record topics received over Zenoh to MCAP (shore side)")
     r.add_argument("--out", default="logs", help="directory of the MCAP files (default logs)")
     r.add_argument("--subscribe", nargs="+", default=["*/**"], help="key patterns under lotsen/ (default */**)")
-    r.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
+    r.add_argument("--duration", type=RUN_DURATION, help="stop after this many seconds (default: until Ctrl-C)")
     _add_zenoh_args(r, "shore")
     r.set_defaults(func=record)
 
@@ -111,7 +112,7 @@ def export(args: argparse.Namespace) -> int:
     if args.sysid != "none":
         try:
             rec = sysid_record(args.log, outputs=args.sysid, inputs=args.sysid_inputs)
-            save_csv(rec, Path(args.out) / "sysid.csv")
+            save_csv(rec, Path(args.out) / "sysid.csv", (args.log,))
             print(f"sysid.csv: {len(rec.t)} rows, asynchronous ({rec.source}) -> {Path(args.out) / 'sysid.csv'}")
         except DataError as exc:
             if args.sysid != "auto":
@@ -138,8 +139,6 @@ def replay(args: argparse.Namespace) -> int:
     from lotsen.logs.replay import ReplayNode
     from lotsen.runtime import RealtimeExecutor, SimExecutor
 
-    if not args.speed > 0:
-        raise LotsenError(f"replay: --speed must be > 0, got {args.speed}")
     node = ReplayNode(args.log, speed=args.speed, topics=_topics(args.topics), exclude=_topics(args.exclude) or (),
                       restamp=args.restamp)
     executor = SimExecutor() if args.fast else RealtimeExecutor()

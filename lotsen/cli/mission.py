@@ -6,12 +6,12 @@ Plans the route (lotsen.planning; a bare NAME without such a file is the example
 examples/routes/NAME.yaml, so `lotsen mission figure_eight --sim ...` runs from any folder), runs
 the closed loop on the simulated boat (controller at 10 Hz on the simulator's 100 Hz steps), holds
 the last point with the station keeper, and writes a JSON report (tracking errors, propeller
-reversals, solve times, completion, which boat and which model) and optionally a plot. The simulated boat (`--boat`, default the lake boat) and the model
-the estimator and controllers use (`--params`, default the default coefficients) are separate:
-a boat is never its model unless `--boat ideal` says so. `--physics udp:HOST:PORT` flies an
-external physics instead (ArduPilot SITL's JSON protocol, docs/physics.md; the channel map from
-`--config`'s extra.physics): lotsen's sensor models, estimator and controllers, the physics's boat,
-water and wind.
+reversals, solve times, completion, which boat and which model) and optionally a plot. The simulated
+boat (`--boat`, default the lake boat) and the model the estimator and controllers use (`--params`,
+default the default coefficients) are separate: a boat is never its model unless `--boat ideal` says
+so. `--physics udp:HOST:PORT` flies an external physics instead (ArduPilot SITL's JSON protocol,
+docs/physics.md; the channel map from `--config`'s extra.physics): lotsen's sensor models, estimator
+and controllers, the physics's boat, water and wind.
 Exit code 0 when the mission completed, 1 when it did not (the report is written either way), 2
 with an error when the physics stopped answering during the mission.
 """
@@ -20,11 +20,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path as FilePath
 from typing import Any
 
+from lotsen.cli.outputs import check_plot_name, save_plot
 from lotsen.errors import ConfigError, LotsenError
+from lotsen.files import check_outputs, write_output
+from lotsen.physics.config import address_flag as physics_address
+from lotsen.settings import SEED, Number
+
+#: the environment's ranges are the config's (sim.environment), one definition
+_CURRENT_MPS, _WIND_MPS, _DIRECTION_DEG = Number(0.0, 2.0, "m/s"), Number(0.0, 20.0, "m/s"), Number(-360.0, 360.0, "deg")
+#: planned time a simulated mission may take (its simulation runs up to twice that + 60 s):
+#: beyond it a route is a typo or a hostile file, and the command would run for hours
+MAX_MISSION_PLANNED_S = 900.0
 
 
 def register(subparsers: Any) -> None:
@@ -35,7 +44,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("route", help="route file (.yaml, .yml, .geojson, a ground station's file), or the name of an "
                                  "example route shipped with lotsen (figure_eight, harbour_approach, ...)")
     p.add_argument("--sim", action="store_true", help="run on the simulated boat")
-    p.add_argument("--physics", metavar="udp:HOST:PORT",
+    p.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="fly an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md); its boat, water and wind are its own")
     p.add_argument("--config", metavar="CONFIG.yaml",
@@ -44,7 +53,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--controller", default="mpc", choices=("mpc", "pursuit", "los", "lq"))
     p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
     p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulator's noise")
+    p.add_argument("--seed", type=SEED, default=0, help="seed of the simulator's noise")
     p.add_argument("--estimator", default="ekf", choices=("truth", "ekf"),
                    help="state for the controller: lotsen.fusion's EKF on the simulated sensors (default) "
                         "or the simulator's truth (errors are always measured on the truth)")
@@ -54,8 +63,8 @@ def register(subparsers: Any) -> None:
                         "Default: the lake boat (docs/simulator.md)")
     p.add_argument("--params", metavar="PARAMS.json",
                    help="the model the estimator and the controllers use (default: the default coefficients)")
-    p.add_argument("--hold", type=float, default=10.0, help="seconds of station keeping at the end")
-    p.add_argument("--horizon", type=int, help="MPC horizon in steps (default 20)")
+    p.add_argument("--hold", type=Number(0.0, 600.0, "s"), default=10.0, help="seconds of station keeping at the end")
+    p.add_argument("--horizon", type=Number(2, 100, "steps", integer=True), help="MPC horizon in steps (default 20)")
     p.add_argument("--report", required=True, help="write the JSON report here")
     p.add_argument("--plot", help="write a PNG: path and track, errors over time")
     p.set_defaults(func=run)
@@ -66,15 +75,11 @@ def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
     if text is None:
         return 0.0, 0.0
     parts = text.split(",")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        speed, direction = float(parts[0]), float(parts[1])
-    except ValueError:
-        raise ConfigError(f"--{what} {text!r}: expected SPEED,DIR_DEG, e.g. 0.1,90") from None
-    if not (math.isfinite(speed) and math.isfinite(direction)) or speed < 0:
-        raise ConfigError(f"--{what} {text!r}: speed must be a finite number >= 0, direction finite")
-    return speed, direction
+    if len(parts) != 2:
+        raise ConfigError(f"--{what} {text[:40]!r}: expected SPEED,DIR_DEG, e.g. 0.1,90")
+    speed_range = _CURRENT_MPS if what == "current" else _WIND_MPS
+    where = f"--{what} {text[:40]!r} (SPEED,DIR_DEG)"
+    return speed_range.parse(parts[0], f"{where}: the speed"), _DIRECTION_DEG.parse(parts[1], f"{where}: the direction")
 
 
 def route_file(text: str) -> str:
@@ -106,33 +111,41 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--config: only read for --physics (its extra.physics section)")
     from dataclasses import replace
 
+    from lotsen.cli.plan import plan_within_budget
     from lotsen.control import ControlConfig, MPCConfig, make_path_follower
-    from lotsen.model import Environment, VesselModel
-    from lotsen.planning import plan_route
+    from lotsen.model import Environment, VesselModel, VesselParameters
+    from lotsen.planning import PlannerConfig
     from lotsen.planning.io import load_route
-    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, planned_duration_s, run_mission
     from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
-    from lotsen.stack.stack import load_parameters
+    from lotsen.stack.stack import load_parameter_file
 
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")
-    if args.hold < 0 or not math.isfinite(args.hold):
-        raise ConfigError(f"--hold {args.hold}: must be a finite number >= 0")
-    env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1])
+    check_plot_name(args.plot)
     args.route = route_file(args.route)
-    path = plan_route(load_route(args.route))
+    inputs = (args.route, args.params, None if args.boat == "ideal" else args.boat, args.config)
+    check_outputs((args.report, args.plot), inputs, ConfigError)
+    env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1])
+    # the files first (a bad file is reported before minutes of simulation), then the plan
+    model_file = load_parameter_file(args.params) if args.params else None
+    model = VesselModel(model_file.parameters if model_file else VesselParameters())
+    boat_file = load_parameter_file(args.boat) if args.boat and args.boat != "ideal" else None
+    boat = SimulatedBoat.ideal_for(model) if args.boat == "ideal" else (
+        DEFAULT_BOAT.with_parameters(boat_file.parameters, name=f"lake boat with {boat_file.describe()}")
+        if boat_file else DEFAULT_BOAT)
+    path = plan_within_budget(load_route(args.route), PlannerConfig())
+    planned_s = planned_duration_s(path)
+    if planned_s > MAX_MISSION_PLANNED_S:
+        raise ConfigError(f"{args.route}: the planned path takes {planned_s:.0f} s at its speeds; a simulated "
+                          f"mission is at most {MAX_MISSION_PLANNED_S:.0f} s (faster node speeds or a shorter route)")
     control = ControlConfig(controller=args.controller)
     if args.horizon is not None:
-        if args.horizon < 2:
-            raise ConfigError(f"--horizon {args.horizon}: must be at least 2")
         control = replace(control, mpc=replace(MPCConfig(), horizon=args.horizon))
-    model = VesselModel(load_parameters(args.params))
     cfg = MissionConfig(control_rate_hz=1.0 / control.dt_s, environment=env, seed=args.seed, hold_s=args.hold,
                         sensors=args.estimator != "truth")
     plant = physics_plant(args.config, args.physics, cfg.sim_dt_s) if args.physics else None
-    boat = plant if plant is not None else SimulatedBoat.ideal_for(model) if args.boat == "ideal" else (
-        DEFAULT_BOAT.with_parameters(load_parameters(args.boat), name=f"lake boat with {args.boat}")
-        if args.boat else DEFAULT_BOAT)
+    boat = plant if plant is not None else boat
     estimator = make_sim_ekf(cfg, path, model, boat=boat) if args.estimator == "ekf" else None
     try:
         result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator,
@@ -142,13 +155,16 @@ def run(args: argparse.Namespace) -> int:
             plant.close()
     ideal = bool(getattr(boat, "ideal", False))
     report = dict(result.metrics)
-    report.update(model=args.params or "default coefficients", boat=boat.describe(model.params), ideal_model=ideal)
+    report.update(model=model_file.source if model_file else "default coefficients",
+                  model_defaults_for=list(model_file.defaults_for) if model_file else [],
+                  boat=boat.describe(model.params), ideal_model=ideal)
     report.update(route=str(args.route), environment={"current_mps": cur[0], "current_to_deg": cur[1],
                                                        "wind_mps": wind[0], "wind_from_deg": wind[1]},
                   seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz)
-    _write(args.report, lambda p: p.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8"))
+    write_output(args.report, json.dumps(report, indent=2) + "\n", inputs, ConfigError, "report")
     m = result.metrics
-    print(f"boat: {report['boat']}; model: {report['model']}" + (" [ideal model]" if ideal else ""))
+    print(f"boat: {report['boat']}; model: {model_file.describe() if model_file else report['model']}"
+          + (" [ideal model]" if ideal else ""))
     print(f"{m['controller']}: {'completed' if m['completed'] else 'NOT completed (' + m['reason'] + ')'} in "
           f"{m['duration_s']:.1f} s; cross-track RMS {m['cross_track_rms_m'] * 100:.1f} cm, max "
           f"{m['cross_track_max_m'] * 100:.1f} cm; heading RMS {m['heading_error_rms_deg']:.1f} deg; speed RMS "
@@ -159,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
                                                   f"{m['solve_time_max_ms']:.1f} ms" if m['solve_time_median_ms'] else ""))
     print(f"wrote {args.report}")
     if args.plot:
-        _write(args.plot, lambda p: plot_mission(result, p))
+        save_plot(args.plot, lambda p: plot_mission(result, p), inputs)
         print(f"wrote {args.plot}")
     if plant is not None:
         check_physics_answered(plant, result.metrics.get("failsafes_triggered", []), args.report)
@@ -191,16 +207,6 @@ def check_physics_answered(plant: Any, failsafes: Any, report: str) -> None:
                        + (f"; last: {plant.last_problem}" if plant.last_problem else "")
                        + f"); the boat's sensors went stale and the failsafes acted ({', '.join(failsafes) or 'none'}); "
                        f"{report} has the run up to there")
-
-
-def _write(path: str, fn: Any) -> None:
-    p = FilePath(path)
-    if p.parent and not p.parent.exists():
-        raise ConfigError(f"cannot write {path}: directory {p.parent} does not exist")
-    try:
-        fn(p)
-    except OSError as exc:
-        raise ConfigError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def plot_mission(result: Any, out: FilePath) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 
 from lotsen.errors import ConfigError
+from lotsen.settings import PORT
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="replace the credential: every paired phone must scan the new code (revocation)")
     p.add_argument("--hardware", action="store_true", help="the boat's hardware run (not the simulated boat)")
     p.add_argument("--host", help="the web address the phone opens (default from the config)")
-    p.add_argument("--port", type=int, help="the web port (default from the config)")
+    p.add_argument("--port", type=PORT, help="the web port (default from the config)")
     p.add_argument("--tls", action="store_true", help="the page is served over HTTPS (lotsen run --tls)")
     p.set_defaults(func=run)
 

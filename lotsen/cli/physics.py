@@ -18,6 +18,7 @@ from dataclasses import replace
 from typing import Any
 
 from lotsen.errors import ConfigError
+from lotsen.settings import PORT, RUN_DURATION, SEED
 
 
 def register(subparsers: Any) -> None:
@@ -27,15 +28,15 @@ def register(subparsers: Any) -> None:
                     "boat's state back, one frame per step (docs/physics.md).")
     p.add_argument("config", nargs="?", help="launch config YAML: sim.boat, sim.environment, sim.dt_s, extra.physics.servos")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    p.add_argument("--port", type=int, default=9002, help="UDP port (default 9002, ArduPilot's; 0: a free one, printed)")
+    p.add_argument("--port", type=PORT, default=9002, help="UDP port (default 9002, ArduPilot's; 0: a free one, printed)")
     p.add_argument("--boat", metavar="BOAT.json|ideal",
                    help="the boat's coefficients (a params JSON; the lake boat's unmodelled effects stay), or 'ideal' "
                         "(the boat equals --params)")
     p.add_argument("--params", metavar="PARAMS.json", help="with --boat ideal: the model the boat equals")
-    p.add_argument("--seed", type=int, help="seed of the boat's gusts and waves (default: the config's)")
+    p.add_argument("--seed", type=SEED, help="seed of the boat's gusts and waves (default: the config's)")
     p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
     p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
-    p.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
+    p.add_argument("--duration", type=RUN_DURATION, help="stop after this many seconds (default: until Ctrl-C)")
     p.set_defaults(func=run)
 
 
@@ -47,8 +48,6 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.stack.config import load_stack_config
     from lotsen.stack.stack import sim_config, simulated_boat
 
-    if not 0 <= args.port <= 65535:
-        raise ConfigError(f"--port {args.port}: must be 0-65535 (0: a free port, printed at start)")
     config = with_model_and_boat(load_stack_config(args.config), args.params, args.boat)
     if args.seed is not None:
         config = replace(config, seed=args.seed)

@@ -5,9 +5,17 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path as FilePath
 
+from lotsen.cli.outputs import check_plot_name, save_plot
 from lotsen.errors import ConfigError
+from lotsen.files import atomic_output, check_outputs, write_output
+from lotsen.settings import Number
+
+#: the flags' physical ranges (the route file's own limits: lotsen.planning.route)
+COORDINATE = Number(-2000.0, 2000.0, "m")
+HEADING_DEG = Number(-360.0, 360.0, "deg")
+NODE_SPEED = Number(0.05, 5.0, "m/s")  # a moving node's speed (lotsen.planning.route.MIN/MAX_SPEED_MPS)
+LATITUDE, LONGITUDE = Number(-90.0, 90.0, "deg"), Number(-180.0, 180.0, "deg")
 
 
 def register(subparsers) -> None:
@@ -19,19 +27,29 @@ def register(subparsers) -> None:
     p.add_argument("route", help="route file (.yaml, .yml, .geojson, .plan, .waypoints, .txt, .kml, .gpx)")
     p.add_argument("--out", help="write the path as JSON (lotsen.path format)")
     p.add_argument("--plot", help="write a PNG of area, obstacles, nodes and the path coloured by speed")
-    p.add_argument("--return-from", nargs=3, type=float, metavar=("NORTH", "EAST", "HEADING_DEG"),
-                   help="plan the return to the harbour from this pose instead of the route")
-    p.add_argument("--length-ratio-max", type=float, help="seed eq. (40g) bound (default 1.15)")
-    p.add_argument("--min-turn-radius", type=float, help="metres (default 1.0)")
-    p.add_argument("--clearance", type=float, help="metres from obstacles (default 0.5)")
-    p.add_argument("--speed-max", type=float, help="m/s (default 1.5)")
+    p.add_argument("--return-from", nargs=3, metavar=("NORTH", "EAST", "HEADING_DEG"),
+                   help="plan the return to the harbour from this pose instead of the route "
+                        "(north, east within 2000 m; heading within 360 deg)")
+    p.add_argument("--length-ratio-max", type=Number(1.01, 10.0), help="seed eq. (40g) bound (default 1.15)")
+    p.add_argument("--min-turn-radius", type=Number(0.1, 100.0, "m"), help="metres (default 1.0)")
+    p.add_argument("--clearance", type=Number(0.0, 50.0, "m"), help="metres from obstacles (default 0.5)")
+    p.add_argument("--speed-max", type=Number(0.05, 5.0, "m/s"), help="m/s (default 1.5)")
     p.add_argument("--export", metavar="FILE", help="write the route (not the path) as .yaml, .geojson, .plan, "
                    ".waypoints, .kml or .gpx (the format by the suffix; checked by planning it first)")
     p.add_argument("--origin", metavar="LAT,LON", help="geographic origin of the local frame (degrees) for a ground "
                    "station's file and for an export of a route without one; default: the route's, else its harbour")
-    p.add_argument("--node-speed", type=float, metavar="M/S", help="node speed where the file has none (.waypoints, "
-                   "KML, GPX; a .plan's cruise speed; default 0.5)")
+    p.add_argument("--node-speed", type=NODE_SPEED, metavar="M/S", help="node speed where the file has none "
+                   "(.waypoints, KML, GPX; a .plan's cruise speed; default 0.5)")
     p.set_defaults(func=run)
+
+
+def return_pose(values: list[str] | None) -> tuple[float, float, float] | None:
+    """--return-from NORTH EAST HEADING_DEG, each in its physical range."""
+    if values is None:
+        return None
+    n, e, h = values
+    return (COORDINATE.parse(n, "--return-from NORTH"), COORDINATE.parse(e, "--return-from EAST"),
+            HEADING_DEG.parse(h, "--return-from HEADING_DEG"))
 
 
 def _origin(text: str | None):
@@ -40,13 +58,10 @@ def _origin(text: str | None):
         return None
     from lotsen.planning import GeoOrigin
 
-    try:
-        lat, lon = (float(v) for v in text.split(","))
-    except ValueError:
-        raise ConfigError(f"--origin: {text!r} is not LAT,LON in degrees (e.g. 59.3293,18.0686)") from None
-    if not (math.isfinite(lat) and math.isfinite(lon) and -90 <= lat <= 90 and -180 <= lon <= 180):
-        raise ConfigError(f"--origin: latitude {lat:g} / longitude {lon:g} out of range ([-90, 90], [-180, 180])")
-    return GeoOrigin(lat, lon, 0.0)
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ConfigError(f"--origin: {text[:40]!r} is not LAT,LON in degrees (e.g. 59.3293,18.0686)")
+    return GeoOrigin(LATITUDE.parse(parts[0], "--origin LAT"), LONGITUDE.parse(parts[1], "--origin LON"), 0.0)
 
 
 def _config(args):
@@ -67,35 +82,41 @@ def planning_budget():
     return PlanningBudget()
 
 
-def run(args: argparse.Namespace) -> int:
+def plan_within_budget(route, cfg, return_from: tuple[float, float, float] | None = None):  # type: ignore[no-untyped-def]
+    """The path of `route` planned with the page's budget (extra.planning defaults): size bounds
+    at once, then time and memory in the planner worker, so no route file can hang a command or
+    eat the machine's memory."""
     from lotsen.planning import plan_return_route, plan_route
     from lotsen.planning.budget import check_budget
-    from lotsen.planning.io import load_route
     from lotsen.stack.planner_worker import PlannerWorker
 
-    origin = _origin(getattr(args, "origin", None))
-    speed = getattr(args, "node_speed", None)
-    if speed is not None and not (math.isfinite(speed) and 0 < speed <= 5.0):
-        raise ConfigError(f"--node-speed: {speed:g} m/s is outside (0, 5] m/s")
-    if getattr(args, "export", None):
-        from lotsen.planning.formats import format_of
-
-        format_of(args.export)  # an unknown suffix is refused before any planning
-    route = load_route(args.route, origin=origin, default_speed_mps=speed)
-    cfg = _config(args)
-    # the page's budget (extra.planning defaults): size bounds at once, then time and memory in
-    # the planner worker, so no route file can hang this command or eat the machine's memory
     budget = planning_budget()
     check_budget(route, budget)
     worker = PlannerWorker(budget)
     try:
-        if args.return_from:
-            n, e, hdg = args.return_from
-            path = worker.call(plan_return_route, route, n, e, math.radians(hdg), cfg)
-        else:
-            path = worker.call(plan_route, route, cfg)
+        if return_from is not None:
+            n, e, hdg = return_from
+            return worker.call(plan_return_route, route, n, e, math.radians(hdg), cfg)
+        return worker.call(plan_route, route, cfg)
     finally:
         worker.close()
+
+
+def run(args: argparse.Namespace) -> int:
+    from lotsen.planning.io import load_route
+
+    pose = return_pose(args.return_from)
+    origin = _origin(getattr(args, "origin", None))
+    check_plot_name(args.plot)
+    export = getattr(args, "export", None)
+    if export:
+        from lotsen.planning.formats import format_of
+
+        format_of(export)  # an unknown suffix is refused before any planning
+    check_outputs((args.out, args.plot, export), (args.route,), ConfigError)
+    route = load_route(args.route, origin=origin, default_speed_mps=getattr(args, "node_speed", None))
+    cfg = _config(args)
+    path = plan_within_budget(route, cfg, pose)
     for m in path.segments:
         print(f"{m.label}: {m.length_m:.2f} m (ratio {m.length_ratio:.3f}), max curvature "
               f"{m.max_curvature_1pm:.3f} 1/m, clearance {m.min_clearance_m:.2f} m, "
@@ -103,28 +124,21 @@ def run(args: argparse.Namespace) -> int:
     print(f"path: {path.length_m:.2f} m, {len(path)} points, "
           f"speed {path.speed_mps.min():.2f}..{path.speed_mps.max():.2f} m/s")
     if args.out:
-        _write(args.out, lambda f: f.write_text(json.dumps(path.to_dict()), encoding="utf-8"))
+        write_output(args.out, json.dumps(path.to_dict()), (args.route,), ConfigError, "path")
         print(f"wrote {args.out}")
-    if getattr(args, "export", None):
+    if export:
         from lotsen.planning.io import save_route
 
         notes: list[str] = []
-        _write(args.export, lambda f: notes.extend(save_route(route, f, origin)))
+        with atomic_output(export, (args.route,), ConfigError, "route") as tmp:
+            notes.extend(save_route(route, tmp, origin))
         for note in notes:
             print(f"note: {note}")
-        print(f"wrote {args.export}")
+        print(f"wrote {export}")
     if args.plot:
-        _write(args.plot, lambda f: plot_path(route, path, f))
+        save_plot(args.plot, lambda f: plot_path(route, path, f), (args.route,))
         print(f"wrote {args.plot}")
     return 0
-
-
-def _write(target: str, fn) -> None:
-    f = FilePath(target)
-    try:
-        fn(f)
-    except OSError as exc:
-        raise ConfigError(f"{target}: cannot write ({exc.strerror or exc})") from None
 
 
 def plot_path(route, path, filename) -> None:

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from lotsen.errors import DataError
+from lotsen.files import MAX_LOG_BYTES, check_input_file, check_output
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -42,10 +44,12 @@ def run(args: argparse.Namespace) -> int:
                 print(r.summary_line())
             if not results:
                 print(f"{src}: no unclosed recordings")
-        return 1 if any(r.error for r in results) else 0
-    if not src.is_file():
+        return 1 if any(r.error or r.nothing_recovered for r in results) else 0
+    if not src.exists():
         raise DataError(f"{src}: no such log file")
+    check_input_file(src, MAX_LOG_BYTES, DataError, "log file")
     dst = Path(args.out) if args.out else recovered_path(src)
+    check_output(dst, (src,), DataError, "recovered file")
     if not args.force:
         try:
             complete = not needs_recovery(src)
@@ -56,11 +60,18 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if dst.exists():
             raise DataError(f"{dst}: exists; choose another --out or add --force")
+    existed = dst.exists()
     stats = recover_mcap(src, dst)
+    if stats.nothing_recovered and not existed:
+        dst.unlink(missing_ok=True)  # an output with no message in it is no recovery
     if args.json:
-        print(json.dumps(stats.to_dict(), indent=1))
+        print(json.dumps({**stats.to_dict(), "nothing_recovered": stats.nothing_recovered}, indent=1))
     else:
         print(stats.summary_line())
         for problem in stats.problems:
             print(f"  {problem}")
+    if stats.nothing_recovered:
+        print(f"{src}: nothing could be recovered: not one readable message in {stats.source_bytes} bytes"
+              + ("" if existed else f" ({dst} not written)"), file=sys.stderr)
+        return 1
     return 0

@@ -15,7 +15,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from lotsen.errors import ConfigError
+from lotsen.physics.config import address_flag as physics_address
 from lotsen.runtime.config import BoatSection
+from lotsen.settings import PORT, RUN_DURATION, SEED
 from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.config import StackConfig, load_stack_config
 from lotsen.stack.identity import run_identities
@@ -32,10 +34,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--hardware", action="store_true", help="real drivers (on the boat)")
     p.add_argument("--emulated", action="store_true", help="with --hardware: emulated devices speaking the real protocols")
     p.add_argument("--host", help="web bind address (default from config: 127.0.0.1)")
-    p.add_argument("--port", type=int, help="web port (default from config: 8080)")
-    p.add_argument("--duration", type=float, help="stop after this many seconds (default: run until Ctrl-C)")
-    p.add_argument("--seed", type=int, help="random seed of the simulation")
-    p.add_argument("--foxglove", nargs="?", type=int, const=8765, metavar="PORT",
+    p.add_argument("--port", type=PORT, help="web port (default from config: 8080)")
+    p.add_argument("--duration", type=RUN_DURATION,
+                   help="stop after this many seconds (default: run until Ctrl-C; at most a week)")
+    p.add_argument("--seed", type=SEED, help="random seed of the simulation")
+    p.add_argument("--foxglove", nargs="?", type=PORT, const=8765, metavar="PORT",
                    help="also stream every topic to Foxglove (WebSocket, default port 8765)")
     p.add_argument("--tls", action="store_true",
                    help="serve the operator page over HTTPS with a self-signed certificate (its fingerprint is printed)")
@@ -49,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "udpout:HOST:PORT (as ArduPilot SITL sends to 14550), udpin:HOST:PORT, tcpin:HOST:PORT, or a "
                         "serial device /dev/ttyUSB0[,57600]; repeatable; added to extra.mavlink.endpoints "
                         "(docs/mavlink.md)")
-    p.add_argument("--physics", metavar="udp:HOST:PORT",
+    p.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md; over the config's extra.physics.address)")
     p.add_argument("--one-process", action="store_true", help="everything in this process (debugging only)")
@@ -63,10 +66,16 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     the boat's credential is used, else [].
     With `lock`: the boat is locked for this run (`RunRefused` when another run has it) before
     the config is validated, so a second run is refused before anything else happens."""
+    if getattr(args, "sim", False) and args.hardware:
+        raise ConfigError("--sim and --hardware: choose one (the simulated boat is the default)")
+    if getattr(args, "emulated", False) and not args.hardware:
+        raise ConfigError("--emulated is for --hardware (the drivers' emulated twins)")
     config = load_stack_config(args.config)  # every section typed and checked (lotsen.stack.config)
     if args.hardware:
         config = replace(config, mode="hardware", extra=replace(config.extra, emulated=bool(args.emulated)))
     web = config.web
+    if args.host is not None and not args.host.strip():
+        raise ConfigError("--host: empty; give the web server's bind address (e.g. 127.0.0.1 or 0.0.0.0)")
     if args.host is not None or args.port is not None:
         web = replace(web, host=args.host or web.host, port=args.port if args.port is not None else web.port)
     config = replace(config, web=web, seed=args.seed if args.seed is not None else config.seed)
@@ -107,10 +116,11 @@ def with_model_and_boat(config: StackConfig, params: str | None, boat: str | Non
         config = replace(config, sim=replace(config.sim, boat=BoatSection(ideal=True)))
     elif boat:
         from lotsen.sim import DEFAULT_BOAT
+        from lotsen.stack.stack import load_parameter_file
 
+        named = f"{config.sim.boat.name or DEFAULT_BOAT.name} with {load_parameter_file(boat).describe()}"
         config = replace(config, sim=replace(config.sim, boat=replace(
-            config.sim.boat, ideal=False, parameters=None, parameters_file=str(Path(boat).resolve()),
-            name=f"{config.sim.boat.name or DEFAULT_BOAT.name} with {boat}")))
+            config.sim.boat, ideal=False, parameters=None, parameters_file=str(Path(boat).resolve()), name=named)))
     return config
 
 
@@ -138,7 +148,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     config, pairing = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
-    from lotsen.stack.stack import boat_description
+    from lotsen.stack.stack import boat_description, describe_parameters
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
@@ -160,7 +170,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
         signal.signal(signal.SIGINT, lambda *_: launcher.request_stop())
     if config.mode == "sim":
         print(f"simulated boat: {boat_description(config)}; model: "
-              f"{config.vessel.parameters_file or 'default coefficients'}", flush=True)
+              f"{describe_parameters(config.vessel.parameters_file)}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:
         launcher.start()

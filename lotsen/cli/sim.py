@@ -9,8 +9,11 @@ import sys
 import time
 from pathlib import Path
 
+from lotsen.errors import ConfigError
+from lotsen.files import atomic_output, check_output
 from lotsen.messages import Topic
-from lotsen.stack.config import load_stack_config
+from lotsen.settings import SEED, Number
+from lotsen.stack.config import config_files, load_stack_config
 from lotsen.stack.launch import build_stack
 from lotsen.stack.schedule import DEMO_SCHEDULE, ScheduleNode, load_schedule
 from lotsen.runtime.executor import SimExecutor
@@ -18,12 +21,14 @@ from lotsen.runtime.executor import SimExecutor
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sim", help="run the simulated boat open loop and write the trajectory (CSV)")
-    p.add_argument("--duration", type=float, default=60.0, help="simulated seconds (default 60)")
+    p.add_argument("--duration", type=Number(0.01, 3600.0, "s"), default=60.0,
+                   help="simulated seconds (default 60, at most an hour)")
     p.add_argument("--schedule", help="input schedule YAML (segments of set-points); default: a demo manoeuvre")
     p.add_argument("--config", help="launch config YAML (sim and vessel sections are used)")
-    p.add_argument("--seed", type=int, help="random seed (overrides the config)")
+    p.add_argument("--seed", type=SEED, help="random seed (overrides the config)")
     p.add_argument("--out", default="trajectory.csv", help="trajectory CSV (default trajectory.csv)")
-    p.add_argument("--rate", type=float, default=20.0, help="trajectory rows per second (default 20)")
+    p.add_argument("--rate", type=Number(0.1, 100.0, "Hz"), default=20.0,
+                   help="trajectory rows per second (default 20; at most the simulator's 100)")
     p.add_argument("--headless", action="store_true", help="no user interface (the only mode of this command)")
     p.set_defaults(func=run)
 
@@ -33,6 +38,8 @@ COLUMNS = ("t", "north", "east", "psi", "u", "v", "r", "alpha1", "alpha2", "n1",
 
 def run(args: argparse.Namespace) -> int:
     config = load_stack_config(args.config)
+    inputs = (args.config, args.schedule, *config_files(config))
+    check_output(args.out, inputs, ConfigError, "trajectory")
     if args.seed is not None:
         from dataclasses import replace
 
@@ -53,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     stack.executor.run_until(args.duration)
     wall = time.perf_counter() - wall
     out = Path(args.out)
-    with out.open("w", newline="") as f:
+    with atomic_output(out, inputs, ConfigError, "trajectory") as tmp, tmp.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(COLUMNS)
         for r in rows:

@@ -31,7 +31,7 @@ import scipy.linalg
 from lotsen.control.allocation import AllocationConfig, ThrustAllocator, rate_limit
 from lotsen.control.base import PathReference, make_status, state_is_finite, wrap_angle
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
-from lotsen.model.dynamics import VesselModel
+from lotsen.model.dynamics import VesselModel, surge_drag
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 
 
@@ -128,8 +128,7 @@ class _TauFollower:
         return self._s
 
     def _surge_feedforward(self, U: float) -> float:
-        p = self.model.params
-        return p.X_u * U - p.X_uu * abs(U) * U
+        return float(surge_drag(self.model.params, U))
 
     def _tau(self, t: float, x: np.ndarray, s: float, cte: float, hdg: float) -> np.ndarray:
         raise NotImplementedError
@@ -318,7 +317,7 @@ class LQController(_TauFollower):
     def feedforward(self, U: float, r: float) -> np.ndarray:
         """Steady forces of seed eq. (22) at u = U, v = 0, yaw rate r."""
         p = self.model.params
-        return np.array([p.X_u * U - p.X_uu * abs(U) * U,
+        return np.array([surge_drag(p, U),
                          p.m11 * U * r + p.Y_r * r,
                          p.N_r * r - p.N_rr * abs(r) * r])
 

@@ -108,7 +108,7 @@ from lotsen.control.allocation import rate_limit
 from lotsen.control.base import PathReference, make_status, state_is_finite, wrap_angle
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model._jit import njit
-from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
+from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step, surge_drag
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.model.actuators import advance_motors
 
@@ -380,7 +380,7 @@ class QpWeights(NamedTuple):
     stage: np.ndarray  # per stage (the terminal factor on the last)
     r_input: np.ndarray  # input weights R
     s_rate: np.ndarray  # input-rate weights S
-    q_trim_gain: np.ndarray  # trim thrust of each azimuth at speed v: [0] v + [1] |v| v
+    q_trim_gain: np.ndarray  # trim thrust of each azimuth at speed v: [0] v + [1] |v| v + [2] v^3
     dw_max: np.ndarray  # largest input change in one step
     min_speed_course_mps: float
     row_rate: int  # first row of the rate bounds in A
@@ -512,7 +512,7 @@ def _assemble_py(x, xb, wb, s_pred, path, scale, mq, dt, dist, cur, n_floor, w_p
     base = nx * (N + 1)
     for k in range(N):
         v = ref[k, 4]
-        qt = q_trim_gain[0] * v + q_trim_gain[1] * abs(v) * v  # trim thrust of each azimuth (scaled)
+        qt = q_trim_gain[0] * v + q_trim_gain[1] * abs(v) * v + q_trim_gain[2] * v * v * v  # trim thrust (scaled)
         q[base + nw * k + 0] = 0.0
         q[base + nw * k + 1] = 0.0
         q[base + nw * k + 2] = -R[2] * qt
@@ -757,7 +757,7 @@ class MPCController:
         self._ones_stage[-1] = cfg.terminal_factor
         self._ref = np.zeros((N, 5))
         p = self.model.params
-        self._q_trim_gain = np.array([p.X_u, -p.X_uu]) / (2.0 * p.mu_az * self.scale[2])
+        self._q_trim_gain = np.array([p.X_u, -p.X_uu, -p.X_uuu]) / (2.0 * p.mu_az * self.scale[2])
         self._Qy = np.array([cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate])
         # the compiled assembly's view of the above (the same arrays, grouped)
         self._pattern = QpPattern(self._ad_idx[0], self._ad_idx[1], self._bd_idx[0], self._bd_idx[1],
@@ -909,7 +909,7 @@ class MPCController:
     def q_trim(self, speed: np.ndarray) -> np.ndarray:
         """Scaled thrust q of each azimuth for a steady surge speed (seed eq. 22 at v = r = 0)."""
         p = self.model.params
-        T = (p.X_u * speed - p.X_uu * np.abs(speed) * speed) / 2.0
+        T = surge_drag(p, speed) / 2.0
         return T / (p.mu_az * self.scale[2])
 
     def w_to_command(self, w: np.ndarray) -> tuple[float, float, float, float, float]:

@@ -39,6 +39,7 @@ import numpy as np
 from lotsen.errors import ConfigError
 from lotsen.model.angles import wrap_angle
 from lotsen.model.environment import Environment, wind_force
+from lotsen.model.dynamics import surge_drag
 from lotsen.model.parameters import VesselParameters
 
 
@@ -92,7 +93,7 @@ def steady_hold_thrust(heading_rad: np.ndarray | float, current_ne_mps: tuple[fl
     ur = -(cn * c + ce * s)
     vr = -(-cn * s + ce * c)
     aur, avr = np.abs(ur), np.abs(vr)
-    tX = p.X_u * ur - p.X_uu * aur * ur
+    tX = surge_drag(p, ur)
     tY = p.Y_v * vr - p.Y_uv * aur * vr - p.Y_vv * avr * vr
     tN = -(p.m11 - p.m22) * ur * vr + p.N_v * vr - p.N_vv * avr * vr
     fn, fe = float(force_ne_N[0]), float(force_ne_N[1])

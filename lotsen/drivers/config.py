@@ -65,8 +65,8 @@ class ImuSection:
     mag_address: int = field(default=0x0C, metadata=_r(0x0C, 0x0F))
     rate_hz: float = field(default=100.0, metadata=_r(1.0, 100.0))
     mag_rate_hz: float = field(default=50.0, metadata=_r(1.0, 100.0))
-    gyro_range_dps: int = 500  # 250, 500, 1000 or 2000
-    accel_range_g: int = 4  # 2, 4, 8 or 16
+    gyro_range_dps: Literal[250, 500, 1000, 2000] = 500
+    accel_range_g: Literal[2, 4, 8, 16] = 4
     dlpf_cfg: int = field(default=3, metadata=_r(0, 6))  # CONFIG DLPF: 3 = 41 Hz gyro bandwidth
     # body axis i = sign * chip axis: "+x", "-y", ... for the MPU9250's accel/gyro frame.
     # Default: chip face up, chip x forward -> body (x fwd, y stbd, z down) = (+x, -y, -z).
@@ -145,6 +145,14 @@ class ActuatorSection:
         EscCalibration(), EscCalibration(), EscCalibration(n_max_rps=80.0, n_max_reverse_rps=80.0))
     servo: tuple[ServoCalibration, ServoCalibration] = (ServoCalibration(), ServoCalibration())
     speed_loop: SpeedLoopGains = field(default_factory=SpeedLoopGains)
+
+    def __post_init__(self) -> None:
+        pins = (*self.esc_pins, *self.servo_pins, *self.tacho_pins)
+        bad = [p for p in pins if isinstance(p, bool) or not isinstance(p, int) or not 0 <= p <= 27]
+        if bad:
+            raise ValueError(f"GPIO pins must be whole numbers 0-27 (the Pi's header), got {bad[:3]}")
+        if len(set(pins)) != len(pins):
+            raise ValueError(f"a GPIO pin is used twice among esc_pins, servo_pins and tacho_pins: {list(pins)}")
 
 
 @dataclass(frozen=True)

@@ -35,10 +35,19 @@ import scipy.linalg
 from lotsen.errors import DataError
 from lotsen.fusion.common import wrap_angle
 from lotsen.messages import MagCalibrated, MagSample
+from lotsen.settings import Number
 
 
 class CalibrationError(DataError):
     """Magnetometer data cannot give a calibration (too few points, too little of a turn, ...)."""
+
+
+# what a calibration file's numbers may be: a field in any unit (uT ~50, raw counts, nT ~5e4)
+_FIELD = Number(-1e7, 1e7)
+_RMS = Number(0.0, 10.0)
+_COVERAGE = Number(0.0, 360.0, "deg")
+_POINTS = Number(0, 10**9, integer=True)
+_OFFSET = Number(-2 * math.pi, 2 * math.pi, "rad")
 
 
 @dataclass(frozen=True)
@@ -86,30 +95,44 @@ class MagCalibration:
         return wrap_angle(math.atan2(-wy, wx) + self.heading_offset_rad)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready (strict JSON has no NaN: an unknown fit quality is null)."""
+        def known(v: float) -> float | None:
+            return v if math.isfinite(v) else None
+
         return {"center": list(self.center), "matrix": [list(r) for r in self.matrix],
-                "residual_rms": self.residual_rms, "coverage_deg": self.coverage_deg,
+                "residual_rms": known(self.residual_rms), "coverage_deg": known(self.coverage_deg),
                 "n_points": self.n_points, "heading_offset_rad": self.heading_offset_rad,
                 "units": self.units}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], where: str = "calibration") -> "MagCalibration":
-        try:
-            center = tuple(float(v) for v in d["center"])
-            matrix = tuple(tuple(float(v) for v in row) for row in d["matrix"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CalibrationError(f"{where}: needs 'center' (2 numbers) and 'matrix' (2x2): {exc}") from None
-        if len(center) != 2 or len(matrix) != 2 or any(len(r) != 2 for r in matrix):
-            raise CalibrationError(f"{where}: 'center' must have 2 and 'matrix' 2x2 entries")
+        """A calibration file's content; every number finite and in its range (settings.Number)."""
+        if not isinstance(d, dict):
+            raise CalibrationError(f"{where}: expected a JSON object with 'center' and 'matrix'")
         known = {"center", "matrix", "residual_rms", "coverage_deg", "n_points", "heading_offset_rad", "units"}
         unknown = set(d) - known
         if unknown:
-            raise CalibrationError(f"{where}: unknown keys {sorted(unknown)}")
+            raise CalibrationError(f"{where}: unknown keys {sorted(map(str, unknown))[:5]}")
+        c, m = d.get("center"), d.get("matrix")
+        if not (isinstance(c, list) and len(c) == 2 and isinstance(m, list) and len(m) == 2
+                and all(isinstance(r, list) and len(r) == 2 for r in m)):
+            raise CalibrationError(f"{where}: needs 'center' (2 numbers) and 'matrix' (2x2 numbers)")
+        center = tuple(_FIELD.check(v, f"{where}: center[{i}]", CalibrationError) for i, v in enumerate(c))
+        matrix = tuple(tuple(_FIELD.check(v, f"{where}: matrix[{i}][{j}]", CalibrationError) for j, v in enumerate(r))
+                       for i, r in enumerate(m))
+        rms = d.get("residual_rms")
+        cov = d.get("coverage_deg")
+        units = d.get("units", "")
+        if not isinstance(units, str):
+            raise CalibrationError(f"{where}: units: expected text, got {units!r:.40}")
         return cls(center=center, matrix=matrix,  # type: ignore[arg-type]
-                   residual_rms=float(d.get("residual_rms", float("nan"))),
-                   coverage_deg=float(d.get("coverage_deg", float("nan"))),
-                   n_points=int(d.get("n_points", 0)),
-                   heading_offset_rad=float(d.get("heading_offset_rad", 0.0)),
-                   units=str(d.get("units", "")))
+                   residual_rms=float("nan") if rms is None else _RMS.check(rms, f"{where}: residual_rms", CalibrationError),
+                   coverage_deg=float("nan") if cov is None else _COVERAGE.check(cov, f"{where}: coverage_deg",
+                                                                                 CalibrationError),
+                   n_points=_POINTS.check(d.get("n_points", 0), f"{where}: n_points", CalibrationError),
+                   heading_offset_rad=_OFFSET.check(d.get("heading_offset_rad", 0.0), f"{where}: heading_offset_rad",
+                                                    CalibrationError),
+                   units=units[:40])
 
 
 @dataclass(frozen=True)
@@ -130,9 +153,15 @@ def _direct_ellipse_fit(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         T = -np.linalg.solve(S3, S2.T)
     except np.linalg.LinAlgError:
         raise CalibrationError("magnetometer calibration: degenerate data (all points on a line or equal)") from None
-    Mred = S1 + S2 @ T
+    with np.errstate(all="ignore"):
+        Mred = S1 + S2 @ T
     C1 = np.array([[0.0, 0.0, 2.0], [0.0, -1.0, 0.0], [2.0, 0.0, 0.0]])
-    w, V = scipy.linalg.eig(Mred, C1)
+    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(Mred))):  # nearly singular: points (nearly) on a line
+        raise CalibrationError("magnetometer calibration: degenerate data (all points on a line or equal)")
+    try:
+        w, V = scipy.linalg.eig(Mred, C1)
+    except (ValueError, np.linalg.LinAlgError, scipy.linalg.LinAlgError):
+        raise CalibrationError("magnetometer calibration: degenerate data (the ellipse fit has no solution)") from None
     V = np.real(V)
     cond = 4.0 * V[0] * V[2] - V[1] ** 2
     ok = np.where((cond > 0) & np.isfinite(np.real(w)))[0]
@@ -179,11 +208,17 @@ def fit_mag_calibration(mag_x: Sequence[float], mag_y: Sequence[float],
     xs, ys = (x - mx) / s, (y - my) / s
     A, B, C, D, E, F = _direct_ellipse_fit(xs, ys)
     Q = np.array([[A, B / 2.0], [B / 2.0, C]])
-    c_s = np.linalg.solve(2.0 * Q, -np.array([D, E]))  # gradient zero at the centre
-    k = float(c_s @ Q @ c_s - F)  # (p - c)' Q (p - c) = k
+    try:
+        c_s = np.linalg.solve(2.0 * Q, -np.array([D, E]))  # gradient zero at the centre
+    except np.linalg.LinAlgError:
+        raise CalibrationError("magnetometer calibration: the fitted conic has no centre (not an ellipse)") from None
+    with np.errstate(all="ignore"):
+        k = float(c_s @ Q @ c_s - F)  # (p - c)' Q (p - c) = k
     if k == 0.0 or not math.isfinite(k):
         raise CalibrationError("magnetometer calibration: the fitted conic is degenerate")
     Qn = Q / k  # (p - c)' Qn (p - c) = 1; the eigenvector's sign is arbitrary, k carries it
+    if not np.all(np.isfinite(Qn)):
+        raise CalibrationError("magnetometer calibration: the fitted conic is degenerate")
     evals, evecs = np.linalg.eigh(Qn)
     if evals.min() <= 0.0:
         raise CalibrationError("magnetometer calibration: the points do not lie on an ellipse")

@@ -26,6 +26,7 @@ from typing import Any, Iterable, Literal
 import numpy as np
 
 from lotsen.errors import DataError, LotsenError
+from lotsen.files import atomic_output
 from lotsen.model.geodetic import FixFrame
 from lotsen.model.angles import lever_arm_ne
 from lotsen.logs.reader import LogReader
@@ -73,7 +74,24 @@ def message_row(msg: Any) -> dict[str, str]:
 
 
 def topic_file_name(topic: str) -> str:
-    return topic.strip("/").replace("/", ".") + ".csv"
+    """`state/estimate` -> `state.estimate.csv`; a recorded topic name is data from a file, so
+    anything but letters, digits, '.', '_' and '-' becomes '_' and the name stays short."""
+    name = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in topic.strip("/").replace("/", "."))
+    return (name.lstrip(".") or "_")[:120] + ".csv"
+
+
+def output_folder(path: str | os.PathLike) -> Path:
+    """A folder to write tables into: created if missing (its parent must exist), refused if it is a file."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise DataError(f"{out}: exists and is not a folder; --out names the folder the tables go to")
+    if not out.parent.is_dir():
+        raise DataError(f"{out}: cannot create the folder: {out.parent} does not exist")
+    try:
+        out.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise DataError(f"{out}: cannot create the folder: {exc.strerror or exc}") from None
+    return out
 
 
 def check_format(fmt: str) -> None:
@@ -92,9 +110,8 @@ def export_topics(path: str | os.PathLike, out_dir: str | os.PathLike, topics: I
     """Write one table per topic; returns {topic: file}. Reading problems (a truncated tail, a
     damaged chunk) are appended to `problems` when given."""
     check_format(fmt)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     reader = LogReader(path)
+    out = output_folder(out_dir)
     rows: dict[str, list[dict[str, str]]] = {}
     t0: int | None = None
     for m in reader.read(topics):
@@ -106,7 +123,7 @@ def export_topics(path: str | os.PathLike, out_dir: str | os.PathLike, topics: I
         missing = [t for t in topics if t not in rows]
         if missing and not rows:
             raise DataError(f"{path}: none of the topics {', '.join(missing)} is in the log")
-    files = {}
+    files: dict[str, Path] = {}
     for topic, rs in rows.items():
         cols: list[str] = []
         for r in rs:
@@ -121,7 +138,9 @@ def export_topics(path: str | os.PathLike, out_dir: str | os.PathLike, topics: I
             pq.write_table(pa.table({c: [r.get(c, "") for r in rs] for c in cols}), f)
         else:
             f = out / topic_file_name(topic)
-            with open(f, "w", newline="") as fh:
+            if f in files.values():  # two topics whose names differ only in replaced characters
+                f = out / f"{f.stem}_{len(files)}.csv"
+            with atomic_output(f, (path,), DataError, "table") as tmp, open(tmp, "w", newline="") as fh:
                 w = csv.DictWriter(fh, fieldnames=cols, restval="")
                 w.writeheader()
                 w.writerows(rs)

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Iterable, Iterator
 
 from lotsen.errors import DataError
+from lotsen.files import MAX_LOG_BYTES, check_input_file
 from lotsen.transport import codec
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -91,8 +92,10 @@ class LogReader:
         self.metadata: dict[str, dict[str, str]] = {}
         self.complete = False
         self.undecodable = 0
+        self.damaged_records = 0  # records inside an intact framing that do not parse (skipped)
         if not self.path.is_file():
             raise DataError(f"{self.path}: no such log file")
+        check_input_file(self.path, MAX_LOG_BYTES, DataError, "log file")
 
     # ---------------------------------------------------------------- low level
     def _problem(self, err: LogFileError) -> None:
@@ -178,14 +181,21 @@ class LogReader:
     # ---------------------------------------------------------------- messages
     def iter_raw(self) -> Iterator[tuple[_Channel, int, int, bytes]]:
         """(channel, log_time_ns, publish_time_ns, data) in file order."""
-        from mcap.data_stream import ReadDataStream
         from mcap.opcode import Opcode
-        from mcap.records import Channel, Metadata, Schema
 
         schemas: dict[int, tuple[str, str]] = {}
         channels: dict[int, _Channel] = {}
         unknown_channels = 0
+        self.damaged_records = 0
         for pos, opcode, body in self._records():
+            if opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA):
+                try:
+                    self._definition(opcode, body, schemas, channels)
+                except Exception as exc:  # noqa: BLE001 - any byte sequence: a damaged record, skipped and said
+                    self.damaged_records += 1
+                    self._problem(CorruptLogError(self.path, pos, f"damaged record (opcode 0x{opcode:02x}: "
+                                                  f"{type(exc).__name__}); skipped"))
+                continue
             if opcode == Opcode.MESSAGE:
                 if len(body) < 22:
                     self._problem(CorruptLogError(self.path, pos, "message record too short"))
@@ -196,21 +206,28 @@ class LogReader:
                     unknown_channels += 1
                     continue
                 yield ch, log_ns, pub_ns, body[22:]
-            elif opcode == Opcode.SCHEMA:
-                s = Schema.read(ReadDataStream(io.BytesIO(body)))
-                schemas[s.id] = (s.name, s.encoding)
-            elif opcode == Opcode.CHANNEL:
-                c = Channel.read(ReadDataStream(io.BytesIO(body)))
-                name, enc = schemas.get(c.schema_id, ("", ""))
-                channels[c.id] = _Channel(c.topic, c.message_encoding, name, enc)
-            elif opcode == Opcode.METADATA:
-                m = Metadata.read(ReadDataStream(io.BytesIO(body)))
-                self.metadata[m.name] = dict(m.metadata)
             elif opcode == Opcode.DATA_END:
                 self.complete = True  # (footer follows in the summary section)
         if unknown_channels:
             self.problems.append(CorruptLogError(self.path, -1, f"{unknown_channels} messages on channels whose "
                                                  "definition was lost (damaged chunk)"))
+
+    def _definition(self, opcode: int, body: bytes, schemas: dict, channels: dict) -> None:
+        """A schema, channel or metadata record into the tables of `iter_raw`."""
+        from mcap.data_stream import ReadDataStream
+        from mcap.opcode import Opcode
+        from mcap.records import Channel, Metadata, Schema
+
+        if opcode == Opcode.SCHEMA:
+            s = Schema.read(ReadDataStream(io.BytesIO(body)))
+            schemas[s.id] = (s.name, s.encoding)
+        elif opcode == Opcode.CHANNEL:
+            c = Channel.read(ReadDataStream(io.BytesIO(body)))
+            name, enc = schemas.get(c.schema_id, ("", ""))
+            channels[c.id] = _Channel(c.topic, c.message_encoding, name, enc)
+        else:
+            m = Metadata.read(ReadDataStream(io.BytesIO(body)))
+            self.metadata[m.name] = dict(m.metadata)
 
     def read(self, topics: Iterable[str] | None = None, raw: bool = False) -> Iterator[LogMessage]:
         wanted = frozenset(topics) if topics is not None else None
@@ -220,7 +237,7 @@ class LogReader:
             if ch.schema.startswith("lotsen.") and ch.encoding == "json" and ch.schema[7:] in codec.MESSAGE_TYPES:
                 try:
                     msg = codec.decode_json(ch.schema[7:], data)
-                except codec.DecodeError as exc:
+                except Exception as exc:  # noqa: BLE001 - DecodeError and whatever damaged bytes raise
                     self.undecodable += 1
                     if self.strict:
                         raise DataError(f"{self.path}: topic {ch.topic}: {exc}") from None

@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from lotsen.errors import DataError, LotsenError
+from lotsen.files import MAX_LOG_BYTES, check_input_file, same_file
 from lotsen.logs.reader import MAGIC, CorruptLogError
 
 _MAX_RECORD = 1 << 31  # a longer record is corruption in a lotsen log (as in LogReader)
@@ -63,6 +64,8 @@ class RecoveryStats:
     tail_lost_s: float = 0.0  # time between the last message kept and the end of a cut chunk (>= 0)
     damaged_chunks: int = 0  # skipped (bad compression or CRC) with the framing intact
     lost_on_unknown_channels: int = 0  # messages whose channel definition was in a damaged chunk
+    damaged_records: int = 0  # records inside the framing that do not parse (skipped)
+    already_recovered: bool = False  # recover_directory: recovered at an earlier start
     source_was_complete: bool = False  # the source already had a footer
     problems: list[str] = field(default_factory=list)
     error: str = ""  # recover_directory: why this file was not recovered (then output is "")
@@ -84,7 +87,13 @@ class RecoveryStats:
         return (f"{self.source} -> {self.output}: {self.messages} messages over {self.duration_s:.2f} s on "
                 f"{self.channels} channels ({len(self.per_topic)} topics), {self.metadata} metadata, "
                 f"{self.attachments} attachments; {lost}"
-                + (f"; {self.damaged_chunks} damaged chunks skipped" if self.damaged_chunks else ""))
+                + (f"; {self.damaged_chunks} damaged chunks skipped" if self.damaged_chunks else "")
+                + (f"; {self.damaged_records} damaged records skipped" if self.damaged_records else ""))
+
+    @property
+    def nothing_recovered(self) -> bool:
+        """Not one message could be read: the output holds nothing of the recording."""
+        return not self.error and not self.already_recovered and self.messages == 0
 
 
 # ---------------------------------------------------------------------------------- checks
@@ -240,8 +249,11 @@ class _Walker:
                     from mcap.data_stream import ReadDataStream
                     from mcap.records import Header
 
-                    h = Header.read(ReadDataStream(io.BytesIO(body)))
-                    self.header = (h.profile, h.library)
+                    try:
+                        h = Header.read(ReadDataStream(io.BytesIO(body)))
+                        self.header = (h.profile, h.library)
+                    except Exception as exc:  # noqa: BLE001 - a damaged header: the defaults, and say so
+                        st.problems.append(f"damaged header record at byte offset {pos} ({type(exc).__name__})")
                 else:
                     yield opcode, body, False
                 pos += 9 + length
@@ -291,10 +303,11 @@ def recover_mcap(src: str | os.PathLike, dst: str | os.PathLike, *, fsync: bool 
     from lotsen import __version__
 
     src, dst = Path(src), Path(dst)
-    if not src.is_file():
+    if not src.exists():
         raise DataError(f"{src}: no such log file")
-    if src.resolve() == dst.resolve():
-        raise DataError(f"{dst}: the output must not be the file being recovered")
+    check_input_file(src, MAX_LOG_BYTES, DataError, "log file")
+    if src.resolve() == dst.resolve() or same_file(src, dst):
+        raise DataError(f"{dst}: the output must not be the file being recovered (nor a link to it)")
     stats = RecoveryStats(source=str(src), output=str(dst))
     walker = _Walker(src, stats)
     records = walker.records()
@@ -327,15 +340,15 @@ def recover_mcap(src: str | os.PathLike, dst: str | os.PathLike, *, fsync: bool 
                     yield first
                 yield from records
 
-            for opcode, body, salvaged in chained():
+            def copy(opcode: int, body: bytes, salvaged: bool) -> None:
                 if opcode == Opcode.MESSAGE:
                     if len(body) < 22:
-                        continue
+                        return
                     cid, seq, log_ns, pub_ns = struct.unpack_from("<HIQQ", body, 0)
                     new = channel_ids.get(cid)
                     if new is None:
                         stats.lost_on_unknown_channels += 1
-                        continue
+                        return
                     writer.add_message(new, log_time=log_ns, data=body[22:], publish_time=pub_ns, sequence=seq)
                     stats.messages += 1
                     topic = channel_topic[cid]
@@ -353,7 +366,7 @@ def recover_mcap(src: str | os.PathLike, dst: str | os.PathLike, *, fsync: bool 
                 elif opcode == Opcode.CHANNEL:
                     c = Channel.read(ReadDataStream(io.BytesIO(body)))
                     if c.id in channel_ids:
-                        continue
+                        return
                     if c.schema_id and c.schema_id not in schema_ids:
                         pending_channels[c.id] = c
                     else:
@@ -363,14 +376,21 @@ def recover_mcap(src: str | os.PathLike, dst: str | os.PathLike, *, fsync: bool 
                     writer.add_metadata(m.name, dict(m.metadata))
                     stats.metadata += 1
                 elif opcode == Opcode.ATTACHMENT:
-                    try:
-                        a = Attachment.read(ReadDataStream(io.BytesIO(body)))
-                    except Exception as exc:  # noqa: BLE001 - a damaged attachment: report, keep the rest
-                        stats.problems.append(f"damaged attachment skipped ({exc})")
-                        continue
+                    a = Attachment.read(ReadDataStream(io.BytesIO(body)))
                     writer.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
                     stats.attachments += 1
                 # message indexes, chunk indexes, statistics, ...: rebuilt by the writer
+
+            for opcode, body, salvaged in chained():
+                try:
+                    copy(opcode, body, salvaged)
+                except Exception as exc:  # noqa: BLE001 - a damaged record (any byte sequence): skipped, counted
+                    stats.damaged_records += 1
+                    if stats.damaged_records <= 20:
+                        stats.problems.append(f"damaged record (opcode 0x{opcode:02x}) skipped "
+                                              f"({type(exc).__name__}: {str(exc)[:80]})")
+            if stats.damaged_records > 20:
+                stats.problems.append(f"... {stats.damaged_records} damaged records skipped in all")
             stats.tail_bytes_lost = max(0, stats.source_bytes - stats.bytes_read)
             cut_end = walker.cut_chunk_end_ns
             if cut_end is not None and stats.end_ns is not None:
@@ -425,7 +445,7 @@ def recover_directory(directory: str | os.PathLike, *, fsync: bool = True) -> li
                 continue
             dst = recovered_path(p)
             if dst.exists() and not needs_recovery(dst):
-                stats = RecoveryStats(source=str(p), output=str(dst))  # recovered before, not renamed then
+                stats = RecoveryStats(source=str(p), output=str(dst), already_recovered=True)  # not renamed then
                 stats.problems.append("already recovered")
             else:
                 stats = recover_mcap(p, dst, fsync=fsync)

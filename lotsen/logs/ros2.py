@@ -27,10 +27,12 @@ are Unix times as in a ROS 2 recording.
 from __future__ import annotations
 
 import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterable
 
-from lotsen.errors import DataError
+from lotsen.errors import DataError, LotsenError
 from lotsen.logs.reader import LogReader
 from lotsen.messages import LATCHED_TOPICS
 from lotsen.transport import ros2_map, ros2_types
@@ -55,16 +57,30 @@ def export_ros2(src_mcap: str | os.PathLike, out_dir: str | os.PathLike, namespa
     """Write the ROS 2 bag directory `out_dir` (must not exist) from the lotsen log `src_mcap`.
 
     `namespace` prefixes every topic (`"/boat"` -> `/boat/imu/data_raw`, as the live ROS 2 mode
-    names them); `topics` limits the export to these lotsen topics (None = all)."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
+    names them); `topics` limits the export to these lotsen topics (None = all). A failed export
+    leaves no half-written bag."""
     src, out = Path(src_mcap), Path(out_dir)
     if not src.is_file():
         raise DataError(f"{src}: no such log file")
-    if out.exists():
+    if out.exists() or out.is_symlink():
         raise DataError(f"{out}: exists already; a ROS 2 bag is written into a new directory")
-    store = ros2_types.typestore()
+    if not out.parent.is_dir():
+        raise DataError(f"{out}: cannot write the ROS 2 bag: the folder {out.parent} does not exist")
     reader = LogReader(src)
+    try:
+        return _write_bag(reader, out, namespace, topics)
+    except LotsenError:
+        shutil.rmtree(out, ignore_errors=True)
+        raise
+    except Exception as exc:  # noqa: BLE001 - rosbags' own errors (a name it refuses, a full disk): no half bag
+        shutil.rmtree(out, ignore_errors=True)
+        raise DataError(f"{out}: cannot write the ROS 2 bag: {type(exc).__name__}: {str(exc)[:200]}") from None
+
+
+def _write_bag(reader: LogReader, out: Path, namespace: str, topics: Iterable[str] | None) -> Ros2ExportResult:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    store = ros2_types.typestore()
     result = Ros2ExportResult(bag_dir=out, mcap_path=out / f"{out.name}.mcap")
     connections: dict[tuple[str, str], object] = {}
     offset_s: float | None = None

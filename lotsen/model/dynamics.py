@@ -104,7 +104,7 @@ def _rhs_py(x, inp, mq, current_n, current_e, tau_x, tau_y, tau_n):  # type: ign
     M, D_L, D_NL, thrust, arms = mq
     m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
     X_u, Y_v, Y_r, N_v, N_r = D_L[0, 0], D_L[1, 1], D_L[1, 2], D_L[2, 1], D_L[2, 2]
-    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = D_NL
+    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr, X_uuu = D_NL
     psi = x[2]
     u = x[3]
     v = x[4]
@@ -122,7 +122,7 @@ def _rhs_py(x, inp, mq, current_n, current_e, tau_x, tau_y, tau_n):  # type: ign
     av = fabs(vr)
     ar = fabs(r)
     # seed eq. (22) on the relative velocity
-    ur_dot = (m22 * vr * r - X_u * ur + X_uu * au * ur + tX) / m11
+    ur_dot = (m22 * vr * r - X_u * ur + X_uu * au * ur + X_uuu * ur * ur * ur + tX) / m11
     vr_dot = (-m11 * ur * r - Y_v * vr - Y_r * r + Y_uv * au * vr + Y_vv * av * vr + Y_rv * ar * vr + tY) / m22
     r_dot = ((m11 - m22) * ur * vr - N_v * vr + N_vv * av * vr - N_r * r + N_rr * ar * r + tN) / m33
     # d(nu_c)/dt = r [v_c, -u_c] for a current fixed in the earth frame; seed eq. (7-8) kinematics
@@ -162,7 +162,7 @@ def _jacobians_py(x, inp, mq):  # type: ignore[no-untyped-def]
     M, D_L, D_NL, thrust, arms = mq
     m11, m22, m33 = M[0, 0], M[1, 1], M[2, 2]
     X_u, Y_v, Y_r, N_v, N_r = D_L[0, 0], D_L[1, 1], D_L[1, 2], D_L[2, 1], D_L[2, 2]
-    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = D_NL
+    X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr, X_uuu = D_NL
     kappa, g, mu_az, mu_t, rev = thrust  # g = 1/2 rho A_r C_N
     psi = x[2]
     u = x[3]
@@ -236,7 +236,7 @@ def _jacobians_py(x, inp, mq):  # type: ignore[no-untyped-def]
     Ti[1, 4] = dFt
     Ti[2, 4] = arms[2, 0] * dFt
     # seed eq. (22) differentiated
-    A[3, 3] = (-X_u + 2.0 * X_uu * au + Tn[0, 0]) / m11
+    A[3, 3] = (-X_u + 2.0 * X_uu * au + 3.0 * X_uuu * u * u + Tn[0, 0]) / m11
     A[3, 4] = (m22 * r + Tn[0, 1]) / m11
     A[3, 5] = (m22 * v + Tn[0, 2]) / m11
     A[4, 3] = (-m11 * r + Y_uv * su * v + Tn[1, 0]) / m22
@@ -369,6 +369,13 @@ def symbolic_rhs(casadi_module: Any) -> Callable[..., Any]:
     return f
 
 
+def surge_drag(p: VesselParameters, speed_mps: Any) -> Any:
+    """The surge damping force at a steady speed through the water (seed eq. 22 at v = r = 0, with the
+    optional cubic term): X_u U - X_|u|u |U| U - X_uuu U^3; floats or arrays. The one place the
+    controllers' trims and fallbacks take it from."""
+    return p.X_u * speed_mps - p.X_uu * abs(speed_mps) * speed_mps - p.X_uuu * speed_mps ** 3
+
+
 @dataclass
 class VesselModel:
     """A vessel: parameters + geometry, with numpy-facing f(t, x, u) and Jacobians.
@@ -421,9 +428,8 @@ class VesselModel:
         return 0.5 * (p.m11 * nu[0] ** 2 + p.m22 * nu[1] ** 2 + p.m33 * nu[2] ** 2)
 
     def surge_thrust_for_speed(self, speed_mps: float) -> float:
-        """Steady straight-ahead thrust that balances drag: X_u U - X_|u|u |U| U."""
-        p = self.params
-        return p.X_u * speed_mps - p.X_uu * abs(speed_mps) * speed_mps
+        """Steady straight-ahead thrust that balances drag: X_u U - X_|u|u |U| U - X_uuu U^3."""
+        return float(surge_drag(self.params, speed_mps))
 
     def propeller_speed_for_surge(self, speed_mps: float) -> float:
         """Equal azimuth speeds (alpha = 0) for a steady surge speed; the housing force is zero there."""
@@ -433,8 +439,15 @@ class VesselModel:
         return -float(np.sqrt(-T / (self.params.mu_az * self.geometry.reverse_thrust_ratio)))
 
     def max_surge_speed(self, n_max_rps: float) -> float:
-        """U_max: both azimuths at n_max straight ahead against X_u U - X_|u|u U^2."""
+        """U_max: both azimuths at n_max straight ahead against the drag X_u U - X_|u|u U^2 - X_uuu U^3."""
         p = self.params
         T = 2.0 * p.mu_az * n_max_rps ** 2
         a, b = -p.X_uu, p.X_u
-        return float((-b + np.sqrt(b * b + 4 * a * T)) / (2 * a)) if a > 0 else T / b
+        U = float((-b + np.sqrt(b * b + 4 * a * T)) / (2 * a)) if a > 0 else T / b
+        if p.X_uuu == 0.0:
+            return U
+        lo, hi = 0.0, U  # the cubic term only adds drag: the root lies below the quadratic one
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if surge_drag(p, mid) < T else (lo, mid)
+        return 0.5 * (lo + hi)

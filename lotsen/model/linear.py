@@ -16,7 +16,7 @@ class LinearSwayYaw:
     U0: float
     M: np.ndarray
     N: np.ndarray
-    surge_pole: float  # -(X_u - 2 X_|u|u |U0|) / m11
+    surge_pole: float  # -(X_u - 2 X_|u|u |U0| - 3 X_uuu U0^2) / m11
 
     @property
     def eigenvalues(self) -> np.ndarray:
@@ -31,7 +31,8 @@ def linearise_straight(model: VesselModel, U0: float) -> LinearSwayYaw:
         [p.Y_v - p.Y_uv * abs(U0), p.m11 * U0 + p.Y_r],
         [p.N_v - (p.m11 - p.m22) * U0, p.N_r],
     ])
-    return LinearSwayYaw(U0=U0, M=M, N=N, surge_pole=-(p.X_u - 2.0 * p.X_uu * abs(U0)) / p.m11)
+    return LinearSwayYaw(U0=U0, M=M, N=N, surge_pole=-(p.X_u - 2.0 * p.X_uu * abs(U0)
+                                                                          - 3.0 * p.X_uuu * U0 * U0) / p.m11)
 
 
 @dataclass(frozen=True)

@@ -7,20 +7,33 @@ The metadata (unit, range, description) validates files and generates the docs' 
 
 from __future__ import annotations
 
+import difflib
+import json
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Mapping
 
 from lotsen.errors import ConfigError
+from lotsen.settings import Number
 
 
-#: identification verdicts whose coefficients may be flown: a physical answer ("ok", "weak") or effective
-#: coefficients that predict the boat measurably better than the model in use ("predictive")
+#: coefficients that are optional model terms, beyond the seed's eq. (22): 0 switches a term off, and a
+#: parameter file without one means it is off (identification turns one on where held-out prediction
+#: shows the record needs it: lotsen.sysid.identify)
+OPTIONAL_TERMS = {"X_uuu": "the surge resistance grows faster than speed squared (wave making)"}
+
+#: identification's verdicts (lotsen.sysid.verdict) a loader takes: "ok", "weak" (usable, some
+#: coefficients weakly determined), "predictive" (effective values: they predict the boat's motion
+#: though some are not its physical coefficients). "refused" and anything else is refused. The one
+#: place the verdict of a parameter file is judged (`check_verdict`).
 USABLE_VERDICTS = ("ok", "weak", "predictive")
+#: the key of a parameter file that lists the coefficients it takes from the documented defaults
+DEFAULTS_KEY = "defaults_for"
 
 
 def _p(default: float, unit: str, lo: float, hi: float, doc: str) -> Any:
-    return field(default=default, metadata={"unit": unit, "range": (lo, hi), "doc": doc})
+    return field(default=default, metadata={"unit": unit, "range": (lo, hi), "doc": doc,
+                                            "number": Number(lo, hi, unit)})
 
 
 @dataclass(frozen=True)
@@ -45,6 +58,9 @@ class VesselParameters:
     C_N: float = _p(1.0, "-", 0.0, 10.0, "normal-force coefficient of the thruster housing")
     mu_az: float = _p(0.0011, "N s^2", 1e-6, 0.1, "azimuth thrust per (rev/s)^2")
     mu_t: float = _p(0.0004, "N s^2", 0.0, 0.1, "bow-thruster thrust per (rev/s)^2")
+    # optional model terms (0: off, the seed's equations exactly): OPTIONAL_TERMS
+    X_uuu: float = _p(0.0, "kg s/m^2", -500.0, 0.0, "cubic surge damping X_uuu u^3 (optional term: resistance that "
+                      "grows faster than speed squared, wave making near hull speed; 0 = off)")
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -62,8 +78,9 @@ class VesselParameters:
 
     @classmethod
     def from_vector(cls, theta: Any) -> "VesselParameters":
+        """From theta in `names()` order; the seed's 18 alone leave the optional terms off."""
         names = cls.names()
-        if len(theta) != len(names):
+        if len(theta) not in (len(names), len(names) - len(OPTIONAL_TERMS)):
             raise ConfigError(f"parameter vector has {len(theta)} entries, expected {len(names)}")
         return cls(**{n: float(v) for n, v in zip(names, theta)})
 
@@ -82,34 +99,22 @@ class VesselParameters:
         """
         if not isinstance(data, Mapping):
             raise ConfigError(f"{source}: expected a mapping of parameter names to numbers")
-        verdict = data.get("verdict")
-        if verdict is not None and verdict not in USABLE_VERDICTS:
-            details = data.get("identification")
-            reasons = details.get("reasons") if isinstance(details, Mapping) else None
-            why = "; ".join(str(r) for r in reasons) if isinstance(reasons, list) else ""
-            raise ConfigError(f"{source}: identification refused these coefficients ({why or 'no reason recorded'}); "
-                              "record a better experiment and identify again, or use another file")
+        check_verdict(data, source)
         known = set(cls.names())
         values: dict[str, float] = {}
         for key, value in data.items():
             if key not in known and (isinstance(value, (str, list, dict)) or value is None):
                 continue  # identification's extra keys (std, verdict, reasons, ...)
             if key not in known:
-                raise ConfigError(f"{source}: unknown parameter {key!r} (known: {', '.join(cls.names())})")
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ConfigError(f"{source}: {key} = {value!r} is not a number")
-            try:
-                v = float(value)
-            except OverflowError:  # an integer literal too large for a float
-                raise ConfigError(f"{source}: {key} = {str(value)[:20]}... is too large") from None
-            if not math.isfinite(v):
-                raise ConfigError(f"{source}: {key} = {value!r} is not a finite number")
+                close = difflib.get_close_matches(str(key), cls.names(), n=1, cutoff=0.6)
+                hint = f"did you mean {close[0]!r}?" if close else f"known: {', '.join(cls.names())}"
+                raise ConfigError(f"{source}: unknown parameter {str(key)[:40]!r} ({hint})")
             f = cls.__dataclass_fields__[key]
-            lo, hi = f.metadata["range"]
-            if not lo <= v <= hi:
-                raise ConfigError(f"{source}: {key} = {v:g} {f.metadata['unit']} outside its physical range "
-                                  f"[{lo:g}, {hi:g}] ({f.metadata['doc']})")
-            values[key] = v
+            number = f.metadata["number"]
+            try:
+                values[key] = number.check(value, f"{source}: {key}")
+            except ConfigError as exc:
+                raise ConfigError(f"{exc} ({f.metadata['doc']})") from None
         return cls(**values)
 
     def with_updates(self, **changes: float) -> "VesselParameters":
@@ -131,6 +136,76 @@ class VesselParameters:
 
 # The documented default set of vessel-model.md (sized for a 0.99 m, 13 kg hull).
 DEFAULT_PARAMETERS = VesselParameters()
+
+
+def check_verdict(data: Mapping[str, Any], source: str) -> str:
+    """The identification verdict of a parameter file ("" when it has none); ConfigError with the
+    recorded reasons when it is not one of USABLE_VERDICTS."""
+    verdict = data.get("verdict")
+    if verdict is None:
+        return ""
+    if verdict not in USABLE_VERDICTS:
+        details = data.get("identification")
+        reasons = details.get("reasons") if isinstance(details, Mapping) else None
+        why = "; ".join(str(r) for r in reasons)[:600] if isinstance(reasons, list) else ""
+        if verdict == "refused":
+            raise ConfigError(f"{source}: identification refused these coefficients ({why or 'no reason recorded'}); "
+                              "record a better experiment and identify again, or use another file")
+        raise ConfigError(f"{source}: verdict {str(verdict)[:40]!r} is not one of {', '.join(USABLE_VERDICTS)} "
+                          "(a file identification refused is refused by every loader)")
+    return str(verdict)
+
+
+@dataclass(frozen=True)
+class ParameterFile:
+    """A parameter file as loaded: its coefficients, those it takes from the documented defaults
+    (it must say so: `"defaults_for": [...]`), its verdict and where it came from."""
+
+    parameters: VesselParameters
+    source: str
+    defaults_for: tuple[str, ...] = ()
+    verdict: str = ""
+
+    def describe(self) -> str:
+        """What every report names: 'params.json' or 'params.json (defaults for Y_rv, N_vv)'."""
+        return self.source + (f" (defaults for {', '.join(self.defaults_for)})" if self.defaults_for else "")
+
+
+def parameters_from_file(data: Any, source: str) -> ParameterFile:
+    """The boundary of every parameter file (a params JSON from `lotsen identify --out`, a boat's
+    coefficients): all 18 of the seed's coefficients present, each a finite number in its physical range (no
+    denormals), the verdict one of USABLE_VERDICTS. A coefficient left out is refused, naming every
+    missing one, unless the file lists it in "defaults_for" (then the documented default is used
+    and `ParameterFile.describe` says so in every report). Numbers only for coefficients; other
+    keys (std, verdict, identification, ...) are identification's and skipped. The optional model
+    terms (OPTIONAL_TERMS) may be left out: off."""
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: expected a JSON object of parameter names to numbers")
+    verdict = check_verdict(data, source)
+    names = VesselParameters.names()
+    raw_defaults = data.get(DEFAULTS_KEY, [])
+    if not isinstance(raw_defaults, list) or not all(isinstance(n, str) for n in raw_defaults):
+        raise ConfigError(f"{source}: {DEFAULTS_KEY}: expected a list of coefficient names, e.g. "
+                          f'"{DEFAULTS_KEY}": ["Y_rv", "N_vv"]')
+    unknown = [n for n in raw_defaults if n not in names]
+    if unknown:
+        raise ConfigError(f"{source}: {DEFAULTS_KEY}: unknown coefficient(s) {', '.join(repr(n[:20]) for n in unknown[:5])} "
+                          f"(known: {', '.join(names)})")
+    defaults = tuple(n for n in names if n in raw_defaults)
+    both = [n for n in defaults if n in data]
+    if both:
+        raise ConfigError(f"{source}: {', '.join(both)} both given and listed in {DEFAULTS_KEY}; keep one")
+    values = {k: v for k, v in data.items() if k != DEFAULTS_KEY}
+    parameters = VesselParameters.from_dict(values, source=source)  # what is there is physical
+    # an optional model term left out is off (0), as in every file written before it existed
+    missing = [n for n in names if n not in data and n not in defaults and n not in OPTIONAL_TERMS]
+    if missing:
+        example = ", ".join(json.dumps(n) for n in missing[:3])
+        raise ConfigError(f"{source}: missing coefficient(s) {', '.join(missing)}: a parameter file gives all "
+                          f"{len(names) - len(OPTIONAL_TERMS)} (a model half of defaults is a wrong model on the "
+                          f"boat; optional terms such as {', '.join(OPTIONAL_TERMS)} may be left out: off); to take the "
+                          f'documented defaults for some, list them: "{DEFAULTS_KEY}": [{example}]')
+    return ParameterFile(parameters, source, defaults, verdict)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ Kinetics (seed eq. 9, written out in eq. 22), on the velocity nu = [u, v, r] rel
     C(nu)    = [[0, 0, -m22 v], [0, 0, m11 u], [m22 v, -m11 u, 0]]      from M (seed eq. 12)
     D(nu)    = D_L + D_NL(nu)                                              (seed eq. 14)
     D_L      = [[X_u, 0, 0], [0, Y_v, Y_r], [0, N_v, N_r]]
-    D_NL(nu) = -[[X_|u|u |u|, 0, 0],
+    D_NL(nu) = -[[X_|u|u |u| + X_uuu u^2, 0, 0],      (X_uuu: an optional term, 0 = off)
                  [0, Y_|u|v |u| + Y_|v|v |v| + Y_|r|v |r|, 0],
                  [0, N_|v|v |v|, N_|r|r |r|]]
     tau      = the thruster forces of seed eq. (18-20) with the housing force (docs/model.md)
@@ -29,8 +29,10 @@ import numpy as np
 
 from lotsen.model.parameters import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
 
-# entries of D_NL: the quadratic damping coefficients (negative, Fossen's sign convention)
-DNL_NAMES = ("X_uu", "Y_uv", "Y_vv", "Y_rv", "N_vv", "N_rr")
+N_THETA = len(VesselParameters.names())  # seed eq. (26)'s 18 and the optional terms
+# entries of D_NL: the quadratic damping coefficients and the optional cubic surge term (negative,
+# Fossen's sign convention)
+DNL_NAMES = ("X_uu", "Y_uv", "Y_vv", "Y_rv", "N_vv", "N_rr", "X_uuu")
 # entries of the thrust coefficients of tau(nu, u)
 THRUST_NAMES = ("kappa", "half_rho_Ar_CN", "mu_az", "mu_t", "reverse_thrust_ratio")
 
@@ -45,11 +47,11 @@ def geometry_tuple(geom: VesselGeometry = DEFAULT_GEOMETRY) -> tuple[float, ...]
 def _layout(theta: Sequence[Any], geom: Sequence[float]) -> tuple[list, ...]:
     """M, D_L, D_NL, thrust coefficients, thruster positions as nested lists of theta's entries."""
     (m11, m22, m33, X_u, X_uu, Y_v, Y_r, Y_uv, Y_vv, Y_rv, N_v, N_r, N_vv, N_rr,
-     kappa, C_N, mu_az, mu_t) = theta
+     kappa, C_N, mu_az, mu_t, X_uuu) = theta
     l_x1, l_y1, l_x2, l_y2, l_xt, half_rho_Ar, rev = geom
     return ([[m11, 0.0, 0.0], [0.0, m22, 0.0], [0.0, 0.0, m33]],
             [[X_u, 0.0, 0.0], [0.0, Y_v, Y_r], [0.0, N_v, N_r]],
-            [X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr],
+            [X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr, X_uuu],
             [kappa, half_rho_Ar * C_N, mu_az, mu_t, rev],
             [[l_x1, l_y1], [l_x2, l_y2], [l_xt, 0.0]])
 
@@ -72,8 +74,8 @@ def _object_array(values: list) -> np.ndarray:
 def packed_from_theta(theta: Sequence[Any], geom: Sequence[float], symbolic: bool = False) -> tuple[np.ndarray, ...]:
     """(M, D_L, D_NL, thrust, arms) for the kernels from theta (seed eq. 26) and `geometry_tuple`;
     `symbolic`: theta holds CasADi expressions (object arrays, for `symbolic_rhs`)."""
-    if len(theta) != 18:
-        raise ValueError(f"expected 18 parameters theta, got {len(theta)}")
+    if len(theta) != N_THETA:
+        raise ValueError(f"expected {N_THETA} parameters theta, got {len(theta)}")
     make = _object_array if symbolic else _float_array
     if not symbolic:
         theta = [float(t) for t in theta]
@@ -117,7 +119,7 @@ class ModelArrays:
     def damping(self, nu: Sequence[float]) -> np.ndarray:
         """D(nu) = D_L + D_NL(nu) (seed eq. 14)."""
         au, av, ar = (abs(float(s)) for s in nu[:3])
-        X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr = self.D_NL
-        return self.D_L - np.array([[X_uu * au, 0.0, 0.0],
+        X_uu, Y_uv, Y_vv, Y_rv, N_vv, N_rr, X_uuu = self.D_NL
+        return self.D_L - np.array([[X_uu * au + X_uuu * au * au, 0.0, 0.0],
                                     [0.0, Y_uv * au + Y_vv * av + Y_rv * ar, 0.0],
                                     [0.0, N_vv * av, N_rr * ar]])

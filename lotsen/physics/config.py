@@ -144,6 +144,18 @@ class PhysicsConfig:
         return parse_address(self.address, "extra.physics.address")
 
 
+def address_flag(text: str) -> str:
+    """argparse `type=` of `--physics udp:HOST:PORT`: a malformed or empty address is refused at
+    once, as a number flag's out-of-range value is (`lotsen.settings.Number`)."""
+    import argparse
+
+    try:
+        parse_address(text, "")
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
+    return text
+
+
 def parse_address(text: str, what: str = "--physics") -> tuple[str, int]:
     """'udp:HOST:PORT' -> (host, port); a ConfigError naming `what` otherwise."""
     scheme, _, rest = text.partition(":")

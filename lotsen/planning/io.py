@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path as FilePath
 from typing import Any
 
@@ -29,24 +30,23 @@ import yaml
 from lotsen.errors import ConfigError
 from lotsen.files import parse_json, parse_yaml, read_text
 from lotsen.model.geodetic import LocalFrame
+from lotsen.settings import Number
 from lotsen.planning.route import GeoOrigin, HarbourNode, Region, Route, RouteNode, validate_route
 
 _TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin"}
+_FINITE = Number(-sys.float_info.max, sys.float_info.max)
+_INDEX = Number(0, 100_000, integer=True)  # a GeoJSON feature's place in the route
 
 
 # --------------------------------------------------------------------------------------------
 # dict <-> Route (strict schema checks with the location of every problem)
 # --------------------------------------------------------------------------------------------
 def _number(value: Any, where: str) -> float:
+    """A finite number, not a denormal (`lotsen.settings.Number`); the route's physical limits are
+    `validate_route`'s, which every route passes however it arrives."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(f"{where}: expected a number, got {_short(value)}")
-    try:
-        v = float(value)
-    except OverflowError:  # an integer literal beyond the float range (e.g. 400 digits)
-        raise ConfigError(f"{where}: integer with {len(str(abs(value)))} digits is too large") from None
-    if not math.isfinite(v):
-        raise ConfigError(f"{where}: {value!r} is not a finite number")
-    return v
+    return _FINITE.check(value, where)
 
 
 def _short(value: Any, limit: int = 60) -> str:
@@ -279,8 +279,8 @@ def route_from_geojson(data: Any, origin: GeoOrigin | None = None) -> Route:
         gtype = "Point" if role in ("harbour", "node") else "Polygon"
         if f["geometry"].get("type") != gtype:
             raise ConfigError(f"{where}: a {role} must be a {gtype}, got {_short(f['geometry'].get('type'))}")
-        if "index" in props:
-            _number(props["index"], f"{where}.properties.index")
+        if "index" in props:  # the order of the nodes: a whole number, not any float
+            _INDEX.check(props["index"], f"{where}.properties.index")
         by_role[role].append((j, f, props))
     if len(by_role["harbour"]) != 1:
         raise ConfigError(f"geojson: expected exactly one harbour point, got {len(by_role['harbour'])}")

@@ -21,7 +21,7 @@ Pure: no I/O; errors are PlanningError / ConfigError naming the segment or node.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Literal
 
 import numpy as np
@@ -35,6 +35,8 @@ from lotsen.planning.dubins import dubins_waypoints, dubins_words
 from lotsen.planning.path import Path, SegmentMetrics
 from lotsen.planning.route import Route, RouteNode, validate_route
 from lotsen.planning.speed import speed_profile
+from lotsen.settings import number_of
+from lotsen.settings import value_range as _r
 
 #: extra clearance for the coarse candidate check: covers the chord-vs-arc sagitta between
 #: coarse samples (<= (0.6 m)^2 / (8 R_min) for R_min >= 1 m); the fine check is exact.
@@ -45,19 +47,22 @@ _COARSE_MARGIN_M = 0.05
 class PlannerConfig:
     """Planner settings; lengths in metres, speeds m/s, accelerations m/s^2."""
 
-    length_ratio_max: float = 1.15      # seed eq. (40g): arc length <= ratio x straight distance
-    min_turn_radius_m: float = 1.0      # seed eq. (40h): |curvature| <= 1 / R_min
-    clearance_m: float = 0.5            # minimum distance to non-navigable water
-    gamma1: float = 1.0                 # seed eq. (41): weight of sum l_disk (per metre)
-    gamma2: float = 0.01                # seed eq. (41): weight of sum |c_disk| at spacing_m
-    gamma3: float = 1.0                 # extension: weight of bending energy int kappa^2 ds (m); 0 = seed
-    spacing_m: float = 0.01             # max distance between path points (seed: 1 cm)
-    a_lat_max_mps2: float = 0.3         # v <= sqrt(a_lat_max / |kappa|)
-    a_long_max_mps2: float = 0.2        # |dv/dt| <= a_long_max
-    speed_max_mps: float = 1.5
-    grid_n: int = 9                     # coarse grid is grid_n x grid_n tangent-magnitude pairs
-    tangent_min: float = 0.1            # tangent magnitude range, as a fraction of straight distance
-    tangent_max: float = 2.5
+    # seed eq. (40g): arc length <= ratio x straight distance
+    length_ratio_max: float = field(default=1.15, metadata=_r(1.01, 10.0))
+    min_turn_radius_m: float = field(default=1.0, metadata=_r(0.05, 100.0))  # seed eq. (40h): |curvature| <= 1 / R_min
+    clearance_m: float = field(default=0.5, metadata=_r(0.0, 50.0))  # minimum distance to non-navigable water
+    gamma1: float = field(default=1.0, metadata=_r(1e-6, 1e6))  # seed eq. (41): weight of sum l_disk (per metre)
+    gamma2: float = field(default=0.01, metadata=_r(0.0, 1e6))  # seed eq. (41): weight of sum |c_disk| at spacing_m
+    # extension: weight of bending energy int kappa^2 ds (m); 0 = seed
+    gamma3: float = field(default=1.0, metadata=_r(0.0, 1e6))
+    spacing_m: float = field(default=0.01, metadata=_r(0.001, 1.0))  # max distance between path points (seed: 1 cm)
+    a_lat_max_mps2: float = field(default=0.3, metadata=_r(0.01, 10.0))  # v <= sqrt(a_lat_max / |kappa|)
+    a_long_max_mps2: float = field(default=0.2, metadata=_r(0.01, 10.0))  # |dv/dt| <= a_long_max
+    speed_max_mps: float = field(default=1.5, metadata=_r(0.05, 5.0))
+    grid_n: int = field(default=9, metadata=_r(2, 50))  # coarse grid is grid_n x grid_n tangent-magnitude pairs
+    # tangent magnitude range, as a fraction of straight distance
+    tangent_min: float = field(default=0.1, metadata=_r(0.01, 10.0))
+    tangent_max: float = field(default=2.5, metadata=_r(0.02, 20.0))
     refine: str = "zoom"                # refinement of the best grid candidate: "zoom" (vectorised
                                         # pattern search), "nelder-mead" (scipy, bounded) or "none"
     detour: bool = True                 # insert nodes around obstacles instead of failing
@@ -87,6 +92,10 @@ class PlannerConfig:
             raise ConfigError(f"planner.grid_n: {self.grid_n} must be at least 2")
         if self.tangent_max <= self.tangent_min:
             raise ConfigError("planner.tangent_max must exceed planner.tangent_min")
+        for f in fields(self):  # each setting's physical range (settings.Number; from a config or in code)
+            number = number_of(f.metadata, integer=isinstance(getattr(self, f.name), int))
+            if number is not None:
+                number.check(getattr(self, f.name), f"planner.{f.name}")
 
 
 # --------------------------------------------------------------------------------------------

@@ -33,6 +33,9 @@ MAX_LEG_M = 2000.0
 MAX_HEADING_RAD = 2.0 * math.pi
 #: a node's speed set-point (the boat makes ~2 m/s at most)
 MAX_SPEED_MPS = 5.0
+#: a moving node's smallest speed set-point: 0 means "at rest here"; below 5 cm/s a leg takes
+#: hours (1e-9 m/s planned a 26-million-year route) and no controller holds such a speed
+MIN_SPEED_MPS = 0.05
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,6 +168,10 @@ def check_route_limits(route: Route) -> None:
             speed = getattr(n, "speed_mps", 0.0)
             if not speed <= MAX_SPEED_MPS:
                 raise ConfigError(f"{where}.speed_mps: {speed:g} m/s is more than {MAX_SPEED_MPS:g} m/s")
+            if 0.0 < speed < MIN_SPEED_MPS:
+                raise ConfigError(f"{where}.speed_mps: {speed:g} m/s is below the smallest speed set-point "
+                                  f"{MIN_SPEED_MPS:g} m/s (allowed: 0, at rest, or {MIN_SPEED_MPS:g} to "
+                                  f"{MAX_SPEED_MPS:g} m/s)")
             leg = math.hypot(n.north_m - nodes[k - 1].north_m, n.east_m - nodes[k - 1].east_m)
             if leg > MAX_LEG_M:
                 raise ConfigError(f"{Route.node_label(k)}: {leg:.0f} m from {Route.node_label(k - 1)}, more than "

@@ -20,6 +20,7 @@ from typing import Any, Literal, Mapping
 
 from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
+from lotsen.settings import Number, number_of, with_unit
 from lotsen.settings import value_range as _r
 
 
@@ -72,6 +73,8 @@ def _convert(tp: Any, value: Any, where: str) -> Any:
             raise ConfigError(f"{where}: integer with {len(str(abs(value)))} digits is too large")
         if not math.isfinite(value):
             raise ConfigError(f"{where}: {value!r} is not finite")
+        if value != 0 and abs(value) < sys.float_info.min:
+            raise ConfigError(f"{where}: {value!r} is a denormal number, not a meaningful value")
         return float(value)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -106,9 +109,9 @@ def from_mapping(cls: Any, data: Any, where: str = "") -> Any:
             raise ConfigError(f"{prefix}{key}: unknown key{hint}")
         f = flds[key]
         v = _convert(hints[key], value, f"{prefix}{key}")
-        rng = f.metadata.get("range")
-        if rng is not None and isinstance(v, (int, float)) and not rng[0] <= v <= rng[1]:
-            raise ConfigError(f"{prefix}{key}: {v!r} outside the allowed range [{rng[0]}, {rng[1]}]")
+        number = number_of(f.metadata, integer=isinstance(v, int) and not isinstance(v, bool))
+        if number is not None and isinstance(v, (int, float)) and not isinstance(v, bool):
+            v = with_unit(number, key).check(v, f"{prefix}{key}")  # finite, in range with its unit, no denormal
         kwargs[key] = v
     try:
         return cls(**kwargs)
@@ -145,6 +148,10 @@ class BoatSection:
     gnss_antenna_m: tuple[float, float] | None = None  # body x, y of the antenna
 
     def __post_init__(self) -> None:
+        if self.parameters:  # each coefficient in its physical range now, not when a boat is built
+            from lotsen.model.parameters import VesselParameters
+
+            VesselParameters.from_dict(self.parameters, source="sim.boat.parameters")
         if self.gnss_antenna_m is not None and max(abs(v) for v in self.gnss_antenna_m) > 2.0:
             raise ConfigError(f"sim.boat.gnss_antenna_m: {list(self.gnss_antenna_m)} is more than 2 m "
                               "from the hull's origin")
@@ -155,16 +162,29 @@ class BoatSection:
                 raise ConfigError(f"sim.boat: 'ideal: true' makes the boat the model in use; remove {', '.join(given)}")
 
 
+#: what a simulated start may be: within the 2 km of a route around the origin, a heading within one
+#: turn either way, speeds a 1-m boat can have
+INITIAL_STATE_RANGES: tuple[tuple[str, Number], ...] = (
+    ("north", Number(-2000.0, 2000.0, "m")), ("east", Number(-2000.0, 2000.0, "m")),
+    ("psi", Number(-2 * math.pi, 2 * math.pi, "rad")), ("u", Number(-5.0, 5.0, "m/s")),
+    ("v", Number(-5.0, 5.0, "m/s")), ("r", Number(-10.0, 10.0, "rad/s")))
+
+
 @dataclass(frozen=True)
 class SimSection:
     dt_s: float = field(default=0.01, metadata=_r(0.001, 0.05))
     imu_rate_hz: float = field(default=100.0, metadata=_r(1.0, 100.0))
     gnss_rate_hz: float = field(default=8.0, metadata=_r(1.0, 20.0))
+    # [north m, east m, psi rad, u m/s, v m/s, r rad/s] at the start (INITIAL_STATE_RANGES)
     initial_state: tuple[float, float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     environment: EnvironmentConfig = field(default_factory=EnvironmentConfig)
     # the simulated ESCs arm after this long at neutral (the real ones after their arming beeps)
     esc_arm_time_s: float = field(default=1.0, metadata=_r(0.0, 30.0))
     boat: BoatSection = field(default_factory=BoatSection)
+
+    def __post_init__(self) -> None:
+        for (name, number), v in zip(INITIAL_STATE_RANGES, self.initial_state):
+            number.check(v, f"sim.initial_state ({name})")
 
 
 @dataclass(frozen=True)

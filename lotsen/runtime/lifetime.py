@@ -101,9 +101,10 @@ class RunHolder:
 
 def read_holder(path: Path) -> RunHolder | None:
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        return RunHolder(int(data["pid"]), str(data.get("web", "")), str(data.get("identity", "")))
-    except (OSError, ValueError, KeyError, TypeError):
+        with open(path, "rb") as f:
+            data = json.loads(f.read(64 * 1024))  # a lock file holds ~100 bytes; never read a huge one whole
+        return RunHolder(int(data["pid"]), str(data.get("web", ""))[:300], str(data.get("identity", ""))[:300])
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
         return None
 
 

@@ -45,7 +45,7 @@ class ProcessOptions:
     """`extra.processes`: the processes of `lotsen run` (docs/architecture.md)."""
 
     zenoh_port: int = field(default=0, metadata=_r(0, 65535))  # 0: a free port on 127.0.0.1
-    core_cpu: int | None = None  # pin the core here; None: the last CPU when there are 2 or more
+    core_cpu: int | None = field(default=None, metadata=_r(0, 1023))  # pin the core here; None: the last CPU when there are 2 or more
     core_nice: int = field(default=-10, metadata=_r(-20, 19))  # applied when permitted
     # SCHED_FIFO for the core when permitted (0: off). Needed, not a luxury: with the kernel's
     # autogroups a nice value only counts inside one terminal session, so any busy program
@@ -146,3 +146,10 @@ def load_stack_config(path: str | Path | None) -> StackConfig:
         return stack_config(config)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}" if path is not None else str(exc)) from None
+
+
+def config_files(config: LaunchConfig) -> tuple[str, ...]:
+    """The files a config makes a command read (route, parameter and calibration files): no
+    output of that command may overwrite one (lotsen.files.check_output)."""
+    return tuple(p for p in (config.route, config.vessel.parameters_file, config.sim.boat.parameters_file,
+                             config.nodes.mag_calibration_file) if p)

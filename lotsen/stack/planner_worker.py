@@ -172,7 +172,7 @@ class PlannerWorker:
                     self._conn.send(None)
                 except OSError:
                     pass
-            if self._proc is not None:
+            if self._proc is not None and self._proc.pid is not None:  # (a start that failed left no process)
                 self._proc.join(1.0)
                 if self._proc.is_alive():
                     self._proc.kill()

@@ -12,7 +12,7 @@ from typing import Any
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.messages import ModelInfo
-from lotsen.model import Environment, VesselGeometry, VesselModel, VesselParameters
+from lotsen.model import Environment, ParameterFile, VesselGeometry, VesselModel, VesselParameters, parameters_from_file
 from lotsen.planning import GeoOrigin
 from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig
@@ -31,27 +31,41 @@ def example_route(name: str = "figure_eight") -> str:
     return str(path)
 
 
+def load_parameter_file(path: str) -> ParameterFile:
+    """The one loader of parameter files (as `lotsen identify --out` writes them): every coefficient
+    present and physical, or listed in "defaults_for"; a file identification refused is refused
+    here too, with its reasons (`lotsen.model.parameters.parameters_from_file`)."""
+    return parameters_from_file(read_json(path, ConfigError), str(path))
+
+
 def load_parameters(path: str | None) -> VesselParameters:
-    """A parameter file (as `lotsen identify --out` writes it); one that identification refused
-    is refused here too, with its reasons."""
+    """The coefficients of a parameter file (`load_parameter_file`); the defaults without one."""
     if not path:
         return VesselParameters()
-    return VesselParameters.from_dict(read_json(path, ConfigError), source=str(path))
+    return load_parameter_file(path).parameters
+
+
+def describe_parameters(path: str | None) -> str:
+    """The model's source as every report names it: the file, with the coefficients it takes from
+    the defaults, or 'default coefficients'."""
+    return load_parameter_file(path).describe() if path else "default coefficients"
 
 
 def model_info(config: LaunchConfig, model: VesselModel, stamp_s: float = 0.0) -> ModelInfo:
     """What the model in use is and where it came from, for the logs and the page."""
     path = config.vessel.parameters_file
     std: dict = {}
-    verdict, modified = "", ""
+    verdict, modified, source = "", "", "default coefficients"
     if path:
         data = read_json(path, ConfigError)
-        std = {k: float(v) for k, v in (data.get("std") or {}).items() if isinstance(v, (int, float))}
-        v = data.get("verdict")
-        verdict = str(v.get("verdict", "") if isinstance(v, dict) else v or "")
+        loaded = parameters_from_file(data, str(path))
+        raw_std = data.get("std")
+        std = {k: float(v) for k, v in (raw_std if isinstance(raw_std, dict) else {}).items()
+               if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        verdict, source = loaded.verdict, loaded.describe()
         modified = datetime.fromtimestamp(Path(path).stat().st_mtime, tz=timezone.utc).isoformat(timespec="seconds")
     boat = boat_description(config, model) if config.mode == "sim" else ""
-    return ModelInfo(stamp_s=stamp_s, source=path or "default coefficients", file_modified_utc=modified,
+    return ModelInfo(stamp_s=stamp_s, source=source, file_modified_utc=modified,
                      parameters=model.params.to_dict(), std=std, verdict=verdict, boat=boat)
 
 
@@ -83,7 +97,10 @@ def simulated_boat(config: LaunchConfig, model: VesselModel | None = None) -> Si
         return SimulatedBoat.ideal_for(model)
     boat = DEFAULT_BOAT
     if b.parameters_file:
-        boat = boat.with_parameters(load_parameters(b.parameters_file))
+        loaded = load_parameter_file(b.parameters_file)
+        # a file that takes some coefficients from the defaults says so in every report of the boat
+        boat = boat.with_parameters(loaded.parameters,
+                                    name=f"{boat.name} with {loaded.describe()}" if loaded.defaults_for else None)
     if b.parameters:
         boat = boat.with_parameters(VesselParameters.from_dict({**boat.parameters.to_dict(), **b.parameters},
                                                                source="sim.boat.parameters"))

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from lotsen.errors import DataError
-from lotsen.files import read_text
+from lotsen.files import MAX_DATA_BYTES, atomic_output, read_text
 
 INPUT_COLUMNS = ("alpha1", "alpha2", "n1", "n2", "nt")
 OUTPUT_COLUMNS = ("north", "east", "psi", "r")
@@ -50,6 +50,14 @@ PSI_OUTPUT = "psi"
 #   "sample" - achieved values sampled at their stamps: linearly interpolated between stamps.
 # After a column's last stamp every kind holds its last value.
 INPUT_KINDS = ("held", "mean", "sample")
+# what a value of a record may be (magnitude, unit): beyond these a cell is damaged data, and a
+# 1e308 would overflow the estimator's arithmetic. Generous: a servo angle within a turn, propeller
+# speeds a motor cannot reach, positions 100 km from the first fix, a heading unwrapped over 1600 turns.
+VALUE_LIMITS: dict[str, tuple[float, str]] = {
+    "alpha1": (2 * math.pi, "rad"), "alpha2": (2 * math.pi, "rad"), "n1": (500.0, "rev/s"),
+    "n2": (500.0, "rev/s"), "nt": (500.0, "rev/s"), "north": (1e5, "m"), "east": (1e5, "m"),
+    "psi": (1e4, "rad"), "r": (100.0, "rad/s"), "u": (50.0, "m/s"), "v": (50.0, "m/s")}
+T_LIMIT_S = 1e10  # a POSIX time stamp is 1.8e9 s
 
 
 @dataclass
@@ -197,6 +205,17 @@ def check_record(record: IdRecord) -> None:
         if len(inf):
             k, j = inf[0]
             raise DataError(f"{src}, row {k}, {name} {cols[j]}: infinite value")
+        bounds = np.array([VALUE_LIMITS[c][0] for c in cols])
+        with np.errstate(invalid="ignore"):
+            far = np.argwhere(np.abs(arr) > bounds)
+        if len(far):
+            k, j = far[0]
+            limit, unit = VALUE_LIMITS[cols[j]]
+            raise DataError(f"{src}, row {k}, {name} {cols[j]}: {arr[k, j]:g} {unit} outside the allowed range "
+                            f"-{limit:g} to {limit:g} {unit} (damaged data?)")
+    if not np.all(np.abs(t) <= T_LIMIT_S):
+        k = int(np.argmax(np.abs(t) > T_LIMIT_S))
+        raise DataError(f"{src}, row {k}: time {t[k]:g} s outside the allowed range -{T_LIMIT_S:g} to {T_LIMIT_S:g} s")
     never = [c for j, c in enumerate(INPUT_COLUMNS) if not np.isfinite(record.inputs[:, j]).any()]
     if never:
         raise DataError(f"{src}: input column(s) {', '.join(never)} never have a value (an input holds from its "
@@ -305,7 +324,7 @@ def load_csv(path: str | Path) -> IdRecord:
     unparsable or infinite cells, a missing or non-finite t, a t before the previous row's.
     """
     path = Path(path)
-    fh = io.StringIO(read_text(path, DataError, "data file"), newline="")  # UTF-8 or a clear error
+    fh = io.StringIO(read_text(path, DataError, "data file", MAX_DATA_BYTES), newline="")  # UTF-8 or a clear error
     with fh:
         reader = csv.reader(fh)
         kind = "held"
@@ -386,11 +405,12 @@ def load_csv(path: str | Path) -> IdRecord:
     return rec
 
 
-def save_csv(record: IdRecord, path: str | Path) -> None:
-    """Write the record; a cell without a value at its row's stamp is left empty (asynchronous form)."""
+def save_csv(record: IdRecord, path: str | Path, inputs: tuple = ()) -> None:
+    """Write the record (atomically, never over one of `inputs`: lotsen.files.atomic_output); a
+    cell without a value at its row's stamp is left empty (asynchronous form)."""
     header = ["t", *INPUT_COLUMNS, *record.output_names]
     data = np.column_stack([record.t, record.inputs, record.outputs])
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path, inputs, DataError, "data file") as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         if record.input_kind != "held":  # the default needs no line (files stay plain CSV)
             fh.write(f"# inputs: {record.input_kind}\n")

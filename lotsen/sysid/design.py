@@ -26,6 +26,7 @@ import numpy as np
 
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselParameters
 from lotsen.sysid.data import OUTPUT_COLUMNS, IdRecord
+from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.sysid.estimate import DEFAULT_NOISE_STD, NAMES
 from lotsen.sysid.experiment import Area, Experiment, Piece
 
@@ -164,7 +165,8 @@ def design_experiment(params: VesselParameters, config: DesignConfig = DesignCon
     from scipy.optimize import minimize
 
     cfg = config
-    free_names = tuple(n for n in NAMES if n not in cfg.fixed)
+    # the optional model terms are off unless identification turns them on: not designed for
+    free_names = tuple(n for n in NAMES if n not in cfg.fixed and n not in OPTIONAL_TERMS)
     samples = parameter_samples(params, cfg.robust_samples, cfg.robust_spread, cfg.seed, cfg.fixed)
     rows_per_seg = int(round(cfg.segment_s * cfg.sample_rate_hz))
     nseg = int(math.ceil(cfg.duration_s / cfg.segment_s))

@@ -26,14 +26,18 @@ import numpy as np
 
 from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
+from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import IdRecord, Segment, check_excitation, check_record, split_segments, split_windows
 from lotsen.sysid.kernels import WindowSimulator
 
 NAMES = VesselParameters.names()
 # Multiplying these by one factor leaves the motion unchanged (vessel-model.md "Identifiability"):
-# M, every damping coefficient, the thrust coefficients and the housing force coefficient C_N.
-SCALE_GROUP = tuple(n for n in NAMES if n != "kappa")
+# M, every damping coefficient, the thrust coefficients and the housing force coefficient C_N. (An
+# optional term scales too, but one held at 0 -- off -- fixes no scale.)
+SCALE_GROUP = tuple(n for n in NAMES if n != "kappa" and n not in OPTIONAL_TERMS)
+# a typical magnitude of each optional term (its default, 0, gives none): relative steps and sigmas
+_TERM_SCALE = {"X_uuu": 2.0}
 # Default measurement noise (1 sigma) of each output: RTK-fixed GNSS, heading, MEMS gyro.
 DEFAULT_NOISE_STD = {"north": 0.01, "east": 0.01, "psi": 0.01, "r": 0.003, "u": 0.03, "v": 0.03}
 # Parameters that must be strictly positive (seed eq. 16a-c) get this lower bound instead of 0.
@@ -62,6 +66,8 @@ def parameter_bounds() -> tuple[np.ndarray, np.ndarray]:
 def parameter_scale(theta: Sequence[float]) -> np.ndarray:
     """Typical magnitude of each parameter (relative steps and relative uncertainties)."""
     d = np.abs(np.array(DEFAULT_PARAMETERS.to_vector()))
+    for n, v in _TERM_SCALE.items():
+        d[NAMES.index(n)] = 10.0 * v  # (x 0.1 below)
     t = np.abs(np.asarray(theta, float))
     return np.maximum(np.maximum(t, 0.1 * d), 1e-6)
 
@@ -310,11 +316,23 @@ def _lm_solve(nb: NormalBlocks, lam: float) -> tuple[np.ndarray, np.ndarray]:
 _X0_SCALE = np.array([1.0, 1.0, 0.1, 0.1, 0.1, 0.1])
 
 
-def starting_point(theta0: VesselParameters, fixed: Mapping[str, float]
+def with_terms_off(fixed: Mapping[str, float], theta0: VesselParameters,
+                   terms: Sequence[str] = ()) -> dict[str, float]:
+    """`fixed` with every optional model term not in `terms` held at `theta0`'s value (0: off)."""
+    out = dict(fixed)
+    for n in OPTIONAL_TERMS:
+        if n not in terms and n not in out:
+            out[n] = float(getattr(theta0, n))
+    return out
+
+
+def starting_point(theta0: VesselParameters, fixed: Mapping[str, float], terms: Sequence[str] = ()
                    ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray]:
     """The parameter vector to start from (fixed values in, clipped to the physical bounds), the
     indices and names of the free parameters, and their scale; a fixed value outside its
-    physical range is a LotsenError naming it."""
+    physical range is a LotsenError naming it. The optional model terms are estimated only when
+    named in `terms` (else held at theta0's value: 0, off)."""
+    fixed = with_terms_off(fixed, theta0, terms)
     theta = np.array(theta0.with_updates(**fixed).to_vector(), float)
     lo, hi = parameter_bounds()
     out_of = [f"{n} = {fixed[n]:g} outside [{lo[i]:g}, {hi[i]:g}]" for i, n in enumerate(NAMES)
@@ -338,7 +356,7 @@ def estimate(records: Sequence[IdRecord] | WindowedProblem, theta0: VesselParame
     `x0s` gives initial states per window (else guessed from the data); `estimate_x0=False`
     keeps them (the docs' "given initial state").
     """
-    fixed = dict(fixed or {})
+    fixed = with_terms_off(dict(fixed or {}), theta0 if isinstance(theta0, VesselParameters) else DEFAULT_PARAMETERS)
     unknown = [n for n in fixed if n not in NAMES]
     if unknown:
         raise LotsenError(f"cannot fix unknown parameter(s) {', '.join(unknown)} (known: {', '.join(NAMES)})")

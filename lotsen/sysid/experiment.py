@@ -24,6 +24,7 @@ from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, VesselModel, rk4_step
 from lotsen.model.angles import wrap_angle
+from lotsen.settings import Number
 
 CHANNELS = ("alpha1", "alpha2", "n1", "n2", "nt")
 # YAML keys -> (channels, factor to SI): angles in degrees in files, radians inside
@@ -33,6 +34,25 @@ _KEYS = {
     "n2_rps": ((3,), 1.0), "nt_rps": ((4,), 1.0),
 }
 PIECE_TYPES = ("constant", "steps", "ramp", "zigzag", "turning_circle", "prbs", "multisine", "piecewise")
+
+# What the numbers of an experiment file may be (lotsen.settings.Number: finite, in range with the
+# unit, no denormals). Set-points are bounded loosely here and against the actuators' limits by
+# `check_limits`; times so that no experiment runs (or is checked) for hours.
+MAX_EXPERIMENT_S = 1800.0  # a whole experiment: a lake battery is 10 min
+DURATION = Number(0.01, MAX_EXPERIMENT_S, "s")
+ANGLE_DEG = Number(-90.0, 90.0, "deg")
+SPEED_RPS = Number(-200.0, 200.0, "rev/s")
+_LEVEL = {k: ANGLE_DEG if k.endswith("_deg") else SPEED_RPS for k in _KEYS}
+ZIGZAG_ALPHA_DEG = Number(0.5, 90.0, "deg")
+ZIGZAG_HEADING_DEG = Number(0.5, 180.0, "deg")
+FREQUENCY_HZ = Number(0.001, 50.0, "Hz")
+N_FREQ = Number(1, 100, integer=True)
+SEED = Number(0, 2**32 - 1, integer=True)
+AREA_M = Number(-2000.0, 2000.0, "m")
+AREA_SIDE_M = Number(2.0, 4000.0, "m")
+START_HEADING_DEG = Number(-360.0, 360.0, "deg")
+START_SPEED_MPS = Number(0.0, 5.0, "m/s")
+COMMAND_RATE_HZ = Number(1.0, 100.0, "Hz")
 
 
 @dataclass(frozen=True)
@@ -79,15 +99,13 @@ class Experiment:
 # ----------------------------------------------------------------------------------------------
 # parsing (pure: from a mapping; `load_experiment` reads the file)
 
-def _num(d: Mapping[str, Any], key: str, where: str, default: float | None = None) -> float:
+def _num(d: Mapping[str, Any], key: str, where: str, number: Number, default: float | None = None) -> Any:
+    """d[key] as `number` allows it (a refusal names the place, the value and the range)."""
     if key not in d:
         if default is None:
             raise ConfigError(f"{where}: missing '{key}'")
         return default
-    v = d[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ConfigError(f"{where}: '{key}' = {v!r} is not a finite number")
-    return float(v)
+    return number.check(d[key], f"{where}: {key}")
 
 
 def _levels(d: Mapping[str, Any], where: str, base: Sequence[float] | None = None) -> np.ndarray:
@@ -99,10 +117,9 @@ def _levels(d: Mapping[str, Any], where: str, base: Sequence[float] | None = Non
         if key not in _KEYS:
             continue
         chans, k = _KEYS[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ConfigError(f"{where}: '{key}' = {value!r} is not a finite number")
+        v = _LEVEL[key].check(value, f"{where}: {key}")
         for c in chans:
-            u[c] = float(value) * k
+            u[c] = v * k
     return u
 
 
@@ -155,14 +172,14 @@ def _parse_piece(d: Mapping[str, Any], where: str) -> Piece:
         levels = d.get("levels")
         if not isinstance(levels, list) or not levels:
             raise ConfigError(f"{where}: 'levels' must be a non-empty list of input settings")
-        step_s = _num(d, "step_duration_s", where)
+        step_s = _num(d, "step_duration_s", where, DURATION)
         p["levels"] = [_levels(lv, f"{where} level {i + 1}") for i, lv in enumerate(levels)]
         p["step_s"] = step_s
         duration = step_s * len(levels)
     else:
-        duration = _num(d, "duration_s", where)
-    if duration <= 0:
-        raise ConfigError(f"{where}: duration must be positive")
+        duration = _num(d, "duration_s", where, DURATION)
+    if not 0 < duration <= MAX_EXPERIMENT_S:
+        raise ConfigError(f"{where}: duration {duration:g} s outside the allowed range {DURATION.allowed()}")
     if kind == "constant":
         p["u"] = _levels(d, where)
     elif kind == "ramp":
@@ -172,19 +189,17 @@ def _parse_piece(d: Mapping[str, Any], where: str) -> Piece:
         p["u0"] = _levels(d["from"], f"{where} from")
         p["u1"] = _levels(d["to"], f"{where} to")
     elif kind == "zigzag":
-        p["alpha"] = math.radians(_num(d, "alpha_deg", where))
-        p["heading"] = math.radians(_num(d, "heading_deg", where))
-        p["n"] = _num(d, "n_rps", where)
-        if p["heading"] <= 0 or p["alpha"] <= 0:
-            raise ConfigError(f"{where}: alpha_deg and heading_deg must be positive")
+        p["alpha"] = math.radians(_num(d, "alpha_deg", where, ZIGZAG_ALPHA_DEG))
+        p["heading"] = math.radians(_num(d, "heading_deg", where, ZIGZAG_HEADING_DEG))
+        p["n"] = _num(d, "n_rps", where, SPEED_RPS)
     elif kind == "turning_circle":
         direction = d.get("direction", "starboard")
         if direction not in ("starboard", "port"):
             raise ConfigError(f"{where}: direction must be 'starboard' or 'port'")
-        a = math.radians(abs(_num(d, "alpha_deg", where)))
+        a = math.radians(abs(_num(d, "alpha_deg", where, ANGLE_DEG)))
         # alpha > 0 yaws the bow to port (thrust at the stern to starboard): starboard turn = -alpha
-        p["u"] = np.array([-a if direction == "starboard" else a] * 2 + [_num(d, "n_rps", where)] * 2 + [0.0])
-        p["u"][4] = _num(d, "nt_rps", where, 0.0)
+        p["u"] = np.array([-a if direction == "starboard" else a] * 2 + [_num(d, "n_rps", where, SPEED_RPS)] * 2 + [0.0])
+        p["u"][4] = _num(d, "nt_rps", where, SPEED_RPS, 0.0)
     elif kind in ("prbs", "multisine"):
         base = d.get("base", {})
         if not isinstance(base, Mapping):
@@ -194,20 +209,21 @@ def _parse_piece(d: Mapping[str, Any], where: str) -> Piece:
         if not isinstance(amps, Mapping) or not amps:
             raise ConfigError(f"{where}: 'amplitude' must map channels (e.g. nt_rps) to amplitudes")
         p["amp"] = _levels(amps, f"{where} amplitude", [0.0] * 5)
-        seed = int(d.get("seed", 0))
+        seed = _num(d, "seed", where, SEED, 0)
         rng = np.random.default_rng(seed)
         if kind == "prbs":
-            bit = _num(d, "bit_s", where)
-            if bit <= 0:
-                raise ConfigError(f"{where}: bit_s must be positive")
+            bit = _num(d, "bit_s", where, DURATION)
+            if bit > duration:
+                raise ConfigError(f"{where}: bit_s {bit:g} s is longer than the piece ({duration:g} s): "
+                                  "a PRBS needs several bits")
             nbits = int(math.ceil(duration / bit))
             p["bit_s"] = bit
             p["bits"] = rng.choice([-1.0, 1.0], size=(nbits, 5))
         else:
-            f_lo, f_hi = _num(d, "f_min_hz", where), _num(d, "f_max_hz", where)
-            nf = int(_num(d, "n_freq", where, 6))
-            if not 0 < f_lo <= f_hi or nf < 1:
-                raise ConfigError(f"{where}: need 0 < f_min_hz <= f_max_hz and n_freq >= 1")
+            f_lo, f_hi = _num(d, "f_min_hz", where, FREQUENCY_HZ), _num(d, "f_max_hz", where, FREQUENCY_HZ)
+            nf = _num(d, "n_freq", where, N_FREQ, 6)
+            if not f_lo <= f_hi:
+                raise ConfigError(f"{where}: need f_min_hz <= f_max_hz (got {f_lo:g} and {f_hi:g} Hz)")
             freqs = np.linspace(f_lo, f_hi, nf)
             # Schroeder phases per channel (low crest factor), shifted per channel by the seed
             k = np.arange(1, nf + 1)
@@ -216,7 +232,9 @@ def _parse_piece(d: Mapping[str, Any], where: str) -> Piece:
             p["phases"] = ph[None, :] + rng.uniform(0, 2 * np.pi, size=(5, 1))
             p["norm"] = 1.0 / math.sqrt(nf / 2.0)  # unit RMS per channel, peaks ~1.4-1.7
     elif kind == "piecewise":
-        seg = _num(d, "segment_s", where)
+        seg = _num(d, "segment_s", where, DURATION)
+        if seg > duration:
+            raise ConfigError(f"{where}: segment_s {seg:g} s is longer than the piece ({duration:g} s)")
         values = d.get("values")
         if not isinstance(values, Mapping) or not values:
             raise ConfigError(f"{where}: 'values' must map channels to lists of levels")
@@ -228,7 +246,7 @@ def _parse_piece(d: Mapping[str, Any], where: str) -> Piece:
                 raise ConfigError(f"{where}: '{key}' needs {nseg} levels (duration / segment_s), got "
                                   f"{len(lst) if isinstance(lst, list) else lst!r}")
             for c in chans:
-                table[:, c] = [_num({"v": v}, "v", f"{where} {key}[{i}]") * k for i, v in enumerate(lst)]
+                table[:, c] = [_LEVEL[str(key)].check(v, f"{where}: {key}[{i}]") * k for i, v in enumerate(lst)]
         p["segment_s"] = seg
         p["table"] = table
     return Piece(kind, duration, p, label)
@@ -243,15 +261,10 @@ def _unknown_keys(d: Mapping[str, Any], allowed: Sequence[str], where: str) -> N
         raise ConfigError(f"{where}: unknown key(s) {', '.join(map(repr, unknown))} (known: {', '.join(allowed)})")
 
 
-def _pair(value: Any, where: str) -> tuple[float, float]:
+def _pair(value: Any, where: str, number: Number) -> tuple[float, float]:
     if not (isinstance(value, (list, tuple)) and len(value) == 2):
-        raise ConfigError(f"{where}: expected two numbers, got {value!r}")
-    out = []
-    for i, v in enumerate(value):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ConfigError(f"{where}[{i}] = {v!r} is not a finite number")
-        out.append(float(v))
-    return (out[0], out[1])
+        raise ConfigError(f"{where}: expected two numbers, got {str(value)[:60]}")
+    return (number.check(value[0], f"{where}[0]"), number.check(value[1], f"{where}[1]"))
 
 
 def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Experiment:
@@ -266,10 +279,11 @@ def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Exp
     if "area" in data:
         a = data["area"]
         if isinstance(a, Mapping) and set(a) == {"size_m"}:
-            n, e = _pair(a["size_m"], f"{source}: area.size_m")
+            n, e = _pair(a["size_m"], f"{source}: area.size_m", AREA_SIDE_M)
             area = Area.centred(n, e)
         elif isinstance(a, Mapping) and set(a) == {"north_m", "east_m"}:
-            area = Area(_pair(a["north_m"], f"{source}: area.north_m"), _pair(a["east_m"], f"{source}: area.east_m"))
+            area = Area(_pair(a["north_m"], f"{source}: area.north_m", AREA_M),
+                        _pair(a["east_m"], f"{source}: area.east_m", AREA_M))
         else:
             raise ConfigError(f"{source}: area must have size_m: [n, e] or north_m: [lo, hi], east_m: [lo, hi]")
         if not (area.north_m[0] < 0 < area.north_m[1] and area.east_m[0] < 0 < area.east_m[1]):
@@ -278,13 +292,21 @@ def parse_experiment(data: Mapping[str, Any], source: str = "experiment") -> Exp
     if not isinstance(start, Mapping):
         raise ConfigError(f"{source}: start must be a mapping with heading_deg and speed_mps")
     _unknown_keys(start, ("heading_deg", "speed_mps"), f"{source}: start")
-    rate = _num(data, "command_rate_hz", source, 20.0)
-    if not 0 < rate <= 100:
-        raise ConfigError(f"{source}: command_rate_hz = {rate:g} must be in (0, 100]")
-    return Experiment(str(data.get("name", Path(source).stem)), pieces, area,
-                      math.radians(_num(start, "heading_deg", f"{source}: start", 0.0)),
-                      _num(start, "speed_mps", f"{source}: start", 0.0), rate,
-                      str(data.get("description", "")))
+    rate = _num(data, "command_rate_hz", source, COMMAND_RATE_HZ, 20.0)
+    total = sum(p.duration_s for p in pieces)
+    if total > MAX_EXPERIMENT_S:
+        raise ConfigError(f"{source}: the pieces last {total:g} s together, more than an experiment may "
+                          f"({MAX_EXPERIMENT_S:g} s); split it into several experiments")
+    for i, p in enumerate(pieces):
+        if p.kind == "multisine" and p.params["freqs"].max() > rate / 2:
+            raise ConfigError(f"{source}: piece {i + 1} (multisine): f_max_hz {p.params['freqs'].max():g} Hz is above "
+                              f"half the command rate ({rate / 2:g} Hz): the commands cannot carry it")
+    name = data.get("name", Path(source).stem)
+    description = data.get("description", "")
+    return Experiment(str(name)[:200], pieces, area,
+                      math.radians(_num(start, "heading_deg", f"{source}: start", START_HEADING_DEG, 0.0)),
+                      _num(start, "speed_mps", f"{source}: start", START_SPEED_MPS, 0.0), rate,
+                      str(description)[:2000])
 
 
 def load_experiment(path: str | Path) -> Experiment:

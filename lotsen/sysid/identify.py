@@ -17,8 +17,8 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
-from lotsen.sysid.data import IdRecord
-from lotsen.sysid.estimate import SCALE_GROUP, estimate, parameter_bounds
+from lotsen.sysid.data import IdRecord, check_excitation, check_record, split_segments
+from lotsen.sysid.estimate import SCALE_GROUP, IdentifiabilityError, estimate, parameter_bounds
 from lotsen.sysid.multiple import check_identifiable, estimate_lake_averaged, estimate_multiple_shooting
 from lotsen.sysid.prediction import PredictionScore
 from lotsen.sysid.verdict import CORE_PARAMETERS, Verdict, judge
@@ -93,6 +93,10 @@ class Identification:
     chosen: str = "identified"
     estimator: str = "output error"
     fixed: dict[str, float] | None = None
+    fixed_test: Any = None  # lotsen.sysid.multiple.FixedValueTest of the output-error estimate, if any
+    advice: list[str] | None = None  # what the misfit says, in operator language (`advice`)
+    environment_values: dict[str, float] | None = None  # a lake estimate's environment without details
+    terms: tuple[str, ...] = ()  # the optional model terms estimated (lotsen.model.parameters.OPTIONAL_TERMS)
 
     @property
     def refused(self) -> bool:
@@ -106,6 +110,7 @@ class Identification:
         out = res.to_json_dict()
         v = self.verdict.to_json_dict()
         v["estimator"] = self.estimator
+        v["optional_terms"] = list(self.terms)
         if self.fixed:
             v["fixed"] = dict(self.fixed)
             v["holds_if"] = ("these coefficients hold only if the fixed values are right: "
@@ -114,7 +119,11 @@ class Identification:
         if self.prediction:
             out["prediction"] = {"models": {k: sc.to_json_dict() for k, sc in self.prediction.items()},
                                  "chosen": self.chosen}
+        if self.advice:
+            v["advice"] = list(self.advice)
         env = getattr(res.details, "environment", None)
+        if env is None and self.environment_values is not None:
+            out["environment"] = {"values": dict(self.environment_values)}
         if env is not None:
             out["environment"] = {"values": env.values, "std": env.std,
                                   "gust_factor_mean": float(env.gust_factor.mean()),
@@ -151,6 +160,18 @@ PREDICTIVE_MIN_WINDOWS = 10
 #: from the equation-error start a boat built like the model converges in 5-10 iterations; after this
 #: many a record the model cannot explain is recognised (multiple.estimate_multiple_shooting's misfit_check)
 MISFIT_CHECK_ITERATIONS = 15
+STEADY_WIND_ITERATIONS = 8  # the lake model's first stage (estimate_lake_from)
+GUST_ITERATIONS = 20  # its second stage, per noise pass
+# the wind's drag coefficients in the output-error lake model: within this fraction of the nominal hull's
+# (1 % was right for lotsen's own generator, whose boat has exactly the nominal coefficients; another
+# hull's wind is another form, and the equation-error start has found its values)
+LAKE_WIND_SPREAD = 0.5
+# in calm water the track's correlation shows a model that cannot explain the record sooner (no gusts
+# to settle): 10 iterations from the equation-error start (a boat built like the model: converged in 7)
+CALM_MISFIT_CHECK_ITERATIONS = 10
+DRIFT_ADVICE_MPS = 0.02  # a drift the prediction misses, worth --lake
+TERM_MIN_IMPROVEMENT = 0.05  # an optional model term is turned on when it predicts this much better
+SPEED_ADVICE_RATIO = 2.0  # faster windows' errors this many times the slower ones': a speed-dependent misfit
 
 
 def equation_error_result(ee: Any, fixed: Mapping[str, float]) -> Any:
@@ -194,14 +215,20 @@ def estimate_lake_from(records: Sequence[IdRecord], start: VesselParameters, fix
     the coefficients, current and steady wind together (gust factors held), then the gust factors
     free from there. (`estimate_lake` starts from the documented defaults with a third stage for the
     environment alone; the equation-error start makes that stage unnecessary.)"""
-    first = estimate_multiple_shooting(records, start, fixed, lake=True, gust_std=1e-3, env0=env0,
-                                       max_iterations=max_iterations, progress=progress, **kwargs)
-    env = _environment_of(first)
     test_fixed = kwargs.pop("test_fixed", ())
+    kwargs.pop("estimate_noise", None)
+    # the steady-wind stage only brings coefficients, current and wind together before the gusts are
+    # released: a few iterations, the noise as assumed (its residuals carry the gusts by design)
+    first = estimate_multiple_shooting(records, start, fixed, lake=True, gust_std=1e-3, env0=env0,
+                                       max_iterations=STEADY_WIND_ITERATIONS, progress=progress,
+                                       estimate_noise=False, **kwargs)
+    env = _environment_of(first)
+    # the gusts free: a hard budget too (the gust factors can absorb the track's errors of a model that
+    # does not explain the boat, so the track test alone let one record crawl 120 iterations, 58 s)
     return estimate_multiple_shooting(records, first.params, fixed, lake=True, gust_std=gust_std, env0=env,
                                       nodes0=first.details.nodes, gyro_bias0=first.details.gyro_bias,
-                                      max_iterations=max_iterations, progress=progress, test_fixed=test_fixed,
-                                      **kwargs)
+                                      max_iterations=min(max_iterations, GUST_ITERATIONS), progress=progress,
+                                      test_fixed=test_fixed, misfit_check=MISFIT_CHECK_ITERATIONS, **kwargs)
 
 
 def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0: VesselParameters,
@@ -209,6 +236,7 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
              in_use: VesselParameters | None = None, noise_std: Mapping[str, float] | None = None,
              gap_s: float = 1.0, node_s: float = 2.0, max_iterations: int = 60, gust_std: float = 0.3,
              estimate_noise: bool = True, gyro_offset: bool = False, held_out: bool = True,
+             terms: Sequence[str] | None = None,
              progress: Callable[[str], None] | None = None) -> Identification:
     """One identification (docs/sysid.md, "The verdict"): the equation-error start (the same whatever
     `theta0`), the output-error estimate from there (multiple shooting; `lake`: with current, wind and
@@ -216,9 +244,10 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
     the model in use (`in_use`, default `theta0`), and the verdict: ok / weak (a physical answer),
     predictive (effective coefficients that predict measurably better than the model in use), refused.
     """
+    from lotsen.model.parameters import OPTIONAL_TERMS
     from lotsen.sysid.equation_error import estimate_equation_error
     from lotsen.sysid.multiple import MultipleShootingProblem
-    from lotsen.sysid.prediction import prediction_score
+    from lotsen.sysid.prediction import improvement, prediction_score
 
     say = progress or (lambda _msg: None)
     fixed = dict(fixed)
@@ -226,6 +255,10 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
     # a fixed value that is not the scale's anchor is an assumption the record can contradict
     anchor = next((n for n in SCALE_GROUP if n in fixed), None)
     test_fixed = [n for n in fixed if n != anchor]
+    # the data's own faults first, in their own words (no excitation, a motionless boat, ...)
+    for r in records:
+        check_record(r)
+    check_excitation([seg for r in records for seg in split_segments(r, gap_s)])
     say("equation-error start")
     ee = None
     try:
@@ -236,6 +269,34 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
         ee = estimate_equation_error(records, fixed, theta0, geometry, gap_s, lake=lake, gyro_bias=bias0)
     except (ValueError, np.linalg.LinAlgError):
         ee = None  # too few fixes for the splines: the output-error estimate starts from theta0
+    # the optional model terms (lotsen.model.parameters.OPTIONAL_TERMS): named ones estimated; by default
+    # (None) each is turned on where the equation-error fit with it predicts the held-out data
+    # measurably better (TERM_MIN_IMPROVEMENT), the choice the issue asks of held-out prediction
+    chosen_terms: tuple[str, ...] = tuple(terms or ())
+    term_note = ""
+    if terms is None and ee is not None:
+        cand = tuple(n for n in OPTIONAL_TERMS if n not in fixed)
+        if cand:
+            say("optional model terms: " + ", ".join(cand))
+            try:
+                ee_t = estimate_equation_error(records, fixed, theta0, geometry, gap_s, lake=lake, gyro_bias=bias0,
+                                               terms=cand, hold=ee)
+                s0 = prediction_score(ee.params, validation, gap_s=gap_s, geometry=geometry, environment=ee.environment)
+                s1 = prediction_score(ee_t.params, validation, gap_s=gap_s, geometry=geometry,
+                                      environment=ee_t.environment)
+                gain = improvement(s1, s0) if s0.n_windows and s1.stable else 0.0
+                if gain >= TERM_MIN_IMPROVEMENT:
+                    chosen_terms, ee = cand, ee_t
+                    term_note = (f"optional term{'s' if len(cand) > 1 else ''} {', '.join(cand)} on: "
+                                 + "; ".join(OPTIONAL_TERMS[n] for n in cand)
+                                 + f" (the equation-error fit with {'them' if len(cand) > 1 else 'it'} predicts the "
+                                 f"held-out data {100 * gain:.0f} % better)")
+                else:
+                    term_note = (f"optional term{'s' if len(cand) > 1 else ''} {', '.join(cand)} left off (with "
+                                 f"{'them' if len(cand) > 1 else 'it'} the held-out prediction changes by "
+                                 f"{100 * gain:+.0f} %)")
+            except (ValueError, np.linalg.LinAlgError):
+                pass
     start = ee.params if ee is not None else theta0
     say("output-error estimate (multiple shooting)")
     it = [0]
@@ -245,37 +306,98 @@ def identify(records: Sequence[IdRecord], validation: Sequence[IdRecord], theta0
         say(f"iteration {it[0]}: cost {cost:.5g}")
 
     common = dict(gap_s=gap_s, noise_std=noise_std, geometry=geometry, node_s=node_s,
-                  max_iterations=max_iterations, estimate_noise=estimate_noise, progress=gn_progress)
+                  max_iterations=max_iterations, estimate_noise=estimate_noise, progress=gn_progress,
+                  terms=chosen_terms)
     if lake:
         res = estimate_lake_from(records, start, fixed, ee.environment if ee is not None else None,
-                                 gust_std=gust_std, test_fixed=test_fixed, **common)
+                                 gust_std=gust_std, test_fixed=test_fixed, wind_coefficient_spread=LAKE_WIND_SPREAD,
+                                 **common)
     else:
         res = estimate_multiple_shooting(records, start, fixed, gyro_bias=gyro_offset, test_fixed=test_fixed,
-                                         misfit_check=MISFIT_CHECK_ITERATIONS, **common)
-    check_identifiable(res)
+                                         misfit_check=CALM_MISFIT_CHECK_ITERATIONS, **common)
     at_bounds = parameters_at_bounds(res)
     physical = identification_verdict(res, at_bounds)
+    try:
+        check_identifiable(res)
+    except IdentifiabilityError as exc:
+        if ee is None:
+            raise
+        # the record's own estimate went where its Fisher information is singular (a model far from
+        # explaining the record, e.g. calm water assumed in a current): no physical answer, but the
+        # equation-error estimate may still predict the boat
+        physical = Verdict("refused", [f"the record's own estimate ended where the data do not determine it ({exc})"],
+                           [], physical.track_autocorr_1s)
     cands = [Candidate("identified", res, _environment_of(res))]
     if ee is not None:
         cands.append(Candidate("equation error", equation_error_result(ee, fixed), ee.environment))
     say("open-loop prediction of the held-out data")
-    env_ref = cands[0].environment
     scores: dict[str, PredictionScore] = {}
     for c in cands:
         c.score = prediction_score(c.result.params, validation, gap_s=gap_s, geometry=geometry,
                                    environment=c.environment)
         scores[c.name] = c.score
+    # the defaults and the model in use predict in the lake the best-predicting estimate found (an
+    # estimate gone wrong would otherwise lend them its wrong wind and flatter the comparison)
+    env_ref = min(cands, key=lambda c: c.score.position_at_horizon_m if c.score is not None and c.score.stable
+                  else math.inf).environment
     scores["defaults"] = prediction_score(DEFAULT_PARAMETERS, validation, gap_s=gap_s, geometry=geometry,
                                           environment=env_ref)
     if in_use != DEFAULT_PARAMETERS:
         scores["in use"] = prediction_score(in_use, validation, gap_s=gap_s, geometry=geometry, environment=env_ref)
     baseline = scores.get("in use", scores["defaults"])
-    return _decide(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
+    ident = _decide(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
+    ident.advice = advice(ident, lake)
+    ident.terms = chosen_terms
+    if term_note:
+        ident.advice.insert(0, term_note)
+    if ident.chosen == "equation error" and ee is not None and ee.environment is not None:
+        from lotsen.sysid.sensitivity import ENV_NAMES
+
+        ident.environment_values = {n: float(v) for n, v in zip(ENV_NAMES, ee.environment)}
+    return ident
+
+
+def advice(ident: Identification, lake: bool) -> list[str]:
+    """What the record says about its misfit, in operator language: a drift the model lacks (current,
+    wind) without --lake, errors that grow with speed (something speed-dependent the grey box lacks)."""
+    out: list[str] = []
+    sc = (ident.prediction or {}).get(ident.chosen)
+    if sc is None or sc.n_windows == 0:
+        return out
+    # the drift as the best-predicting estimate sees it (an estimate gone wrong scatters its errors)
+    best = min((v for k, v in (ident.prediction or {}).items() if k not in ("defaults", "in use") and v.stable),
+               key=lambda v: v.position_at_horizon_m, default=sc)
+    d = best.drift()
+    if not lake and d is not None and d[2] > 3.0 and d[0] > DRIFT_ADVICE_MPS:
+        out.append(f"the boat drifted {d[0]:.2f} m/s towards {d[1]:.0f} deg more than any coefficient explains: "
+                   "a current or wind: identify this record with --lake")
+    sp = sc.speed_dependence()
+    # (a model that explains the record also misses more when faster, in metres: the initial state's
+    # errors carry further; so only for a model that does not, and per metre travelled)
+    if ident.verdict.verdict not in ("ok", "weak") and sp is not None and sp[2] > SPEED_ADVICE_RATIO * sp[1]:
+        out.append(f"the model lacks something that depends on speed: its {sc.horizon_s:g}-s predictions miss by "
+                   f"{100 * sp[2]:.0f} cm per metre travelled from above {sp[0]:.1f} m/s against {100 * sp[1]:.0f} cm "
+                   "from below (resistance "
+                   "that grows faster than speed squared, thrust that falls with the advance speed, a bow "
+                   "thruster that fades when moving): the coefficients are effective values for the speeds "
+                   "recorded; record at the speeds you will fly")
+    if ident.verdict.weakly_determined or any("weakly determined" in r for r in ident.verdict.reasons):
+        out.append("some coefficients are weakly determined: the record does not excite them enough (longer or "
+                   "richer manoeuvres: lotsen experiment design); this is not noise the model lacks")
+    return out
 
 
 def _decide(cands: list[Candidate], physical: Verdict, at_bounds: list[str], scores: dict[str, PredictionScore],
             baseline: PredictionScore, res: Any, fixed: Mapping[str, float], anchor: str | None,
             held_out: bool = True) -> Identification:
+    ident = _decide_verdict(cands, physical, at_bounds, scores, baseline, res, fixed, anchor, held_out)
+    ident.fixed_test = getattr(res.details, "fixed_test", None)
+    return ident
+
+
+def _decide_verdict(cands: list[Candidate], physical: Verdict, at_bounds: list[str],
+                    scores: dict[str, PredictionScore], baseline: PredictionScore, res: Any,
+                    fixed: Mapping[str, float], anchor: str | None, held_out: bool) -> Identification:
     from lotsen.sysid.prediction import improvement, improvement_interval
 
     reasons = list(physical.reasons)

@@ -54,7 +54,7 @@ from lotsen.sysid.data import (
 )
 from lotsen.sysid.estimate import (
     DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
-    identifiability, parameter_bounds, parameter_scale, starting_point,
+    identifiability, parameter_bounds, parameter_scale, starting_point, with_terms_off,
 )
 from lotsen.model.environment import wind_drag_coefficients
 from lotsen.sysid.kernels import step_kernels
@@ -552,7 +552,8 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                gust_std: float = 0.3, env0: Sequence[float] | None = None,
                                wind_coefficient_spread: float = 0.01, gyro_bias: bool | None = None,
                                gyro_bias0: Sequence[float] | None = None,
-                               test_fixed: Sequence[str] = (), misfit_check: int = 0) -> IdentificationResult:
+                               test_fixed: Sequence[str] = (), misfit_check: int = 0,
+                               terms: Sequence[str] = ()) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
@@ -569,7 +570,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from the data
     (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
     """
-    fixed = dict(fixed or {})
+    fixed = with_terms_off(dict(fixed or {}), theta0, terms)  # optional model terms off unless in `terms`
     unknown = [n for n in fixed if n not in NAMES]
     if unknown:
         raise LotsenError(f"cannot fix unknown parameter(s) {', '.join(unknown)} (known: {', '.join(NAMES)})")
@@ -618,7 +619,9 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
             vals = [float(ac[n][7]) for n in ("north", "east") if n in ac and len(ac[n]) >= 8]
             misfit = bool(vals) and float(np.mean(vals)) > MISFIT_TRACK_AUTOCORR
             if misfit:
-                converged = False  # stalled, not converged: the model cannot explain the record
+                # converged or stalled or crawling, the model does not explain the track: no physical
+                # answer will come of more iterations (a record it explains goes on)
+                converged = False
                 break
             if converged and passes == 1:
                 break
@@ -768,7 +771,7 @@ def fixed_value_test(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np
     estimate that ended at (`theta`, `nodes`) with `free` estimated. At that estimate the gradient of
     the cost along the free coefficients is zero; along a fixed one it is the data's pull away from
     the fixed value. Its efficient part (the free ones' adjustment removed) has the covariance
-    B M B^T with M the score's covariance (`score_covariance`, honest for correlated residuals);
+    B M B^T with M = s^2 F the score's covariance under the null;
     LM = g^T (B M B^T)^-1 g is chi-square with one degree per tested coefficient when the fixed values
     are right. A value fixed wrongly (a default 10-30 % off a hull's) is then misfit, not a confident
     answer: the free ones bent to make up for it."""
@@ -787,7 +790,13 @@ def fixed_value_test(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np
     lu = prob.factor_A(Hss, lin.Gx, Ds, 1e-12)
     rhs_w = np.concatenate([-gs.ravel(), -lin.c.ravel()])
     F, _, _, r = prob.reduced(lu, Hsp, lin.Gp, Hpp, rhs_w, -gp)
-    M = score_covariance(prob, lin, blocks, F)
+    # the score's covariance under the null: right fixed values and a model that explains the record,
+    # i.e. white residuals at the (re-estimated) noise level, so M = s^2 F. (The sandwich's M would
+    # count the misfit that wrong fixed values cause as noise and hide them: 2.7 sigma each for four
+    # coefficients 7-15 % off; a record whose residuals are correlated anyway is refused as physical
+    # for that by the verdict's track test.)
+    s2 = max(float(np.sum(lin.e ** 2)) / max(prob.n_measurements - len(order), 1), 1e-12)
+    M = s2 * F
     t = np.isin(order, idx)
     p = ~t
     try:

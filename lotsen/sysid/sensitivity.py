@@ -8,7 +8,7 @@ stages s = 0, h/2, h: exact for the reconstruction, so the steps need not resolv
 motion (5-ms steps of the step-average input did that before, 4-12x the steps). One CasADi step
 function propagates the state and its sensitivity
 
-    S = d x / d [x0 (6), theta (18)],   S_{j+1} = dPhi/dx S_j + [0, dPhi/dtheta]
+    S = d x / d [x0 (6), theta (NTHETA)],   S_{j+1} = dPhi/dx S_j + [0, dPhi/dtheta]
 
 and the compiled chunk kernels of lotsen.sysid.kernels run it over all steps of all windows,
 CHUNK steps per call (a reset flag at each window start loads the window's initial state and
@@ -26,10 +26,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from lotsen.model import symbolic_rhs
+from lotsen.model import VesselParameters, symbolic_rhs
 from lotsen.sysid.data import Segment, step_input_lines
 
-NTHETA = 18
+NTHETA = len(VesselParameters.names())  # seed eq. (26)'s 18 and the optional model terms
 NU = 5
 NS = 6 + NTHETA  # sensitivity columns: initial state, then parameters
 # The lake model (lotsen.sysid.multiple, `lake=True`): the state gets two entries per shooting interval,
@@ -72,9 +72,10 @@ def _build_step_functions(geom: tuple[float, ...], jit: bool, lake: bool = False
         if not lake:
             return ca.vertcat(*f(xl, ul, thl, geom))
         g, c = xl[6], xl[7]
-        tau = apparent_wind_force(xl[2], xl[3], xl[4], g * thl[20] - c * thl[21], g * thl[21] + c * thl[20],
-                                  thl[22], thl[23], thl[24], thl[25], ca.cos, ca.sin, ca.sqrt)
-        return ca.vertcat(*f(xl[:6], ul, thl[:NTHETA], geom, (thl[18], thl[19]), tau), 0, 0)
+        e = thl[NTHETA:]  # ENV_NAMES
+        tau = apparent_wind_force(xl[2], xl[3], xl[4], g * e[2] - c * e[3], g * e[3] + c * e[2],
+                                  e[4], e[5], e[6], e[7], ca.cos, ca.sin, ca.sqrt)
+        return ca.vertcat(*f(xl[:6], ul, thl[:NTHETA], geom, (e[0], e[1]), tau), 0, 0)
 
     k1 = rhs(x, 0)
     k2 = rhs(x + h / 2 * k1, h / 2)
@@ -123,27 +124,27 @@ class StepGrid:
 
 
 def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
-    hs: list[float] = []
-    us: list[np.ndarray] = []
-    reset: list[float] = []
-    wstart: list[int] = []
-    sstep: list[int] = []
-    wos: list[int] = []
+    """The steps of all windows (vectorised: prediction scores overlapping windows over whole records)."""
+    hs, us, resets, wstart, sstep, wos = [], [], [], [], [], []
+    offset = 0
     for w, seg in enumerate(windows):
-        wstart.append(len(hs))
-        hs.append(0.0)
-        us.append(step_input_lines(seg, 0, 0.0))
-        reset.append(1.0)
-        sstep.append(len(hs) - 1)
-        wos.append(w)
-        for k in range(len(seg.t) - 1):
-            dt = float(seg.t[k + 1] - seg.t[k])
-            m = max(1, int(math.ceil(dt / h_max - 1e-9)))
-            for i in range(m):
-                hs.append(dt / m)
-                us.append(step_input_lines(seg, k, i / m))  # held, or the reconstruction's line (data.py)
-                reset.append(0.0)
-            sstep.append(len(hs) - 1)
-            wos.append(w)
-    return StepGrid(np.array(hs), np.array(us).T.copy(), np.array(reset), np.array(wstart),
-                    np.array(sstep), np.array(wos), len(windows))
+        n = len(seg.t)
+        dt = np.diff(seg.t)
+        m = np.maximum(1, np.ceil(dt / h_max - 1e-9).astype(int)) if n > 1 else np.zeros(0, int)
+        # step 0: the window's zero-length reset step; then m[k] steps inside row interval k
+        row = np.repeat(np.arange(n - 1), m)
+        first = np.concatenate([[0], np.cumsum(m)[:-1]]) if n > 1 else np.zeros(0, int)
+        sub = np.arange(len(row)) - first[row] if len(row) else np.zeros(0, int)
+        h_in = dt[row] / m[row] if len(row) else np.zeros(0)
+        hs.append(np.concatenate([[0.0], h_in]))
+        u0 = step_input_lines(seg, 0, 0.0)[None, :]
+        lines = step_input_lines(seg, row, sub / np.maximum(m[row], 1)) if len(row) else np.zeros((0, 10))
+        us.append(np.vstack([u0, np.atleast_2d(lines)]))
+        resets.append(np.concatenate([[1.0], np.zeros(len(row))]))
+        wstart.append(offset)
+        # sample k is reached after the last step of row interval k - 1 (sample 0: the reset step)
+        sstep.append(offset + np.concatenate([[0], np.cumsum(m)]) if n > 1 else np.array([offset]))
+        wos.append(np.full(n, w))
+        offset += 1 + len(row)
+    return StepGrid(np.concatenate(hs), np.vstack(us).T.copy(), np.concatenate(resets), np.array(wstart),
+                    np.concatenate(sstep), np.concatenate(wos), len(windows))

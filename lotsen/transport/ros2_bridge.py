@@ -44,7 +44,8 @@ from lotsen.runtime.bus import BoundedQueue
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.transport import rmw_zenoh as W
 from lotsen.transport import ros2_map, ros2_types
-from lotsen.transport.zenoh_bridge import zenoh_config
+from lotsen.transport.zenoh_bridge import open_session
+from lotsen.settings import value_range as _r
 
 SOURCE_PREFIX = "ros2:"
 _CLIENT_RE = re.compile(r"[^A-Za-z0-9_-]")
@@ -58,7 +59,7 @@ DRIVING_TOPICS = (M.Topic.SHIP_COMMAND, M.Topic.VELOCITY_COMMAND, M.Topic.ANGLE_
 class Ros2BridgeConfig:
     namespace: str = "/boat"  # ROS namespace of the boat's topics and node
     node_name: str = "lotsen"
-    domain_id: int = 0  # ROS_DOMAIN_ID
+    domain_id: int = field(default=0, metadata=_r(0, 232))  # ROS_DOMAIN_ID (ROS 2 allows 0-232)
     mode: Literal["peer", "client", "router"] = "peer"
     listen: tuple[str, ...] = ()
     connect: tuple[str, ...] = ()  # e.g. ("tcp/127.0.0.1:7447",): the rmw_zenohd router
@@ -67,16 +68,18 @@ class Ros2BridgeConfig:
     local_prefix: str = ""  # inbound topics appear locally as local_prefix + topic (not operator/command)
     pilot_token: str | None = None  # operator/command from ROS 2 needs it; None or "": every command refused
     best_effort_topics: tuple[str, ...] = SENSOR_TOPICS  # published with SensorDataQoS (best effort, depth 5)
-    stamp_offset_s: float | None = None  # header.stamp = stamp_s + offset; None: the clock's Unix epoch at start
-    command_rate_hz: float = 2.0  # accepted commands per sender (token bucket) ...
-    command_burst: int = 5  # ... with this burst
-    max_auth_failures: int = 5  # wrong tokens within failure_window_s before the lockout
-    failure_window_s: float = 60.0
-    lockout_s: float = 30.0
+    # header.stamp = stamp_s + offset; None: the clock's Unix epoch at start
+    stamp_offset_s: float | None = field(default=None, metadata=_r(-1e10, 1e10))
+    command_rate_hz: float = field(default=2.0, metadata=_r(0.01, 100.0))  # accepted commands per sender (token bucket) ...
+    command_burst: int = field(default=5, metadata=_r(1, 1000))  # ... with this burst
+    # wrong tokens within failure_window_s before the lockout
+    max_auth_failures: int = field(default=5, metadata=_r(1, 1000))
+    failure_window_s: float = field(default=60.0, metadata=_r(1.0, 86400.0))
+    lockout_s: float = field(default=30.0, metadata=_r(0.0, 86400.0))
     multicast_scouting: bool = False
     gossip_scouting: bool = False
-    queue_maxlen: int = 2000
-    drain_period_s: float = 0.005
+    queue_maxlen: int = field(default=2000, metadata=_r(1, 10_000_000))
+    drain_period_s: float = field(default=0.005, metadata=_r(0.0001, 1.0))
 
 
 @dataclass
@@ -194,7 +197,7 @@ class Ros2Bridge(Node):
         self._stop = threading.Event()
         self._unsubscribe: Any = None
         self._last_refusal_log = float("-inf")
-        self.session = zenoh.open(zenoh_config(config))
+        self.session = open_session(config)
         self.session_id = str(self.session.info.zid())
         self._declare_token(W.node_token(config.domain_id, self.session_id, 0, ns, config.node_name))
         for topic in config.publish:  # announce known topics at once (ros2 topic list), others on first use

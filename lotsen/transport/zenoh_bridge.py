@@ -25,6 +25,7 @@
 from __future__ import annotations
 
 import json
+import re
 import threading
 import uuid
 from dataclasses import dataclass, field
@@ -34,6 +35,7 @@ from lotsen.errors import ConfigError
 from lotsen.messages import LATCHED_TOPICS
 from lotsen.runtime.bus import BoundedQueue
 from lotsen.runtime.executor import Node, NodeContext
+from lotsen.settings import value_range as _r
 from lotsen.transport import codec
 
 
@@ -50,13 +52,13 @@ class BridgeConfig:
     key_prefix: str = "lotsen"
     multicast_scouting: bool = False  # never scout by multicast unless explicitly enabled
     gossip_scouting: bool = False
-    queue_maxlen: int = 2000
+    queue_maxlen: int = field(default=2000, metadata=_r(1, 10_000_000))
     # received messages reach the bus at once (the receiving thread wakes the executor); this
     # timer is only a backstop. A 5 ms poll woke every process of a run 200 times a second.
-    drain_period_s: float = 0.1
+    drain_period_s: float = field(default=0.1, metadata=_r(0.0001, 1.0))
     # the sender takes what arrives within this long after a first message in one go: one
     # wake-up per burst (a sensor tick publishes several topics), not one per message
-    send_batch_s: float = 0.01
+    send_batch_s: float = field(default=0.01, metadata=_r(0.0, 1.0))
     latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
     # a client that starts before its router (the processes of a run start side by side): keep
     # trying to connect (opening the session waits for the router) instead of failing at once
@@ -67,6 +69,33 @@ class BridgeConfig:
     # drain_period_s: no thread switch per sample, for a process that receives the core's
     # whole stream, e.g. the recorder)
     receive: Literal["callback", "poll"] = "callback"
+
+    def __post_init__(self) -> None:
+        # names become Zenoh key expressions: refused here with the setting, not as a ZError
+        # from the sender's thread after the bridge has started
+        for name in ("vessel", "key_prefix"):
+            value = getattr(self, name)
+            if not _NAME.fullmatch(value or ""):
+                raise ConfigError(f"zenoh bridge: {name} {value[:40]!r}: letters, digits, '_', '-' and '.' only")
+        if self.local_prefix and not _PREFIX.fullmatch(self.local_prefix):
+            raise ConfigError(f"zenoh bridge: local_prefix {self.local_prefix[:40]!r}: letters, digits, '_', '-', "
+                              "'.' and '/' only")
+        for pattern in self.subscribe:
+            check_key_expression(f"{self.key_prefix}/{pattern.strip('/')}", f"subscribe pattern {pattern[:40]!r}")
+
+
+_NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
+_PREFIX = re.compile(r"[A-Za-z0-9_.\-/]{1,128}")
+
+
+def check_key_expression(key: str, what: str) -> None:
+    """ConfigError unless `key` is a Zenoh key expression (wildcards `*` and `**` allowed)."""
+    import zenoh
+
+    try:
+        zenoh.KeyExpr(key)
+    except (zenoh.ZError, ValueError, TypeError) as exc:
+        raise ConfigError(f"zenoh bridge: {what} is not a key expression: {str(exc).split(' at /')[0]}") from None
 
 
 def zenoh_config(cfg: BridgeConfig) -> Any:
@@ -90,6 +119,19 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     # the latched topics' cache orders its samples by timestamp
     c.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return c
+
+
+def open_session(config: Any) -> Any:
+    """zenoh.open with its refusals (an endpoint it cannot parse or bind, a router it cannot reach)
+    as a ConfigError naming the endpoints, not a zenoh traceback."""
+    import zenoh
+
+    conf = zenoh_config(config)
+    try:
+        return zenoh.open(conf)
+    except zenoh.ZError as exc:
+        where = ", ".join((*config.listen, *config.connect)) or "no endpoint"
+        raise ConfigError(f"zenoh: cannot open a session ({where}): {str(exc).split(' at /')[0]}") from None
 
 
 @dataclass
@@ -130,7 +172,7 @@ class ZenohBridge(Node):
         self._drain_pending = threading.Event()
         self._encoded_sink: Callable[[list[tuple[str, codec.Envelope]]], None] | None = None
         self._decoded_topics: frozenset[str] = frozenset()
-        self.session = zenoh.open(zenoh_config(config))
+        self.session = open_session(config)
         self._subs = []
         from zenoh import ext
 

@@ -28,7 +28,7 @@ LAYERS: dict[str, int] = {
 SIDEWAYS: set[tuple[str, str]] = {
     ("logs", "transport"),  # logs decode recorded messages with the transport's codec
     ("web", "logs"),  # the page's log list and downloads read the files with the logs' MCAP walk
-    ("files", "errors"), ("messages", "errors"),  # the base: errors is the root of all
+    ("files", "errors"), ("messages", "errors"), ("settings", "errors"),  # the base: errors is the root of all
 }
 
 

@@ -156,7 +156,7 @@ def test_symbolic_model_equals_float_model():
     f = symbolic_rhs(casadi)
     X = casadi.SX.sym("x", 6)
     U = casadi.SX.sym("u", 5)
-    TH = casadi.SX.sym("th", 18)
+    TH = casadi.SX.sym("th", len(MODEL.theta))
     F = casadi.Function("f", [X, U, TH], [casadi.vertcat(*f(casadi.vertsplit(X), casadi.vertsplit(U),
                                                                casadi.vertsplit(TH), MODEL.geom))])
     rng = np.random.default_rng(1)

@@ -53,8 +53,10 @@ def test_parameters_round_trip_and_errors():
     assert VesselParameters.from_dict(json.loads(json.dumps({**d, "std": {}}))) == DEFAULT_PARAMETERS
     with pytest.raises(ConfigError, match="unknown parameter 'm44'"):
         VesselParameters.from_dict({"m44": 1.0})
-    with pytest.raises(ConfigError, match="X_u = 'fast' is not a number"):
+    with pytest.raises(ConfigError, match="X_u: expected a number, got 'fast'"):
         VesselParameters.from_dict({"X_u": "fast"})
+    with pytest.raises(ConfigError, match=r"X_u: 1e-320 is a denormal number"):
+        VesselParameters.from_dict({"X_u": 1e-320})
     with pytest.raises(ConfigError, match="not a finite number"):
         VesselParameters(m11=float("nan"))
     assert DEFAULT_PARAMETERS.physical_violations() == []

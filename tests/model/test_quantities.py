@@ -10,7 +10,7 @@ from lotsen.model.quantities import packed_from_theta
 
 PARAMS = VesselParameters(m11=13.0, m22=26.0, m33=2.1, X_u=3.0, X_uu=-6.0, Y_v=10.0, Y_r=1.4, Y_uv=-7.0,
                           Y_vv=-35.0, Y_rv=-2.5, N_v=0.7, N_r=2.6, N_vv=-1.2, N_rr=-1.7, kappa=0.03, C_N=1.3,
-                          mu_az=0.0012, mu_t=0.0005)
+                          mu_az=0.0012, mu_t=0.0005, X_uuu=-2.0)  # the optional cubic term on
 MODEL = VesselModel(PARAMS, VesselGeometry(reverse_thrust_ratio=0.7))
 
 
@@ -32,7 +32,7 @@ def test_the_record_names_the_parameters():
     p, g = PARAMS, MODEL.geometry
     np.testing.assert_array_equal(q.M, np.diag([p.m11, p.m22, p.m33]))
     np.testing.assert_array_equal(q.D_L, [[p.X_u, 0, 0], [0, p.Y_v, p.Y_r], [0, p.N_v, p.N_r]])
-    np.testing.assert_array_equal(q.D_NL, [p.X_uu, p.Y_uv, p.Y_vv, p.Y_rv, p.N_vv, p.N_rr])
+    np.testing.assert_array_equal(q.D_NL, [p.X_uu, p.Y_uv, p.Y_vv, p.Y_rv, p.N_vv, p.N_rr, p.X_uuu])
     np.testing.assert_array_equal(q.thrust, [p.kappa, 0.5 * g.rho_water * g.rudder_area_m2 * p.C_N, p.mu_az,
                                              p.mu_t, 0.7])
     np.testing.assert_array_equal(q.arms, [[g.l_x1, g.l_y1], [g.l_x2, g.l_y2], [g.l_xt, 0.0]])
@@ -58,7 +58,7 @@ def test_fossen_form_reproduces_the_model():
 
 def test_damping_dissipates_energy():
     """nu^T C(nu) nu = 0 (C skew) and nu^T D(nu) nu > 0 for the signed coefficients of the defaults."""
-    q = ModelArrays.build(DEFAULT_PARAMETERS)
+    q = ModelArrays.build(DEFAULT_PARAMETERS.with_updates(X_uuu=-2.0))
     x, _ = _samples(100, 3)
     for nu in x[:, 3:]:
         assert abs(nu @ q.coriolis(nu) @ nu) < 1e-12

@@ -18,6 +18,7 @@ from lotsen.planning import (HarbourNode, Path, PlannerConfig, Region, Route, Ro
                              plan_route)
 from lotsen.planning.dubins import dubins_waypoints, dubins_words
 from lotsen.planning.io import load_route, route_from_dict
+from lotsen.planning.route import MIN_SPEED_MPS
 
 EXAMPLES = FilePath(__file__).resolve().parents[2] / "examples" / "routes"
 AREA = ((-5.0, -5.0), (45.0, -5.0), (45.0, 45.0), (-5.0, 45.0))
@@ -108,7 +109,7 @@ def routes(draw):
         r = pts[k - 1] if k > 0 else p
         leg = math.atan2(q[1] - r[1], q[0] - r[0])
         headings.append(leg + math.radians(draw(st.floats(-40, 40))))
-    speeds = [draw(st.floats(0.0, 1.2)) for _ in pts[1:]]
+    speeds = [draw(st.one_of(st.just(0.0), st.floats(MIN_SPEED_MPS, 1.2))) for _ in pts[1:]]  # 0: at rest
     obstacles = ()
     if draw(st.booleans()):
         c = (draw(st.floats(5, 35)), draw(st.floats(5, 35)))

@@ -269,7 +269,7 @@ def test_model_check_refuses_a_negative_mass_naming_parameter_and_range(tmp_path
     params.write_text('{"m11": -14}')
     assert main(["model", "check", "--params", str(params)]) == 2
     err = capsys.readouterr().err
-    assert "m11 = -14 kg outside its physical range [1, 200]" in err and str(params) in err
+    assert "m11: -14 outside the allowed range 1 to 200 kg" in err and str(params) in err
 
 
 point8_config = st.fixed_dictionaries({}, optional={

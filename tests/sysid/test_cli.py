@@ -4,6 +4,7 @@ import pytest
 
 from lotsen.cli.identify import main_standalone
 from lotsen.sysid.data import save_csv
+from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.sysid.estimate import NAMES
 
 
@@ -25,7 +26,8 @@ def test_identify_writes_params_and_report(run_csv, tmp_path, capsys):
     assert set(data) == set(NAMES) | {"std", "verdict", "identification", "prediction"}
     assert data["verdict"] in ("ok", "weak") and data["identification"]["reasons"] == []
     assert data["m11"] == 14.0 and data["kappa"] == 0.02
-    assert set(data["std"]) == set(NAMES) - {"m11", "kappa", "Y_rv", "N_vv"}
+    terms_off = set(OPTIONAL_TERMS) - set(data["identification"]["optional_terms"])
+    assert set(data["std"]) == set(NAMES) - {"m11", "kappa", "Y_rv", "N_vv"} - terms_off
     html = rep.read_text()
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html and "black-box" in html
 

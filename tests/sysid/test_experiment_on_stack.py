@@ -104,5 +104,5 @@ def test_unknown_keys_in_an_experiment_are_named():
         parse_experiment({"name": "x", "pieces": [{"type": "constant", "duration_s": 3, "u": {"n_rps": 8}}]})
     with pytest.raises(ConfigError, match=r"unknown key\(s\) 'pices'"):
         parse_experiment({"name": "x", "pices": [], "pieces": [{"type": "constant", "duration_s": 3}]})
-    with pytest.raises(ConfigError, match=r"area.size_m\[0\] = 'big' is not a finite number"):
+    with pytest.raises(ConfigError, match=r"area.size_m\[0\]: expected a number, got 'big' \(allowed: 2 to 4000 m\)"):
         parse_experiment({"name": "x", "area": {"size_m": ["big", 3]}, "pieces": [{"type": "constant", "duration_s": 3}]})

@@ -283,7 +283,8 @@ def _fence(items: list[MissionItem], frame: LocalFrame) -> dict:
             if count < 3:
                 raise MissionItemError(FENCE, it.seq, f"{it.name()}: vertex count {it.param1:g} (a polygon needs >= 3)")
             ring = items[i:i + count]
-            if len(ring) < count or any(v.command != it.command or int(v.param1) != count for v in ring):
+            if len(ring) < count or any(v.command != it.command or not _finite(v.param1) or int(v.param1) != count
+                                        for v in ring):
                 raise MissionItemError(FENCE, it.seq, f"{it.name()}: the polygon's {count} vertices are not "
                                        "consecutive items of the same kind and count")
             area = _place(area, obstacles, [list(_position(frame, v, FENCE)) for v in ring],

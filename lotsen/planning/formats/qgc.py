@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from typing import Any
 
 from lotsen.errors import ConfigError
@@ -16,6 +17,7 @@ from lotsen.planning.formats.items import (
     NAV_FENCE_POLYGON_VERTEX_EXCLUSION, NAV_FENCE_POLYGON_VERTEX_INCLUSION, NAV_RALLY_POINT, NAV_WAYPOINT,
     MissionItem, Plan,
 )
+from lotsen.settings import Number
 
 WPL_HEADER = "QGC WPL 110"
 FIRMWARE_ARDUPILOT = 3
@@ -23,12 +25,17 @@ VEHICLE_SURFACE_BOAT = 11  # MAV_TYPE_SURFACE_BOAT
 MAX_ITEMS = 2000
 
 
+_FINITE = Number(-sys.float_info.max, sys.float_info.max)
+_MAV_UINT16 = Number(0, 65535, integer=True)  # a MAV_CMD or MAV_FRAME number
+
+
 def _num(value: Any, where: str, allow_null: bool = False) -> float:
+    """A finite number (settings.Number: no NaN, infinity or denormal); null is NaN where allowed."""
     if value is None and allow_null:
         return math.nan  # QGroundControl writes NaN parameters as null
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(f"{where}: expected a number, got {str(value)[:40]!r}")
-    return float(value)
+    return _FINITE.check(value, where)
 
 
 def _latlon(value: Any, where: str) -> tuple[float, float]:
@@ -73,8 +80,8 @@ def parse_plan(text: str, where: str = "plan") -> Plan:
         if not isinstance(params, list) or len(params) != 7:
             raise ConfigError(f"{w}.params: expected 7 numbers")
         p = [_num(v, f"{w}.params[{i}]", allow_null=True) for i, v in enumerate(params)]
-        plan.mission.append(MissionItem(k + 1, int(_num(it.get("command"), f"{w}.command")),
-                                        int(_num(it.get("frame", FRAME_GLOBAL_RELATIVE_ALT), f"{w}.frame")),
+        plan.mission.append(MissionItem(k + 1, _MAV_UINT16.check(it.get("command"), f"{w}.command"),
+                                        _MAV_UINT16.check(it.get("frame", FRAME_GLOBAL_RELATIVE_ALT), f"{w}.frame"),
                                         p[0], p[1], p[2], p[3], p[4], p[5], p[6], bool(it.get("autoContinue", True))))
     fence = _dict(data.get("geoFence") or {}, f"{where}.geoFence")
     polygons = fence.get("polygons") or []
@@ -160,9 +167,11 @@ def parse_wpl(text: str, where: str = "waypoints") -> Plan:
             raise ConfigError(f"{where}: line {k}: expected 12 fields (index, current, frame, command, 4 params, "
                               f"latitude, longitude, altitude, autocontinue), got {len(f)}")
         try:
-            seq, _, frame, cmd = (int(v) for v in f[:4])
-            vals = [float(v) for v in f[4:11]]
-            auto = bool(int(f[11]))
+            seq, _, frame, cmd = (_MAV_UINT16.parse(v, f"{where}: line {k}") for v in f[:4])
+            # a parameter may be NaN (unused, as ArduPilot writes it); position and altitude finite
+            vals = [float(v) if v.lower() == "nan" and i < 4 else _FINITE.parse(v, f"{where}: line {k}")
+                    for i, v in enumerate(f[4:11])]
+            auto = bool(_MAV_UINT16.parse(f[11], f"{where}: line {k}"))
         except ValueError:
             raise ConfigError(f"{where}: line {k}: a field is not a number: {line[:80]!r}") from None
         item = MissionItem(seq, cmd, frame, *vals, auto)

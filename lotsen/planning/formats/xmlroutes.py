@@ -17,6 +17,7 @@ XML with a DOCTYPE or entities is refused (no entity expansion, no external refe
 from __future__ import annotations
 
 import math
+import sys
 import xml.etree.ElementTree as ET
 from typing import Any
 
@@ -26,6 +27,7 @@ from lotsen.errors import ConfigError
 from lotsen.model.geodetic import LocalFrame
 from lotsen.planning.formats.items import computed_headings
 from lotsen.planning.route import GeoOrigin, Route
+from lotsen.settings import Number
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 GPX_NS = "http://www.topografix.com/GPX/1/1"
@@ -62,13 +64,13 @@ def _text(el: ET.Element | None, name: str) -> str:
 
 
 def _float(text: str, where: str) -> float:
-    try:
-        v = float(text)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{where}: {str(text)[:40]!r} is not a number") from None
-    if not math.isfinite(v):
-        raise ConfigError(f"{where}: {text!r} is not a finite number")
-    return v
+    """A finite number written in the file (settings.Number: no NaN, infinity or denormal)."""
+    if not isinstance(text, str):
+        raise ConfigError(f"{where}: {str(text)[:40]!r} is not a number")
+    return _FINITE.parse(text, where)
+
+
+_FINITE = Number(-sys.float_info.max, sys.float_info.max)
 
 
 def _coords(text: str, where: str) -> list[tuple[float, float]]:
