@@ -27,6 +27,9 @@ eight on the EKF in 0.1 m/s current and 3 m/s wind (`lotsen mission ... --curren
 --wind 3,45`), several seeds. Targets (issue 25): the exact model tracks no worse than the
 defaults; the identified model within 20 % of the exact model's cross-track RMS.
 
+The same chain on a hull that is not built like the model at all (the independent 6-DOF hull of
+tests/physics, over the physics seam, at 0.5-1.5 m/s and in tight turns) is bench/bench_hull.py.
+
     python bench/run.py model_chain      or      python bench/bench_model_chain.py [--quick]
 """
 

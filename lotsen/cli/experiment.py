@@ -81,6 +81,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--out {args.out}: with --physics the run is recorded on the stack: give RUN.mcap "
                               "(lotsen identify reads it)")
         args.sim = True
+    if args.hardware and Path(args.out).suffix.lower() == ".mcap":
+        raise ConfigError(f"--out {args.out}: with --hardware the record is written as CSV (give RUN.csv; the "
+                          "recorder's MCAP of the run lands in the log folder)")
     if args.sim == args.hardware:
         raise LotsenError("say where to run, once: --sim (simulated boat), --physics udp:HOST:PORT (an external "
                           "physics) or --hardware [--emulated] (the boat's drivers)")
@@ -186,11 +189,20 @@ def _cmd_design(args: argparse.Namespace) -> int:
                        criterion=args.criterion, seed=args.seed, iterations=args.iterations,
                        fixed=fixed or DesignConfig().fixed,
                        robust_samples=args.robust_samples, robust_spread=args.robust_spread)
-    from tqdm import tqdm
+    from lotsen.cli.progress import progress_printer  # a line every few seconds off a terminal too
 
-    bar = tqdm(total=cfg.iterations, file=sys.stderr, desc="design", unit="it", disable=not sys.stderr.isatty())
-    result = design_experiment(params, cfg, progress=lambda i, v: (bar.update(1), bar.set_postfix(J=f"{v:.3g}")))
-    bar.close()
+    progress = progress_printer(f"design ({cfg.duration_s:g} s, {cfg.iterations} iterations)")
+    done = [0]
+
+    def step(_i: int, value: float) -> None:
+        done[0] += 1
+        progress(f"iteration {done[0]} of {cfg.iterations}: criterion {value:.4g}")
+
+    around = (f" and {cfg.robust_samples - 1} parameter sets within +-{100 * cfg.robust_spread:g} %"
+              if cfg.robust_samples > 1 else "")
+    progress(f"optimising the inputs for the information at the prior{around}")
+    result = design_experiment(params, cfg, progress=step)
+    progress(None)
     check_experiment(result.experiment, VesselModel(params), margin_m=0.0)
     from lotsen.sysid.experiment import experiment_to_dict
 
@@ -218,7 +230,8 @@ def register(subparsers: Any) -> None:
                                     "for --sim with an .mcap output its sim.boat and vessel sections")
     r.add_argument("--out", required=True,
                    help="RUN.mcap: with --sim, the stack with its recorder (the log `lotsen identify` reads); "
-                        "or a CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r) straight from the simulator")
+                        "or a CSV (t,alpha1,alpha2,n1,n2,nt,north,east,psi,r) straight from the simulator; with "
+                        "--hardware a CSV of the run (the recorder's MCAP lands in the log folder)")
     r.add_argument("--boat", metavar="BOAT.json|ideal",
                    help="with --sim: the simulated boat's coefficients (default: the lake boat), or 'ideal' "
                         "(the boat equals --params)")

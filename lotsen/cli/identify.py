@@ -32,6 +32,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from lotsen.cli.progress import progress_printer as _progress_printer
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters
@@ -121,6 +122,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     in_use_file = load_parameter_file(args.in_use) if args.in_use else None
     records = [_with_kind(load_record(p), args.inputs) for p in args.data]
     validation = [_with_kind(load_record(p), args.inputs) for p in args.validate] if args.validate else None
+    args.recorded_on = _recorded_on([*args.data, *(args.validate or [])])
     warnings: list[str] = []
     if init is not None and init.defaults_for:
         warnings.append(f"initial guess {init.describe()}")
@@ -169,6 +171,8 @@ def _cmd_identify(args: argparse.Namespace) -> int:
         warnings.append(msg)
     verdict = ident.verdict
     out = ident.to_json_dict()
+    if args.recorded_on:
+        out["recorded_on"] = args.recorded_on
     env = getattr(res.details, "environment", None)
     if env is not None:
         cn, ce = env.current_ne
@@ -239,33 +243,6 @@ def _parse_terms(text: str) -> tuple[str, ...] | None:
     return names
 
 
-def _progress_printer(title: str):  # type: ignore[no-untyped-def]
-    """Progress of a long command on stderr, on a terminal or not: a line per stage and every few
-    seconds otherwise (a log or CI never waits in silence); called with None at the end."""
-    import time
-
-    t0 = time.monotonic()
-    last = [t0 - 10.0]
-    tty = sys.stderr.isatty()
-
-    def progress(msg: str | None) -> None:
-        now = time.monotonic()
-        if msg is None:
-            if tty:
-                print(file=sys.stderr)
-            return
-        stage = not msg.startswith("iteration")
-        if stage or now - last[0] >= (0.5 if tty else 5.0):
-            last[0] = now
-            line = f"{title}: {now - t0:5.1f} s  {msg}"
-            if tty and not stage:
-                print("\r" + line[:100].ljust(100), end="", file=sys.stderr, flush=True)
-            else:
-                print(("\r" if tty else "") + line, file=sys.stderr, flush=True)
-
-    return progress
-
-
 def _print_prediction(ident) -> None:  # type: ignore[no-untyped-def]
     """The held-out prediction errors of every model compared, in metres and degrees."""
     first = next(iter(ident.prediction.values()))
@@ -302,12 +279,28 @@ def _write_report(args: argparse.Namespace, res, est_records: list, val_records:
         bb = narx_fit(fit_narx(est_records, args.gap), val_records, args.window, args.gap)
     except _LE as exc:
         warnings.append(f"no black-box peer: {exc}")
-    report_args = (res, [str(p) for p in args.data], fit_est, fit_val, bb, ra, warnings, theta0)
+    sources = [f"{p} (recorded on {args.recorded_on[str(p)]})" if str(p) in args.recorded_on else str(p)
+               for p in args.data]
+    report_args = (res, sources, fit_est, fit_val, bb, ra, warnings, theta0)
     if Path(args.report).suffix.lower() == ".pdf":
         write_output(args.report, render_pdf(*report_args), inputs, ConfigError, "report")
     else:
         write_output(args.report, render_report(*report_args), inputs, ConfigError, "report")
     print(f"{args.report}: written" + ("" if fit_val else " (no validation data)"), file=sys.stderr)
+
+
+def _recorded_on(paths: list[str]) -> dict[str, str]:
+    """Run logs' boats as their recorder named them (lotsen.logs.export.recorded_on), printed: the
+    report and the parameter file name the boat (its parameter file) the records are of."""
+    from lotsen.logs.export import recorded_on
+
+    boats = {}
+    for p in paths:
+        boat = recorded_on(p) if Path(p).suffix.lower() == ".mcap" else None
+        if boat:
+            boats[str(p)] = boat
+            print(f"{p}: recorded on {boat}", file=sys.stderr)
+    return boats
 
 
 def _with_kind(record, kind: str | None):  # type: ignore[no-untyped-def]

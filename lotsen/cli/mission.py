@@ -1,16 +1,17 @@
-"""`lotsen mission ROUTE.yaml --sim|--physics udp:HOST:PORT [--controller mpc|pursuit|los|lq]
+"""`lotsen mission ROUTE.yaml|NAME --sim|--physics udp:HOST:PORT [--controller mpc|pursuit|los|lq]
 [--current SPEED,DIR_DEG] [--wind SPEED,DIR_DEG] [--seed N] [--boat BOAT.json|ideal] [--params PARAMS.json]
 [--config CONFIG.yaml] --report report.json [--plot mission.png]`
 
-Plans the route (lotsen.planning), runs the closed loop on the simulated boat (controller at
-10 Hz on the simulator's 100 Hz steps), holds the last point with the station keeper, and writes
-a JSON report (tracking errors, propeller reversals, solve times, completion, which boat and which
-model) and optionally a plot. The simulated boat (`--boat`, default the lake boat) and the model
-the estimator and controllers use (`--params`, default the default coefficients) are separate:
-a boat is never its model unless `--boat ideal` says so. `--physics udp:HOST:PORT` flies an
-external physics instead (ArduPilot SITL's JSON protocol, docs/physics.md; the channel map from
-`--config`'s extra.physics): lotsen's sensor models, estimator and controllers, the physics's boat,
-water and wind.
+Plans the route (lotsen.planning; a bare NAME without such a file is the example route
+examples/routes/NAME.yaml, so `lotsen mission figure_eight --sim ...` runs from any folder), runs
+the closed loop on the simulated boat (controller at 10 Hz on the simulator's 100 Hz steps), holds
+the last point with the station keeper, and writes a JSON report (tracking errors, propeller
+reversals, solve times, completion, which boat and which model) and optionally a plot. The simulated
+boat (`--boat`, default the lake boat) and the model the estimator and controllers use (`--params`,
+default the default coefficients) are separate: a boat is never its model unless `--boat ideal` says
+so. `--physics udp:HOST:PORT` flies an external physics instead (ArduPilot SITL's JSON protocol,
+docs/physics.md; the channel map from `--config`'s extra.physics): lotsen's sensor models, estimator
+and controllers, the physics's boat, water and wind.
 Exit code 0 when the mission completed, 1 when it did not (the report is written either way), 2
 with an error when the physics stopped answering during the mission.
 """
@@ -40,7 +41,8 @@ def register(subparsers: Any) -> None:
         "mission", help="plan a route and fly it in closed loop on the simulated boat",
         description="Plan ROUTE, follow it with the selected controller on the simulator, hold the "
                     "last point, and report tracking errors and solver times.")
-    p.add_argument("route", help="route file (.yaml, .yml, .geojson)")
+    p.add_argument("route", help="route file (.yaml, .yml, .geojson, a ground station's file), or the name of an "
+                                 "example route shipped with lotsen (figure_eight, harbour_approach, ...)")
     p.add_argument("--sim", action="store_true", help="run on the simulated boat")
     p.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="fly an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
@@ -80,6 +82,21 @@ def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
     return speed_range.parse(parts[0], f"{where}: the speed"), _DIRECTION_DEG.parse(parts[1], f"{where}: the direction")
 
 
+def route_file(text: str) -> str:
+    """ROUTE as given, or, when no such file exists and it is a bare name, the example route of
+    that name (examples/routes/NAME.yaml): the README's walkthrough runs from any folder."""
+    from lotsen.stack.stack import EXAMPLES, example_route
+
+    p = FilePath(text)
+    if p.exists() or p.suffix or len(p.parts) != 1:
+        return text
+    try:
+        return example_route(text)
+    except ConfigError:
+        names = ", ".join(sorted(f.stem for f in (EXAMPLES / "routes").glob("*.yaml")))
+        raise ConfigError(f"route {text!r}: no such file, nor an example route of that name ({names})") from None
+
+
 def run(args: argparse.Namespace) -> int:
     if not args.sim and not args.physics:
         raise LotsenError("mission: say what to fly: --sim (the simulated boat) or --physics udp:HOST:PORT (an "
@@ -106,6 +123,7 @@ def run(args: argparse.Namespace) -> int:
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")
     check_plot_name(args.plot)
+    args.route = route_file(args.route)
     inputs = (args.route, args.params, None if args.boat == "ideal" else args.boat, args.config)
     check_outputs((args.report, args.plot), inputs, ConfigError)
     env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1])

@@ -108,14 +108,19 @@ def with_mavlink(config: StackConfig, urls: list[str] | None) -> StackConfig:
 
 def with_model_and_boat(config: StackConfig, params: str | None, boat: str | None) -> StackConfig:
     """`--params FILE` sets the model in use; `--boat FILE|ideal` the simulated boat (its file's
-    coefficients replace the config's `sim.boat.parameters`; its unmodelled effects stay)."""
+    coefficients replace the config's `sim.boat.parameters`; its unmodelled effects stay; its name says
+    which file, as `lotsen mission --boat` names it, so every report and log names the boat file)."""
     if params:
         config = replace(config, vessel=replace(config.vessel, parameters_file=str(Path(params).resolve())))
     if boat == "ideal":
         config = replace(config, sim=replace(config.sim, boat=BoatSection(ideal=True)))
     elif boat:
+        from lotsen.sim import DEFAULT_BOAT
+        from lotsen.stack.stack import load_parameter_file
+
+        named = f"{config.sim.boat.name or DEFAULT_BOAT.name} with {load_parameter_file(boat).describe()}"
         config = replace(config, sim=replace(config.sim, boat=replace(
-            config.sim.boat, ideal=False, parameters=None, parameters_file=str(Path(boat).resolve()))))
+            config.sim.boat, ideal=False, parameters=None, parameters_file=str(Path(boat).resolve()), name=named)))
     return config
 
 

@@ -150,6 +150,17 @@ def export_topics(path: str | os.PathLike, out_dir: str | os.PathLike, topics: I
     return files
 
 
+def recorded_on(path: str | os.PathLike) -> str | None:
+    """The boat a run log was recorded on, as the recorder named it (metadata `lotsen`, key `boat`:
+    the simulated boat with its parameter file, or the external physics), or None (a log of the
+    real boat, or one written before the key existed). The recorder writes the metadata before the
+    first message, so reading stops there."""
+    reader = LogReader(path)
+    for _ in reader.iter_raw():
+        break
+    return reader.metadata.get("lotsen", {}).get("boat")
+
+
 def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "auto",
                  gnss_antenna_m: tuple[float, float] = (0.0, 0.0)) -> IdRecord:
     """The identification record of a run log, in the asynchronous form of docs/sysid.md ("Data"):

@@ -117,6 +117,10 @@ def add_recorder(stack: Any, config: RecorderConfig | None = None, start: bool |
     clock = stack.executor.clock
     meta = {"mode": stack.config.mode, "seed": str(stack.config.seed),
             "launch_config": json.dumps(_redacted(dataclasses.asdict(stack.config)), default=str)}
+    if stack.config.mode == "sim":  # which boat the log is of: identify names it in its report
+        from lotsen.stack.stack import boat_description
+
+        meta["boat"] = boat_description(stack.config)
     rec = McapRecorder(rc, clock=clock.now, epoch_at_clock_zero=getattr(clock, "epoch_at_start", None), metadata=meta)
     rec.attach(stack.bus)
     stack.add(LoggingControlNode(rec))

@@ -65,6 +65,21 @@ def test_mission_without_sim_is_refused(tmp_path):
         args.func(args)
 
 
+def test_a_bare_route_name_is_the_example_route_of_that_name(tmp_path, monkeypatch):
+    """`lotsen mission figure_eight ...` from any folder (the README's walkthrough); a file of that
+    name, or any path with a suffix or a folder, is taken as given."""
+    from lotsen.stack.stack import example_route
+
+    monkeypatch.chdir(tmp_path)
+    assert mission_cli.route_file("figure_eight") == example_route("figure_eight")
+    assert mission_cli.route_file("mine.yaml") == "mine.yaml"  # load_route reports a missing file
+    assert mission_cli.route_file("routes/figure_eight") == "routes/figure_eight"
+    (tmp_path / "figure_eight").write_text(ROUTE)
+    assert mission_cli.route_file("figure_eight") == "figure_eight"
+    with pytest.raises(ConfigError, match=r"'figure_nine': no such file, nor an example route .*figure_eight"):
+        mission_cli.route_file("figure_nine")
+
+
 @pytest.mark.parametrize("controller", ["pursuit", "los", "lq"])
 def test_run_mission_with_each_fallback(controller):
     path = straight_path(10.0)

@@ -53,6 +53,8 @@ def test_run_takes_the_boat_and_the_model_from_the_command_line(tmp_path):
     boat = simulated_boat(both)
     assert boat.parameters.m22 == 30.0 and boat.parameters.m11 == DEFAULT_PARAMETERS.m11  # the file over defaults
     assert boat.thrust_dead_band_rps == DEFAULT_BOAT.thrust_dead_band_rps  # the unmodelled effects stay
+    # every report and log names the boat file, and what it takes from the defaults (as mission --boat does)
+    assert boat.name.startswith(f"lake boat with {params} (defaults for m11, m33, ")
     ideal = simulated_boat(with_model_and_boat(config, str(params), "ideal"))
     assert ideal.ideal and ideal.parameters.m22 == 30.0
 
@@ -72,7 +74,10 @@ def test_the_lab_loop_refuses_a_model_the_record_does_not_support_and_accepts_on
     assert main(["identify", "lake.mcap", "--fix", f"m11={DEFAULT_BOAT.parameters.m11}", "--out", "lake.json"]) == 1
     lake = json.loads((tmp_path / "lake.json").read_text())
     assert lake["verdict"] == "refused" and lake["identification"]["reasons"]  # here: N_vv pulled to its bound
-    assert "REFUSED" in capsys.readouterr().err
+    # the boat the log was recorded on, as its recorder named it, in the output and the parameter file
+    assert lake["recorded_on"]["lake.mcap"].startswith("lake boat: coefficients")
+    err = capsys.readouterr().err
+    assert "REFUSED" in err and "lake.mcap: recorded on lake boat: coefficients" in err
     assert main(["mission", ROUTE, "--sim", "--params", "lake.json", "--report", "r.json"]) == 2
     assert "identification refused these coefficients" in capsys.readouterr().err
     # the same record with the geometry a lab measures on the hull (antenna position by tape, astern
