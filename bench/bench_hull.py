@@ -156,9 +156,9 @@ def lake_environment(seed: int) -> Any:
 
 def figure_eight(speed_mps: float, scale: float = 1.0) -> dict:
     """examples/routes/figure_eight.yaml at `speed_mps`, scaled about its crossing by `scale`."""
-    import yaml
+    from lotsen.files import read_yaml
 
-    route = yaml.safe_load((REPO / "examples" / "routes" / "figure_eight.yaml").read_text())
+    route = read_yaml(REPO / "examples" / "routes" / "figure_eight.yaml")
 
     def s(v: float) -> float:
         return round(20.0 + scale * (v - 20.0), 3)
