@@ -39,9 +39,10 @@ def test_exact_model_tracks_best_and_a_25_percent_error_within_1_5x():
     e = 25 % 0.71-0.99 cm (1.23x); over seeds 0-8 1.28x, worst seed 1.66x (docs/control.md; with
     yaw-rate weight 1 it was 1.52x there, worst 2.67x). The design before tracked better with the wrong model than
     with the exact one (1.7-1.8 vs 1.1-1.2 cm); the 10 % tolerance on "exact <= wrong" is the
-    seed-to-seed spread of these missions (~0.05 cm), far below that inversion."""
+    seed-to-seed spread of these missions (~0.05 cm), far below that inversion. Seeds 0 and 1 here
+    (0.68/0.66 cm against 0.99/0.78: seed 0 is the worst of the three); all of 0-8 in bench model_chain."""
     exact, wrong = [], []
-    for seed in (0, 1, 2):
+    for seed in (0, 1):
         m = _mission(DEFAULT_BOAT, DEFAULT_BOAT.parameters, seed)
         exact.append(m["cross_track_rms_m"])
         assert m["reversals_counted_on"] == "achieved speeds"

@@ -134,7 +134,7 @@ def test_the_stack_says_which_model_it_uses_and_where_it_came_from(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("boat_seed", [None, 16])
+@pytest.mark.parametrize("boat_seed", [None])  # random boat 16: bench model_chain (61 s more here)
 def test_identified_parameters_track_within_20_percent_of_the_exact_model(tmp_path, boat_seed):
     """Issue 25, done-when 3: the lab loop (the battery of designed experiments recorded on the
     simulated stack -> `lotsen identify` with the hull's measured m11, antenna and astern thrust ->
@@ -142,9 +142,11 @@ def test_identified_parameters_track_within_20_percent_of_the_exact_model(tmp_pa
     the defaults (both with the lake boat's unmodelled effects). identify must accept the battery
     (converged, not refused), the core coefficients within 5 %, and the figure eight in 0.1 m/s
     current and 3 m/s wind on the EKF must track within 20 % of the exact model (mean over seeds).
-    Random boat 16: of boats 11-22 the battery answers 16 and 18 (core sigmas <= 2.1 %); 12 is
-    refused since the core sigma rule (Y_v +-3.3 %, 6.5 % off), the others for weakly determined
-    coefficients or a wrong basin (bench/results/model_chain.md has the whole set)."""
+    Here the lake boat; random boat 16 runs the same in bench model_chain's lab-loop and tracking
+    tables (`make bench`; a minute of CPU the default suite does not spend twice). Of boats 11-22 the
+    battery answers 16 and 18 (core sigmas <= 2.1 %); 12 is refused since the core sigma rule (Y_v
+    +-3.3 %, 6.5 % off), the others for weakly determined coefficients or a wrong basin
+    (bench/results/model_chain.md has the whole set)."""
     from lotsen.harness.lab_loop import identify_on, track_with_model as mission
     from lotsen.sim import random_boat
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from lotsen.stack.soak import SHORT_ROUTE, LivePlan, run_live
+from lotsen.stack.soak import FIRST_TURN_ROUTE, SHORT_ROUTE, LivePlan, run_live
 
 CONFIG = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
 
@@ -37,7 +37,7 @@ def test_killing_the_web_process_leaves_the_boat_under_control(tmp_path):
     """SIGKILL the web process during AUTO: the core keeps its 10 Hz and its failsafe table (the
     pilot's link is lost: `link_lost_auto_action: continue` keeps AUTO), the launcher restarts the
     web process, the pilot's page reconnects and finishes the mission."""
-    report = run_live(LivePlan(config=CONFIG, idle_s=3.0, route=SHORT_ROUTE, kill_web_after_s=8.0,
+    report = run_live(LivePlan(config=CONFIG, idle_s=3.0, route=FIRST_TURN_ROUTE, kill_web_after_s=8.0,
                                return_home=False, allowed_failsafes=("link_lost",)), tmp_path)
     print(report.summary())
     assert report.ok, report.summary() + "\n" + "\n".join(report.output[-20:])
