@@ -689,6 +689,24 @@ def turning_circle(n_rps: float = 50.0, alpha_deg: float = 20.0, duration_s: flo
             "yaw_rate_radps": r, "kinematic_diameter_m": 2.0 * U / abs(r) if r else math.inf}
 
 
+def add_environment_arguments(ap: Any) -> None:
+    """The water and air flags of this module's and hull_server.py's command lines."""
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--current", default="0,0", help="SPEED,TO_DEG")
+    ap.add_argument("--current-variation", type=float, default=0.0, help="fraction of the speed, slow sinusoid")
+    ap.add_argument("--wind", default="0,0", help="MEAN,FROM_DEG")
+    ap.add_argument("--gusts", type=float, default=0.0, help="gust std as a fraction of the mean wind")
+    ap.add_argument("--wander", type=float, default=0.0, help="wind direction wander std, deg")
+
+
+def environment_arguments(a: Any) -> dict[str, Any]:
+    """The parsed flags of `add_environment_arguments` as HullEnvironment (and RecordOptions) fields."""
+    cs, cd = (float(v) for v in a.current.split(","))
+    ws, wd = (float(v) for v in a.wind.split(","))
+    return dict(current_mps=cs, current_to_deg=cd, current_variation=a.current_variation, wind_mps=ws,
+                wind_from_deg=wd, gust_fraction=a.gusts, wind_wander_deg=a.wander, seed=a.seed)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """`python tests/physics/hull6dof.py --out REC.csv [--duration 600] [--seed 0] [--current 0.08,30]
     [--wind 4,250] [--gusts 0.2] [--wander 15]`: a record for `lotsen identify REC.csv [--lake]`."""
@@ -697,18 +715,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=main.__doc__)
     ap.add_argument("--out", required=True)
     ap.add_argument("--duration", type=float, default=600.0)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--current", default="0,0", help="SPEED,TO_DEG")
-    ap.add_argument("--current-variation", type=float, default=0.0, help="fraction of the speed, slow sinusoid")
-    ap.add_argument("--wind", default="0,0", help="MEAN,FROM_DEG")
-    ap.add_argument("--gusts", type=float, default=0.0, help="gust std as a fraction of the mean wind")
-    ap.add_argument("--wander", type=float, default=0.0, help="wind direction wander std, deg")
+    add_environment_arguments(ap)
     a = ap.parse_args(argv)
-    cs, cd = (float(v) for v in a.current.split(","))
-    ws, wd = (float(v) for v in a.wind.split(","))
-    rec = record(duration_s=a.duration, seed=a.seed, current_mps=cs, current_to_deg=cd,
-                 current_variation=a.current_variation, wind_mps=ws, wind_from_deg=wd, gust_fraction=a.gusts,
-                 wind_wander_deg=a.wander)
+    rec = record(duration_s=a.duration, **environment_arguments(a))
     rec.save_csv(a.out)
     print(f"{a.out}: {len(rec.record.t)} rows, {a.duration:g} s on the 6-DOF hull (seed {a.seed})")
     return 0

@@ -33,7 +33,8 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from hull6dof import Hull6DOF, HullEnvironment, HullParameters  # noqa: E402
+from hull6dof import (Hull6DOF, HullEnvironment, HullParameters, add_environment_arguments,  # noqa: E402
+                     environment_arguments)
 
 PACKET_16 = struct.Struct("<HHI16H")
 PACKET_32 = struct.Struct("<HHI32H")
@@ -147,17 +148,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="the 6-DOF hull as an ArduPilot SITL JSON physics")
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=9002)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--current", default="0,0", help="SPEED,TO_DEG")
-    ap.add_argument("--current-variation", type=float, default=0.0)
-    ap.add_argument("--wind", default="0,0", help="MEAN,FROM_DEG")
-    ap.add_argument("--gusts", type=float, default=0.0, help="gust std as a fraction of the mean wind")
-    ap.add_argument("--wander", type=float, default=0.0, help="wind direction wander std, deg")
+    add_environment_arguments(ap)
     a = ap.parse_args(argv)
-    cs, cd = (float(v) for v in a.current.split(","))
-    ws, wd = (float(v) for v in a.wind.split(","))
-    env = HullEnvironment(current_mps=cs, current_to_deg=cd, current_variation=a.current_variation, wind_mps=ws,
-                          wind_from_deg=wd, gust_fraction=a.gusts, wind_wander_deg=a.wander, seed=a.seed)
+    env = HullEnvironment(**environment_arguments(a))
     server = HullServer(environment=env, host=a.host, port=a.port)
     print(f"6-DOF hull listening on udp:{server.address[0]}:{server.address[1]}", flush=True)
     try:
