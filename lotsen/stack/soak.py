@@ -69,6 +69,9 @@ class LivePlan:
     flood_route: dict | None = None
     pilot_plans_too: bool = True  # viewers may not plan: the pilot's own page plans at the rate limit too
     kill_web_after_s: float | None = None  # SIGKILL the web process this long after AUTO
+    # the pilot's page tries again this long after the kill: a restarted web process can be back within the
+    # link timeout (1.5 s), and then no failsafe is due; a page that stays away longer must trip it
+    reconnect_after_s: float = 0.0
     allowed_failsafes: tuple[str, ...] = ()  # the failsafes this plan provokes on purpose (e.g. link_lost)
     extra_config: dict = field(default_factory=dict)  # merged into the config's `extra`
     startup_timeout_s: float = 120.0
@@ -417,6 +420,7 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
                 os.kill(int(pids["web"]), signal.SIGKILL)
                 killed = True
                 note(f"web process {pids['web']} killed")
+                time.sleep(plan.reconnect_after_s)
                 pilot = _reconnect(url, token, clock, frames, note, timeout_s=60)
                 continue
             if frame is not None:
