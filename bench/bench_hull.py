@@ -75,6 +75,8 @@ def cpu():
     s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
 
+from lotsen.cli.main import single_threaded_blas
+single_threaded_blas()  # as `lotsen identify` does, before this script's import of numpy below
 import lotsen.cli.identify as cli
 spent = []
 if hasattr(cli, "identify"):

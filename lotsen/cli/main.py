@@ -78,12 +78,18 @@ def command_of(argv: list[str]) -> str | None:
 SINGLE_THREADED_BLAS = ("identify", "experiment")
 
 
+def single_threaded_blas() -> None:
+    """One BLAS thread for this process (see SINGLE_THREADED_BLAS); effective only before numpy's import."""
+    if "numpy" not in sys.modules:
+        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(var, "1")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     command = command_of(argv)
-    if command in SINGLE_THREADED_BLAS and "numpy" not in sys.modules:  # must precede numpy's import
-        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
+    if command in SINGLE_THREADED_BLAS:
+        single_threaded_blas()
     parser = build_parser((command,) if command in COMMANDS else ())
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -314,7 +314,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         sol = lsq_linear(R, q, bounds=(lo_f * colscale, hi_f * colscale), method="bvls")
         x = sol.x / colscale
         res = (bm - Am @ x).reshape(3, n)
-        last = (Af, res, lo_f, hi_f)
+        last = (Af, res)
         return res, x, free, np.sqrt(np.mean(res ** 2, axis=1)) / weights
 
     weights = np.array([1.0, 1.0, 10.0])  # N, N, N m: the moment's arm about 0.1 m
@@ -417,7 +417,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     res, x, free, rstd = solve(kappa, current, wind, weights)  # the final weights' regression
     total = float(np.sum(res ** 2))
     Dz, prior_info = nonlinear_sensitivity(x) if lake else (None, None)
-    cov = _sandwich(*last, x, ms.segment, Dz, prior_info, dt)
+    cov = _sandwich(*last, ms.segment, Dz, prior_info, dt)
     # the spread between stretches of the record (batch means): the effective values of a hull that is
     # not the grey box depend on what each stretch asked of it (speeds, turns, the wind's gusts), which
     # no residual correlation within the record shows; each stretch re-solved with kappa, current and
@@ -448,13 +448,25 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         d[finite] = np.maximum(d[finite], batch_var[finite])
         cov[np.arange(len(free)), np.arange(len(free))] = d
     solve(kappa, current, wind, weights)  # `last` back to the whole record (kappa's profile below)
+    kappa_std = math.inf
+    if not kappa_fixed:
+        kappa_std = _profile_std(lambda k: float(np.sum(solve(k, current, wind, weights)[0] ** 2)), kappa,
+                                 float(np.median(np.diag(cov)[:len(free)]
+                                                 / np.maximum(_naive_var(last[0])[:len(free)], 1e-300))),
+                                 3 * len(ms.t) - len(x))
+        if math.isfinite(kappa_std):
+            # kappa is profiled (the rest re-solved at each kappa), so its uncertainty moves the others
+            # along the profile: the delta method adds (dx/dkappa)(dx/dkappa)^T var(kappa). Without it
+            # C_N, which trades with kappa, was 6.7 of its sigma apart between two records of one hull
+            dx = _profile_slope(lambda k: solve(k, current, wind, weights)[1][:len(free)], kappa)
+            solve(kappa, current, wind, weights)
+            d = cov[:len(free), :len(free)]
+            fin = np.isfinite(np.diag(d))
+            d[np.ix_(fin, fin)] += np.outer(dx[fin], dx[fin]) * kappa_std ** 2
     std = {NAMES[i]: float(math.sqrt(cov[j, j])) if math.isfinite(cov[j, j]) else math.inf
            for j, i in enumerate(free)}
     if not kappa_fixed:
-        std["kappa"] = _profile_std(lambda k: float(np.sum(solve(k, current, wind, weights)[0] ** 2)), kappa,
-                                    float(np.median(np.diag(cov)[:len(free)]
-                                                    / np.maximum(_naive_var(last[0])[:len(free)], 1e-300))),
-                                    3 * len(ms.t) - len(x))
+        std["kappa"] = kappa_std
     theta = np.array(theta0.to_vector(), float)
     for i, val in theta_fixed.items():
         theta[i] = val
@@ -479,24 +491,19 @@ def _naive_var(Af: np.ndarray) -> np.ndarray:
         return np.full(A.shape[1], np.inf)
 
 
-def _sandwich(Af: np.ndarray, res: np.ndarray, lo: np.ndarray, hi: np.ndarray, x: np.ndarray,
-              segment: np.ndarray, Dz: np.ndarray | None = None, prior_info: np.ndarray | None = None,
-              dt: float = 0.125) -> np.ndarray:
+def _sandwich(Af: np.ndarray, res: np.ndarray, segment: np.ndarray, Dz: np.ndarray | None = None,
+              prior_info: np.ndarray | None = None, dt: float = 0.125) -> np.ndarray:
     """Covariance of the regression's coefficients robust to correlated residuals: G^-1 M G^-1 with the
     per-sample scores' covariance M by Newey-West (Bartlett weights up to twice the residuals'
     correlation time, within segments). The columns are filtered (FILTER_SIGMA_S), so residuals stay
-    correlated over seconds whatever the model; a coefficient at its bound is held there (infinite
-    variance reported: its interval means nothing). `Dz` (3 x n x q): the residual's sensitivity to
+    correlated over seconds whatever the model. A coefficient at its bound gets the interval of the
+    unconstrained local fit: the values the data support around it (on a real hull a bound-held
+    coefficient of one record and a free one of another were 0.2 of that sigma apart, reported as
+    disagreeing for want of an interval), and its freedom widens the others'. `Dz` (3 x n x q): the residual's sensitivity to
     the nonlinear parameters found around the regression (a lake's current and wind), with their
     priors' information `prior_info` (q x q): their uncertainty then widens the coefficients' (without
     it two lake records of one hull agreed on 12 of 17 coefficients within 3 sigma)."""
-    p = Af.shape[-1]
-    at_bound = (x <= lo + 1e-12 * np.abs(lo)) | (x >= hi - 1e-12 * np.abs(hi))
-    keep = ~at_bound
-    cov = np.full((p, p), np.inf)
-    if not keep.any():
-        return cov
-    A = Af[:, :, keep]  # 3 x n x k
+    A = Af  # 3 x n x k
     k = A.shape[-1]
     if Dz is not None:
         A = np.concatenate([A, Dz], axis=-1)
@@ -528,17 +535,29 @@ def _sandwich(Af: np.ndarray, res: np.ndarray, lo: np.ndarray, hi: np.ndarray, x
     except np.linalg.LinAlgError:
         Gi = np.linalg.pinv(G)
     sub = (Gi @ M @ Gi)[:k, :k]
-    idx = np.flatnonzero(keep)
-    cov[np.ix_(idx, idx)] = 0.5 * (sub + sub.T)
-    return cov
+    return 0.5 * (sub + sub.T)
+
+
+def _kappa_steps(kappa: float, h: float) -> tuple[float, float, float]:
+    """Three kappas spaced h in log kappa around `kappa`, shifted inwards at an end of KAPPA_RANGE (an
+    estimate at its bound still has the curvature and slope of the values the data allow)."""
+    lo, hi = math.log(KAPPA_RANGE[0]), math.log(KAPPA_RANGE[1])
+    mid = min(max(math.log(kappa), lo + h), hi - h)
+    return math.exp(mid - h), math.exp(mid), math.exp(mid + h)
+
+
+def _profile_slope(x_of, kappa: float, h: float = 0.05) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """d x / d kappa of the profiled coefficients x(kappa), by a central difference in log kappa."""
+    km, _, kp = _kappa_steps(kappa, h)
+    return (np.asarray(x_of(kp)) - np.asarray(x_of(km))) / (kp - km)
 
 
 def _profile_std(cost_of, kappa: float, inflation: float, dof: int) -> float:  # type: ignore[no-untyped-def]
     """kappa's 1-sigma from the curvature of the profiled weighted cost (the rest re-solved at each
     kappa), in log kappa, with the regression's own residual variance and the sandwich's inflation."""
     h = 0.05
-    c0 = cost_of(kappa)
-    cp, cm = cost_of(min(kappa * math.exp(h), KAPPA_RANGE[1])), cost_of(max(kappa * math.exp(-h), KAPPA_RANGE[0]))
+    km, k0, kp = _kappa_steps(kappa, h)
+    c0, cp, cm = cost_of(k0), cost_of(kp), cost_of(km)
     curv = (cp - 2 * c0 + cm) / (h * h)
     s2 = c0 / max(dof, 1)
     if curv <= 0 or not math.isfinite(curv):

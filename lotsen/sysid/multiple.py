@@ -553,13 +553,14 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                wind_coefficient_spread: float = 0.01, gyro_bias: bool | None = None,
                                gyro_bias0: Sequence[float] | None = None,
                                test_fixed: Sequence[str] = (), misfit_check: int = 0,
-                               terms: Sequence[str] = ()) -> IdentificationResult:
+                               terms: Sequence[str] = (), total_iterations: int | None = None) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
     `estimate_noise` (default) the noise std of each output is re-estimated from its residuals and
     the estimate refined once with those weights; otherwise `noise_std` (or the defaults) is used and
-    the covariance is scaled by max(1, s^2).
+    the covariance is scaled by max(1, s^2). `max_iterations` is per pass; `total_iterations`, when
+    given, caps both passes together (the refinement gets what the first pass left).
 
     `lake`: estimate with the parameters a constant earth-frame current, the wind (earth-frame air
     velocity and drag coefficients, lotsen.model.environment.apparent_wind_force) and a gust factor
@@ -605,16 +606,18 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     passes = 2 if estimate_noise else 1
     misfit = False
     for pass_no in range(passes):
-        budget = max_iterations
+        budget = max_iterations if total_iterations is None else min(max_iterations, total_iterations - total_it)
+        if budget <= 0:
+            break
         if misfit_check and pass_no == 0:
             # a model that cannot explain the record crawls for a hundred iterations towards no physical
             # answer: after `misfit_check` iterations with the track's errors still correlated over a
             # second (the verdict's own test), stop; the estimate is then judged (refused as physical,
             # perhaps predictive) without the rest of the work
-            theta, nodes, it, converged = _gauss_newton(prob, theta, nodes, free, tscale, lo, hi, misfit_check, tol,
-                                                        history, progress, total_it)
+            theta, nodes, it, converged = _gauss_newton(prob, theta, nodes, free, tscale, lo, hi,
+                                                        min(misfit_check, budget), tol, history, progress, total_it)
             total_it += it
-            budget = max_iterations - it
+            budget -= it
             ac = residual_autocorr(prob.linearise(theta, nodes, free, tscale, False).e, prob.mask, prob.names)
             vals = [float(ac[n][7]) for n in ("north", "east") if n in ac and len(ac[n]) >= 8]
             misfit = bool(vals) and float(np.mean(vals)) > MISFIT_TRACK_AUTOCORR
@@ -625,7 +628,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                 break
             if converged and passes == 1:
                 break
-        if not (misfit_check and pass_no == 0 and converged):
+        if not (misfit_check and pass_no == 0 and converged) and budget > 0:
             theta, nodes, it, converged = _gauss_newton(prob, theta, nodes, free, tscale, lo, hi, budget, tol,
                                                         history, progress, total_it)
             total_it += it

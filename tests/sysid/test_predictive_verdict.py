@@ -69,6 +69,21 @@ def test_equation_error_start_is_the_same_from_any_initial_guess(boat_record):
         assert abs(getattr(a.params, n) / getattr(true, n) - 1) < 0.15, n
 
 
+def test_equation_error_intervals_cover_bound_held_coefficients_and_kappa_s_freedom(boat_record):
+    """Every estimated coefficient has an interval, also one the bounded fit holds at its physical bound
+    (the values the data support around it); kappa is profiled, and its uncertainty widens the
+    coefficients that trade with it: with kappa free no interval is narrower than with kappa fixed
+    at the same value, and C_N's (the one that trades with it) is wider."""
+    g, _ = boat_record
+    free = estimate_equation_error([g.record], {"m11": 14.0}, DEFAULT_PARAMETERS)
+    assert all(np.isfinite(v) and v > 0 for v in free.std.values()), free.std
+    held = estimate_equation_error([g.record], {"m11": 14.0, "kappa": free.params.kappa}, DEFAULT_PARAMETERS)
+    assert held.params.C_N == pytest.approx(free.params.C_N, rel=1e-3)  # the same fit (its weights iterate)
+    for n, s in held.std.items():
+        assert free.std[n] >= 0.99 * s, n
+    assert free.std["C_N"] > 1.05 * held.std["C_N"]
+
+
 def test_wrongly_fixed_coefficients_are_misfit_not_a_confident_answer(boat_record):
     """Fixing four coefficients at the documented defaults (7-15 % off this boat's) is an assumption the
     record contradicts: the physical answer is refused and the reasons name them; fixed at the boat's
