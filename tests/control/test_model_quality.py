@@ -56,7 +56,7 @@ def test_exact_model_tracks_best_and_a_25_percent_error_within_1_5x():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("boat_seed", [21, 22, 30])
+@pytest.mark.parametrize("boat_seed", [21, 30])  # 22 (and 23) in bench model_chain's table of randomised boats
 def test_exact_model_tracks_no_worse_than_the_defaults_on_a_randomised_boat(boat_seed):
     """Issue 25's done-when on boats 10-40 % from the defaults (with the lake boat's unmodelled
     effects): the boat's exact coefficients track no worse than the default ones. Measured (seed =
