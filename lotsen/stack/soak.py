@@ -48,8 +48,8 @@ SHORT_ROUTE = {"harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0},
                          {"north": 22.0, "east": 30.0, "heading_deg": 45.0, "speed_mps": 0.5},
                          {"north": 30.0, "east": 30.0, "heading_deg": 0.0, "speed_mps": 0.5}],
                "area": [[0, 0], [40, 0], [40, 40], [0, 40]]}
-#: the short route's first turn (~13 m, ~30 s in AUTO at 0.5 m/s against ~60 s): for live runs whose point is
-#: not the route (a killed web process, another physics) and whose 30 s saved count in `make test`
+#: the short route's first turn (~13 m, ~30 s in AUTO at 0.5 m/s against ~60 s): for live runs whose point
+#: is not the route (a flood of strangers, a killed web process, another physics), in `make test`
 FIRST_TURN_ROUTE = {**SHORT_ROUTE, "nodes": SHORT_ROUTE["nodes"][:2]}
 
 
