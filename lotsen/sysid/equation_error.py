@@ -459,7 +459,6 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
             # along the profile: the delta method adds (dx/dkappa)(dx/dkappa)^T var(kappa). Without it
             # C_N, which trades with kappa, was 6.7 of its sigma apart between two records of one hull
             dx = _profile_slope(lambda k: solve(k, current, wind, weights)[1][:len(free)], kappa)
-            solve(kappa, current, wind, weights)
             d = cov[:len(free), :len(free)]
             fin = np.isfinite(np.diag(d))
             d[np.ix_(fin, fin)] += np.outer(dx[fin], dx[fin]) * kappa_std ** 2
