@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from lotsen.cli.mission import waves_flag
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import atomic_output, check_outputs, write_output
 from lotsen.harness.identification import lake_run, run_on_simulator
@@ -89,6 +90,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                           "physics) or --hardware [--emulated] (the boat's drivers)")
     if args.emulated and not args.hardware:
         raise LotsenError("--emulated is for --hardware (the drivers' emulated twins); --sim runs the simulated boat")
+    if args.waves is not None and (args.hardware or args.physics):
+        raise ConfigError("--waves: only the simulated boat's sea can be set (the lake and an external physics have "
+                          "their own)")
     check_outputs((args.out,), _run_inputs(args), ConfigError)
     if args.config:  # read and checked whatever the run uses of it: a bad file is never ignored
         from lotsen.stack.config import load_stack_config
@@ -102,13 +106,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from dataclasses import replace
 
         from lotsen.cli.mission import check_physics_answered
-        from lotsen.cli.run import with_model_and_boat, with_physics
+        from lotsen.cli.run import with_model_and_boat, with_physics, with_waves
         from lotsen.harness.lab_loop import record_on_simulated_stack
         from lotsen.stack.config import load_stack_config
         from lotsen.stack.stack import boat_description
 
         config = with_model_and_boat(replace(load_stack_config(args.config), seed=args.seed), args.params, args.boat)
-        config = with_physics(replace(config, mode="sim"), args.physics)
+        config = with_waves(with_physics(replace(config, mode="sim"), args.physics), args.waves)
         from lotsen.stack.config import config_files
 
         with atomic_output(out, _run_inputs(args, config_files(config)), ConfigError, "log") as tmp:
@@ -139,7 +143,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     boat = (SimulatedBoat.ideal_for(model) if args.boat == "ideal" else
             DEFAULT_BOAT.with_parameters(load_parameters(args.boat)) if args.boat else DEFAULT_BOAT)
-    run = run_on_simulator(exp, boat, seed=args.seed, psi_noise_rad=args.psi_noise)
+    from lotsen.model import Environment
+
+    env = Environment(waves=args.waves.waves()) if args.waves else None
+    run = run_on_simulator(exp, boat, seed=args.seed, psi_noise_rad=args.psi_noise, environment=env)
     save_csv(run.record, args.out, _run_inputs(args))
     print(f"{args.out}: {len(run.record.t)} rows, {exp.duration_s:.1f} s of '{exp.name}' on the simulator "
           f"(gyro bias estimate {run.gyro_bias_estimate_radps:+.4f} rad/s)", file=sys.stderr)
@@ -238,6 +245,9 @@ def register(subparsers: Any) -> None:
     r.add_argument("--params", help="the model in use: the area check's prediction and, on the stack, the "
                                     "estimator (default: the default coefficients)")
     r.add_argument("--model-params", help="parameters of the model used for the area check (default: --params)")
+    r.add_argument("--waves", metavar="HS,TP,FROM_DEG[,S]", type=waves_flag,
+                   help="with --sim: the simulated boat in a wind sea: significant height (m), peak period (s), the "
+                        "direction it comes FROM (deg), optionally the spreading exponent (default 10; 0 long-crested)")
     r.add_argument("--seed", type=SEED, default=0)
     r.add_argument("--psi-noise", type=Number(0.0, 1.0, "rad"), default=0.01, help="heading noise std, rad (default 0.01)")
     r.add_argument("--margin", type=MARGIN, default=1.0, help="area safety margin in metres (default 1)")

@@ -53,6 +53,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--controller", default="mpc", choices=("mpc", "pursuit", "los", "lq"))
     p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
     p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
+    p.add_argument("--waves", metavar="HS,TP,FROM_DEG[,S]", type=waves_flag,
+                   help="a wind sea: significant height (m), peak period (s), the direction it comes FROM (deg), "
+                        "optionally the spreading exponent (default 10; 0 long-crested)")
     p.add_argument("--seed", type=SEED, default=0, help="seed of the simulator's noise")
     p.add_argument("--estimator", default="ekf", choices=("truth", "ekf"),
                    help="state for the controller: lotsen.fusion's EKF on the simulated sensors (default) "
@@ -70,6 +73,16 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=run)
 
 
+def waves_flag(text: str) -> Any:
+    """argparse `type=` of `--waves HS,TP,FROM_DEG[,S]`: a `WavesConfig` (lotsen.runtime.config)."""
+    from lotsen.runtime.config import WavesConfig
+
+    try:
+        return WavesConfig.parse(text, "value")
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("value ")) from None
+
+
 def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
     """'0.1,90' -> (0.1, 90.0); ConfigError naming the option otherwise."""
     if text is None:
@@ -80,6 +93,13 @@ def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
     speed_range = _CURRENT_MPS if what == "current" else _WIND_MPS
     where = f"--{what} {text[:40]!r} (SPEED,DIR_DEG)"
     return speed_range.parse(parts[0], f"{where}: the speed"), _DIRECTION_DEG.parse(parts[1], f"{where}: the direction")
+
+
+def waves_report(waves: Any) -> dict | None:
+    """The sea of a run as a report writes it (None: flat water, "calm water")."""
+    if waves is None:
+        return None
+    return {"hs_m": waves.hs_m, "tp_s": waves.tp_s, "from_deg": waves.from_deg, "spreading": waves.spreading}
 
 
 def route_file(text: str) -> str:
@@ -104,9 +124,9 @@ def run(args: argparse.Namespace) -> int:
     if args.physics:
         if args.boat:
             raise ConfigError("--boat: with --physics the boat is the physics server's")
-        if args.current or args.wind:
-            raise ConfigError("--current/--wind: with --physics the water and the wind are the physics server's; "
-                              "set them there")
+        if args.current or args.wind or args.waves:
+            raise ConfigError("--current/--wind/--waves: with --physics the water and the wind are the physics "
+                              "server's; set them there")
     elif args.config:
         raise ConfigError("--config: only read for --physics (its extra.physics section)")
     from dataclasses import replace
@@ -126,7 +146,9 @@ def run(args: argparse.Namespace) -> int:
     args.route = route_file(args.route)
     inputs = (args.route, args.params, None if args.boat == "ideal" else args.boat, args.config)
     check_outputs((args.report, args.plot), inputs, ConfigError)
-    env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1])
+    waves = args.waves.waves() if args.waves else None
+    env = Environment(current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0], wind_from_deg=wind[1],
+                      waves=waves)
     # the files first (a bad file is reported before minutes of simulation), then the plan
     model_file = load_parameter_file(args.params) if args.params else None
     model = VesselModel(model_file.parameters if model_file else VesselParameters())
@@ -159,7 +181,8 @@ def run(args: argparse.Namespace) -> int:
                   model_defaults_for=list(model_file.defaults_for) if model_file else [],
                   boat=boat.describe(model.params), ideal_model=ideal)
     report.update(route=str(args.route), environment={"current_mps": cur[0], "current_to_deg": cur[1],
-                                                       "wind_mps": wind[0], "wind_from_deg": wind[1]},
+                                                       "wind_mps": wind[0], "wind_from_deg": wind[1],
+                                                       "waves": waves_report(waves)},
                   seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz)
     write_output(args.report, json.dumps(report, indent=2) + "\n", inputs, ConfigError, "report")
     m = result.metrics

@@ -17,6 +17,7 @@ import threading
 from dataclasses import replace
 from typing import Any
 
+from lotsen.cli.mission import waves_flag
 from lotsen.errors import ConfigError
 from lotsen.settings import PORT, RUN_DURATION, SEED
 
@@ -36,6 +37,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=SEED, help="seed of the boat's gusts and waves (default: the config's)")
     p.add_argument("--current", metavar="SPEED,DIR_DEG", help="current speed (m/s) and direction it flows TO (deg)")
     p.add_argument("--wind", metavar="SPEED,DIR_DEG", help="wind speed (m/s) and direction it comes FROM (deg)")
+    p.add_argument("--waves", metavar="HS,TP,FROM_DEG[,S]", type=waves_flag,
+                   help="a wind sea: significant height (m), peak period (s), the direction it comes FROM (deg), "
+                        "optionally the spreading exponent (default 10; 0 long-crested)")
     p.add_argument("--duration", type=RUN_DURATION, help="stop after this many seconds (default: until Ctrl-C)")
     p.set_defaults(func=run)
 
@@ -58,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
         wind = parse_speed_dir(args.wind, "wind") if args.wind else (env.wind_speed_mps, env.wind_from_deg)
         env = replace(env, current_speed_mps=cur[0], current_to_deg=cur[1], wind_speed_mps=wind[0],
                       wind_from_deg=wind[1])
+    if args.waves is not None:
+        env = replace(env, waves=args.waves.waves())
     boat = simulated_boat(config)
 
     def make_plant() -> BoatPlant:
@@ -78,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
         timer.start()
     host, port = server.address
     print(f"physics server: {boat.describe()}; current {env.current_speed_mps:g} m/s to {env.current_to_deg:g} deg, "
-          f"wind {env.wind_speed_mps:g} m/s from {env.wind_from_deg:g} deg; seed {sc.seed}; step {sc.dt_s:g} s; "
+          f"wind {env.wind_speed_mps:g} m/s from {env.wind_from_deg:g} deg; "
+          f"{'waves ' + env.waves.describe() if env.wavy else 'calm water'}; seed {sc.seed}; step {sc.dt_s:g} s; "
           f"listening on udp:{host}:{port}", flush=True)
     try:
         server.serve(stop)

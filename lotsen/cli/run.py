@@ -13,7 +13,9 @@ import signal
 import threading
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
+from lotsen.cli.mission import waves_flag
 from lotsen.errors import ConfigError
 from lotsen.physics.config import address_flag as physics_address
 from lotsen.runtime.config import BoatSection
@@ -52,6 +54,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "udpout:HOST:PORT (as ArduPilot SITL sends to 14550), udpin:HOST:PORT, tcpin:HOST:PORT, or a "
                         "serial device /dev/ttyUSB0[,57600]; repeatable; added to extra.mavlink.endpoints "
                         "(docs/mavlink.md)")
+    p.add_argument("--waves", metavar="HS,TP,FROM_DEG[,S]", type=waves_flag,
+                   help="the simulated boat in a wind sea: significant height (m), peak period (s), the direction "
+                        "it comes FROM (deg), optionally the spreading exponent (default 10; 0 long-crested); "
+                        "sim.environment.waves in the config")
     p.add_argument("--physics", metavar="udp:HOST:PORT", type=physics_address,
                    help="an external physics instead of the simulated boat (ArduPilot SITL's JSON protocol, "
                         "docs/physics.md; over the config's extra.physics.address)")
@@ -82,6 +88,7 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     config = with_mavlink(config, getattr(args, "mavlink", None))
     config = with_model_and_boat(config, getattr(args, "params", None), getattr(args, "boat", None))
     config = with_physics(config, getattr(args, "physics", None))
+    config = with_waves(config, getattr(args, "waves", None))
     if lock is not None:
         lock.identities = run_identities(config)
         lock.acquire(web=f"http://{config.web.host}:{config.web.port}/ (starting)" if config.web.enabled else "")
@@ -91,6 +98,18 @@ def launch_config(args: argparse.Namespace, lock: RunLock | None = None) -> tupl
     config, pairing = paired_config(config)
     validate(config, tls=bool(getattr(args, "tls", False)))
     return config, pairing
+
+
+def with_waves(config: StackConfig, waves: Any) -> StackConfig:
+    """`--waves HS,TP,FROM_DEG[,S]` (a `WavesConfig`) as the simulated boat's `sim.environment.waves`;
+    an external physics or the boat itself owns its sea."""
+    if waves is None:
+        return config
+    if config.mode != "sim" or config.extra.physics.address:
+        raise ConfigError("--waves: only the simulated boat's sea can be set (an external physics and the lake "
+                          "have their own)")
+    env = replace(config.sim.environment, waves=waves)
+    return replace(config, sim=replace(config.sim, environment=env))
 
 
 def with_mavlink(config: StackConfig, urls: list[str] | None) -> StackConfig:

@@ -1,12 +1,32 @@
 """Model-aided extended Kalman filter (beyond the seed): one filter for pose, velocity, biases and
 the slowly varying disturbance (water current, optionally a body force).
 
-State x = [N, E, psi, u, v, r, b_g, (b_ax, b_ay), (c_N, c_E), (tau_X, tau_Y, tau_N)]:
+State x = [N, E, psi, u, v, r, b_g, (b_ax, b_ay), (c_N, c_E), (tau_X, tau_Y, tau_N), (wave states)]:
 position in local NED (m), heading (rad, clockwise from north), body velocities over ground
 (m/s, rad/s), gyro z bias (rad/s), by default the accelerometer's horizontal biases (m/s^2), by
-default the water current over ground (north, east, m/s) and optionally an external
-body force and moment (N, N m: wind and other slowly varying forces). The optional blocks are
-switched by `EkfConfig`; the indices live on the instance (`i_ba`, `i_cur`, `i_tau`).
+default the water current over ground (north, east, m/s), optionally an external
+body force and moment (N, N m: wind and other slowly varying forces), and by default the
+wave-frequency motion (below). The optional blocks are switched by `EkfConfig`; the indices live
+on the instance (`i_ba`, `i_cur`, `i_tau`, `i_wave`).
+
+Waves (docs/fusion.md "Waves"; Fossen 2021 sec. 10.2.4 and ch. 13, the dynamic-positioning wave
+filter): the measured motion is the sum of the low-frequency motion the vessel model describes
+(the first six states: what the controllers get) and the wave-frequency motion no model of the
+hull's forces predicts. The latter has states of its own, a damped oscillator per axis for north,
+east and heading, eta = [eta_N, eta_N_dot, eta_E, eta_E_dot, eta_psi, eta_psi_dot]:
+
+    eta_ddot = -w0^2 eta - 2 zeta w0 eta_dot + w,   w ~ N(0, 4 zeta w0^3 sigma^2)
+
+(stationary standard deviation sigma). GNSS position measures N + eta_N (and E), GNSS velocity
+adds eta_dot, the magnetometer psi + eta_psi, the gyro r + eta_psi_dot + b_g, the accelerometer the
+wave accelerations (the oscillator's deterministic part; its white part is measurement noise).
+w0 is the wave model's frequency: the sea-state estimate's encounter frequency where one is given
+(`set_wave_frequency`), else the mean frequency of the wave band (`lotsen.fusion.waveband`); sigma
+per axis follows the wave band's measured yaw-rate and acceleration within seconds, floored at
+`wave_*_std_floor` so that in flat water the states sleep. So wave-frequency motion is explained,
+not rejected as a sensor fault, and does not reach the controllers. The accelerometer is levelled
+first with the hull's roll and pitch (`lotsen.fusion.attitude.TiltFilter`): gravity's share on a
+heeled axis is 0.17 m/s^2 a degree.
 
 Process model: the vessel model (lotsen.model, seed eq. 7-8, 22) with the estimated current and
 body force, driven by the achieved (or emulated) actuator values of `ActuatorInputFilter`,
@@ -57,7 +77,9 @@ from statistics import NormalDist
 
 import numpy as np
 
+from lotsen.fusion.attitude import TiltConfig, TiltFilter
 from lotsen.fusion.common import Counters, GnssNoise, finite, wrap_angle
+from lotsen.fusion.waveband import WaveBand, WaveBandConfig
 from lotsen.model.geodetic import FixFrame
 from lotsen.fusion.inputs import ActuatorInputFilter, InputConfig
 from lotsen.fusion.integrity import IntegrityConfig, IntegrityMonitor
@@ -65,7 +87,7 @@ from lotsen.fusion.magcal import MagCalibration
 from lotsen.messages import (
     ActuatorState, EstimatorHealth, GnssFix, ImuSample, MagSample, RpmSample, ThrustCommand, VesselState,
 )
-from lotsen.model.angles import lever_arm_ne
+from lotsen.model.angles import lever_arm_ne, mast_swing_body
 from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step
 
 IN, IE, IPSI, IU, IV, IR, IBG = range(7)
@@ -121,6 +143,9 @@ class EkfConfig:
     # where the GNSS antenna sits on the hull (body x forward, y starboard, m from the model's
     # origin): the receiver locates the antenna, which swings around the origin as the boat turns
     gnss_antenna_m: tuple[float, float] = (0.0, 0.0)
+    # its height above the roll and pitch centre: the hull's roll and pitch swing it (1.3 cm at 3 deg
+    # and 0.25 m), which the fixes are corrected for with the IMU's tilt and body rates
+    gnss_antenna_height_m: float = 0.0
     use_gnss_velocity: bool = True
     use_accel: bool = True
     accel_bias_states: bool = True
@@ -128,6 +153,21 @@ class EkfConfig:
     # body force X, Y and moment N (wind and the model's force error); off by default: docs/fusion.md
     disturbance_states: bool = False
     max_current_mps: float = 1.0  # the current estimate is clipped to this (a safety net, not a model)
+    # wave-frequency motion (module docstring): its states, their model and how they adapt
+    wave_states: bool = True
+    wave_damping: float = 0.3  # zeta of the wave model: broad, since the encounter spectrum is
+    wave_period_s: float = 1.0  # the wave model's period until the wave band or a sea-state estimate gives one
+    wave_frequency_range_radps: tuple[float, float] = (1.5, 20.0)
+    wave_position_std_floor_m: float = 0.0005
+    wave_heading_std_floor_rad: float = 0.0003
+    # the wave states' sigma from the wave band: position per heave displacement (a deep-water
+    # particle's orbit is a circle), heading per roll-and-pitch angle (docs/fusion.md: measured)
+    wave_position_per_heave: float = 1.0
+    wave_heading_per_tilt: float = 0.3
+    wave_band: WaveBandConfig = field(default_factory=WaveBandConfig)
+    # roll and pitch from the IMU, to take gravity out of the accelerometer's horizontal axes
+    tilt_compensation: bool = True
+    tilt: TiltConfig = field(default_factory=TiltConfig)
     accel_decimation: int = 5
     # gating
     gate_probability: float = 0.9999  # chi-square quantile: 1 dof -> 15.1, 2 dof -> 18.4
@@ -146,6 +186,7 @@ class EkfConfig:
     P0_std: tuple[float, ...] = (100.0, 100.0, math.pi, 1.0, 0.5, 0.5, 0.03, 0.2, 0.2)
     P0_current_std_mps: float = 0.2
     P0_tau_std: tuple[float, float, float] = (0.5, 0.5, 0.1)
+    P0_wave_std: tuple[float, float] = (0.01, 0.01)  # m, rad (the rates: times the wave frequency)
 
 
 class ModelAidedEKF:
@@ -166,11 +207,17 @@ class ModelAidedEKF:
         n += 2 if c.current_states else 0
         self.i_tau = n if c.disturbance_states else None
         n += 3 if c.disturbance_states else 0
+        self.i_wave = n if c.wave_states else None
+        n += 6 if c.wave_states else 0
         self.n = n
         self.x = np.zeros(n)
         std = list(c.P0_std[:7]) + (list(c.P0_std[7:9]) if c.accel_bias_states else [])
         std += [c.P0_current_std_mps] * 2 if c.current_states else []
         std += list(c.P0_tau_std) if c.disturbance_states else []
+        w0 = 2.0 * math.pi / c.wave_period_s
+        if c.wave_states:
+            ps, hs = c.P0_wave_std
+            std += [ps, ps * w0, ps, ps * w0, hs, hs * w0]
         if initial_std is not None:  # the given values first, the rest from the config
             std[:len(initial_std)] = list(initial_std)[:n]
         self.P = np.diag(np.array(std, dtype=float) ** 2)
@@ -200,7 +247,20 @@ class ModelAidedEKF:
         q += [c.sigma_accel_bias_walk ** 2] * 2 if c.accel_bias_states else []
         q += [c.sigma_current_walk_mps ** 2] * 2 if c.current_states else []
         q += [s ** 2 for s in c.sigma_tau_walk] if c.disturbance_states else []
+        q += [0.0] * 6 if c.wave_states else []  # the wave states' noise: `_wave_transition`
         self._q = np.array(q)
+        self.tilt = TiltFilter(c.tilt)
+        self.wave_band = WaveBand(c.wave_band)
+        self._wave_w0 = w0
+        self._wave_w0_given: float | None = None  # from a sea-state estimate (`set_wave_frequency`)
+        self._wave_cache: tuple | None = None
+        # the body acceleration the tilt filter subtracts from the accelerometer: the receiver's velocity
+        # differentiated (independent of the model, whose force errors would otherwise read as tilt),
+        # the model's prediction while there is no GNSS velocity
+        self._accel_pred = (0.0, 0.0)
+        self._gnss_accel: tuple[float, float, float] | None = None  # (stamp, a_N, a_E)
+        self._gnss_vel_prev: tuple[float, float, float] | None = None  # (stamp, v_N, v_E)
+        self._body_rates_pq = (0.0, 0.0)  # the last gyro's x and y rates, offsets removed (the mast's swing)
         self._I = np.eye(n)
         p = self.model.params
         self._inv_m = (1.0 / p.m11, 1.0 / p.m22, 1.0 / p.m33)
@@ -314,7 +374,68 @@ class ModelAidedEKF:
             P.flat[diag] += self._q * dt
             if self.config.sigma_thrust_rel > 0.0 or self.config.sigma_azimuth_rad > 0.0:
                 P[3:6, 3:6] += self._actuator_accel_cov(B, u) * (self.config.thrust_error_correlation_s * dt)
+            if self.i_wave is not None:
+                x, P = self._predict_waves(x, P, dt)
         return x, P
+
+    # -- waves -----------------------------------------------------------------------------------
+    def set_wave_frequency(self, w_radps: float | None) -> None:
+        """The wave model's frequency (rad/s) from a sea-state estimate: the encounter frequency of the
+        sea's peak at the present speed and heading. None: the wave band's own mean frequency again."""
+        self._wave_w0_given = w_radps if w_radps is not None and math.isfinite(w_radps) and w_radps > 0 else None
+
+    def wave_model(self) -> tuple[float, float, float]:
+        """(w0 in rad/s, the position wave states' sigma in m, the heading's in rad) now (module docstring)."""
+        c, band = self.config, self.wave_band
+        w0 = self._wave_w0_given
+        if w0 is None:
+            f = band.frequency_radps
+            w0 = f if math.isfinite(f) else 2.0 * math.pi / c.wave_period_s
+        lo, hi = c.wave_frequency_range_radps
+        w0 = min(max(w0, lo), hi)
+        return (w0, max(c.wave_position_std_floor_m, c.wave_position_per_heave * band.heave_std_m(w0)),
+                max(c.wave_heading_std_floor_rad, c.wave_heading_per_tilt * band.tilt_std_rad(w0)))
+
+    def _wave_transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """(Phi, Q) of the six wave states over dt: the oscillator's exact transition per axis and
+        its white acceleration's covariance (the double integrator's, w0 dt <= 0.4 here)."""
+        w0, sp, sh = self.wave_model()
+        key = (dt, w0, sp, sh)
+        if self._wave_cache is not None and self._wave_cache[0] == key:
+            return self._wave_cache[1], self._wave_cache[2]
+        z = self.config.wave_damping
+        wd = w0 * math.sqrt(1.0 - z * z)
+        e = math.exp(-z * w0 * dt)
+        cs, sn = math.cos(wd * dt), math.sin(wd * dt)
+        phi = e * np.array([[cs + z * w0 / wd * sn, sn / wd], [-w0 * w0 / wd * sn, cs - z * w0 / wd * sn]])
+        Phi = np.zeros((6, 6))
+        Q = np.zeros((6, 6))
+        q2 = np.array([[dt ** 3 / 3.0, dt * dt / 2.0], [dt * dt / 2.0, dt]])
+        for i, sigma in enumerate((sp, sp, sh)):
+            Phi[2 * i:2 * i + 2, 2 * i:2 * i + 2] = phi
+            Q[2 * i:2 * i + 2, 2 * i:2 * i + 2] = 4.0 * z * w0 ** 3 * sigma * sigma * q2
+        self._wave_cache = (key, Phi, Q)
+        return Phi, Q
+
+    def _predict_waves(self, x: np.ndarray, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The wave block of F P F' + Q (F is block diagonal: the vessel's states never depend on the waves')."""
+        Phi, Q = self._wave_transition(dt)
+        w = slice(self.i_wave, self.i_wave + 6)
+        x = x.copy()
+        x[w] = Phi @ x[w]
+        P[w, :] = Phi @ P[w, :]
+        P[:, w] = P[:, w] @ Phi.T
+        P[w, w] += Q
+        return x, P
+
+    def _wave(self, k: int) -> float:
+        """Wave state k (0-5: eta_N, eta_N_dot, eta_E, eta_E_dot, eta_psi, eta_psi_dot); 0 without them."""
+        return float(self.x[self.i_wave + k]) if self.i_wave is not None else 0.0
+
+    @property
+    def wave_motion(self) -> tuple[float, float, float]:
+        """The estimated wave-frequency displacement now: north (m), east (m), heading (rad)."""
+        return (self._wave(0), self._wave(2), self._wave(4))
 
     def _advance(self, stamp: float, sensor: str, replay: tuple | None = None) -> bool:
         """Predict to `stamp`. False (and counted as skipped) if the message is stale or bad;
@@ -536,7 +657,7 @@ class ModelAidedEKF:
             inputs.set_command(m.stamp_s, m.as_tuple())
 
     def on_imu(self, m: ImuSample) -> None:
-        gz, ax, ay = m.gyro_radps[2], m.accel_mps2[0], m.accel_mps2[1]
+        gz = m.gyro_radps[2]
         mon = self.monitor
         if not self._advance(m.stamp_s, "gyro", (self.on_imu, m)):
             if not math.isfinite(m.stamp_s):
@@ -544,20 +665,34 @@ class ModelAidedEKF:
             return
         mon.raw("gyro", m.stamp_s, m.gyro_radps)
         mon.raw("accel", m.stamp_s, m.accel_mps2)
+        c = self.config
+        accel_ok = finite(*m.accel_mps2) and not mon.stuck("accel")
+        if accel_ok and finite(*m.gyro_radps) and not mon.stuck("gyro"):
+            self.tilt.update(m.stamp_s, m.gyro_radps, m.accel_mps2, self._known_accel(m.stamp_s))
+            self._body_rates_pq = (m.gyro_radps[0] - self.tilt.bias_p, m.gyro_radps[1] - self.tilt.bias_q)
+        ax, ay = (self.tilt.level(m.accel_mps2) if c.tilt_compensation and accel_ok
+                  else (m.accel_mps2[0], m.accel_mps2[1]))
+        if accel_ok:
+            self.wave_band.update(m.stamp_s, m.gyro_radps, m.accel_mps2[2])
         if not finite(gz) or mon.stuck("gyro"):
             self.counters.count("skipped", "gyro")
         else:
             H = np.zeros((1, self.n))
             H[0, IR] = 1.0
             H[0, IBG] = 1.0
-            y = np.array([gz - self.x[IR] - self.x[IBG]])
-            ok = self._update("gyro", y, H, np.array([[self.config.sigma_gyro_radps ** 2]]), reopen=(IBG, IR))
+            y = gz - self.x[IR] - self.x[IBG]
+            if self.i_wave is not None:  # the gyro feels the wave-frequency yaw rate too
+                H[0, self.i_wave + 5] = 1.0
+                y -= self.x[self.i_wave + 5]
+            ok = self._update("gyro", np.array([y]), H, np.array([[c.sigma_gyro_radps ** 2]]), reopen=(IBG, IR))
             # the frozen-heading test integrates the gyro the filter believed: a spike the gate
-            # rejected stands in with the filter's own rate (else one spike "turns" the boat)
-            mon.heading(self.t, float(self.x[IPSI]), gz - float(self.x[IBG]) if ok else float(self.x[IR]))
-        if not self.config.use_accel:
+            # rejected stands in with the filter's own rate (else one spike "turns" the boat); the
+            # heading is the whole one, wave-frequency motion included, as the gyro's is
+            mon.heading(self.t, float(self.x[IPSI]) + self._wave(4),
+                        gz - float(self.x[IBG]) if ok else float(self.x[IR]) + self._wave(5))
+        if not c.use_accel:
             return
-        if not finite(ax, ay) or mon.stuck("accel"):
+        if not accel_ok:
             self.counters.count("skipped", "accel")
             return
         self._acc_sum[0] += ax
@@ -568,6 +703,26 @@ class ModelAidedEKF:
             self._acc_sum = [0.0, 0.0]
             self._acc_n = 0
             self._accel_update(a)
+
+    def _known_accel(self, t: float) -> tuple[float, float]:
+        """The body acceleration in the plane the tilt filter takes as known: the GNSS velocity's
+        rate of change turned into body axes while it is fresh, else the model's prediction."""
+        g = self._gnss_accel
+        if g is None or not 0.0 <= t - g[0] <= 0.5:
+            return self._accel_pred
+        c, s = math.cos(self.x[IPSI]), math.sin(self.x[IPSI])
+        return (c * g[1] + s * g[2], -s * g[1] + c * g[2])
+
+    def _track_gnss_velocity(self, fix: GnssFix) -> None:
+        """The receiver's acceleration from consecutive velocities (for the tilt filter)."""
+        prev = self._gnss_vel_prev
+        if not finite(fix.vel_n_mps, fix.vel_e_mps):
+            self._gnss_vel_prev = None
+            return
+        if prev is not None and 0.0 < fix.stamp_s - prev[0] <= 0.5:
+            dt = fix.stamp_s - prev[0]
+            self._gnss_accel = (fix.stamp_s, (fix.vel_n_mps - prev[1]) / dt, (fix.vel_e_mps - prev[2]) / dt)
+        self._gnss_vel_prev = (fix.stamp_s, fix.vel_n_mps, fix.vel_e_mps)
 
     def _accel_update(self, a: tuple[float, float]) -> None:
         x = self.x
@@ -584,13 +739,18 @@ class ModelAidedEKF:
         H[1, IU] += r
         H[1, IR] += u
         reopen: tuple[int, ...] = (IU, IV, IR)
+        self._accel_pred = (float(h[0]), float(h[1]))  # the tilt filter's known acceleration
         if self.i_ba is not None:
             h += x[self.i_ba:self.i_ba + 2]
             H[0, self.i_ba] = 1.0
             H[1, self.i_ba + 1] = 1.0
             reopen += (self.i_ba, self.i_ba + 1)
-        # the accelerometer feels the actuators' true force, the model predicts their modelled one
+        # the accelerometer feels the actuators' true force, the model predicts their modelled one;
+        # and it feels the waves' acceleration, which no state predicts well (the wave model's is
+        # broadband): the wave band's measured variance is measurement noise
         R = np.eye(2) * self.config.sigma_accel_mps2 ** 2 + self._actuator_accel_cov(B, u_in)[:2, :2]
+        if self.i_wave is not None:  # horizontal wave accelerations are about the heave's (circular orbits)
+            R += np.eye(2) * self.wave_band.heave_accel_std_mps2 ** 2
         self._update("accel", np.array(a) - h, H, R, reopen=reopen)
 
     def on_mag(self, m: MagSample) -> None:
@@ -613,7 +773,9 @@ class ModelAidedEKF:
         z = wrap_angle(math.atan2(-wy, wx) + self.calibration.heading_offset_rad)
         H = np.zeros((1, self.n))
         H[0, IPSI] = 1.0
-        y = np.array([wrap_angle(z - self.x[IPSI])])  # innovation across +-180 deg
+        if self.i_wave is not None:
+            H[0, self.i_wave + 4] = 1.0
+        y = np.array([wrap_angle(z - self.x[IPSI] - self._wave(4))])  # innovation across +-180 deg
         self._update("mag", y, H, np.array([[self.config.sigma_mag_heading_rad ** 2]]), reopen=(IPSI,))
 
     def on_gnss(self, fix: GnssFix) -> None:
@@ -631,14 +793,22 @@ class ModelAidedEKF:
             self.counters.count("skipped", "gnss_vel")
             return
         n, e = self.frame.to_ne(fix.lat_deg, fix.lon_deg, fix.height_m)
+        self._track_gnss_velocity(fix)
         noise = self.config.gnss_noise
         s = noise.position_sigma_m(fix)
         self._gnss_self_check(fix.stamp_s, n, e, fix, s)
-        dn, de = lever_arm_ne(self.x[IPSI], self.config.gnss_antenna_m)
+        iw = self.i_wave
+        psi_all = self.x[IPSI] + self._wave(4)
+        dn, de = lever_arm_ne(psi_all, self.config.gnss_antenna_m)
+        hm = self.config.gnss_antenna_height_m
+        swing = lever_arm_ne(psi_all, mast_swing_body(hm, self.tilt.roll_rad, self.tilt.pitch_rad)) if hm else (0.0, 0.0)
         H = np.zeros((2, self.n))
         H[0, IN] = H[1, IE] = 1.0
         H[0, IPSI], H[1, IPSI] = -de, dn  # the lever arm turns with psi
-        y = np.array([n - (self.x[IN] + dn), e - (self.x[IE] + de)])
+        if iw is not None:  # and with the wave-frequency heading; the antenna moves with the waves
+            H[0, iw + 4], H[1, iw + 4] = -de, dn
+            H[0, iw], H[1, iw + 2] = 1.0, 1.0
+        y = np.array([n - (self.x[IN] + self._wave(0) + dn + swing[0]), e - (self.x[IE] + self._wave(2) + de + swing[1])])
         self._update("gnss", y, H, np.eye(2) * s * s, reopen=(IN, IE))
         if not (self.config.use_gnss_velocity and finite(fix.vel_n_mps, fix.vel_e_mps)):
             return
@@ -647,14 +817,20 @@ class ModelAidedEKF:
             # (same receiver, same message) is not trusted either until the position agrees again
             self.counters.count("skipped", "gnss_vel")
         else:
-            psi, r = self.x[IPSI], self.x[IR]
+            psi, r = self.x[IPSI], self.x[IR] + self._wave(5)
             ax, ay = self.config.gnss_antenna_m
             u, v = self.x[IU] - r * ay, self.x[IV] + r * ax  # the antenna's body velocity
             c, sn = math.cos(psi), math.sin(psi)
-            h = np.array([c * u - sn * v, sn * u + c * v])
+            if hm:  # the mast's swing velocity (-h q, h p) in body axes
+                p_, q_ = self._body_rates_pq
+                u, v = u - hm * q_, v + hm * p_
+            h = np.array([c * u - sn * v + self._wave(1), sn * u + c * v + self._wave(3)])
             Hv = np.zeros((2, self.n))
             Hv[0, IPSI], Hv[0, IU], Hv[0, IV], Hv[0, IR] = -sn * u - c * v, c, -sn, -c * ay - sn * ax
             Hv[1, IPSI], Hv[1, IU], Hv[1, IV], Hv[1, IR] = c * u - sn * v, sn, c, -sn * ay + c * ax
+            if iw is not None:  # the wave-frequency velocity, and the yaw rate's swing of the antenna
+                Hv[0, iw + 1], Hv[1, iw + 3] = 1.0, 1.0
+                Hv[0, iw + 5], Hv[1, iw + 5] = Hv[0, IR], Hv[1, IR]
             sv = noise.velocity_floor_mps * noise.inflation.get(fix.fix_type, 3.0)
             self._update("gnss_vel", np.array([fix.vel_n_mps, fix.vel_e_mps]) - h, Hv, np.eye(2) * sv * sv,
                          reopen=(IU, IV))

@@ -176,7 +176,8 @@ def evaluate(config: EvaluationConfig = EvaluationConfig(),
     psi0 = wrap_angle(sim.x[2] + config.initial_heading_error_deg * DEG)
     init = VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=psi0, u_mps=0.0, v_mps=0.0, r_radps=0.0)
     ekf_model = VesselModel(params=perturbed_parameters(config.model_error)) if config.model_error else VesselModel()
-    ekf = ModelAidedEKF(ekf_model, cal, replace(config.ekf, origin=origin, gnss_antenna_m=sim.boat.gnss_antenna_m),
+    ekf = ModelAidedEKF(ekf_model, cal, replace(config.ekf, origin=origin, gnss_antenna_m=sim.boat.gnss_antenna_m,
+                                                        gnss_antenna_height_m=sim.boat.hull.gnss_antenna_height_m),
                         initial=init,
                         initial_std=(1.0, 1.0, math.pi, 0.5, 0.5, 0.3, 0.03, 0.2, 0.2))
     seed = SeedFilters(cal, SeedFiltersConfig(origin=origin), initial=init)
@@ -328,7 +329,8 @@ def run_fault_case(name: str, seed: int = 1, ekf_config: EkfConfig | None = None
     cal = MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)))
     init = VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=sim.x[2], u_mps=0.0, v_mps=0.0, r_radps=0.0)
     cfg = replace(ekf_config or EkfConfig(), origin=(g.origin_lat_deg, g.origin_lon_deg, g.origin_height_m),
-                  gnss_antenna_m=sim.boat.gnss_antenna_m)  # measured on the hull
+                  gnss_antenna_m=sim.boat.gnss_antenna_m,  # measured on the hull
+                  gnss_antenna_height_m=sim.boat.hull.gnss_antenna_height_m)
     if estimator == "ekf":
         ekf: Any = ModelAidedEKF(VesselModel(), cal, cfg, initial=init,
                                  initial_std=(0.5, 0.5, 0.2, 0.1, 0.1, 0.1, 0.02))

@@ -33,12 +33,14 @@ from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselMode
 from lotsen.model.angles import wrap_angle
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
 from lotsen.runtime.executor import Node, NodeContext
-from lotsen.sim import DEFAULT_BOAT, Plant, SimConfig, SimulatedBoat, Simulator
+from lotsen.sim import DEFAULT_BOAT, Plant, SimConfig, SimulatedBoat, Simulator, propulsion_energy_j
 from lotsen.stack.launch import Harness, build_stack
 
 
 #: a propeller's speed must leave +-this band on the other side to count as a reversal
 REVERSAL_BAND_RPS = 5.0
+#: the hold's settled figures count from this long after the path's end (the approach to the point)
+HOLD_SETTLE_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,12 @@ class MissionResult:
     path: Any
     cross_track_estimated_m: np.ndarray | None = None  # the controller's view when an estimator ran
     failsafes: tuple[str, ...] = ()  # failsafes active at the end
-    n_achieved: np.ndarray | None = None  # achieved propeller speeds (K x 3, rev/s) when the boat reports them
+    achieved: np.ndarray | None = None  # achieved actuators (K x 5: angles rad, speeds rev/s) when the boat reports them
+
+    @property
+    def n_achieved(self) -> np.ndarray | None:
+        """Achieved propeller speeds (K x 3, rev/s) when the boat reports them."""
+        return self.achieved[:, 2:5] if self.achieved is not None else None
 
 
 def planned_duration_s(path: Any, min_speed_mps: float = 0.15) -> float:
@@ -103,7 +110,7 @@ class _TickRecorder(Node):
         self._cmd: ThrustCommand | None = None
         self._sup: SupervisorStatus | None = None
         self._act: ActuatorState | None = None
-        self.n_achieved: list[tuple[float, float, float]] = []
+        self.achieved: list[tuple[float, ...]] = []
 
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
@@ -132,7 +139,7 @@ class _TickRecorder(Node):
                           status.cross_track_error_m, status.heading_error_rad, status.speed_mps,
                           status.speed_ref_mps, status.progress_m, status.solve_time_ms, mode))
         act = self._act
-        self.n_achieved.append((act.n1_rps, act.n2_rps, act.nt_rps) if act is not None else (math.nan,) * 3)
+        self.achieved.append(act.as_tuple() if act is not None else (math.nan,) * 5)
         if mode == "follow" and abs(status.cross_track_error_m) > self.abort_cross_track_m and not self.aborted:
             self.aborted = (f"aborted: cross-track error {status.cross_track_error_m:.2f} m "
                             f"at t = {self.ctx.now():.1f} s")
@@ -213,9 +220,9 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
         x_used=arr(2).reshape(-1, 6), u=arr(3).reshape(-1, 5), cross_track_m=arr(4), heading_error_rad=arr(5),
         speed_mps=arr(6), speed_ref_mps=arr(7), progress_m=arr(8), solve_time_ms=arr(9), mode=modes,
         statuses=trace.statuses, path=path, failsafes=tuple(sup.failsafes.active))
-    n_ach = np.array(trace.n_achieved, dtype=float).reshape(-1, 3)
-    if n_ach.size and np.all(np.isfinite(n_ach)):
-        res.n_achieved = n_ach
+    achieved = np.array(trace.achieved, dtype=float).reshape(-1, 5)
+    if achieved.size and np.all(np.isfinite(achieved)):
+        res.achieved = achieved
     if estimator is not None and res.t.size:
         # the controller saw the estimate: measure the true errors against the path
         ref = PathReference(path)
@@ -244,8 +251,27 @@ def propeller_reversals(speeds_rps: np.ndarray, band_rps: float = REVERSAL_BAND_
     return out
 
 
+def actuator_activity(t_s: np.ndarray, actuators: np.ndarray) -> dict[str, float]:
+    """How hard the actuators work over a trace (rows [alpha1, alpha2, n1, n2, nt] at times t_s): the
+    servos' azimuth travel (deg/s, both units summed), the propellers' speed change (rev/s per s, all
+    three summed), their reversals per second (`propeller_reversals`) and the motors' electrical
+    energy (J, `lotsen.sim.propulsion_energy_j`) and mean power (W). A controller that chases wave
+    motion shows it here first: travel, speed change and reversals grow while tracking does not improve."""
+    t = np.asarray(t_s, dtype=float)
+    a = np.asarray(actuators, dtype=float).reshape(len(t), 5)
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    if span <= 0.0:
+        return {}
+    energy = propulsion_energy_j(t, a[:, 2:5])
+    return {"azimuth_travel_deg_per_s": round(math.degrees(float(np.sum(np.abs(np.diff(a[:, :2], axis=0))))) / span, 3),
+            "propeller_speed_change_rps_per_s": round(float(np.sum(np.abs(np.diff(a[:, 2:5], axis=0)))) / span, 3),
+            "reversals_per_s": round(sum(propeller_reversals(a[:, 2:5])) / span, 4),
+            "energy_J": round(energy, 2), "mean_power_W": round(energy / span, 3)}
+
+
 def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> dict[str, Any]:
-    """The report's numbers: errors over the path-following phase, the hold at the end."""
+    """The report's numbers: errors over the path-following phase, the actuators' activity during it
+    (`actuator_activity`, on the achieved values where the boat reports them), the hold at the end."""
     f = res.mode == "follow"
     h = res.mode == "hold"
     cte = res.cross_track_m[f]
@@ -268,24 +294,36 @@ def mission_metrics(res: MissionResult, follower: Any, t_done: float | None) -> 
         "solve_time_max_ms": round(float(np.max(st)), 4) if st.size else None,
         "failures": failures,
     }
-    # propeller reversals during path following: the achieved speeds if the boat reports them
-    n = res.n_achieved[f] if res.n_achieved is not None else res.u[f, 2:5]
-    t_f = res.t[f]
-    if t_f.size > 1:
-        out["reversals_per_s"] = round(sum(propeller_reversals(n)) / float(t_f[-1] - t_f[0]), 4)
-        out["reversals_counted_on"] = "achieved speeds" if res.n_achieved is not None else "commands"
+    # the actuators' work during path following: the achieved values if the boat reports them
+    acts = res.achieved if res.achieved is not None else res.u
+    out.update(actuator_activity(res.t[f], acts[f]))
+    if "reversals_per_s" in out:
+        out["reversals_counted_on"] = "achieved speeds" if res.achieved is not None else "commands"
     if np.any(h):
         xh = res.x[h]
         end_n, end_e = float(res.path.north_m[-1]), float(res.path.east_m[-1])
         out["hold_position_error_final_m"] = round(float(math.hypot(xh[-1, 0] - end_n, xh[-1, 1] - end_e)), 4)
         out["hold_heading_error_final_deg"] = round(math.degrees(abs(
             wrap_angle(xh[-1, 2] - float(res.path.heading_rad[-1])))), 3)
+        # the settled hold (from HOLD_SETTLE_S after the path's end): RMS distance from the point
+        th = res.t[h]
+        settled = th >= th[0] + HOLD_SETTLE_S
+        if np.count_nonzero(settled) > 1:
+            d = np.hypot(xh[settled, 0] - end_n, xh[settled, 1] - end_e)
+            out["hold_position_error_rms_m"] = round(_rms(d), 4)
+            out["hold_position_error_max_m"] = round(float(np.max(d)), 4)
+            out["hold"] = actuator_activity(th[settled], acts[h][settled])
     if res.x_used.size and not np.allclose(res.x_used, res.x):
         d = res.x_used[f, :2] - res.x[f, :2]
         out["estimate_position_error_rms_m"] = round(_rms(np.hypot(d[:, 0], d[:, 1])), 4)
     if res.cross_track_estimated_m is not None:
         out["cross_track_rms_estimated_m"] = round(_rms(res.cross_track_estimated_m[f]), 4)
     return out
+
+
+def antenna_height_m(boat: SimulatedBoat | Plant) -> float:
+    """The GNSS antenna's height above the roll and pitch centre, as measured on the hull."""
+    return boat.hull.gnss_antenna_height_m if isinstance(boat, SimulatedBoat) else boat.gnss_antenna_height_m
 
 
 def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = None,
@@ -306,6 +344,6 @@ def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = N
                      east_m=float(path.east_m[0]) + along * math.sin(h0) + cross * math.cos(h0),
                      heading_rad=h0 + config.start_heading_offset_rad, u_mps=0.0, v_mps=0.0, r_radps=0.0)
     cfg = EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m),
-                    gnss_antenna_m=boat.gnss_antenna_m)
+                    gnss_antenna_m=boat.gnss_antenna_m, gnss_antenna_height_m=antenna_height_m(boat))
     return ModelAidedEKF(model or VesselModel(), cal, cfg, initial=x0,
                          initial_std=(0.5, 0.5, 0.2, 0.1, 0.1, 0.1, 0.02, 0.2, 0.2))

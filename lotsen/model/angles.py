@@ -37,3 +37,12 @@ def lever_arm_ne(heading_rad: float, arm_m: tuple[float, float]) -> tuple[float,
     c, s = math.cos(heading_rad), math.sin(heading_rad)
     ax, ay = arm_m
     return c * ax - s * ay, s * ax + c * ay
+
+
+def mast_swing_body(height_m: float, roll_rad: float, pitch_rad: float) -> tuple[float, float]:
+    """How far roll and pitch carry a point `height_m` above the roll and pitch centre, in the body's
+    horizontal axes: (-h cos(roll) sin(pitch), h sin(roll)) (ZYX Euler angles; an antenna on a mast
+    moves aft when the bow rises, to starboard when the boat rolls to starboard). Its velocity for
+    small angles: (-h q, h p) with p, q the body rates about x and y. In north/east:
+    `lever_arm_ne(heading, mast_swing_body(...))`."""
+    return -height_m * math.cos(roll_rad) * math.sin(pitch_rad), height_m * math.sin(roll_rad)

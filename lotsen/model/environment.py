@@ -8,12 +8,43 @@ starboard), so wind from starboard pushes the boat to port.
 Gusts (made in the simulator, seeded): the wind speed is W + w(t), w a first-order Gauss-Markov
 (Ornstein-Uhlenbeck) process with standard deviation `wind_gust_std_mps` and time constant
 `wind_gust_time_constant_s`; the direction wanders the same way by `wind_direction_std_deg`.
+
+Wind waves (`Waves`, made in the simulator: `lotsen.sim.waves`): a directional JONSWAP sea given by
+its significant wave height, peak period, the direction it comes from and its spreading. A 1 m boat
+on a lake meets Hs 3-10 cm at Tp 0.7-1.2 s (fetch-limited growth: 4 m/s over 300 m gives about
+Hs 0.035 m, Tp 0.66 s; 5 m/s over 500 m about Hs 0.06 m, Tp 1.0 s).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Waves:
+    """A wind sea: JONSWAP spectrum (DNV-RP-C205 sec. 3.5.5; Fossen 2021 sec. 10.2.1) of significant
+    wave height `hs_m` and peak period `tp_s`, peak enhancement `gamma`, coming FROM `from_deg`
+    (meteorological, like the wind) with cos-2s directional spreading of exponent `spreading`
+    (0: long-crested; 10 is a typical wind sea)."""
+
+    hs_m: float
+    tp_s: float
+    from_deg: float = 0.0
+    spreading: float = 10.0
+    gamma: float = 3.3
+
+    def __post_init__(self) -> None:
+        if not (self.hs_m >= 0.0 and self.tp_s > 0.0 and self.spreading >= 0.0 and self.gamma >= 1.0):
+            raise ValueError(f"waves: Hs >= 0, Tp > 0, spreading >= 0 and gamma >= 1, got {self}")
+
+    @property
+    def peak_frequency_radps(self) -> float:
+        return 2.0 * math.pi / self.tp_s
+
+    def describe(self) -> str:
+        crest = "long-crested" if self.spreading == 0.0 else f"spreading s={self.spreading:g}"
+        return f"Hs {self.hs_m * 100:.0f} cm, Tp {self.tp_s:.2g} s, from {self.from_deg:.0f} deg, {crest}"
 
 
 @dataclass(frozen=True)
@@ -30,6 +61,12 @@ class Environment:
     wind_gust_std_mps: float = 0.0  # gusts on the wind speed (0: steady wind)
     wind_gust_time_constant_s: float = 8.0
     wind_direction_std_deg: float = 0.0  # slow wander of the wind direction (same time constant x 4)
+    waves: Waves | None = None  # a wind sea (None or Hs 0: flat water)
+
+    @property
+    def wavy(self) -> bool:
+        """A wind sea is set (Hs > 0)."""
+        return self.waves is not None and self.waves.hs_m > 0.0
 
     @property
     def gusty(self) -> bool:

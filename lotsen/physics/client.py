@@ -48,6 +48,7 @@ from lotsen.physics.protocol import (
 )
 from lotsen.sim.actuators import ActuatorDynamics
 from lotsen.sim.plant import Plant, PlantError, PlantSample, planar_state
+from lotsen.sim.waves import BodyMotion
 
 #: a placed pose counts as honoured within these (m, rad)
 PLACE_TOLERANCE = (1e-3, 1e-3)
@@ -72,6 +73,7 @@ class UdpPhysics(Plant):
         self.servos = config.servos
         self.limits = self.servos.limits(base_limits)
         self.gnss_antenna_m = tuple(config.gnss_antenna_m)  # type: ignore[assignment]
+        self.gnss_antenna_height_m = config.gnss_antenna_height_m
         self.actuators = ActuatorDynamics(self.limits, dt_s)  # set-points; stand-in model if not reported
         self.frame_rate_hz = max(1, int(round(1.0 / dt_s)))
         self.connect_timeout_s = config.connect_timeout_s
@@ -99,6 +101,7 @@ class UdpPhysics(Plant):
         self._t0 = 0.0
         self._x: tuple[float, ...] = (0.0,) * 6
         self._x_dot: tuple[float, ...] = (0.0,) * 6
+        self._motion: BodyMotion | None = None  # the physics's attitude, body rates and specific force
         self._step_input: tuple[float, ...] = (0.0,) * 5
         self._fresh = False
         self._silent_since: float | None = None
@@ -150,7 +153,7 @@ class UdpPhysics(Plant):
     def step(self) -> PlantSample | None:
         if not self._started:
             self._start(None)
-        sample = PlantSample(self._x, self._x_dot, tuple(self.actuators.state)) if self._fresh else None
+        sample = PlantSample(self._x, self._x_dot, tuple(self.actuators.state), self._motion) if self._fresh else None
         self._pwm = self.servos.to_pwm(self._effective_command())
         a_before = tuple(self.actuators.state)
         target = self._t0 + (self._k + 1) * self.dt_s
@@ -278,6 +281,10 @@ class UdpPhysics(Plant):
         r_dot = (r - r_prev) / dt if math.isfinite(dt) and dt > 0 else 0.0
         roll, pitch = state.attitude_rad[0], state.attitude_rad[1]
         self._x, self._x_dot = planar_state(n, e, psi, (vn, ve), r, state.accel_body_mps2[:2], roll, pitch, r_dot)
+        # what the physics's IMU reports, for lotsen's IMU model: the attitude, the body rates and the
+        # specific force with gravity, as an accelerometer on the rolling, pitching hull measures it
+        self._motion = BodyMotion(roll, pitch, state.position_ned_m[2], state.gyro_radps[0], state.gyro_radps[1],
+                                  tuple(state.accel_body_mps2))
         if state.actuators is not None:
             self.actuators.state = tuple(state.actuators)
 

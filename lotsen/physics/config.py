@@ -18,6 +18,7 @@ servo channels (docs/physics.md).
         lost_after_s: 2.0                # no reply this long (wall clock): the physics is lost
         connect_timeout_s: 10            # the first state must come within this at the start
         gnss_antenna_m: [0.0, 0.0]       # the antenna on the physics's hull (body x, y)
+        gnss_antenna_height_m: 0.0       # its height above the roll and pitch centre
 
 The command line's `--physics udp:HOST:PORT` sets `address`. Angles follow lotsen's sign
 convention (alpha > 0 turns a unit's thrust to starboard), speeds are signed rev/s (negative:
@@ -126,6 +127,7 @@ class PhysicsConfig:
     lost_after_s: float = field(default=2.0, metadata=_r(0.01, 60.0))
     connect_timeout_s: float = field(default=10.0, metadata=_r(0.1, 600.0))
     gnss_antenna_m: tuple[float, float] = (0.0, 0.0)
+    gnss_antenna_height_m: float = field(default=0.0, metadata=_r(0.0, 3.0))  # above the roll/pitch centre
 
     def __post_init__(self) -> None:
         if self.address is not None:

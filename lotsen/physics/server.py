@@ -33,17 +33,26 @@ from lotsen.sim.sensors import GRAVITY_MPS2
 
 
 def plant_state(plant: Plant, t_s: float) -> PhysicsState:
-    """The state line of a planar plant: level attitude, heave 0; the accelerometer's specific force
-    from the plant's rate now (`rate_now` where the plant has it, else its last x_dot)."""
+    """The state line of a plant: its planar state; the accelerometer's specific force from the
+    plant's rate now (`rate_now` where the plant has it, else its last x_dot). A level boat in flat
+    water (heave 0); in waves the attitude, heave, body rates and specific force of its motion out of
+    the plane (`motion_now`)."""
     n, e, psi, u, v, r = plant.x
     rate = getattr(plant, "rate_now", None)
     xd = rate() if rate is not None else plant.x_dot
     c, s = math.cos(psi), math.sin(psi)
+    accel_xy = (xd[3] - v * r, xd[4] + u * r)
+    motion_now = getattr(plant, "motion_now", None)
+    m = motion_now(accel_xy) if motion_now is not None else None
+    if m is None:
+        p = q = roll = pitch = heave = 0.0
+        f = (accel_xy[0], accel_xy[1], -GRAVITY_MPS2)
+    else:
+        p, q, roll, pitch, heave, f = m.p_radps, m.q_radps, m.roll_rad, m.pitch_rad, m.heave_m, m.specific_force_mps2
     return PhysicsState(
-        timestamp_s=t_s, gyro_radps=(0.0, 0.0, r),
-        accel_body_mps2=(xd[3] - v * r, xd[4] + u * r, -GRAVITY_MPS2),
-        position_ned_m=(n, e, 0.0), velocity_ned_mps=(c * u - s * v, s * u + c * v, 0.0),
-        attitude_rad=(0.0, 0.0, psi), actuators=tuple(plant.actuators.state), actuators_mean=tuple(plant.step_input))
+        timestamp_s=t_s, gyro_radps=(p, q, r), accel_body_mps2=tuple(f),
+        position_ned_m=(n, e, heave), velocity_ned_mps=(c * u - s * v, s * u + c * v, 0.0),
+        attitude_rad=(roll, pitch, psi), actuators=tuple(plant.actuators.state), actuators_mean=tuple(plant.step_input))
 
 
 class PhysicsServer:

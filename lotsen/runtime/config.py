@@ -20,6 +20,7 @@ from typing import Any, Literal, Mapping
 
 from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
+from lotsen.model.environment import Environment, Waves
 from lotsen.settings import Number, number_of, with_unit
 from lotsen.settings import value_range as _r
 
@@ -122,12 +123,55 @@ def from_mapping(cls: Any, data: Any, where: str = "") -> Any:
 
 
 @dataclass(frozen=True)
+class WavesConfig:
+    """`sim.environment.waves`: a wind sea (lotsen.model.environment.Waves; docs/simulator.md)."""
+
+    hs_m: float = field(default=0.0, metadata=_r(0.0, 0.5))
+    tp_s: float = field(default=1.0, metadata=_r(0.3, 5.0))
+    from_deg: float = field(default=0.0, metadata=_r(-360.0, 360.0))
+    spreading: float = field(default=10.0, metadata=_r(0.0, 100.0))
+    gamma: float = field(default=3.3, metadata=_r(1.0, 7.0))
+
+    def waves(self) -> Waves | None:
+        """The model's `Waves` (None for Hs 0: flat water)."""
+        return Waves(self.hs_m, self.tp_s, self.from_deg, self.spreading, self.gamma) if self.hs_m > 0.0 else None
+
+    @classmethod
+    def parse(cls, text: str, where: str = "--waves") -> "WavesConfig":
+        """'HS,TP,FROM_DEG[,SPREADING]' (metres, seconds, degrees the waves come from, the cos-2s
+        exponent: 0 long-crested), each value checked against this section's ranges."""
+        parts = text.split(",")
+        if len(parts) not in (3, 4):
+            raise ConfigError(f"{where} {text[:40]!r}: expected HS,TP,FROM_DEG[,SPREADING], e.g. 0.06,1.0,250")
+        names = ("hs_m", "tp_s", "from_deg", "spreading")
+        flds = {f.name: f for f in dataclasses.fields(cls)}
+        values = {}
+        for name, part in zip(names, parts):
+            number = with_unit(number_of(flds[name].metadata), name)
+            values[name] = number.parse(part, f"{where} {text[:40]!r}: {name}")
+        return cls(**values)
+
+
+@dataclass(frozen=True)
 class EnvironmentConfig:
+    """`sim.environment`: the simulated boat's water and air."""
+
     current_speed_mps: float = field(default=0.0, metadata=_r(0.0, 2.0))
     current_to_deg: float = field(default=0.0, metadata=_r(-360.0, 360.0))
     wind_speed_mps: float = field(default=0.0, metadata=_r(0.0, 20.0))
     wind_from_deg: float = field(default=0.0, metadata=_r(-360.0, 360.0))
+    wind_gust_std_mps: float = field(default=0.0, metadata=_r(0.0, 10.0))
+    wind_direction_std_deg: float = field(default=0.0, metadata=_r(0.0, 90.0))
     wave_force_std_N: float = field(default=0.0, metadata=_r(0.0, 10.0))
+    waves: WavesConfig | None = None
+
+    def environment(self) -> Environment:
+        """The model's `Environment` of this section (the one conversion)."""
+        w = self.waves
+        return Environment(current_speed_mps=self.current_speed_mps, current_to_deg=self.current_to_deg,
+                           wind_speed_mps=self.wind_speed_mps, wind_from_deg=self.wind_from_deg,
+                           wind_gust_std_mps=self.wind_gust_std_mps, wind_direction_std_deg=self.wind_direction_std_deg,
+                           wave_force_std_N=self.wave_force_std_N, waves=w.waves() if w is not None else None)
 
 
 @dataclass(frozen=True)
@@ -146,6 +190,7 @@ class BoatSection:
     motor_time_constant_s: float | None = field(default=None, metadata=_r(0.005, 2.0))
     alpha_rate_max_deg_s: float | None = field(default=None, metadata=_r(10.0, 2000.0))
     gnss_antenna_m: tuple[float, float] | None = None  # body x, y of the antenna
+    gnss_antenna_height_m: float | None = field(default=None, metadata=_r(0.0, 3.0))  # above the roll/pitch centre
 
     def __post_init__(self) -> None:
         if self.parameters:  # each coefficient in its physical range now, not when a boat is built
@@ -192,6 +237,9 @@ class VesselSection:
     parameters_file: str | None = None  # params.json from `lotsen identify`; defaults if absent
     reverse_thrust_ratio: float = field(default=1.0, metadata=_r(0.1, 1.0))
     gnss_antenna_m: tuple[float, float] = (0.0, 0.0)  # measured on the hull: body x, y from the model's origin
+    # measured on the hull: the antenna's height above the waterline (the roll and pitch centre); the
+    # estimator takes the antenna's swing in roll and pitch out of the fixes (docs/fusion.md "Waves")
+    gnss_antenna_height_m: float = field(default=0.0, metadata=_r(0.0, 3.0))
 
     def __post_init__(self) -> None:
         if max(abs(v) for v in self.gnss_antenna_m) > 2.0:

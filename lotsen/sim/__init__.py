@@ -10,12 +10,12 @@ from lotsen.sim.sensors import (
     TachometerModel,
 )
 from lotsen.sim.plant import BoatPlant, Plant, PlantError, PlantSample, planar_state
-from lotsen.sim.simulator import BatteryConfig, SimConfig, Simulator, simulate_inputs
+from lotsen.sim.simulator import BatteryConfig, SimConfig, Simulator, propulsion_energy_j, simulate_inputs
 
 __all__ = [
     "DEFAULT_BOAT", "LAKE_BOAT_PARAMETERS", "SimulatedBoat", "parameter_mismatch", "random_boat",
     "randomised_parameters",
     "ActuatorDynamics", "ActuatorFaults", "GRAVITY_MPS2", "GnssConfig", "GnssModel", "ImuConfig",
     "ImuModel", "MagnetometerModel", "TachometerConfig", "TachometerModel", "BatteryConfig",
-    "SimConfig", "Simulator", "simulate_inputs", "BoatPlant", "Plant", "PlantError", "PlantSample", "planar_state",
+    "SimConfig", "Simulator", "propulsion_energy_j", "simulate_inputs", "BoatPlant", "Plant", "PlantError", "PlantSample", "planar_state",
 ]

@@ -20,6 +20,7 @@ from lotsen.model.dynamics import VesselModel
 from lotsen.model.parameters import (
     DEFAULT_GEOMETRY, DEFAULT_LIMITS, DEFAULT_PARAMETERS, ActuatorLimits, VesselGeometry, VesselParameters,
 )
+from lotsen.sim.waves import HullForm
 
 #: The lake boat's coefficients: 9-20 % away from the model's defaults, in the directions a
 #: heavier, fuller hull with smaller propellers would take (more added mass and damping, less thrust).
@@ -43,13 +44,16 @@ class SimulatedBoat:
     command_latency_s: float = 0.03
     # the GNSS antenna's position on the hull relative to the model's origin (body x, y)
     gnss_antenna_m: tuple[float, float] = (0.05, 0.0)
+    # what the waves see: waterline, draft, how the hull heaves, rolls and pitches, the antenna's height
+    hull: HullForm = field(default_factory=HullForm)
     ideal: bool = False  # True: this boat is exactly a model (no unmodelled effects)
 
     @classmethod
     def ideal_for(cls, model: VesselModel, limits: ActuatorLimits = DEFAULT_LIMITS) -> "SimulatedBoat":
         """A boat equal to `model`: same coefficients, geometry and actuators, no unmodelled effects."""
         return cls(name="ideal model", parameters=model.params, geometry=model.geometry, limits=limits,
-                   thrust_dead_band_rps=0.0, command_latency_s=0.0, gnss_antenna_m=(0.0, 0.0), ideal=True)
+                   thrust_dead_band_rps=0.0, command_latency_s=0.0, gnss_antenna_m=(0.0, 0.0),
+                   hull=HullForm(gnss_antenna_height_m=0.0), ideal=True)
 
     def model(self) -> VesselModel:
         """The boat's own equations (what the simulator integrates)."""

@@ -12,10 +12,12 @@ GNSS, tachometers, battery), which make the sensor messages from what the plant 
 
 A plant is stepped by its caller, `dt_s` at a time. `step()` returns what the sensors sample at the
 step's *start*: `PlantSample(x, x_dot, actuators)` with the planar state x = [N, E, psi, u, v, r],
-its rate x_dot (x_dot[0:2] the velocity over ground in NED, x_dot[3:5] such that the accelerometer
-reads x_dot[3] - v r and x_dot[4] + u r, the level boat's acceleration: `planar_state` builds both
-from what a 6-DOF physics reports),
-and the achieved actuators (alpha1, alpha2, n1, n2, nt). None means the plant has no fresh state
+its rate x_dot (x_dot[0:2] the velocity over ground in NED, x_dot[3:5] such that x_dot[3] - v r and
+x_dot[4] + u r are the boat's acceleration in the plane: `planar_state` builds both from what a 6-DOF
+physics reports), the achieved actuators (alpha1, alpha2, n1, n2, nt) and, where the plant has them,
+the motion out of the plane (`BodyMotion`: roll, pitch, heave, their rates and the accelerometer's
+specific force with gravity): lotsen's IMU then measures that instead of a level boat's, and the GNSS
+antenna swings with the roll and pitch. None means the plant has no fresh state
 (an external physics that stopped answering): the simulator then measures nothing, the sensors go
 stale and the failsafes act.
 """
@@ -38,9 +40,11 @@ from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.sim.actuators import ActuatorDynamics
 from lotsen.sim.boat import DEFAULT_BOAT, SimulatedBoat
 from lotsen.sim.sensors import GRAVITY_MPS2
+from lotsen.sim.waves import LOADS, BodyMotion, Seakeeping, WaveField
 
-#: how many independent random streams a simulator spawns from its seed (sensors 0-3, plant 4-5)
-RANDOM_STREAMS = 6
+#: how many independent random streams a simulator spawns from its seed (sensors 0-3, plant 4-6:
+#: the Gauss-Markov force, the gusts, the wave field; spawned children do not depend on the count)
+RANDOM_STREAMS = 7
 
 
 class PlantError(LotsenError):
@@ -48,11 +52,13 @@ class PlantError(LotsenError):
 
 
 class PlantSample(NamedTuple):
-    """What the sensors sample at one instant: state, its rate, the achieved actuators."""
+    """What the sensors sample at one instant: state, its rate, the achieved actuators, and the
+    motion out of the plane where the plant has it (None: a level boat)."""
 
     x: tuple[float, ...]
     x_dot: tuple[float, ...]
     actuators: tuple[float, ...]
+    motion: BodyMotion | None = None
 
 
 def planar_state(north: float, east: float, psi: float, velocity_ne: Sequence[float], r: float,
@@ -78,13 +84,15 @@ class Plant(ABC):
 
     Attributes every plant has: `name`, `dt_s`, `limits` (what its actuators can do: the actuator
     guard clips set-points to them), `gnss_antenna_m` (the antenna on the hull, body x/y, where
-    lotsen's receiver model places the fixes), `actuators` (an `ActuatorDynamics`: `.state` the
-    achieved values, `.command` the set-point, `.set_faults(...)`)."""
+    lotsen's receiver model places the fixes) and `gnss_antenna_height_m` (its height above the roll
+    and pitch centre: the fixes swing with the hull's roll and pitch), `actuators` (an
+    `ActuatorDynamics`: `.state` the achieved values, `.command` the set-point, `.set_faults(...)`)."""
 
     name: str = "plant"
     dt_s: float = 0.01
     limits: ActuatorLimits = DEFAULT_LIMITS
     gnss_antenna_m: tuple[float, float] = (0.0, 0.0)
+    gnss_antenna_height_m: float = 0.0
     actuators: ActuatorDynamics
     # what an implementation keeps up to date as it steps (read through the properties below)
     _x: tuple[float, ...] = (0.0,) * 6
@@ -126,6 +134,10 @@ class Plant(ABC):
     @property
     def wind_now(self) -> tuple[float, float]:
         return (math.nan, math.nan)
+
+    def wave_elevation(self) -> float:
+        """The sea surface's elevation at the boat now (m; NaN: the plant's own business or no sea)."""
+        return math.nan
 
     def place(self, x: Sequence[float]) -> None:
         """Put the boat at state x = [N, E, psi, u, v, r] (a start pose)."""
@@ -230,12 +242,15 @@ _plant_steps = njit(_plant_steps_py)
 class BoatPlant(Plant):
     """lotsen's simulated boat as a plant: classical RK4 at `dt_s` under the actuators' mean over the
     step, the boat's actuators (slew, motor lag, dead band, astern ratio, latency) and the
-    environment (current in the kinetics; wind with seeded gusts and Gauss-Markov waves as forces).
+    environment (current in the kinetics; wind with seeded gusts, the Gauss-Markov force and wind
+    waves (`lotsen.sim.waves`: first-order loads and mean drift in the plane, heave, roll and pitch for
+    the sensors) as forces).
 
     `boat`: a `SimulatedBoat` (default the lake boat) or a `VesselModel` (with `limits`) for a boat
     equal to that model. `seed` seeds the plant's random streams (gusts, waves) as the simulator
     seeds its own: streams 4-5 of `RANDOM_STREAMS` spawned from the seed, so a plant and a
-    simulator on one seed draw the same gusts whether the plant is inside or behind a protocol."""
+    simulator on one seed draw the same gusts whether the plant is inside or behind a protocol (and
+    the same sea: stream 6)."""
 
     def __init__(self, boat: SimulatedBoat | VesselModel | None = None, limits: ActuatorLimits | None = None, *,
                  dt_s: float = 0.01, seed: int = 0, environment: Environment = Environment(),
@@ -251,6 +266,7 @@ class BoatPlant(Plant):
         self.model = boat.model()  # the boat's own equations, not the controllers' model
         self.limits = boat.limits
         self.gnss_antenna_m = boat.gnss_antenna_m
+        self.gnss_antenna_height_m = boat.hull.gnss_antenna_height_m
         self.dt_s = dt_s
         self.seed = seed
         self._wind_coefficients = wind
@@ -265,10 +281,15 @@ class BoatPlant(Plant):
         streams = np.random.SeedSequence(seed).spawn(RANDOM_STREAMS)
         self._wave_rng = np.random.Generator(np.random.PCG64(streams[4]))
         self._gust_rng = np.random.Generator(np.random.PCG64(streams[5]))
+        self._sea_seed = streams[6]
         self._wave = [0.0, 0.0, 0.0]
         self._gust = [0.0, 0.0]  # wind speed deviation (m/s), direction deviation (deg)
         self._environment = environment
         self._current_ne = self._environment.current_ne
+        self._sea: WaveField | None = None
+        self._seakeeping = Seakeeping(boat.hull)
+        self._loads = np.zeros(len(LOADS))
+        self._make_sea(environment)
         self._buf = np.zeros(17)
         self._buf[:6] = self._x
         self._model_arrays = self.model.arrays.packed  # M, D_L, D_NL, thrust, arms for the compiled step
@@ -301,11 +322,32 @@ class BoatPlant(Plant):
     def set_environment(self, env: Environment) -> None:
         self._environment = env
         self._current_ne = env.current_ne
+        self._make_sea(env)
+
+    def _make_sea(self, env: Environment) -> None:
+        """The sea of `env.waves`, realised from the plant's sea stream (the same sea for the same seed)."""
+        if env.wavy and (self._sea is None or self._sea.waves != env.waves):
+            self._sea = WaveField(env.waves, self.boat.hull, np.random.Generator(np.random.PCG64(self._sea_seed)))
+        elif not env.wavy:
+            self._sea = None
+
+    @property
+    def sea(self) -> WaveField | None:
+        """The realised wave field (None: flat water)."""
+        return self._sea
+
+    def wave_elevation(self) -> float:
+        return self._sea.elevation(self.t, self._x[0], self._x[1]) if self._sea is not None else math.nan
+
+    def motion_now(self, planar_accel_xy: tuple[float, float]) -> BodyMotion | None:
+        """The motion out of the plane now (None in flat water: a level boat), given the plane's
+        body acceleration now (for a physics server that reports it)."""
+        return self._seakeeping.motion(planar_accel_xy) if self._sea is not None else None
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the plant step now, on a throwaway copy: the first call
         costs 0.3 s or more, which a live control loop must not pay in its first tick."""
-        BoatPlant(self.boat, dt_s=self.dt_s, x0=self._x).step()
+        BoatPlant(self.boat, dt_s=self.dt_s, x0=self._x, environment=self._environment).step()
 
     def describe(self, reference: Any = None) -> str:
         return self.boat.describe(reference) if reference is not None else self.boat.describe()
@@ -338,6 +380,10 @@ class BoatPlant(Plant):
             w = self._wave_rng.standard_normal(3)
             self._wave = [a * self._wave[i] + b * w[i] * (0.25 if i == 2 else 1.0) for i in range(3)]
             tau = [tau[i] + self._wave[i] for i in range(3)]
+        if self._sea is not None:
+            p = self.model.params
+            w = self._sea.loads(self.t, x[0], x[1], x[2], p.m11, p.m22, self._loads).tolist()
+            tau = [tau[0] + w[0] + w[3], tau[1] + w[1] + w[4], tau[2] + w[2] + w[5]]
         return tau[0], tau[1], tau[2]
 
     def _advance_gust(self, env: Environment) -> None:
@@ -361,11 +407,13 @@ class BoatPlant(Plant):
         c = self._consts
         c[4], c[5] = self._current_ne
         env = self._environment
-        if env.wind_speed_mps or env.wave_force_std_N or env.gusty:
+        sea = self._sea
+        if env.wind_speed_mps or env.wave_force_std_N or env.gusty or sea is not None:
             c[6], c[7], c[8] = self._external_force()
         else:
             c[6] = c[7] = c[8] = 0.0
         x0 = self._x
+        motion = None
         buf = self._buf
         act_cmd = self.actuators
         act0 = act_cmd.state
@@ -375,18 +423,22 @@ class BoatPlant(Plant):
         k1 = tuple(v[11:])
         act_cmd.state = tuple(v[6:11])
         self._step_input = _step_mean_py(act0, act_cmd.state)
+        if sea is not None:  # heave, roll, pitch at the step's start, then driven on over the step
+            motion = self._seakeeping.motion((k1[3] - x0[4] * x0[5], k1[4] + x0[3] * x0[5]))
+            ld = self._loads
+            self._seakeeping.step(self.dt_s, (float(ld[6]), float(ld[7]), float(ld[8])))
         self._x_dot = k1
         self._k += 1
         self.t = self._k * self.dt_s
         self._x = x1
         if not math.isfinite(x1[0] + x1[1] + x1[2] + x1[3] + x1[4] + x1[5]):  # NaN/inf propagate
             raise FloatingPointError(f"simulation diverged at t = {self.t:.2f} s: state {x1}")
-        return PlantSample(x0, k1, act0)
+        return PlantSample(x0, k1, act0, motion)
 
     def run_held(self, n: int) -> tuple[list, list, list] | None:
         """In calm or current-only water with no set-point on its way, all `n` steps in one compiled call."""
         env = self._environment
-        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N or env.gusty or self._pending:
+        if n <= 1 or env.wind_speed_mps or env.wave_force_std_N or env.gusty or self._sea is not None or self._pending:
             return None  # forces that depend on each step's state, or set-points still on their way
         c = self._consts
         c[4], c[5] = self._current_ne

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Iterator, Sequence
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
@@ -76,7 +76,9 @@ class TachometerConfig:
 
 
 class ImuModel:
-    """Specific force and rate in the body frame (x fwd, y stbd, z down) of a level boat."""
+    """Specific force and rate in the body frame (x fwd, y stbd, z down): of a level boat, or, given
+    the plant's motion out of the plane (`motion`: roll and pitch rates, the specific force with
+    gravity), of the rolling, pitching hull."""
 
     def __init__(self, config: ImuConfig, rng: np.random.Generator) -> None:
         self.config = config
@@ -90,24 +92,30 @@ class ImuModel:
         self._k = (config.gyro_noise_radps, config.accel_noise_mps2, config.gyro_bias_walk_radps_sqrt_s,
                    config.accel_bias_mps2[0], config.accel_bias_mps2[1])
 
-    def sample(self, t: float, x: Sequence[float], x_dot: Sequence[float], dt_since_last: float) -> ImuSample:
-        """From the state x = [N, E, psi, u, v, r] and its derivative at time t."""
+    def sample(self, t: float, x: Sequence[float], x_dot: Sequence[float], dt_since_last: float,
+               motion: Any = None) -> ImuSample:
+        """From the state x = [N, E, psi, u, v, r] and its derivative at time t (and the motion out
+        of the plane, a `lotsen.sim.waves.BodyMotion`, where the plant has it)."""
         gn, an, walk, bx, by = self._k
         u, v, r = x[3], x[4], x[5]
-        nu_dot = (x_dot[3], x_dot[4])
         w = self._noise.next()
         bias = self.gyro_bias_radps + walk * math.sqrt(dt_since_last) * w[6]
         self.gyro_bias_radps = bias
         gz = r + bias + gn * w[2]
-        # acceleration of the body origin in the body frame: nu_dot + omega x velocity
-        accel_x = nu_dot[0] - v * r + bx + an * w[3]
+        if motion is not None:
+            f = motion.specific_force_mps2
+            gx, gy, fx, fy, fz = motion.p_radps, motion.q_radps, f[0], f[1], f[2]
+        else:  # a level boat: the acceleration of the body origin, nu_dot + omega x velocity
+            gx = gy = 0.0
+            fx, fy, fz = x_dot[3] - v * r, x_dot[4] + u * r, -GRAVITY_MPS2
+        accel_x = fx + bx + an * w[3]
         if self.spike_probability and self.rng.random() < self.spike_probability:
             gz += self.spike_size * (1.0 if w[0] > 0 else -1.0)
             accel_x += 10.0 * self.spike_size
         if self.stuck and self._last is not None:
             return ImuSample(stamp_s=t, gyro_radps=self._last.gyro_radps, accel_mps2=self._last.accel_mps2)
-        self._last = ImuSample(stamp_s=t, gyro_radps=(gn * w[0], gn * w[1], gz),
-                               accel_mps2=(accel_x, nu_dot[1] + u * r + by + an * w[4], an * w[5] - GRAVITY_MPS2))
+        self._last = ImuSample(stamp_s=t, gyro_radps=(gx + gn * w[0], gy + gn * w[1], gz),
+                               accel_mps2=(accel_x, fy + by + an * w[4], fz + an * w[5]))
         return self._last
 
 

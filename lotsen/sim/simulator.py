@@ -22,7 +22,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from lotsen.messages import ActuatorState, BatteryStatus, GnssFixType, ThrustCommand, VesselState
-from lotsen.model.angles import lever_arm_ne
+from lotsen.model.angles import lever_arm_ne, mast_swing_body
 from lotsen.model.dynamics import VesselModel
 from lotsen.model.environment import Environment, WindCoefficients
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
@@ -45,6 +45,26 @@ class BatteryConfig:
     current_per_rps3_a: float = 9.0e-6
     initial_charge_frac: float = 1.0
     rate_hz: float = 1.0
+
+    def propulsion_current_a(self, n1_rps: float, n2_rps: float, nt_rps: float) -> float:
+        """The motors' electrical current at these propeller speeds (k |n|^3 each, the idle draw not included)."""
+        return self.current_per_rps3_a * (abs(n1_rps) ** 3 + abs(n2_rps) ** 3 + abs(nt_rps) ** 3)
+
+    @property
+    def nominal_voltage_v(self) -> float:
+        return 0.5 * (self.full_voltage_v + self.empty_voltage_v)
+
+
+def propulsion_energy_j(t_s: np.ndarray, n_rps: np.ndarray, battery: BatteryConfig = BatteryConfig()) -> float:
+    """Electrical energy (J) the three motors draw over a trace of propeller speeds (rows [n1, n2, nt]
+    at times t_s; trapezoidal), at the battery's nominal voltage: the figure a mission report and a
+    bench compare between calm water and waves."""
+    t = np.asarray(t_s, dtype=float)
+    n = np.abs(np.asarray(n_rps, dtype=float).reshape(len(t), 3))
+    if t.size < 2:
+        return 0.0
+    power = battery.nominal_voltage_v * battery.current_per_rps3_a * np.sum(n ** 3, axis=1)
+    return float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(t)))
 
 
 @dataclass(frozen=True)
@@ -119,6 +139,7 @@ class Simulator:
         self._sched_batt = _Schedule(config.battery.rate_hz, dt)
         self.battery_used_ah = (1.0 - config.battery.initial_charge_frac) * config.battery.capacity_ah
         self._antenna = plant.gnss_antenna_m
+        self._antenna_height = plant.gnss_antenna_height_m
 
     def warm_up(self) -> None:
         """Prepare the plant's compiled step now (this simulator's state and random streams stay
@@ -189,21 +210,21 @@ class Simulator:
         sample = self.plant.step()
         out: list[Any] = []
         if sample is not None and self.config.sensors:
-            out = self._sample_sensors(self.t, sample[0], sample[1], sample[2])
+            out = self._sample_sensors(self.t, sample[0], sample[1], sample[2], sample.motion)
         self._k += 1
         self.t = self._k * self.config.dt_s
         return out
 
     def _sample_sensors(self, t: float, x: Sequence[float], xd: Sequence[float],
-                        act: Sequence[float]) -> list[Any]:
-        # runs every step: schedules are compared inline, each sensor only when due; x, xd and the
-        # actuators `act` are those at `t`, the start of the step
+                        act: Sequence[float], motion: Any = None) -> list[Any]:
+        # runs every step: schedules are compared inline, each sensor only when due; x, xd, the
+        # actuators `act` and the motion out of the plane are those at `t`, the start of the step
         k = self._k + 1e-9
         out: list[Any] = []
         s = self._sched_imu
         if k >= s.next_k:
             s.next_k += s.period_steps
-            out.append(self.imu.sample(t, x, xd, t - s.last_t))
+            out.append(self.imu.sample(t, x, xd, t - s.last_t, motion))
             s.last_t = t
         s = self._sched_mag
         if k >= s.next_k:
@@ -212,10 +233,18 @@ class Simulator:
         s = self._sched_gnss
         if k >= s.next_k:
             s.next_k += s.period_steps
-            if any(self._antenna):  # the antenna, not the model's origin, is what the receiver locates
+            if any(self._antenna) or motion is not None:  # the receiver locates the antenna, not the origin
                 dn, de = lever_arm_ne(x[2], self._antenna)
                 r = x[5]
-                fix = self.gnss.sample(t, x[0] + dn, x[1] + de, xd[0] - r * de, xd[1] + r * dn, t - s.last_t)
+                vn, ve = xd[0] - r * de, xd[1] + r * dn
+                if motion is not None and self._antenna_height:  # carried by the roll and pitch
+                    sn, se = lever_arm_ne(x[2], mast_swing_body(self._antenna_height, motion.roll_rad, motion.pitch_rad))
+                    dn, de = dn + sn, de + se
+                    h, c, sp = self._antenna_height, math.cos(x[2]), math.sin(x[2])
+                    # its velocity: d/dt of (-h theta, h phi) in body axes, turned by the heading
+                    bx, by = -h * motion.q_radps, h * motion.p_radps
+                    vn, ve = vn + c * bx - sp * by, ve + sp * bx + c * by
+                fix = self.gnss.sample(t, x[0] + dn, x[1] + de, vn, ve, t - s.last_t)
             else:
                 fix = self.gnss.sample(t, x[0], x[1], xd[0], xd[1], t - s.last_t)
             s.last_t = t
@@ -234,7 +263,7 @@ class Simulator:
 
     def _battery_sample(self, t: float, act: tuple[float, ...], dt_since_last: float) -> BatteryStatus:
         b = self.config.battery
-        current = b.idle_current_a + b.current_per_rps3_a * (abs(act[2]) ** 3 + abs(act[3]) ** 3 + abs(act[4]) ** 3)
+        current = b.idle_current_a + b.propulsion_current_a(act[2], act[3], act[4])
         self.battery_used_ah += current * max(dt_since_last, 0.0) / 3600.0
         remaining = max(0.0, 1.0 - self.battery_used_ah / b.capacity_ah)
         voltage = b.empty_voltage_v + (b.full_voltage_v - b.empty_voltage_v) * remaining

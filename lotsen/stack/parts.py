@@ -62,7 +62,8 @@ def add_state(stack: Stack, estimator: Any = None) -> None:
     origin = (o.lat_deg, o.lon_deg, o.height_m) if o is not None else None
     if cfg.fusion == "ekf":
         estimator: Any = ModelAidedEKF(stack.model, calibration, EkfConfig(
-            origin=origin, gnss_antenna_m=stack.config.vessel.gnss_antenna_m))
+            origin=origin, gnss_antenna_m=stack.config.vessel.gnss_antenna_m,
+            gnss_antenna_height_m=stack.config.vessel.gnss_antenna_height_m))
     else:
         estimator = SeedFilters(calibration, SeedFiltersConfig(origin=origin))
     stack.add(FusionNode(estimator, calibration))

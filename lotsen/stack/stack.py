@@ -76,10 +76,7 @@ def vessel_model(config: LaunchConfig) -> VesselModel:
 
 def sim_config(config: LaunchConfig) -> SimConfig:
     s = config.sim
-    e = s.environment
-    env = Environment(current_speed_mps=e.current_speed_mps, current_to_deg=e.current_to_deg,
-                      wind_speed_mps=e.wind_speed_mps, wind_from_deg=e.wind_from_deg,
-                      wave_force_std_N=e.wave_force_std_N)
+    env = s.environment.environment()
     gnss = GnssConfig(rate_hz=s.gnss_rate_hz)
     if config.origin is not None:  # the simulated receiver sits where the config says the lake is
         o = config.origin
@@ -113,6 +110,8 @@ def simulated_boat(config: LaunchConfig, model: VesselModel | None = None) -> Si
         changes["command_latency_s"] = b.command_latency_s
     if b.gnss_antenna_m is not None:
         changes["gnss_antenna_m"] = b.gnss_antenna_m
+    if b.gnss_antenna_height_m is not None:
+        changes["hull"] = replace(boat.hull, gnss_antenna_height_m=b.gnss_antenna_height_m)
     if b.reverse_thrust_ratio is not None:
         changes["geometry"] = replace(boat.geometry, reverse_thrust_ratio=b.reverse_thrust_ratio)
     limits = boat.limits

@@ -417,6 +417,8 @@ FLAG_KINDS: dict[tuple[tuple[str, ...], str], str] = {
     (("physics-server",), "config"): "in:config", (("physics-server",), "--host"): "text:bind",
     (("physics-server",), "--boat"): "in:params", (("physics-server",), "--params"): "in:params",
     (("physics-server",), "--current"): "text:speed_dir", (("physics-server",), "--wind"): "text:speed_dir",
+    (("physics-server",), "--waves"): "text:waves", (("mission",), "--waves"): "text:waves",
+    (("run",), "--waves"): "text:waves", (("experiment", "run"), "--waves"): "text:waves",
 }
 
 #: hostile text for the composite flags (kind -> values; True: certainly invalid)
@@ -425,6 +427,8 @@ TEXT_VALUES: dict[str, list[tuple[str, bool]]] = {
     "pose": [("1 2 1e308", True), ("nan 0 0", True), ("1e9 0 0", True), ("0 0 abc", True), ("1e-320 0 0", True)],
     "speed_dir": [("nan,0", True), ("1e308,90", True), ("-1,0", True), ("0.1", True), ("0.1,inf", True),
                   ("0.1,1e-320", True), ("a,b,c", True)],
+    "waves": [("nan,1,0", True), ("0.06,1e308,0", True), ("-0.1,1,0", True), ("0.06,1", True), ("0.06,0,250", True),
+              ("0.06,1,250,-1", True), ("1e-320,1,0", True), ("0.06,1,inf", True), ("a,b,c", True), ("5,1,0", True)],
     "fix": [("m11=nan", True), ("m11=-1", True), ("m11=1e308", True), ("zz=1", True), ("m11", True),
             ("X_u=1e-320", True), ("m11=", True)],
     "noise": [("r=0", True), ("r=nan", True), ("r=-1", True), ("=1", True), ("r=1e308", True), ("r=1e-320", True)],

@@ -28,6 +28,7 @@ from hull6dof import Hull6DOF, HullEnvironment, HullParameters  # noqa: E402
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits  # noqa: E402
 from lotsen.sim.actuators import ActuatorDynamics  # noqa: E402
 from lotsen.sim.plant import Plant, PlantSample, planar_state  # noqa: E402
+from lotsen.sim.waves import BodyMotion  # noqa: E402
 
 
 def hull_limits(params: HullParameters = HullParameters()) -> ActuatorLimits:
@@ -57,6 +58,8 @@ class HullPlant(Plant):
         vel, f = h.measure()
         n, e, psi, _, _, r = h.x3
         self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2], h.eta[3], h.eta[4])
+        # what an IMU on the hull measures (as hull_server.py reports it over the protocol)
+        self._motion = BodyMotion(h.eta[3], h.eta[4], h.eta[2], h.nu[3], h.nu[4], tuple(f))
         self.actuators.state = tuple(h.actuators)
 
     @property
@@ -79,7 +82,7 @@ class HullPlant(Plant):
         self._read()
 
     def step(self) -> PlantSample:
-        sample = PlantSample(self._x, self._x_dot, tuple(self.actuators.state))
+        sample = PlantSample(self._x, self._x_dot, tuple(self.actuators.state), self._motion)
         self._step_input = self.hull.advance(self.dt_s)
         self._read()
         return sample

@@ -145,9 +145,9 @@ def test_bad_physics_sections_are_clear_errors(tmp_path, physics, message):
 
 def test_lotsens_sensors_measure_what_a_plant_reports():
     """The simulator's sensors on another plant (the 6-DOF hull in-process): the GNSS fixes where the
-    plant is, the accelerometer reads the plant's acceleration (lotsen's IMU model is level: the
-    share of gravity in the heeled hull's specific force is taken out), the tachometers the plant's
-    propellers."""
+    plant is, the accelerometer reads the heeled hull's specific force, gravity's share included (as
+    an accelerometer on it does: the estimator levels it with its own tilt estimate), which levelled
+    with the hull's roll is the turn's acceleration; the tachometers the plant's propellers."""
     plant = HullPlant()
     sim = Simulator(plant, config=SimConfig(seed=1), x0=(5.0, -3.0, 0.7, 0.0, 0.0, 0.0))
     assert sim.x[:3] == pytest.approx((5.0, -3.0, 0.7))
@@ -159,9 +159,13 @@ def test_lotsens_sensors_measure_what_a_plant_reports():
     u, v, r = h.nu[0], h.nu[1], h.nu[5]  # a steady turn: the acceleration is the centripetal one
     imu = np.array([m.accel_mps2 for m in msgs if isinstance(m, ImuSample)][-200:])
     assert abs(phi) > math.radians(2.0)  # heeled in the turn
-    assert imu[:, 0].mean() == pytest.approx(-v * r + 0.05, abs=0.02)  # + the IMU model's bias
-    assert imu[:, 1].mean() == pytest.approx(u * r - 0.03, abs=0.02)
-    assert abs(f[1] - u * r) > 0.05  # the specific force had gravity's share in it
+    assert imu[:, 0].mean() == pytest.approx(f[0] + 0.05, abs=0.02)  # + the IMU model's bias
+    assert imu[:, 1].mean() == pytest.approx(f[1] - 0.03, abs=0.02)
+    assert imu[:, 2].mean() == pytest.approx(f[2], abs=0.02)
+    assert abs(f[1] - u * r) > 0.05  # the specific force has gravity's share in it
+    theta = h.eta[4]  # levelled with the hull's attitude: the turn's acceleration
+    assert imu[:, 0].mean() - 9.81 * math.sin(theta) == pytest.approx(-v * r + 0.05, abs=0.02)
+    assert imu[:, 1].mean() + 9.81 * math.cos(theta) * math.sin(phi) == pytest.approx(u * r - 0.03, abs=0.02)
     errors = []
     for _ in range(100):
         x = sim.x  # what the step's sensors sample
@@ -189,7 +193,7 @@ def test_the_reference_server_reproduces_the_built_in_run(tmp_path, short_route,
     """`lotsen mission ROUTE --sim` and the same route flown with `--physics` against `lotsen
     physics-server` (same seed, same water and wind): the same events, cross-track within 2 %."""
     cfg = tmp_path / "physics.yaml"  # the lake boat's antenna, as the built-in run's receiver has it
-    cfg.write_text("extra:\n  physics:\n    gnss_antenna_m: [0.05, 0.0]\n")
+    cfg.write_text("extra:\n  physics:\n    gnss_antenna_m: [0.05, 0.0]\n    gnss_antenna_height_m: 0.25\n")
     server = subprocess.Popen([sys.executable, "-m", "lotsen", "physics-server", "--port", "0", "--seed", "3",
                                "--current", "0.05,30", "--wind", "2,200"], cwd=tmp_path, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True)
