@@ -885,6 +885,11 @@ class RecordOptions:
     wind_from_deg: float = 0.0
     gust_fraction: float = 0.0
     wind_wander_deg: float = 0.0
+    wave_hs_m: float = 0.0
+    wave_tp_s: float = 1.0
+    wave_from_deg: float = 0.0
+    wave_spreading: float | None = 0.0
+    wave_gamma: float = 3.3
 
 
 def prbs_multisine(seed: int = 0, duration_s: float = 600.0) -> Callable[[float, Any], tuple[float, ...]]:
@@ -916,7 +921,9 @@ def environment_of(opts: RecordOptions) -> HullEnvironment:
     return HullEnvironment(current_mps=opts.current_mps, current_to_deg=opts.current_to_deg,
                            current_variation=opts.current_variation, current_wander_deg=opts.current_wander_deg,
                            wind_mps=opts.wind_mps, wind_from_deg=opts.wind_from_deg,
-                           gust_fraction=opts.gust_fraction, wind_wander_deg=opts.wind_wander_deg, seed=opts.seed)
+                           gust_fraction=opts.gust_fraction, wind_wander_deg=opts.wind_wander_deg,
+                           wave_hs_m=opts.wave_hs_m, wave_tp_s=opts.wave_tp_s, wave_from_deg=opts.wave_from_deg,
+                           wave_spreading=opts.wave_spreading, wave_gamma=opts.wave_gamma, seed=opts.seed)
 
 
 @dataclass
@@ -1038,19 +1045,25 @@ def add_environment_arguments(ap: Any) -> None:
     ap.add_argument("--wind", default="0,0", help="MEAN,FROM_DEG")
     ap.add_argument("--gusts", type=float, default=0.0, help="gust std as a fraction of the mean wind")
     ap.add_argument("--wander", type=float, default=0.0, help="wind direction wander std, deg")
+    ap.add_argument("--waves", default=None, help="HS,TP,FROM_DEG: a JONSWAP sea (significant height m, peak period s)")
+    ap.add_argument("--wave-spreading", type=float, default=0.0, help="s of the cos^2s spreading; 0: long-crested")
+    ap.add_argument("--wave-gamma", type=float, default=3.3, help="JONSWAP peak enhancement (1: Pierson-Moskowitz)")
 
 
 def environment_arguments(a: Any) -> dict[str, Any]:
     """The parsed flags of `add_environment_arguments` as HullEnvironment (and RecordOptions) fields."""
     cs, cd = (float(v) for v in a.current.split(","))
     ws, wd = (float(v) for v in a.wind.split(","))
+    hs, tp, wfrom = (float(v) for v in a.waves.split(",")) if a.waves else (0.0, 1.0, 0.0)
     return dict(current_mps=cs, current_to_deg=cd, current_variation=a.current_variation, wind_mps=ws,
-                wind_from_deg=wd, gust_fraction=a.gusts, wind_wander_deg=a.wander, seed=a.seed)
+                wind_from_deg=wd, gust_fraction=a.gusts, wind_wander_deg=a.wander, wave_hs_m=hs, wave_tp_s=tp,
+                wave_from_deg=wfrom, wave_spreading=a.wave_spreading, wave_gamma=a.wave_gamma, seed=a.seed)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`python tests/physics/hull6dof.py --out REC.csv [--duration 600] [--seed 0] [--current 0.08,30]
-    [--wind 4,250] [--gusts 0.2] [--wander 15]`: a record for `lotsen identify REC.csv [--lake]`."""
+    [--wind 4,250] [--gusts 0.2] [--wander 15] [--waves 0.03,0.8,250 [--wave-spreading 2]]`: a record for
+    `lotsen identify REC.csv [--lake]`."""
     import argparse
 
     ap = argparse.ArgumentParser(description=main.__doc__)
