@@ -13,7 +13,7 @@ angles in rad (alpha > 0 turns a unit's thrust to starboard) and propeller speed
 Equations (Fossen 2021, ch. 6-10), state eta = [x, y, z, phi, theta, psi], nu = [u, v, w, p, q, r]:
 
     eta_dot = J(eta) nu                                          (ZYX Euler angles)
-    M nu_r_dot + C_RB(nu_r) nu_r + C_A(nu_r) nu_r + D(nu_r) nu_r + g(eta) = tau_thr + tau_wind
+    M nu_r_dot + C_RB(nu_r) nu_r + C_A(nu_r) nu_r + D(nu_r) nu_r + g(eta) = tau_thr + tau_wind + tau_wave
     nu_dot = nu_r_dot + nu_c_dot,  nu_r = nu - [R^T v_c; 0]      (current, sec. 10.3)
 
 - M = M_RB + M_A: rigid body with the centre of gravity r_g off the origin (the origin on the
@@ -39,7 +39,50 @@ Equations (Fossen 2021, ch. 6-10), state eta = [x, y, z, phi, theta, psi], nu = 
 - Environment (its own forms, not lotsen's): an earth-frame current (constant plus an optional
   slow sinusoidal variation of speed and direction), wind as quadratic drag of the apparent wind
   on each body axis with its own moment arms (yaw and heel), gusts as an Ornstein-Uhlenbeck wind
-  speed and a wandering (Ornstein-Uhlenbeck) wind direction. All seeded.
+  speed and a wandering (Ornstein-Uhlenbeck) wind direction; waves (below). All seeded.
+
+Waves (`WaveField`, `HullEnvironment.wave_*`, `--waves HS,TP,FROM_DEG`); sources: Fossen 2021 sec. 10.2
+(wave spectra, the JONSWAP spectrum and directional spreading), DNV-RP-C205 (2010) sec. 3.5.5
+(JONSWAP in Hs and Tp), Faltinsen 1990 (*Sea Loads on Ships and Offshore Structures*) ch. 2 (linear
+waves, Table 2.1), ch. 3 (Froude-Krylov and diffraction loads, the long-wave approximation) and ch. 5
+(mean drift), Newman 1977 (*Marine Hydrodynamics*) ch. 6 (waves; G. I. Taylor's long-wave force).
+- The sea: linear, deep water (k = w^2 / g), a JONSWAP spectrum (gamma 3.3 by default) spread as
+  cos^(2s) about the mean direction (s = 0: long-crested), 50 components, one random direction per
+  frequency, random phases and frequencies inside their bands, scaled to m0 = Hs^2 / 16; its own
+  seed stream, so waves leave the gusts as they were. Elevation, orbital velocity and acceleration
+  with e^{-kz} decay at any earth point (`WaveField.elevation`, `.kinematics`,
+  `Hull6DOF.wave_elevation`); `realised_hs_m` and `realised_tp_s` are the truth a sea-state
+  estimator should find.
+- First-order loads, linear in the wave, on the 20 strips where they are now (the hull's position
+  and heading at the step's midpoint, so the encounter frequency w - k U cos(beta) follows from
+  the motion itself), with the water's acceleration averaged over a strip's breadth (sin x / x of
+  the linear wave, exact for a rectangular section) and the hull's mean depth ((1 - e^{-kT}) / kT):
+  surge and sway the long-wave force (displaced mass + added mass) x acceleration, its
+  Froude-Krylov share (displaced mass) in earth axes at the centre of buoyancy, the diffraction
+  share (added mass) in the hull's axes; heave, roll and pitch the restoring relative to the wave
+  surface: the waterplane's mean elevation, its least-squares pitch and its roll (the elevation's
+  transverse moment over each strip's breadth, exact for the linear wave) times the heave stiffness,
+  rho g I_L and rho g I_T, plus (displaced + heave added mass) x the water's vertical acceleration
+  (Froude-Krylov's pressure gradient, the Smith effect, and diffraction); yaw the moment of the
+  sway strip forces. The added mass and the damping act on the velocity relative to the water
+  (the orbital velocity over the hull, the wave surface's heave, roll and pitch rates: Morison's
+  relative-velocity form, as nu_r treats the current); in waves the heave restoring and damping act
+  along the vertical. The loads are evaluated once per internal step and held over it, as the
+  current and the wind are. A hull much shorter than the waves follows the surface (heave RAO -> 1,
+  specific force normal to it); waves shorter than the hull average out along it.
+- Second-order mean drift (Faltinsen 1990 ch. 5, the drift force in short waves with the finite
+  draft's correction): per component 1/2 rho g a^2 R^2 times the integral of (n . k)^2 (-n) over
+  the waterline's lit side (and its yaw moment), R^2 Ursell's (1947) reflection by a wall of the
+  hull's draft, pi^2 I1(kT)^2 / (pi^2 I1(kT)^2 + K1(kT)^2): it goes with Hs^2 and is small when
+  kT << 1. Slowly varying: the mean times the wave groups' normalised squared envelope at the hull
+  (Newman's 1974 approximation). `Hull6DOF.mean_wave_drift()`.
+- Not modelled: nonlinear and breaking waves, finite depth, the current's effect on the waves,
+  frequency-dependent added mass and damping (constants here: no radiation memory), the drift's
+  growth with speed (added resistance), the hull's own radiated waves in the drift (the reflection
+  is a fixed wall's), wave loads on the thruster pods (their inflow does see the orbital velocity),
+  slamming and green water. The nonlinear 6-DOF kinematics turn the first-order loads and motions
+  into second-order means of their own (loads at displaced positions, rotated by roll and pitch,
+  coning of roll and pitch into heading) on top of the drift formula: measured, not removed.
 
 Integration: classical RK4 at a fixed internal step (`step_s`, default 5 ms = 200 Hz), actuators
 advanced between the RK4 steps and acting through their mean over each step; deterministic.
@@ -326,7 +369,9 @@ def _strip_positions(L: float, n: int) -> tuple[list[float], float]:
 class Hull6DOF:
     """The hull in its water: `command(...)`, then `advance(seconds)`; `x3` is lotsen's 3-DOF state
     [N, E, psi, u, v, r]; `eta`, `nu` the 6-DOF ones; `actuators` the achieved (alpha1, alpha2, n1,
-    n2, nt); `measure()` the NED velocity and what an accelerometer at the origin measures."""
+    n2, nt); `measure()` the NED velocity and what an accelerometer at the origin measures. In waves:
+    `waves` (the WaveField), `wave_elevation(t, north, east)`, `wave_first_order` and `wave_drift`
+    (the loads held over the last step, body axes), `mean_wave_drift(heading)`."""
 
     def __init__(self, params: HullParameters = HullParameters(), environment: HullEnvironment = HullEnvironment(),
                  step_s: float = 0.005, pose: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
