@@ -467,8 +467,8 @@ class Hull6DOF:
         self._wave_x = x
         self._wave_half_b = 0.5 * b
         k = wf.wavenumber_radpm
-        kd = k * depth
-        self._wave_depth_factor = (1.0 - np.exp(-kd)) / kd  # e^{-kz} averaged over the depth
+        k_t = k * depth
+        self._wave_depth_factor = (1.0 - np.exp(-k_t)) / k_t  # e^{-kz} averaged over the depth
         self._wave_aw = wf.amplitude_m * wf.omega_radps
         self._wave_awd = self._wave_aw * self._wave_depth_factor
         self._wave_aw2 = self._wave_awd * wf.omega_radps
@@ -482,8 +482,10 @@ class Hull6DOF:
     def _wave_loads(self) -> list[float]:
         """The wave loads for the coming internal step, evaluated at its midpoint (time and the
         hull's position extrapolated by half a step): first order (Froude-Krylov + diffraction in the
-        long-wave approximation, on the strips where they are now) and the drift. Body axes, linear
-        in the wave (the hull's roll and pitch do not turn them)."""
+        long-wave approximation, on the strips where they are now) and the drift, in body axes.
+        Froude-Krylov's force is the level frame's, turned into the hull's axes by its roll and
+        pitch; diffraction's is the added mass times the water's acceleration in the hull's axes; the
+        moments are linear in the wave. Also sets the water's motion the damping sees (_nu_wave)."""
         wf = self.waves
         assert wf is not None
         st = self.state
@@ -728,16 +730,16 @@ class Hull6DOF:
         Y -= self._k_cf * ycf
         N -= self._k_cf * ncf
         # heave, roll, pitch: hydrostatics (sines for larger angles) and damping
-        Z = -self._k_heave * z - self._d_heave * wr
-        if self.waves is not None:
+        if self.waves is None:
+            Z = -self._k_heave * z - self._d_heave * wr
+        else:
             # in waves the heave restoring and damping act along the vertical, as the wave's loads do
             # (relative to the surface's heave velocity; the rolled hull's body axis would lean them)
             zdot = -sth * u + cth * sph * v + cth * cph * w
             fz = -self._k_heave * z - self._d_heave * (zdot - ww)
-            Z += self._k_heave * z + self._d_heave * wr
             X -= sth * fz
             Y += cth * sph * fz
-            Z += cth * cph * fz
+            Z = cth * cph * fz
             # the added mass's momentum A (nu - nu_w) turns with the hull: its rate in body axes has the
             # water's velocity seen from the turning hull, -A (omega x nu_w), besides A R^T a_w
             X -= A[0] * (q * ww - r * vw)
