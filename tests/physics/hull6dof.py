@@ -13,7 +13,7 @@ angles in rad (alpha > 0 turns a unit's thrust to starboard) and propeller speed
 Equations (Fossen 2021, ch. 6-10), state eta = [x, y, z, phi, theta, psi], nu = [u, v, w, p, q, r]:
 
     eta_dot = J(eta) nu                                          (ZYX Euler angles)
-    M nu_r_dot + C_RB(nu_r) nu_r + C_A(nu_r) nu_r + D(nu_r) nu_r + g(eta) = tau_thr + tau_wind
+    M nu_r_dot + C_RB(nu_r) nu_r + C_A(nu_r) nu_r + D(nu_r) nu_r + g(eta) = tau_thr + tau_wind + tau_wave
     nu_dot = nu_r_dot + nu_c_dot,  nu_r = nu - [R^T v_c; 0]      (current, sec. 10.3)
 
 - M = M_RB + M_A: rigid body with the centre of gravity r_g off the origin (the origin on the
@@ -39,7 +39,50 @@ Equations (Fossen 2021, ch. 6-10), state eta = [x, y, z, phi, theta, psi], nu = 
 - Environment (its own forms, not lotsen's): an earth-frame current (constant plus an optional
   slow sinusoidal variation of speed and direction), wind as quadratic drag of the apparent wind
   on each body axis with its own moment arms (yaw and heel), gusts as an Ornstein-Uhlenbeck wind
-  speed and a wandering (Ornstein-Uhlenbeck) wind direction. All seeded.
+  speed and a wandering (Ornstein-Uhlenbeck) wind direction; waves (below). All seeded.
+
+Waves (`WaveField`, `HullEnvironment.wave_*`, `--waves HS,TP,FROM_DEG`); sources: Fossen 2021 sec. 10.2
+(wave spectra, the JONSWAP spectrum and directional spreading), DNV-RP-C205 (2010) sec. 3.5.5
+(JONSWAP in Hs and Tp), Faltinsen 1990 (*Sea Loads on Ships and Offshore Structures*) ch. 2 (linear
+waves, Table 2.1), ch. 3 (Froude-Krylov and diffraction loads, the long-wave approximation) and ch. 5
+(mean drift), Newman 1977 (*Marine Hydrodynamics*) ch. 6 (waves; G. I. Taylor's long-wave force).
+- The sea: linear, deep water (k = w^2 / g), a JONSWAP spectrum (gamma 3.3 by default) spread as
+  cos^(2s) about the mean direction (s = 0: long-crested), 50 components, one random direction per
+  frequency, random phases and frequencies inside their bands, scaled to m0 = Hs^2 / 16; its own
+  seed stream, so waves leave the gusts as they were. Elevation, orbital velocity and acceleration
+  with e^{-kz} decay at any earth point (`WaveField.elevation`, `.kinematics`,
+  `Hull6DOF.wave_elevation`); `realised_hs_m` and `realised_tp_s` are the truth a sea-state
+  estimator should find.
+- First-order loads, linear in the wave, on the 20 strips where they are now (the hull's position
+  and heading at the step's midpoint, so the encounter frequency w - k U cos(beta) follows from
+  the motion itself), with the water's acceleration averaged over a strip's breadth (sin x / x of
+  the linear wave, exact for a rectangular section) and the hull's mean depth ((1 - e^{-kT}) / kT):
+  surge and sway the long-wave force (displaced mass + added mass) x acceleration, its
+  Froude-Krylov share (displaced mass) in earth axes at the centre of buoyancy, the diffraction
+  share (added mass) in the hull's axes; heave, roll and pitch the restoring relative to the wave
+  surface: the waterplane's mean elevation, its least-squares pitch and its roll (the elevation's
+  transverse moment over each strip's breadth, exact for the linear wave) times the heave stiffness,
+  rho g I_L and rho g I_T, plus (displaced + heave added mass) x the water's vertical acceleration
+  (Froude-Krylov's pressure gradient, the Smith effect, and diffraction); yaw the moment of the
+  sway strip forces. The added mass and the damping act on the velocity relative to the water
+  (the orbital velocity over the hull, the wave surface's heave, roll and pitch rates: Morison's
+  relative-velocity form, as nu_r treats the current); in waves the heave restoring and damping act
+  along the vertical. The loads are evaluated once per internal step and held over it, as the
+  current and the wind are. A hull much shorter than the waves follows the surface (heave RAO -> 1,
+  specific force normal to it); waves shorter than the hull average out along it.
+- Second-order mean drift (Faltinsen 1990 ch. 5, the drift force in short waves with the finite
+  draft's correction): per component 1/2 rho g a^2 R^2 times the integral of (n . k)^2 (-n) over
+  the waterline's lit side (and its yaw moment), R^2 Ursell's (1947) reflection by a wall of the
+  hull's draft, pi^2 I1(kT)^2 / (pi^2 I1(kT)^2 + K1(kT)^2): it goes with Hs^2 and is small when
+  kT << 1. Slowly varying: the mean times the wave groups' normalised squared envelope at the hull
+  (Newman's 1974 approximation). `Hull6DOF.mean_wave_drift()`.
+- Not modelled: nonlinear and breaking waves, finite depth, the current's effect on the waves,
+  frequency-dependent added mass and damping (constants here: no radiation memory), the drift's
+  growth with speed (added resistance), the hull's own radiated waves in the drift (the reflection
+  is a fixed wall's), wave loads on the thruster pods (their inflow does see the orbital velocity),
+  slamming and green water. The nonlinear 6-DOF kinematics turn the first-order loads and motions
+  into second-order means of their own (loads at displaced positions, rotated by roll and pitch,
+  coning of roll and pitch into heading) on top of the drift formula: measured, not removed.
 
 Integration: classical RK4 at a fixed internal step (`step_s`, default 5 ms = 200 Hz), actuators
 advanced between the RK4 steps and acting through their mean over each step; deterministic.
@@ -130,7 +173,10 @@ class HullEnvironment:
     comes FROM. Gusts: an OU process on the wind speed (std `gust_fraction` x mean, time constant
     `gust_time_constant_s`); the direction wanders as another OU process (std `wind_wander_deg`,
     time constant `wander_time_constant_s`). The current's speed and direction vary slowly as
-    sinusoids (`current_variation` of the speed, `current_wander_deg`, period `current_period_s`)."""
+    sinusoids (`current_variation` of the speed, `current_wander_deg`, period `current_period_s`).
+    Waves (`WaveField`): a JONSWAP sea of significant height `wave_hs_m` (0: none) and peak period
+    `wave_tp_s`, coming FROM `wave_from_deg`, long-crested for `wave_spreading` 0 or None, else
+    spread as cos^(2s) about the mean direction; `wave_components` regular components."""
 
     current_mps: float = 0.0
     current_to_deg: float = 0.0
@@ -150,7 +196,169 @@ class HullEnvironment:
     cy: float = 0.95
     wind_arm_x_m: float = 0.07  # centre of lateral pressure ahead of the origin
     wind_arm_z_m: float = -0.06  # above the waterline (z down)
+    wave_hs_m: float = 0.0
+    wave_tp_s: float = 1.0
+    wave_from_deg: float = 0.0
+    wave_spreading: float | None = 0.0  # s of cos^(2s); 0 or None: long-crested
+    wave_gamma: float = 3.3  # JONSWAP peak enhancement (1: Pierson-Moskowitz)
+    wave_components: int = 50
     seed: int = 0
+
+
+# ----------------------------------------------------------------------------------------------
+# waves: a linear, deep-water, irregular sea (its own code, written from the literature)
+
+def jonswap_spectrum(omega_radps: Any, hs_m: float, tp_s: float, gamma: float = 3.3) -> np.ndarray:
+    """One-sided JONSWAP wave spectrum S(w) in m^2 s/rad: the Pierson-Moskowitz form in Hs and the
+    peak frequency w_p = 2 pi / Tp times the peak enhancement gamma^r, r = exp(-(w - w_p)^2 /
+    (2 sigma^2 w_p^2)), sigma 0.07 below the peak and 0.09 above, normalised by 1 - 0.287 ln(gamma)
+    (DNV-RP-C205 (2010) sec. 3.5.5; Fossen 2021 sec. 10.2.2, the JONSWAP spectrum)."""
+    w = np.asarray(omega_radps, dtype=float)
+    wp = 2.0 * math.pi / tp_s
+    pm = 5.0 / 16.0 * hs_m ** 2 * wp ** 4 * w ** -5.0 * np.exp(-1.25 * (wp / w) ** 4)
+    sigma = np.where(w <= wp, 0.07, 0.09)
+    r = np.exp(-((w - wp) ** 2) / (2.0 * sigma ** 2 * wp ** 2))
+    return (1.0 - 0.287 * math.log(gamma)) * pm * gamma ** r
+
+
+def spreading_function(mu_rad: Any, s: float) -> np.ndarray:
+    """Directional spreading D(mu) = Gamma(s + 1) / (sqrt(pi) Gamma(s + 1/2)) cos^(2s)(mu) for
+    |mu| < pi/2 about the mean direction, 0 beyond; integrates to 1 (Fossen 2021 sec. 10.2.2, the
+    directional spectrum, there with integer s; s = 1 is 2/pi cos^2)."""
+    mu = np.asarray(mu_rad, dtype=float)
+    c = math.exp(math.lgamma(s + 1.0) - math.lgamma(s + 0.5)) / math.sqrt(math.pi)
+    return np.where(np.abs(mu) < 0.5 * math.pi, c * np.abs(np.cos(mu)) ** (2.0 * s), 0.0)
+
+
+class WaveField:
+    """A linear irregular sea in deep water, earth-fixed: the sum of `components` regular waves
+
+        zeta(t, N, E) = sum_i a_i cos(w_i t - k_i (N cos chi_i + E sin chi_i) + eps_i),  k_i = w_i^2 / g
+
+    (Faltinsen 1990 sec. 2.2, Table 2.1; Fossen 2021 sec. 10.2.1), chi_i the direction a component
+    travels TO (the waves come FROM `from_deg`, clockwise from north). Frequencies: one per equal
+    band over 0.5-3 w_p, drawn at random inside its band (no repetition period); amplitudes
+    a_i = sqrt(2 S(w_i) dw), scaled so that sum a_i^2 / 2 = Hs^2 / 16 exactly (the spectrum's tail
+    beyond the bands, ~1 % of its energy, is put back into them); random phases; directions: one
+    random direction per frequency, drawn from the spreading function (the single-summation method:
+    no two components share a frequency, so the sea is ergodic, not phase-locked, and it costs one
+    component per frequency). All from the seed's own stream."""
+
+    def __init__(self, hs_m: float, tp_s: float, from_deg: float = 0.0, spreading: float | None = None,
+                 gamma: float = 3.3, seed: int = 0, components: int = 50) -> None:
+        if hs_m <= 0.0 or tp_s <= 0.0 or components < 1:
+            raise ValueError("waves need Hs > 0, Tp > 0 and at least one component")
+        self.hs_m, self.tp_s, self.from_deg, self.gamma = float(hs_m), float(tp_s), float(from_deg), float(gamma)
+        self.spreading = float(spreading or 0.0)
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 6008]))  # not the gusts' stream (6006)
+        # draw every stream whatever the options, so spreading or gamma leave the phases as they are
+        in_band, phases, u_dir = rng.uniform(0.0, 1.0, (3, components))
+        wp = 2.0 * math.pi / tp_s
+        edges = np.linspace(0.5 * wp, 3.0 * wp, components + 1)
+        dw = np.diff(edges)
+        w = edges[:-1] + in_band * dw
+        s_w = jonswap_spectrum(w, hs_m, tp_s, gamma)
+        a = np.sqrt(2.0 * s_w * dw)
+        scale = (hs_m / 4.0) / math.sqrt(0.5 * float(np.sum(a * a)))
+        a *= scale
+        mean_to = math.radians(from_deg) + math.pi
+        if self.spreading > 0.0:  # inverse transform of the spreading function's distribution
+            mu = np.linspace(-0.5 * math.pi, 0.5 * math.pi, 2001)
+            d = spreading_function(mu, self.spreading)
+            cdf = np.concatenate([[0.0], np.cumsum(0.5 * (d[1:] + d[:-1]) * np.diff(mu))])
+            cdf /= cdf[-1]
+            to = mean_to + np.interp(u_dir, cdf, mu)
+        else:
+            to = np.full(components, mean_to)
+        self.omega_radps = w
+        self.wavenumber_radpm = w * w / GRAVITY
+        self.amplitude_m = a
+        self.phase_rad = 2.0 * math.pi * phases
+        self.to_rad = to
+        self.cos_to, self.sin_to = np.cos(to), np.sin(to)
+        self.spectral_density = s_w * scale * scale  # m^2 s/rad at omega_radps, as realised
+
+    @property
+    def realised_hs_m(self) -> float:
+        """4 sqrt(m0) of the components: the significant wave height this sea has."""
+        return 4.0 * math.sqrt(0.5 * float(np.sum(self.amplitude_m ** 2)))
+
+    @property
+    def realised_tp_s(self) -> float:
+        """The period of the component where the realised spectral density peaks."""
+        return 2.0 * math.pi / float(self.omega_radps[int(np.argmax(self.spectral_density))])
+
+    def _phase(self, t: Any, north: Any, east: Any) -> np.ndarray:
+        t, n, e = (np.asarray(v, dtype=float)[..., None] for v in (t, north, east))
+        return self.omega_radps * t - self.wavenumber_radpm * (self.cos_to * n + self.sin_to * e) + self.phase_rad
+
+    def elevation(self, t: Any, north: Any, east: Any) -> Any:
+        """Surface elevation (m, up) at time(s) t and earth-fixed point(s) (north, east); broadcasts."""
+        z = np.sum(self.amplitude_m * np.cos(self._phase(t, north, east)), axis=-1)
+        return float(z) if z.ndim == 0 else z
+
+    def kinematics(self, t: Any, north: Any, east: Any, depth_m: Any = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(velocity, acceleration) of the water, NED components on the first axis, at `depth_m`
+        below the mean surface, from the potential phi = -(g a / w) e^{-kz} sin(theta) (Faltinsen's
+        Table 2.1 with zeta = a cos(theta), z down): u = w a e^{-kz} cos(theta) along the travel
+        direction, w_down = w a e^{-kz} sin(theta); the accelerations their time derivatives."""
+        th = self._phase(t, north, east)
+        decay = np.exp(-self.wavenumber_radpm * np.asarray(depth_m, dtype=float)[..., None])
+        wa = self.omega_radps * self.amplitude_m * decay
+        c, s = np.cos(th), np.sin(th)
+        horiz_v, down_v = wa * c, wa * s
+        horiz_a, down_a = -self.omega_radps * wa * s, self.omega_radps * wa * c
+        vel = np.stack([np.sum(horiz_v * self.cos_to, -1), np.sum(horiz_v * self.sin_to, -1), np.sum(down_v, -1)])
+        acc = np.stack([np.sum(horiz_a * self.cos_to, -1), np.sum(horiz_a * self.sin_to, -1), np.sum(down_a, -1)])
+        return vel, acc
+
+
+def _bessel_i1(x: float) -> float:
+    """Modified Bessel function I_1 (its integral representation, trapezoidal over a period)."""
+    t = np.linspace(0.0, math.pi, 2001)
+    f = np.exp(x * np.cos(t)) * np.cos(t)
+    return float(np.sum(0.5 * (f[1:] + f[:-1])) * (t[1] - t[0]) / math.pi)
+
+
+def _bessel_k1(x: float) -> float:
+    """Modified Bessel function K_1 = int_0^inf exp(-x cosh t) cosh t dt (x > 0)."""
+    t = np.linspace(0.0, math.acosh(60.0 / x + 1.0), 4001)
+    f = np.exp(-x * np.cosh(t)) * np.cosh(t)
+    return float(np.sum(0.5 * (f[1:] + f[:-1])) * (t[1] - t[0]))
+
+
+def reflection_coefficient_squared(k_radpm: float, draft_m: float) -> float:
+    """R^2 of a wall of draft d in deep water: Ursell's (1947) vertical barrier,
+    pi^2 I1(kd)^2 / (pi^2 I1(kd)^2 + K1(kd)^2), the finite-draft correction Faltinsen (1990, ch. 5)
+    applies to the short-wave drift force; ~ pi^2 (kd)^4 / 4 in long waves, 1 in short ones."""
+    kd = k_radpm * draft_m
+    i1, k1 = _bessel_i1(kd), _bessel_k1(kd)
+    return math.pi ** 2 * i1 * i1 / (math.pi ** 2 * i1 * i1 + k1 * k1)
+
+
+def _waterline_drift_table(length_m: float, beam_m: float, cwp: float, points: int = 201, angles: int = 361
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """The short-wave drift integrals of the waterline, per unit 1/2 rho g a^2 R^2: over its
+    lit side (where the wave meets it, n . k < 0), the force -(n . k)^2 n dl and its yaw moment
+    (Faltinsen 1990 ch. 5, the drift force on a ship in short waves: the local wall reflects the
+    wave's momentum flux normal to it). `angles` travel directions relative to the bow over 0-2 pi;
+    rows: surge (m), sway (m), yaw (m^2). The waterline: half-breadth B/2 (1 - |2x/L|^n)."""
+    n_exp = cwp / (1.0 - cwp)
+    x = np.linspace(-0.5 * length_m, 0.5 * length_m, points)
+    y = 0.5 * beam_m * (1.0 - np.abs(2.0 * x / length_m) ** n_exp)
+    dx, dy = np.diff(x), np.diff(y)
+    dl = np.hypot(dx, dy)
+    xm, ym = 0.5 * (x[1:] + x[:-1]), 0.5 * (y[1:] + y[:-1])
+    nx, ny = -dy / dl, dx / dl  # starboard side's outward normal (stern to bow)
+    # both sides: the port side mirrors the starboard one
+    xm, ym, nx, ny, dl = (np.concatenate([xm, xm]), np.concatenate([ym, -ym]), np.concatenate([nx, nx]),
+                          np.concatenate([ny, -ny]), np.concatenate([dl, dl]))
+    beta = np.linspace(0.0, 2.0 * math.pi, angles)
+    kn = np.outer(np.cos(beta), nx) + np.outer(np.sin(beta), ny)
+    lit = np.where(kn < 0.0, kn * kn * dl, 0.0)
+    fx, fy = -lit @ nx, -lit @ ny
+    fn = -lit @ (xm * ny - ym * nx)
+    return beta, np.vstack([fx, fy, fn])
 
 
 def _strip_positions(L: float, n: int) -> tuple[list[float], float]:
@@ -161,7 +369,9 @@ def _strip_positions(L: float, n: int) -> tuple[list[float], float]:
 class Hull6DOF:
     """The hull in its water: `command(...)`, then `advance(seconds)`; `x3` is lotsen's 3-DOF state
     [N, E, psi, u, v, r]; `eta`, `nu` the 6-DOF ones; `actuators` the achieved (alpha1, alpha2, n1,
-    n2, nt); `measure()` the NED velocity and what an accelerometer at the origin measures."""
+    n2, nt); `measure()` the NED velocity and what an accelerometer at the origin measures. In waves:
+    `waves` (the WaveField), `wave_elevation(t, north, east)`, `wave_first_order` and `wave_drift`
+    (the loads held over the last step, body axes), `mean_wave_drift(heading)`."""
 
     def __init__(self, params: HullParameters = HullParameters(), environment: HullEnvironment = HullEnvironment(),
                  step_s: float = 0.005, pose: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
@@ -211,6 +421,154 @@ class Hull6DOF:
         e = self.env
         self._k_wx = 0.5 * RHO_AIR * e.cx * e.frontal_area_m2
         self._k_wy = 0.5 * RHO_AIR * e.cy * e.lateral_area_m2
+        self.waves: WaveField | None = None
+        self._tau_wave: list[float] | None = None  # wave loads (first order + drift), held over a step
+        self._nu_wave = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # the water's motion the hull's damping sees
+        self.wave_first_order = (0.0,) * 6
+        self.wave_drift = (0.0, 0.0, 0.0)
+        if e.wave_hs_m > 0.0:
+            self.waves = WaveField(e.wave_hs_m, e.wave_tp_s, e.wave_from_deg, e.wave_spreading, e.wave_gamma,
+                                   e.seed, e.wave_components)
+            self._setup_wave_loads()
+
+    def _setup_wave_loads(self) -> None:
+        """What the wave loads need of the hull, once (module docstring, "Waves"). The waterplane's
+        breadth b(x) = B (1 - |2x/L|^n), n = C_wp / (1 - C_wp), so its area is C_wp L B; the
+        displaced mass, surge and sway added mass spread over the strips as b(x), heave added mass
+        as b(x)^2 (2-D heave added mass goes with the breadth squared); the waterplane's own
+        restoring in roll and pitch, rho g I_T and rho g I_L, is the metacentric restoring plus
+        rho g V BG (B a box of the same waterplane and volume: its depth T_m = V / A_wp, B at T_m / 2)."""
+        p, wf = self.p, self.waves
+        assert wf is not None
+        x = np.array(self._strips)
+        dx = self._dx
+        cwp = p.waterplane_coefficient
+        b = p.beam_m * (1.0 - np.abs(2.0 * x / p.length_m) ** (cwp / (1.0 - cwp)))
+        m = p.mass_kg
+        a11, a22, a33 = p.added_mass[:3]
+        nabla = m / RHO_WATER
+        depth = nabla / (cwp * p.length_m * p.beam_m)  # mean depth of the displaced volume
+        self._wave_z_b = 0.5 * depth  # centre of buoyancy below the waterline
+        bg = self._wave_z_b - p.r_g_m[2]
+        self._wave_c44 = self._k_roll + RHO_WATER * GRAVITY * nabla * bg
+        self._wave_c55 = self._k_pitch + RHO_WATER * GRAVITY * nabla * bg
+        m_s = m * b / b.sum()
+        mean = b / b.sum()  # the hull's mean (of the orbital velocity, of the water's acceleration)
+        mean33 = b * b / np.sum(b * b)  # the same with heave added mass's weights
+        m33 = m_s + a33 * mean33
+        m22 = m_s + a22 * mean
+        area = b * dx / np.sum(b * dx)  # waterplane weights: the mean elevation over it
+        slope = x * b * dx / np.sum(x * x * b * dx)  # the plane's pitch by least squares
+        turn = x * m_s / np.sum(x * x * m_s)  # the sway flow's turn along the hull by least squares
+        # columns against sinc * cos(theta) and sinc * sin(theta) (components x strips)
+        self._wave_wq = np.column_stack([area, slope, m_s, mean33, x * m33, mean, turn])
+        self._wave_wp = np.column_stack([area, slope, m_s, mean, x * m22])
+        self._wave_wr = b ** 3 * dx / np.sum(b ** 3 * dx)  # transverse waterplane inertia's weights
+        self._wave_x = x
+        self._wave_half_b = 0.5 * b
+        k = wf.wavenumber_radpm
+        k_t = k * depth
+        self._wave_depth_factor = (1.0 - np.exp(-k_t)) / k_t  # e^{-kz} averaged over the depth
+        self._wave_aw = wf.amplitude_m * wf.omega_radps
+        self._wave_awd = self._wave_aw * self._wave_depth_factor
+        self._wave_aw2 = self._wave_awd * wf.omega_radps
+        # second order: reflection of each component by the draft, and the waterline's drift integrals
+        r2 = np.array([reflection_coefficient_squared(float(kk), p.draft_m) for kk in k])
+        self._wave_drift_a2 = 0.5 * RHO_WATER * GRAVITY * wf.amplitude_m ** 2 * r2  # N/m per component
+        self._wave_group = wf.amplitude_m * np.sqrt(r2)  # Newman's weights for the slow drift
+        self._wave_group_norm = float(np.sum(self._wave_group ** 2))
+        self._drift_beta, self._drift_table = _waterline_drift_table(p.length_m, p.beam_m, cwp)
+
+    def _wave_loads(self) -> list[float]:
+        """The wave loads for the coming internal step, evaluated at its midpoint (time and the
+        hull's position extrapolated by half a step): first order (Froude-Krylov + diffraction in the
+        long-wave approximation, on the strips where they are now) and the drift, in body axes.
+        Froude-Krylov's force is the level frame's, turned into the hull's axes by its roll and
+        pitch; diffraction's is the added mass times the water's acceleration in the hull's axes; the
+        moments are linear in the wave. Also sets the water's motion the damping sees (_nu_wave)."""
+        wf = self.waves
+        assert wf is not None
+        st = self.state
+        hh = 0.5 * self.h
+        psi = st[5] + hh * st[11]
+        cps, sps = math.cos(psi), math.sin(psi)
+        n0 = st[0] + hh * (cps * st[6] - sps * st[7])
+        e0 = st[1] + hh * (sps * st[6] + cps * st[7])
+        t = self.t + hh
+        cb = wf.cos_to * cps + wf.sin_to * sps  # travel direction relative to the bow: cos, sin
+        sb = wf.sin_to * cps - wf.cos_to * sps
+        k = wf.wavenumber_radpm
+        th0 = wf.omega_radps * t - k * (wf.cos_to * n0 + wf.sin_to * e0) + wf.phase_rad  # at the origin
+        th = th0[:, None] - np.outer(k * cb, self._wave_x)  # at the strips
+        c, s = np.cos(th), np.sin(th)
+        ky = k * sb
+        xb = np.outer(ky, self._wave_half_b)  # half the phase change across a strip's breadth
+        small = np.abs(xb) < 1e-3
+        xs = np.where(small, 1.0, xb)
+        sx, cx = np.sin(xs), np.cos(xs)
+        x2 = xb * xb
+        sinc = np.where(small, 1.0 - x2 / 6.0, sx / xs)  # elevation's mean across the breadth
+        j = np.where(small, 1.0 - x2 / 10.0, 3.0 * (sx - xs * cx) / (xs * xs * xs))  # its transverse slope's
+        q = (sinc * c) @ self._wave_wq
+        pp = (sinc * s) @ self._wave_wp
+        a = wf.amplitude_m
+        aw = self._wave_aw
+        aw2 = self._wave_aw2
+        zeta = float(a @ q[:, 0])  # the waterplane's mean elevation, its pitch and roll
+        zeta_dot = -float(aw @ pp[:, 0])
+        theta_w = float(a @ q[:, 1])
+        theta_dot = -float(aw @ pp[:, 1])
+        aky = a * ky
+        phi_w = -float(aky @ ((j * s) @ self._wave_wr))
+        phi_dot = -float((aky * wf.omega_radps) @ ((j * c) @ self._wave_wr))
+        awd = self._wave_awd
+        v_mean = awd * sb
+        self._nu_wave = (float((awd * cb) @ q[:, 5]), float(v_mean @ q[:, 5]), -zeta_dot, phi_dot, theta_dot,
+                         float(v_mean @ q[:, 6]))
+        hx, hy = -aw2 * cb, -aw2 * sb  # horizontal acceleration per sinc * sin(theta)
+        # Froude-Krylov: the waterplane's hydrostatics of the elevation and the displaced mass times
+        # the water's acceleration (the pressure gradient over the volume), in the level frame
+        fk_x = float(hx @ pp[:, 2])
+        fk_y = float(hy @ pp[:, 2])
+        fk_z = float(aw2 @ q[:, 2]) - self._k_heave * zeta
+        # diffraction: the added mass times the water's acceleration as the hull's axes see it
+        ax, ay, az = float(hx @ pp[:, 3]), float(hy @ pp[:, 3]), float(aw2 @ q[:, 3])
+        cph, sph, cth, sth = math.cos(st[3]), math.sin(st[3]), math.cos(st[4]), math.sin(st[4])
+        A11, A22, A33 = self._A[:3]
+        X = cth * (fk_x + A11 * ax) - sth * (fk_z + A11 * az)
+        Y = sth * sph * (fk_x + A22 * ax) + cph * (fk_y + A22 * ay) + cth * sph * (fk_z + A22 * az)
+        Z = sth * cph * (fk_x + A33 * ax) - sph * (fk_y + A33 * ay) + cth * cph * (fk_z + A33 * az)
+        K = -self._wave_z_b * fk_y + self._wave_c44 * phi_w
+        M = self._wave_z_b * fk_x - float(aw2 @ q[:, 4]) + self._wave_c55 * theta_w
+        N = float(hy @ pp[:, 4])
+        self.wave_first_order = (X, Y, Z, K, M, N)
+        # drift: the components' mean, times the wave groups' envelope at the hull (Newman 1974)
+        beta = np.arctan2(sb, cb) % (2.0 * math.pi)
+        tb = self._drift_table
+        fa = self._wave_drift_a2
+        mean = [float(fa @ np.interp(beta, self._drift_beta, tb[i])) for i in range(3)]
+        g = self._wave_group
+        envelope = (float(g @ np.cos(th0)) ** 2 + float(g @ np.sin(th0)) ** 2) / self._wave_group_norm
+        self.wave_drift = (mean[0] * envelope, mean[1] * envelope, mean[2] * envelope)
+        d = self.wave_drift
+        return [X + d[0], Y + d[1], Z, K, M, N + d[2]]
+
+    def mean_wave_drift(self, heading_rad: float | None = None) -> tuple[float, float, float]:
+        """The mean drift (surge N, sway N, yaw N m; body axes) at `heading_rad` (default: now) at
+        rest: sum over the components of 1/2 rho g a_i^2 R_i^2 times the waterline integral."""
+        if self.waves is None:
+            return (0.0, 0.0, 0.0)
+        wf = self.waves
+        psi = self.state[5] if heading_rad is None else heading_rad
+        beta = (wf.to_rad - psi) % (2.0 * math.pi)
+        return tuple(float(self._wave_drift_a2 @ np.interp(beta, self._drift_beta, self._drift_table[i]))
+                     for i in range(3))  # type: ignore[return-value]
+
+    def wave_elevation(self, t: Any, north: Any, east: Any) -> Any:
+        """The sea's elevation (m, up) at time t and earth point (north, east); 0 without waves."""
+        if self.waves is None:
+            return 0.0 * np.asarray(t, dtype=float) if np.ndim(t) else 0.0
+        return self.waves.elevation(t, north, east)
 
     def reset(self, pose: Sequence[float] = (0.0, 0.0, 0.0), t_s: float = 0.0) -> None:
         """At rest at (north, east, heading) with level attitude; actuators neutral; seeded streams restart."""
@@ -275,6 +633,8 @@ class Hull6DOF:
             self._vw = (-W * math.cos(b), -W * math.sin(b))  # the air moves TO from + 180 deg
         else:
             self._vw = (0.0, 0.0)
+        if self.waves is not None:
+            self._tau_wave = self._wave_loads()
 
     def _advance_gusts(self, h: float) -> None:
         e = self.env
@@ -333,6 +693,12 @@ class Hull6DOF:
                m * (yg * wxv[2] - zg * wxv[1]) + (q * Iw[2] - r * Iw[1]),
                m * (zg * wxv[0] - xg * wxv[2]) + (r * Iw[0] - pr * Iw[2]),
                m * (xg * wxv[1] - yg * wxv[0]) + (pr * Iw[1] - q * Iw[0]))
+        # the added mass and the damping see the water's own motion too: the waves' orbital velocity
+        # over the hull, the wave surface's heave, roll and pitch rates, and the sway flow's turn
+        # along the hull (all zero without waves)
+        uw, vw, ww, pw, qw, rw = self._nu_wave
+        ur, vr, wr = ur - uw, vr - vw, wr - ww
+        pd, qd, rd = pr - pw, q - qw, r - rw
         # C_A(nu_r) nu_r (m2c of the diagonal M_A): [w x a; v x a + w x b], a = A_lin v_r, b = A_rot w
         A = self._A
         a = (A[0] * ur, A[1] * vr, A[2] * wr)
@@ -354,19 +720,33 @@ class Hull6DOF:
         U = math.sqrt(ur * ur + vr * vr)
         Y_lift = -self._k_lift * U * vr
         Y = Y_lift - p.sway_linear_kg_s * vr
-        N = p.lift_centre_m * Y_lift - p.yaw_linear_kgm2_s * r
+        N = p.lift_centre_m * Y_lift - p.yaw_linear_kgm2_s * rd
         ycf = ncf = 0.0
         for xs in self._strips:
-            vl = vr + xs * r
+            vl = vr + xs * rd
             f = vl * abs(vl)
             ycf += f
             ncf += xs * f
         Y -= self._k_cf * ycf
         N -= self._k_cf * ncf
         # heave, roll, pitch: hydrostatics (sines for larger angles) and damping
-        Z = -self._k_heave * z - self._d_heave * wr
-        K = -self._k_roll * sph * cth - self._d_roll * pr - p.roll_quadratic * abs(pr) * pr
-        Mm = -self._k_pitch * sth - self._d_pitch * q
+        if self.waves is None:
+            Z = -self._k_heave * z - self._d_heave * wr
+        else:
+            # in waves the heave restoring and damping act along the vertical, as the wave's loads do
+            # (relative to the surface's heave velocity; the rolled hull's body axis would lean them)
+            zdot = -sth * u + cth * sph * v + cth * cph * w
+            fz = -self._k_heave * z - self._d_heave * (zdot - ww)
+            X -= sth * fz
+            Y += cth * sph * fz
+            Z = cth * cph * fz
+            # the added mass's momentum A (nu - nu_w) turns with the hull: its rate in body axes has the
+            # water's velocity seen from the turning hull, -A (omega x nu_w), besides A R^T a_w
+            X -= A[0] * (q * ww - r * vw)
+            Y -= A[1] * (r * uw - pr * ww)
+            Z -= A[2] * (pr * vw - q * uw)
+        K = -self._k_roll * sph * cth - self._d_roll * pd - p.roll_quadratic * abs(pd) * pd
+        Mm = -self._k_pitch * sth - self._d_pitch * qd
         # azimuth thrusters: propeller thrust falling with the advance ratio, pod lift
         dband = p.dead_band_rps
         D = p.propeller_diameter_m
@@ -419,6 +799,14 @@ class Hull6DOF:
             Y += Yw
             N += e.wind_arm_x_m * Yw
             K += -e.wind_arm_z_m * Yw
+        tw = self._tau_wave
+        if tw is not None:  # waves: their loads for this step, held like the current and the wind
+            X += tw[0]
+            Y += tw[1]
+            Z += tw[2]
+            K += tw[3]
+            Mm += tw[4]
+            N += tw[5]
         tau = [X - crb[0] - ca[0], Y - crb[1] - ca[1], Z - crb[2] - ca[2],
                K - crb[3] - ca[3], Mm - crb[4] - ca[4], N - crb[5] - ca[5]]
         return tau, nu_c_dot
@@ -544,6 +932,11 @@ class RecordOptions:
     wind_from_deg: float = 0.0
     gust_fraction: float = 0.0
     wind_wander_deg: float = 0.0
+    wave_hs_m: float = 0.0
+    wave_tp_s: float = 1.0
+    wave_from_deg: float = 0.0
+    wave_spreading: float | None = 0.0
+    wave_gamma: float = 3.3
 
 
 def prbs_multisine(seed: int = 0, duration_s: float = 600.0) -> Callable[[float, Any], tuple[float, ...]]:
@@ -575,7 +968,9 @@ def environment_of(opts: RecordOptions) -> HullEnvironment:
     return HullEnvironment(current_mps=opts.current_mps, current_to_deg=opts.current_to_deg,
                            current_variation=opts.current_variation, current_wander_deg=opts.current_wander_deg,
                            wind_mps=opts.wind_mps, wind_from_deg=opts.wind_from_deg,
-                           gust_fraction=opts.gust_fraction, wind_wander_deg=opts.wind_wander_deg, seed=opts.seed)
+                           gust_fraction=opts.gust_fraction, wind_wander_deg=opts.wind_wander_deg,
+                           wave_hs_m=opts.wave_hs_m, wave_tp_s=opts.wave_tp_s, wave_from_deg=opts.wave_from_deg,
+                           wave_spreading=opts.wave_spreading, wave_gamma=opts.wave_gamma, seed=opts.seed)
 
 
 @dataclass
@@ -697,19 +1092,25 @@ def add_environment_arguments(ap: Any) -> None:
     ap.add_argument("--wind", default="0,0", help="MEAN,FROM_DEG")
     ap.add_argument("--gusts", type=float, default=0.0, help="gust std as a fraction of the mean wind")
     ap.add_argument("--wander", type=float, default=0.0, help="wind direction wander std, deg")
+    ap.add_argument("--waves", default=None, help="HS,TP,FROM_DEG: a JONSWAP sea (significant height m, peak period s)")
+    ap.add_argument("--wave-spreading", type=float, default=0.0, help="s of the cos^2s spreading; 0: long-crested")
+    ap.add_argument("--wave-gamma", type=float, default=3.3, help="JONSWAP peak enhancement (1: Pierson-Moskowitz)")
 
 
 def environment_arguments(a: Any) -> dict[str, Any]:
     """The parsed flags of `add_environment_arguments` as HullEnvironment (and RecordOptions) fields."""
     cs, cd = (float(v) for v in a.current.split(","))
     ws, wd = (float(v) for v in a.wind.split(","))
+    hs, tp, wfrom = (float(v) for v in a.waves.split(",")) if a.waves else (0.0, 1.0, 0.0)
     return dict(current_mps=cs, current_to_deg=cd, current_variation=a.current_variation, wind_mps=ws,
-                wind_from_deg=wd, gust_fraction=a.gusts, wind_wander_deg=a.wander, seed=a.seed)
+                wind_from_deg=wd, gust_fraction=a.gusts, wind_wander_deg=a.wander, wave_hs_m=hs, wave_tp_s=tp,
+                wave_from_deg=wfrom, wave_spreading=a.wave_spreading, wave_gamma=a.wave_gamma, seed=a.seed)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`python tests/physics/hull6dof.py --out REC.csv [--duration 600] [--seed 0] [--current 0.08,30]
-    [--wind 4,250] [--gusts 0.2] [--wander 15]`: a record for `lotsen identify REC.csv [--lake]`."""
+    [--wind 4,250] [--gusts 0.2] [--wander 15] [--waves 0.03,0.8,250 [--wave-spreading 2]]`: a record for
+    `lotsen identify REC.csv [--lake]`."""
     import argparse
 
     ap = argparse.ArgumentParser(description=main.__doc__)

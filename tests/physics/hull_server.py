@@ -6,7 +6,7 @@ imports nothing of lotsen. Any flight controller that speaks the protocol can fl
 `--physics udp:HOST:PORT` among them:
 
     python tests/physics/hull_server.py --port 9002 [--wind 4,250 --gusts 0.2 --wander 15]
-        [--current 0.08,30] [--seed 0]
+        [--current 0.08,30] [--waves 0.03,0.8,250 --wave-spreading 2] [--seed 0]
 
 Servo channels (lotsen's default channel map, docs/physics.md): SERVO1 azimuth 1 (starboard) angle,
 SERVO2 azimuth 2 angle, SERVO3 / SERVO4 their propellers, SERVO5 the bow thruster; 1000-1500-2000
