@@ -57,6 +57,7 @@ class Topic:
     ESTIMATOR_HEALTH = "fusion/health"  # EstimatorHealth: integrity of the state estimate (docs/fusion.md)
     MODEL = "model/in_use"  # ModelInfo: the model the estimator and controllers use, and its origin
     RECORDER = "logs/status"  # RecorderStatus: the recorder's disk and what it has kept (1 Hz)
+    SEA_STATE = "fusion/sea_state"  # SeaState: Hs, Tp, direction from the IMU (every 2 s)
 
 
 #: state a late joiner needs (a recorder, a page, a ROS 2 node started after it was published):
@@ -344,6 +345,26 @@ class CommandAck:
     reason: str = ""
     mode: str = ""
     armed: bool = False
+
+
+@dataclass(slots=True, kw_only=True)
+class SeaState:
+    """The sea as the boat's IMU measures it (lotsen.fusion.seastate; docs/fusion.md "Sea state"):
+    significant wave height, peak period (true and as met under way), the direction the waves come
+    FROM (degrees clockwise from north), the hull's heave, roll and pitch. NaN: not known (too little
+    data; no direction without a heading). `valid` False: not enough data yet."""
+
+    stamp_s: float
+    valid: bool
+    hs_m: float
+    tp_s: float
+    tp_encounter_s: float
+    from_deg: float
+    heave_std_m: float
+    roll_std_deg: float
+    pitch_std_deg: float
+    window_s: float = 0.0  # the data the estimate is made from
+    source: str = "imu"
 
 
 @dataclass(slots=True, kw_only=True)

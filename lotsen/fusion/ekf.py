@@ -164,6 +164,14 @@ class EkfConfig:
     # particle's orbit is a circle), heading per roll-and-pitch angle (docs/fusion.md: measured)
     wave_position_per_heave: float = 1.0
     wave_heading_per_tilt: float = 0.3
+    # In a sea the low-frequency states' white slack (`sigma_nu_dot`, and the thrusters' uncertain force
+    # as process noise) tightens towards these values as the wave band's heave grows to
+    # `wave_slack_heave_m`: the wave states take up the fast motion, and a loose low-frequency model
+    # would share it (with the calm slack ~40 % of the sway and ~25 % of the yaw at wave frequency
+    # reached the controllers; docs/fusion.md "Waves")
+    wave_sigma_nu_dot: tuple[float, float, float] = (0.08, 0.05, 0.05)
+    wave_sigma_thrust_rel: float = 0.25
+    wave_slack_heave_m: float = 0.005
     wave_band: WaveBandConfig = field(default_factory=WaveBandConfig)
     # roll and pitch from the IMU, to take gravity out of the accelerometer's horizontal axes
     tilt_compensation: bool = True
@@ -312,11 +320,11 @@ class ModelAidedEKF:
             J[3, it], J[4, it + 1], J[5, it + 2] = self._inv_m
         return J, B
 
-    def _actuator_accel_cov(self, B: np.ndarray, u: tuple[float, ...]) -> np.ndarray:
+    def _actuator_accel_cov(self, B: np.ndarray, u: tuple[float, ...], thrust_rel: float | None = None) -> np.ndarray:
         """Covariance (3 x 3) of [u_dot, v_dot, r_dot] from the actuators' uncertain forces:
         B S B' with S = diag(sigma_alpha^2 x 2, (sigma_thrust_rel / 2 |n_i|)^2 x 3)."""
         c = self.config
-        k = 0.5 * c.sigma_thrust_rel
+        k = 0.5 * (c.sigma_thrust_rel if thrust_rel is None else thrust_rel)
         s = np.array([c.sigma_azimuth_rad, c.sigma_azimuth_rad, k * u[2], k * u[3], k * u[4]])
         Bs = B[3:6] * s  # columns scaled by the inputs' standard deviations
         return Bs @ Bs.T
@@ -353,6 +361,7 @@ class ModelAidedEKF:
         dt = dt_total / steps
         n = self.n
         diag = slice(None, None, n + 1)
+        q, thrust_rel = self._low_frequency_slack()
         for k in range(steps):
             u = inputs.advance(t0 + (k + 1) * dt, dt)
             J, B = self._jacobians(x, u)
@@ -371,12 +380,27 @@ class ModelAidedEKF:
             P[:6] += GP
             P[:, :6] += GP.T
             P[:6, :6] += GP @ G.T
-            P.flat[diag] += self._q * dt
+            P.flat[diag] += q * dt
             if self.config.sigma_thrust_rel > 0.0 or self.config.sigma_azimuth_rad > 0.0:
-                P[3:6, 3:6] += self._actuator_accel_cov(B, u) * (self.config.thrust_error_correlation_s * dt)
+                P[3:6, 3:6] += self._actuator_accel_cov(B, u, thrust_rel) * (self.config.thrust_error_correlation_s * dt)
             if self.i_wave is not None:
                 x, P = self._predict_waves(x, P, dt)
         return x, P
+
+    def _low_frequency_slack(self) -> tuple[np.ndarray, float]:
+        """The process noise densities and the thrusters' relative force uncertainty now: the
+        calm values, tightened towards the wave values as the heave grows (EkfConfig)."""
+        c = self.config
+        if self.i_wave is None or not c.wave_slack_heave_m > 0.0:
+            return self._q, c.sigma_thrust_rel
+        w0 = self.wave_model()[0]
+        s = min(1.0, self.wave_band.heave_std_m(w0) / c.wave_slack_heave_m)
+        if s <= 0.0:
+            return self._q, c.sigma_thrust_rel
+        q = self._q.copy()
+        for i in range(3):
+            q[3 + i] = ((1.0 - s) * c.sigma_nu_dot[i] + s * c.wave_sigma_nu_dot[i]) ** 2
+        return q, (1.0 - s) * c.sigma_thrust_rel + s * c.wave_sigma_thrust_rel
 
     # -- waves -----------------------------------------------------------------------------------
     def set_wave_frequency(self, w_radps: float | None) -> None:
@@ -657,7 +681,7 @@ class ModelAidedEKF:
             inputs.set_command(m.stamp_s, m.as_tuple())
 
     def on_imu(self, m: ImuSample) -> None:
-        gz = m.gyro_radps[2]
+        gz = self._heading_rate(m.gyro_radps)
         mon = self.monitor
         if not self._advance(m.stamp_s, "gyro", (self.on_imu, m)):
             if not math.isfinite(m.stamp_s):
@@ -703,6 +727,18 @@ class ModelAidedEKF:
             self._acc_sum = [0.0, 0.0]
             self._acc_n = 0
             self._accel_update(a)
+
+    def _heading_rate(self, gyro_radps: tuple[float, float, float]) -> float:
+        """What the model's r is, the heading's rate, from the body rates and the tilt (ZYX Euler
+        kinematics, Fossen 2021 eq. 2.41): (q sin(roll) + r cos(roll)) / cos(pitch). On a hull rolling
+        and pitching at wave frequency the body z rate alone is not it: the product of the roll and
+        pitch oscillations leaves a mean (coning), and the integrated heading wanders off the compass.
+        The tilt filter's y-offset is removed from q; r keeps its own (the gyro bias state)."""
+        p, q, r = gyro_radps
+        if not self.config.tilt_compensation or not finite(q):
+            return r
+        ph, th = self.tilt.roll_rad, self.tilt.pitch_rad
+        return ((q - self.tilt.bias_q) * math.sin(ph) + r * math.cos(ph)) / math.cos(th)
 
     def _known_accel(self, t: float) -> tuple[float, float]:
         """The body acceleration in the plane the tilt filter takes as known: the GNSS velocity's

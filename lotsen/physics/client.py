@@ -280,11 +280,12 @@ class UdpPhysics(Plant):
         dt = state.timestamp_s - t_prev
         r_dot = (r - r_prev) / dt if math.isfinite(dt) and dt > 0 else 0.0
         roll, pitch = state.attitude_rad[0], state.attitude_rad[1]
-        self._x, self._x_dot = planar_state(n, e, psi, (vn, ve), r, state.accel_body_mps2[:2], roll, pitch, r_dot)
+        self._x, self._x_dot = planar_state(n, e, psi, (vn, ve), r, state.accel_body_mps2[:2], roll, pitch, r_dot,
+                                            state.gyro_radps[1])
         # what the physics's IMU reports, for lotsen's IMU model: the attitude, the body rates and the
         # specific force with gravity, as an accelerometer on the rolling, pitching hull measures it
         self._motion = BodyMotion(roll, pitch, state.position_ned_m[2], state.gyro_radps[0], state.gyro_radps[1],
-                                  tuple(state.accel_body_mps2))
+                                  tuple(state.accel_body_mps2), r)
         if state.actuators is not None:
             self.actuators.state = tuple(state.actuators)
 

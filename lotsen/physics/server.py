@@ -49,6 +49,7 @@ def plant_state(plant: Plant, t_s: float) -> PhysicsState:
         f = (accel_xy[0], accel_xy[1], -GRAVITY_MPS2)
     else:
         p, q, roll, pitch, heave, f = m.p_radps, m.q_radps, m.roll_rad, m.pitch_rad, m.heave_m, m.specific_force_mps2
+        r = m.r_radps
     return PhysicsState(
         timestamp_s=t_s, gyro_radps=(p, q, r), accel_body_mps2=tuple(f),
         position_ned_m=(n, e, heave), velocity_ned_mps=(c * u - s * v, s * u + c * v, 0.0),

@@ -240,8 +240,14 @@ class VesselSection:
     # measured on the hull: the antenna's height above the waterline (the roll and pitch centre); the
     # estimator takes the antenna's swing in roll and pitch out of the fixes (docs/fusion.md "Waves")
     gnss_antenna_height_m: float = field(default=0.0, metadata=_r(0.0, 3.0))
+    # the hull's waterline length, beam and draft (m): how much of the waves its heave follows, for the
+    # sea-state estimate (lotsen.fusion.seastate); the lake boat's by default
+    hull_m: tuple[float, float, float] = (0.99, 0.30, 0.08)
 
     def __post_init__(self) -> None:
+        if not all(0.01 <= v <= 20.0 for v in self.hull_m) or not self.hull_m[2] < self.hull_m[1] <= self.hull_m[0]:
+            raise ConfigError(f"vessel.hull_m: {list(self.hull_m)} is not a hull's waterline length >= beam > draft "
+                              "(each 0.01-20 m)")
         if max(abs(v) for v in self.gnss_antenna_m) > 2.0:
             raise ConfigError(f"vessel.gnss_antenna_m: {list(self.gnss_antenna_m)} is more than 2 m from the hull's origin")
 

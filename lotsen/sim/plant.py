@@ -63,14 +63,16 @@ class PlantSample(NamedTuple):
 
 def planar_state(north: float, east: float, psi: float, velocity_ne: Sequence[float], r: float,
                  specific_force_xy: Sequence[float], roll: float = 0.0, pitch: float = 0.0,
-                 r_dot: float = 0.0) -> tuple[tuple[float, ...], tuple[float, ...]]:
+                 r_dot: float = 0.0, q: float = 0.0) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """(x, x_dot) of the planar state from what a 6-DOF physics reports: position, heading, the
     velocity over ground (NED), the body yaw rate, the accelerometer's specific force (body x, y)
     and the attitude. u, v are the velocity over ground in the heading's axes. lotsen's IMU model
     is level: it reads the accelerometer as x_dot[3] - v r and x_dot[4] + u r (`ImuModel.sample`),
     the boat's acceleration; gravity's share in a heeled or trimmed physics's specific force
     (g sin(pitch) on x, -g cos(pitch) sin(roll) on y: 0.17 m/s^2 a degree) is taken out here, as
-    the level model has no tilt."""
+    the level model has no tilt. `r` is the body z rate; the planar state's is the heading's rate,
+    (q sin(roll) + r cos(roll)) / cos(pitch) with q the body y rate (ZYX Euler kinematics)."""
+    r = (q * math.sin(roll) + r * math.cos(roll)) / math.cos(pitch)
     c, s = math.cos(psi), math.sin(psi)
     vn, ve = velocity_ne[0], velocity_ne[1]
     u, v = c * vn + s * ve, -s * vn + c * ve
@@ -342,7 +344,7 @@ class BoatPlant(Plant):
     def motion_now(self, planar_accel_xy: tuple[float, float]) -> BodyMotion | None:
         """The motion out of the plane now (None in flat water: a level boat), given the plane's
         body acceleration now (for a physics server that reports it)."""
-        return self._seakeeping.motion(planar_accel_xy) if self._sea is not None else None
+        return self._seakeeping.motion(planar_accel_xy, self._x[5]) if self._sea is not None else None
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the plant step now, on a throwaway copy: the first call
@@ -424,7 +426,7 @@ class BoatPlant(Plant):
         act_cmd.state = tuple(v[6:11])
         self._step_input = _step_mean_py(act0, act_cmd.state)
         if sea is not None:  # heave, roll, pitch at the step's start, then driven on over the step
-            motion = self._seakeeping.motion((k1[3] - x0[4] * x0[5], k1[4] + x0[3] * x0[5]))
+            motion = self._seakeeping.motion((k1[3] - x0[4] * x0[5], k1[4] + x0[3] * x0[5]), x0[5])
             ld = self._loads
             self._seakeeping.step(self.dt_s, (float(ld[6]), float(ld[7]), float(ld[8])))
         self._x_dot = k1

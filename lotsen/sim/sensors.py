@@ -101,13 +101,15 @@ class ImuModel:
         w = self._noise.next()
         bias = self.gyro_bias_radps + walk * math.sqrt(dt_since_last) * w[6]
         self.gyro_bias_radps = bias
-        gz = r + bias + gn * w[2]
         if motion is not None:
             f = motion.specific_force_mps2
             gx, gy, fx, fy, fz = motion.p_radps, motion.q_radps, f[0], f[1], f[2]
+            if math.isfinite(motion.r_radps):  # the body z rate of a rolling, pitching hull
+                r = motion.r_radps
         else:  # a level boat: the acceleration of the body origin, nu_dot + omega x velocity
             gx = gy = 0.0
             fx, fy, fz = x_dot[3] - v * r, x_dot[4] + u * r, -GRAVITY_MPS2
+        gz = r + bias + gn * w[2]
         accel_x = fx + bx + an * w[3]
         if self.spike_probability and self.rng.random() < self.spike_probability:
             gz += self.spike_size * (1.0 if w[0] > 0 else -1.0)

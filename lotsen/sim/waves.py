@@ -242,8 +242,9 @@ _wave_loads = njit(_wave_loads_py)
 
 class BodyMotion(NamedTuple):
     """The motion out of the plane a 3-DOF plant does not carry, at one instant: attitude, heave,
-    body rates about x and y, and the specific force at the body origin in body axes (gravity
-    included: (0, 0, -g) on a level boat at rest), what an accelerometer there measures."""
+    the body rates (what a gyro measures: on a rolling, pitching hull its z axis is not the heading's
+    rate) and the specific force at the body origin in body axes (gravity included: (0, 0, -g) on a
+    level boat at rest), what an accelerometer there measures."""
 
     roll_rad: float
     pitch_rad: float
@@ -251,6 +252,7 @@ class BodyMotion(NamedTuple):
     p_radps: float
     q_radps: float
     specific_force_mps2: tuple[float, float, float]
+    r_radps: float = math.nan  # body z rate (NaN: that of a level boat, the planar r)
 
 
 class Seakeeping:
@@ -284,14 +286,18 @@ class Seakeeping:
         for i in range(3):
             self.acceleration[i] = self._accel(i, targets[i], self.position[i], self.rate[i])
 
-    def motion(self, planar_accel_xy: tuple[float, float]) -> BodyMotion:
-        """The BodyMotion now, given the plane's body acceleration (u_dot - v r, v_dot + u r): the
-        specific force adds gravity's share on the tilted axes (g sin(pitch) on x, -g cos(pitch)
-        sin(roll) on y) and the heave acceleration on z. The body rates about x and y are the Euler
-        rates (small angles)."""
+    def motion(self, planar_accel_xy: tuple[float, float], yaw_rate_radps: float) -> BodyMotion:
+        """The BodyMotion now, given the plane's body acceleration (u_dot - v r, v_dot + u r) and the
+        heading's rate: the specific force adds gravity's share on the tilted axes (g sin(pitch) on x,
+        -g cos(pitch) sin(roll) on y) and the heave acceleration on z; the body rates are the Euler
+        rates turned into body axes (Fossen 2021, eq. 2.41 inverted: p = phi_dot - psi_dot sin(theta),
+        q = theta_dot cos(phi) + psi_dot cos(theta) sin(phi), r = -theta_dot sin(phi) + psi_dot
+        cos(theta) cos(phi))."""
         z, th, ph = self.position
         zd, thd, phd = self.rate
         g = GRAVITY_MPS2
         f = (planar_accel_xy[0] + g * math.sin(th), planar_accel_xy[1] - g * math.cos(th) * math.sin(ph),
              self.acceleration[0] - g * math.cos(th) * math.cos(ph))
-        return BodyMotion(ph, th, z, phd, thd, f)
+        sp, cp, st, ct = math.sin(ph), math.cos(ph), math.sin(th), math.cos(th)
+        psid = yaw_rate_radps
+        return BodyMotion(ph, th, z, phd - psid * st, thd * cp + psid * ct * sp, f, -thd * sp + psid * ct * cp)

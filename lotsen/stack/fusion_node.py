@@ -13,7 +13,9 @@ The node is where the runtime's clock meets the (clock-free) estimator:
   `starvation_s` (one GNSS period), it says so on the log and in the health it publishes, and the
   supervisor's estimator failsafe acts;
 - a frozen output: an estimate that repeats itself exactly (all six states bit-identical) for
-  `frozen_s` while samples arrive is a hung estimator, whatever the estimator says of itself.
+  `frozen_s` while samples arrive is a hung estimator, whatever the estimator says of itself;
+- the sea state: the IMU's heave, roll and pitch (levelled by the estimator's tilt where it has one)
+  feed a `SeaStateEstimator`, whose estimate goes out on fusion/sea_state every 2 s (the page shows it).
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ from typing import Any
 
 from lotsen.errors import LotsenError
 from lotsen.fusion import MagCalibration, calibrated_heading
-from lotsen.messages import MagCalibrationResult, MagSample, Topic, VesselState
+from lotsen.fusion.seastate import SeaStateConfig, SeaStateEstimator
+from lotsen.messages import ImuSample, MagCalibrationResult, MagSample, Topic, VesselState
 from lotsen.runtime.executor import Node, NodeContext
 
 
@@ -53,8 +56,10 @@ class FusionNode(Node):
     SENSOR_TOPICS = (Topic.IMU_RAW, Topic.IMU_MAG, Topic.GNSS)
 
     def __init__(self, estimator: Any, calibration: Any, rate_hz: float = 20.0, max_future_s: float = 0.05,
-                 starvation_s: float = 0.125, health_rate_hz: float = 5.0, frozen_s: float = 0.5) -> None:
+                 starvation_s: float = 0.125, health_rate_hz: float = 5.0, frozen_s: float = 0.5,
+                 sea_state: SeaStateConfig | None = SeaStateConfig()) -> None:
         self.estimator = estimator
+        self.sea = SeaStateEstimator(sea_state) if sea_state is not None else None
         self.calibration = calibration
         self._before_review: Any = None  # the calibration in use before a fit under review
         self.period_s = 1.0 / rate_hz
@@ -77,7 +82,7 @@ class FusionNode(Node):
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
         est = self.estimator
-        ctx.subscribe(Topic.IMU_RAW, self._checked(est.on_imu))
+        ctx.subscribe(Topic.IMU_RAW, self._checked(self._on_imu))
         ctx.subscribe(Topic.IMU_MAG, self._on_mag)
         ctx.subscribe(Topic.GNSS, self._checked(est.on_gnss))
         ctx.subscribe(Topic.ACTUATORS, self._checked(est.on_command))
@@ -107,6 +112,12 @@ class FusionNode(Node):
                 self.counters["dropped"] += 1
                 self.ctx.log("warning", f"fusion dropped a {type(msg).__name__}: {exc}")
         return call
+
+    def _on_imu(self, msg: ImuSample) -> None:
+        self.estimator.on_imu(msg)
+        if self.sea is not None:
+            tilt = getattr(self.estimator, "tilt", None)
+            self.sea.on_imu(msg, tilt.level(msg.accel_mps2) if tilt is not None else None)
 
     def _on_mag(self, msg: MagSample) -> None:
         self._checked(self.estimator.on_mag)(msg)
@@ -182,6 +193,11 @@ class FusionNode(Node):
             self._check_frozen(t, est)
             self.ctx.publish(Topic.STATE, est)
             self.ctx.publish(Topic.SENS_FUS, est)
+            if self.sea is not None:
+                self.sea.on_state(est)
+                sea = self.sea.estimate(t)
+                if sea is not None:
+                    self.ctx.publish(Topic.SEA_STATE, sea)
         if t - self._last_health_s >= self.health_period_s - 1e-9:
             self._last_health_s = t
             self._publish_health(t)

@@ -13,6 +13,7 @@ from lotsen.control.mpc import REALTIME_SOLVE_LIMIT_S
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF, SeedFilters, SeedFiltersConfig, fit_mag_calibration
+from lotsen.fusion.seastate import SeaStateConfig
 from lotsen.messages import MagCalibrationResult, ModelInfo, Topic
 from lotsen.model import DEFAULT_LIMITS
 from lotsen.planning import plan_route
@@ -49,7 +50,8 @@ def add_state(stack: Stack, estimator: Any = None) -> None:
     """The state estimate: the configured estimator (or the given one: harnesses), or the truth."""
     cfg = stack.config.nodes
     if estimator is not None:
-        stack.add(FusionNode(estimator, getattr(estimator, "calibration", None)))
+        stack.add(FusionNode(estimator, getattr(estimator, "calibration", None),
+                             sea_state=SeaStateConfig(hull_m=stack.config.vessel.hull_m)))
         return
     if cfg.fusion == "truth":
         if stack.simulator is None:
@@ -66,7 +68,7 @@ def add_state(stack: Stack, estimator: Any = None) -> None:
             gnss_antenna_height_m=stack.config.vessel.gnss_antenna_height_m))
     else:
         estimator = SeedFilters(calibration, SeedFiltersConfig(origin=origin))
-    stack.add(FusionNode(estimator, calibration))
+    stack.add(FusionNode(estimator, calibration, sea_state=SeaStateConfig(hull_m=stack.config.vessel.hull_m)))
 
 
 def heading_calibration(stack: Stack) -> str:

@@ -11,13 +11,14 @@ from typing import Any
 
 from lotsen.messages import (
     ActuatorState, Alert, BatteryStatus, CommandAck, ControllerStatus, GnssFix, GnssFixType, LogEvent, MagCalibrationResult,
-    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RecorderStatus, RouteMessage, SupervisorStatus, ThrustCommand,
-    Topic, VesselState,
+    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RecorderStatus, RouteMessage, SeaState, SupervisorStatus,
+    ThrustCommand, Topic, VesselState,
 )
 
 TOPICS = (Topic.STATE, Topic.TRUTH, Topic.CONTROL_STATUS, Topic.SUPERVISOR, Topic.GNSS, Topic.BATTERY,
           Topic.SHIP_COMMAND, Topic.ACTUATORS, Topic.PATH, Topic.ROUTE, Topic.ACTIVE_ROUTE, Topic.LOG, Topic.RC,
-          Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL, Topic.OPERATOR_ACK, Topic.RECORDER)
+          Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL, Topic.OPERATOR_ACK, Topic.RECORDER,
+          Topic.SEA_STATE)
 
 #: the estimate is shown when it is this fresh; otherwise the simulator's truth (simulation only)
 STATE_FRESH_S = 1.0
@@ -294,6 +295,11 @@ class TelemetryState:
             out["rec"] = {"t": num(r.stamp_s), "recording": bool(r.recording), "file": str(r.file)[:200],
                           "free": int(r.free_bytes), "written": int(r.written_bytes), "error": str(r.error)[:300],
                           "kept": str(r.kept)[:300], "dir": str(r.directory)[:200]}
+        sea = L.get(Topic.SEA_STATE)
+        if isinstance(sea, SeaState) and sea.valid:
+            out["sea"] = {"t": num(sea.stamp_s), "hs": num(sea.hs_m, 3), "tp": num(sea.tp_s, 2),
+                          "tp_enc": num(sea.tp_encounter_s, 2), "from": num(sea.from_deg, 0),
+                          "roll": num(sea.roll_std_deg, 1), "pitch": num(sea.pitch_std_deg, 1)}
         rc = L.get(Topic.RC)
         if isinstance(rc, RcOverride):
             out["rc"] = {"t": num(rc.stamp_s), "active": rc.active, "estop": rc.estop, "link": rc.link}

@@ -42,13 +42,15 @@ class HullPlant(Plant):
     """Hull6DOF as a lotsen `Plant`: one lotsen step = `dt_s` of the hull (its own 5 ms RK4 steps)."""
 
     def __init__(self, params: HullParameters = HullParameters(), environment: HullEnvironment = HullEnvironment(),
-                 dt_s: float = 0.01, gnss_antenna_m: tuple[float, float] = (0.0, 0.0)) -> None:
+                 dt_s: float = 0.01, gnss_antenna_m: tuple[float, float] = (0.0, 0.0),
+                 gnss_antenna_height_m: float = 0.0) -> None:
         self.hull = Hull6DOF(params, environment)
         self.params, self.env = params, environment
         self.name = "6-DOF hull (tests/physics/hull6dof.py)"
         self.dt_s = dt_s
         self.limits = hull_limits(params)
         self.gnss_antenna_m = gnss_antenna_m
+        self.gnss_antenna_height_m = gnss_antenna_height_m  # above the hull's roll and pitch centre
         self.actuators = ActuatorDynamics(self.limits, dt_s)  # set-points and faults; state: the hull's
         self._step_input: tuple[float, ...] = (0.0,) * 5
         self._read()
@@ -57,9 +59,9 @@ class HullPlant(Plant):
         h = self.hull
         vel, f = h.measure()
         n, e, psi, _, _, r = h.x3
-        self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2], h.eta[3], h.eta[4])
+        self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2], h.eta[3], h.eta[4], q=h.nu[4])
         # what an IMU on the hull measures (as hull_server.py reports it over the protocol)
-        self._motion = BodyMotion(h.eta[3], h.eta[4], h.eta[2], h.nu[3], h.nu[4], tuple(f))
+        self._motion = BodyMotion(h.eta[3], h.eta[4], h.eta[2], h.nu[3], h.nu[4], tuple(f), r)
         self.actuators.state = tuple(h.actuators)
 
     @property

@@ -224,7 +224,7 @@ state.heading360 = heading360;
 // STALE_MS (a half-open Wi-Fi link never closes the socket), and a value whose own stamp is older
 // than its limit greys on its own (a sensor that stopped while the rest flows)
 const STALE_MS = 2000;
-const AGE_LIMIT_S = { sup: 1.5, ctrl: 1.5, gnss: 3.0, bat: 5.0, pose: 1.5 };
+const AGE_LIMIT_S = { sup: 1.5, ctrl: 1.5, gnss: 3.0, bat: 5.0, pose: 1.5, sea: 10.0 };
 function checkStale() {
   const silent = state.lastFrameMs == null || performance.now() - state.lastFrameMs > STALE_MS;
   const stale = !state.connected || silent;
@@ -303,6 +303,12 @@ function renderHud(f) {
     $("#hud-bat").title = b.left_s != null ? `time left at the last 10 s mean current (${b.a_avg} A), from ${b.left_basis === "capacity" ? "the configured capacity" : "the observed discharge"}` : "time left: needs the current and a measurable discharge";
   } else setV("#hud-bat", "-");
   setV("#hud-link", `${state.pilot ? "you are the pilot" : l.pilot ? "pilot connected" : "no pilot"} · ${l.clients} page(s)` + (state.rttMs != null ? ` · rtt ${state.rttMs.toFixed(0)} ms` : ""));
+  const sea = f.sea;
+  $("#hud-sea-cell").hidden = !sea;
+  if (sea) setV("#hud-sea", sea.hs === 0 || sea.hs == null ? "flat water" :
+    `Hs ${(sea.hs * 100).toFixed(0)} cm · Tp ${sea.tp != null ? sea.tp.toFixed(1) : "?"} s` +
+    (sea.from != null ? ` · from ${Math.round(sea.from)}°` : "") +
+    ` · roll ${sea.roll != null ? sea.roll.toFixed(1) : "?"}° pitch ${sea.pitch != null ? sea.pitch.toFixed(1) : "?"}° (std)`);
   const cur = p && p.cur;
   $("#hud-current-cell").hidden = !cur;
   if (cur) setV("#hud-current", `${Math.hypot(cur[0], cur[1]).toFixed(2)} m/s towards ${heading360(Math.atan2(cur[1], cur[0]))}°`);
@@ -335,7 +341,7 @@ function renderHud(f) {
   if (ul.innerHTML !== html) ul.innerHTML = html;
   // each value greys on its own when its stamp is older than its limit
   const old = (x, k) => !!(x && x.t != null && f.t != null && f.t - x.t > AGE_LIMIT_S[k]);
-  const ages = { "#hud-mode": old(s, "sup"), "#hud-gnss": old(g, "gnss"), "#hud-bat": old(b, "bat"),
+  const ages = { "#hud-mode": old(s, "sup"), "#hud-gnss": old(g, "gnss"), "#hud-bat": old(b, "bat"), "#hud-sea": old(sea, "sea"),
                  "#hud-speed": old(p, "pose"), "#hud-heading": old(p, "pose"), "#hud-pose": old(p, "pose"), "#hud-ctrl": old(c, "ctrl") };
   for (const [sel, isOld] of Object.entries(ages)) $(sel).classList.toggle("old", isOld);
 }
