@@ -88,6 +88,8 @@ class ImuModel:
         self.spike_probability = 0.0  # fault injection: occasional large spikes
         self.spike_size = 5.0
         self.stuck = False  # fault injection: the chip repeats its last sample (a hung I2C read)
+        # fault injection: offsets that appear at once (a shock, a thermal step): gyro z (rad/s), accel x, y (m/s^2)
+        self.bias_step = (0.0, 0.0, 0.0)
         self._last: ImuSample | None = None
         self._k = (config.gyro_noise_radps, config.accel_noise_mps2, config.gyro_bias_walk_radps_sqrt_s,
                    config.accel_bias_mps2[0], config.accel_bias_mps2[1])
@@ -109,15 +111,15 @@ class ImuModel:
         else:  # a level boat: the acceleration of the body origin, nu_dot + omega x velocity
             gx = gy = 0.0
             fx, fy, fz = x_dot[3] - v * r, x_dot[4] + u * r, -GRAVITY_MPS2
-        gz = r + bias + gn * w[2]
-        accel_x = fx + bx + an * w[3]
+        gz = r + bias + self.bias_step[0] + gn * w[2]
+        accel_x = fx + bx + self.bias_step[1] + an * w[3]
         if self.spike_probability and self.rng.random() < self.spike_probability:
             gz += self.spike_size * (1.0 if w[0] > 0 else -1.0)
             accel_x += 10.0 * self.spike_size
         if self.stuck and self._last is not None:
             return ImuSample(stamp_s=t, gyro_radps=self._last.gyro_radps, accel_mps2=self._last.accel_mps2)
         self._last = ImuSample(stamp_s=t, gyro_radps=(gx + gn * w[0], gy + gn * w[1], gz),
-                               accel_mps2=(accel_x, fy + by + an * w[4], fz + an * w[5]))
+                               accel_mps2=(accel_x, fy + by + self.bias_step[2] + an * w[4], fz + an * w[5]))
         return self._last
 
 
