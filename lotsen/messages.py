@@ -18,7 +18,7 @@ __all__ = [
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
     "OPERATOR_ACTIONS", "ModeName", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
-    "ModelInfo", "LATCHED_TOPICS", "CommandAck", "RecorderStatus",
+    "ModelInfo", "LATCHED_TOPICS", "CommandAck", "RecorderStatus", "SeaState",
 ]
 
 
@@ -211,6 +211,11 @@ class VesselState:
     # slowly varying disturbance, when the estimator has states for it (zero otherwise):
     current_ne_mps: tuple[float, float] = (0.0, 0.0)  # water current over ground, north / east
     disturbance_tau: tuple[float, float, float] = (0.0, 0.0, 0.0)  # body force X, Y (N), moment N (N m)
+    # the wave-frequency displacement the estimator separated out (north m, east m, heading rad; zero
+    # without wave states): the state above is the low-frequency motion the controllers act on, the
+    # boat is at (north + wave_motion[0], east + wave_motion[1]) heading heading + wave_motion[2];
+    # std[0:3] are the uncertainty of that, where the boat is
+    wave_motion: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def as_array_tuple(self) -> tuple[float, float, float, float, float, float]:
         return (self.north_m, self.east_m, self.heading_rad, self.u_mps, self.v_mps, self.r_radps)

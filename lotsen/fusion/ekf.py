@@ -894,12 +894,20 @@ class ModelAidedEKF:
             x, P = self._predict(x, P, self.t, min(t - self.t, self.config.max_coast_s), self.inputs.copy(),
                                  list(self._pending))
             stamp = t
-        std = np.sqrt(np.clip(np.diag(P)[:6], 0.0, None))
+        var = np.clip(np.diag(P)[:6], 0.0, None)
+        wave = (0.0, 0.0, 0.0)
+        iw = self.i_wave
+        if iw is not None:  # where the boat is: the low-frequency pose plus the wave displacement
+            wave = (float(x[iw]), float(x[iw + 2]), float(x[iw + 4]))
+            for i, k in ((IN, iw), (IE, iw + 2), (IPSI, iw + 4)):
+                var[i] = max(0.0, var[i] + P[k, k] + 2.0 * P[i, k])
+        std = np.sqrt(var)
         cn, ce, tx, ty, tn = self._environment(x)
         return VesselState(stamp_s=float(stamp), north_m=float(x[0]), east_m=float(x[1]),
                            heading_rad=float(wrap_angle(x[2])), u_mps=float(x[3]), v_mps=float(x[4]),
                            r_radps=float(x[5]), source=self.source, std=tuple(float(s) for s in std),
-                           gyro_bias_radps=float(x[IBG]), current_ne_mps=(cn, ce), disturbance_tau=(tx, ty, tn))
+                           gyro_bias_radps=float(x[IBG]), current_ne_mps=(cn, ce), disturbance_tau=(tx, ty, tn),
+                           wave_motion=wave)
 
     def health(self, t: float | None = None) -> EstimatorHealth:
         """Integrity of the estimate at time `t` (the caller's clock; default: the filter's time).

@@ -412,6 +412,9 @@ class BoatPlant(Plant):
         sea = self._sea
         if env.wind_speed_mps or env.wave_force_std_N or env.gusty or sea is not None:
             c[6], c[7], c[8] = self._external_force()
+            if sea is not None:  # the hull moves through the water's orbit: relative-velocity forces
+                c[4] += float(self._loads[10])
+                c[5] += float(self._loads[11])
         else:
             c[6] = c[7] = c[8] = 0.0
         x0 = self._x

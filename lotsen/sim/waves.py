@@ -25,7 +25,12 @@ travel direction relative to the bow):
     N = (m22 / L) sum  w^2 a d sin(chi) cos(theta_0) G(kappa),   G(kappa) = int x sin(kappa x) dx
 
 so a boat short against the wave moves with the water in surge and sway, and one long against it
-averages the wave out (sinc) and turns in it (G).
+averages the wave out (sinc) and turns in it (G). The water's orbital velocity, averaged the same way
+(w a d(k) cos(theta_0) sinc(kappa L / 2) along the travel), is the velocity the hull moves through:
+the plant adds it to the current, so the hull's damping, lift and Munk moment act on its velocity
+through the water (Morison's form: inertia on the fluid's acceleration above, drag on the relative
+velocity). Without it a hull carried by the orbit was damped against the water's own motion and felt
+a mean Munk moment (m11 - m22) <u v> in oblique seas that no real hull feels.
 
 Heave, roll and pitch (what the IMU and the GNSS antenna feel; they do not feed back into the
 3-DOF plane): each a linear oscillator of the boat's natural period and damping driven towards
@@ -69,7 +74,7 @@ GRAVITY_MPS2 = 9.81
 _W, _K, _COS, _SIN, _AMP, _PHASE, _D_ACC, _D_P, _DRIFT = range(9)
 # entries of the loads' output vector
 LOADS = ("X_N", "Y_N", "N_Nm", "X_drift_N", "Y_drift_N", "N_drift_Nm", "heave_target_m", "pitch_target_rad",
-         "roll_target_rad", "elevation_m")
+         "roll_target_rad", "elevation_m", "orbital_north_mps", "orbital_east_mps")
 
 
 @dataclass(frozen=True)
@@ -180,6 +185,8 @@ class WaveField:
         body axes, mean drift X, Y, N, the heave (z down), pitch and roll the hull is driven towards,
         and the elevation at the origin. `m11`, `m22`: the hull's surge and sway mass with added mass."""
         out = np.empty(len(LOADS)) if out is None else out
+        if out.shape != (len(LOADS),):  # the compiled kernel writes every entry: a shorter buffer is corrupted memory
+            raise ValueError(f"WaveField.loads: `out` must have shape ({len(LOADS)},), got {out.shape}")
         _wave_loads(t, north, east, psi, m11, m22, self.components, self._hull, self._waterline, out)
         return out
 
@@ -207,7 +214,7 @@ def _wave_loads_py(t, north, east, psi, m11, m22, comp, hull, waterline, out):  
     length, beam = hull[0], hull[1]
     half = 0.5 * length
     cp, sp = math.cos(psi), math.sin(psi)
-    for j in range(10):
+    for j in range(12):
         out[j] = 0.0
     for i in range(comp.shape[1]):
         w, k, cb, sb, a = comp[0, i], comp[1, i], comp[2, i], comp[3, i], comp[4, i]
@@ -227,6 +234,9 @@ def _wave_loads_py(t, north, east, psi, m11, m22, comp, hull, waterline, out):  
         out[7] += a * 12.0 / (length * length * length) * moment * s0 * d_p  # bow up where the surface rises ahead
         out[8] -= a * k * schi * s0 * along * d_p  # starboard up where the surface rises to starboard
         out[9] += a * c0
+        orbit = w * a * d_acc * c0 * along  # the water's velocity along the travel, over the hull
+        out[10] += orbit * cb
+        out[11] += orbit * sb
         for j in range(waterline.shape[0]):
             nx, ny = waterline[j, 0], waterline[j, 1]
             lit = nx * cchi + ny * schi

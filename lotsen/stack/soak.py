@@ -549,9 +549,10 @@ def analyse_log(path: str, t_from: float, t_to: float, t_stop: float, failures: 
         th = np.unwrap([truth[i].heading_rad for i in order])
         rows = [s for s in est if tt[0] <= s.stamp_s <= tt[-1]]
         t = np.array([s.stamp_s for s in rows])
-        err = np.column_stack([[s.north_m for s in rows] - np.interp(t, tt, tn),
-                               [s.east_m for s in rows] - np.interp(t, tt, te),
-                               wrap_angle(np.array([s.heading_rad for s in rows]) - np.interp(t, tt, th))])
+        # where the estimator says the boat is: its low-frequency pose plus the wave displacement it separated out
+        err = np.column_stack([[s.north_m + s.wave_motion[0] for s in rows] - np.interp(t, tt, tn),
+                               [s.east_m + s.wave_motion[1] for s in rows] - np.interp(t, tt, te),
+                               wrap_angle(np.array([s.heading_rad + s.wave_motion[2] for s in rows]) - np.interp(t, tt, th))])
         std = np.array([s.std[:3] for s in rows])
         z = np.abs(err) / np.maximum(std, 1e-9)
         outside = float(np.mean(np.any(z > 3.0, axis=1)))
@@ -591,4 +592,9 @@ def telemetry_figures(frames: list[tuple[float, dict]], t_from: float, t_to: flo
     if age.size:
         out["telemetry_age_p50_ms"] = round(float(np.percentile(age, 50)) * 1000, 1)
         out["telemetry_age_p95_ms"] = round(float(np.percentile(age, 95)) * 1000, 1)
+    sea = [f["sea"] for _, f in frames if isinstance(f.get("sea"), dict)]
+    if sea:  # the sea state the page showed last (the whole run: it needs ~40 s of data)
+        for key in ("hs", "tp", "from"):
+            if sea[-1].get(key) is not None:
+                out[f"page_sea_{key}"] = sea[-1][key]
     return out

@@ -439,9 +439,11 @@ def _to_ros(msg: Any) -> tuple[Any, dict]:
                 twist=T["geometry_msgs/msg/Twist"](linear=V3(x=msg.u_mps, y=-msg.v_mps, z=0.0),
                                                    angular=V3(x=0.0, y=0.0, z=-msg.r_radps)),
                 covariance=twist_cov))
-        # heading kept exactly (the quaternion wraps it), std exactly (covariance squares it)
+        # heading kept exactly (the quaternion wraps it), std exactly (covariance squares it), and the
+        # fields Odometry has no place for (the current, the body force, the wave displacement)
         ext = {"heading_rad": msg.heading_rad, "source": msg.source, "std": list(msg.std),
-               "gyro_bias_radps": msg.gyro_bias_radps}
+               "gyro_bias_radps": msg.gyro_bias_radps, "current_ne_mps": list(msg.current_ne_mps),
+               "disturbance_tau": list(msg.disturbance_tau), "wave_motion": list(msg.wave_motion)}
         return ros, ext
     raise DecodeError(f"no ROS 2 type for {name}")
 

@@ -10,7 +10,7 @@ import pytest
 from lotsen.model import Environment
 from lotsen.model.environment import Waves
 from lotsen.sim import BoatPlant, SimConfig, Simulator
-from lotsen.sim.waves import HullForm, WaveField, jonswap
+from lotsen.sim.waves import LOADS, HullForm, WaveField, jonswap
 
 HULL = HullForm()
 
@@ -21,7 +21,7 @@ def field(waves: Waves, seed: int = 1, n: int = 64) -> WaveField:
 
 def loads_series(f: WaveField, duration_s: float, u_mps: float = 0.0, psi: float = 0.0, dt: float = 0.02) -> np.ndarray:
     """The loads on a hull moving north-east at u_mps on heading psi, rows per LOADS."""
-    out = np.empty(10)
+    out = np.empty(len(LOADS))
     rows = []
     for t in np.arange(0.0, duration_s, dt):
         rows.append(f.loads(t, u_mps * t * math.cos(psi), u_mps * t * math.sin(psi), psi, 14.0, 24.0, out).copy())
