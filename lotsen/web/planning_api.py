@@ -81,8 +81,6 @@ def _error(exc: BaseException) -> dict[str, Any]:
 def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
     step = max(1, int(round(DISPLAY_SPACING_M / max(float(np.median(np.diff(path.s_m))), 1e-4))))
     idx = np.unique(np.r_[np.arange(0, len(path), step), len(path) - 1])
-    ds = np.diff(path.s_m)
-    v_mid = np.maximum(0.5 * (path.speed_mps[1:] + path.speed_mps[:-1]), 0.05)
     first = route.nodes[0].speed_mps if route.nodes else 0.0
     a = config.a_long_max_mps2
     return {
@@ -92,7 +90,7 @@ def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
         "path": {"n": np.round(path.north_m[idx], 3).tolist(), "e": np.round(path.east_m[idx], 3).tolist(),
                  "v": np.round(path.speed_mps[idx], 3).tolist(), "s": np.round(path.s_m[idx], 2).tolist()},
         "length_m": round(path.length_m, 2),
-        "duration_s": round(float(np.sum(ds / v_mid)), 1),
+        "duration_s": round(path.duration_s(), 1),
         "segments": [{"label": operator_text(s.label), "length_m": round(s.length_m, 2),
                       "straight_m": round(s.straight_m, 2), "detour": bool(s.detour),
                       "s0": round(s.s_start_m, 2), "s1": round(s.s_end_m, 2)} for s in path.segments],
