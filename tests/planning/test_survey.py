@@ -200,3 +200,19 @@ def test_nodes_and_a_survey_together_are_refused():
         route_from_dict({"harbour": {"north": 0, "east": 0}, "area": AREA,
                          "nodes": [{"north": 5, "east": 5, "heading_deg": 0, "speed_mps": 0.5}],
                          "survey": {"polygon": BOX}})
+
+
+def test_lines_closer_than_a_turn_are_flown_in_blocks_of_plain_u_turns():
+    r = survey_route(spacing_m=2.0, speed_mps=0.8)                  # turn radius 2.35 m: a bulb turn between neighbours
+    diameter = 2 * r.survey.turn_radius()
+    east = [np.mean([p[1] for piece in ln.pieces for p in piece]) for ln in r.survey_lines]
+    assert sorted(east) == pytest.approx([1.0 + 2.0 * k for k in range(15)])   # every line once
+    steps = np.abs(np.diff(east))
+    short = int(np.sum(steps < diameter))
+    assert short <= 1 and np.all(steps <= 4 * 2.0 + 1e-9)             # one short hop between the two blocks
+    from lotsen.planning.survey.lines import interleaved_order
+    assert interleaved_order(15, 5.0, 2.35) == list(range(15))         # wide spacing: in order
+    seq = plan_route(r)
+    flat = survey_route(spacing_m=5.0, speed_mps=0.8)                   # a plain back and forth for scale
+    assert seq.length_m < 600 + 15 * 4 * 2.0 + 140                      # turns of a few metres, not bulbs
+    assert plan_route(flat).length_m < seq.length_m

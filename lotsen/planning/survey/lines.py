@@ -91,6 +91,28 @@ def _pieces_along(segment: LineString, safe, u: np.ndarray, direction: int, gap_
     return out
 
 
+def interleaved_order(n: int, spacing_m: float, turn_radius_m: float) -> list[int]:
+    """The order of n neighbouring lines flown back and forth. Lines closer than a turn's diameter
+    would need a bulb turn (out, round and back in: about twice a U-turn's length); then the lines
+    are flown in blocks of 2k, k the smallest step with k and k - 1 lines both a diameter apart:
+    0, k, 1, k + 1, ..., k - 1, 2k - 1, so every turn in a block is a plain U-turn of k or k - 1
+    spacings (one short turn between blocks)."""
+    if spacing_m >= 2.0 * turn_radius_m - 1e-9 or n < 4:
+        return list(range(n))
+    k = math.ceil(2.0 * turn_radius_m / spacing_m - 1e-9) + 1
+    order: list[int] = []
+    start = 0
+    while start < n:
+        size = min(2 * k, n - start)
+        half = math.ceil(size / 2)
+        for j in range(half):
+            order.append(start + j)
+            if j + half < size:
+                order.append(start + half + j)
+        start += size
+    return order
+
+
 @dataclass(frozen=True)
 class _Strip:
     offset_m: float      # the track's cross position (w)
@@ -112,6 +134,7 @@ def _strips(pattern: SurveyPattern, w_lo: float, w_hi: float, left_first: bool, 
         lows = lows[::-1]
     first_dir = -1 if down_first else 1
     if pattern.side == "both":
+        lows = [lows[k] for k in interleaved_order(n, s, pattern.turn_radius())]
         return [_Strip(lo + s / 2, lo, lo + s, first_dir * (1 if k % 2 == 0 else -1)) for k, lo in enumerate(lows)]
     # one-sided: a track covers the strip on its sensor's side; flying back and forth over
     # neighbouring strips would put the sensor on the wrong side every other line, so the strips

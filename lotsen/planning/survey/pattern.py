@@ -32,7 +32,7 @@ SPACING = Number(0.1, 100.0, "m")
 ANGLE = Number(-360.0, 360.0, "deg")
 SPEED = Number(0.05, 5.0, "m/s")          # lotsen.planning.route's node speed set-points
 TURNAROUND = Number(0.0, 100.0, "m")
-TURN_RADIUS = Number(0.5, 100.0, "m")
+TURN_RADIUS = Number(1.5, 100.0, "m")     # 1.5 x the planner's default minimum turn radius: the cubics between turn nodes fit
 MARGIN = Number(0.0, 50.0, "m")
 COORDINATE = Number(-2000.0, 2000.0, "m")  # lotsen.planning.route.MAX_COORDINATE_M
 ENTRY = Number(0, 3, integer=True)
