@@ -83,7 +83,7 @@ def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
     idx = np.unique(np.r_[np.arange(0, len(path), step), len(path) - 1])
     first = route.nodes[0].speed_mps if route.nodes else 0.0
     a = config.a_long_max_mps2
-    return {
+    out = {
         "ok": True,
         "route": route_to_dict(route),
         "route_id": route_id(route),
@@ -99,6 +99,29 @@ def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
         "start_ramp": {"speed_mps": first, "accel_mps2": a, "distance_m": round(first**2 / (2 * a), 3),
                        "time_s": round(first / a, 2)},
     }
+    if route.survey is not None:
+        out["survey"] = survey_json(route, path)
+    return out
+
+
+def survey_json(route: Any, path: Any) -> dict[str, Any]:
+    """What the page's survey tool shows: the lines (as flown), their length and time at the line
+    speed, the share of the planned time on lines, the polygon they cover (the drawn one, or the
+    area shrunk to leave room to turn) and the turn radius."""
+    from lotsen.planning.survey import survey_polygon
+
+    p = route.survey
+    on_lines = sum(ln.length_m for ln in route.survey_lines)
+    duration = max(path.duration_s(), 1e-9)
+    poly = p.polygon
+    if poly is None and p.lines is None:
+        poly = tuple(survey_polygon(p, route.free_region()).exterior.coords[:-1])
+    return {"count": len(route.survey_lines), "line_length_m": round(on_lines, 1),
+            "line_time_s": round(on_lines / p.speed_mps, 1), "share_on_lines": round(on_lines / p.speed_mps / duration, 3),
+            "turn_radius_m": round(p.turn_radius(), 2), "speed_mps": p.speed_mps, "spacing_m": p.spacing_m,
+            "polygon": [[round(c, 3) for c in v] for v in poly] if poly is not None else None,
+            "lines": [[[round(c, 3) for c in a], [round(c, 3) for c in b]] for ln in route.survey_lines
+                      for a, b in ln.pieces][:2000]}
 
 
 def detours(route: Any, segments: list) -> list[dict[str, Any]]:

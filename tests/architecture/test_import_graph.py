@@ -124,7 +124,7 @@ ALLOWED: dict[str, set[str]] = {
     "drivers": {"runtime", "model", "sim"},
     "logs": {"runtime", "model", "transport", "sysid"},
     "transport": {"runtime", "model"},
-    "web": {"runtime", "planning", "logs"},
+    "web": {"runtime", "planning", "logs", "bathymetry"},
     "physics": {"model", "sim"},
 }
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"
