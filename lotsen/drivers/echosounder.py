@@ -10,28 +10,16 @@ dropouts and the minimum-depth fence does not take them for deep water.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from typing import Any
 
 from lotsen.drivers.base import DriverNode, Out
 from lotsen.drivers.config import EchosounderSection
+from lotsen.drivers.gnss import PortOpener
 from lotsen.drivers.nmea_depth import DepthParser
 from lotsen.messages import DepthSample, Topic
 
-PortOpener = Callable[[], Any]
 #: a DBT within this long after a DPT is the same ping said twice
 DBT_AFTER_DPT_S = 2.0
-
-
-def serial_opener(url: str, baudrate: int, timeout_s: float = 0.1) -> PortOpener:
-    def open_port() -> Any:
-        import serial
-
-        try:
-            return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout_s)
-        except serial.SerialException as exc:
-            raise OSError(str(exc)) from None
-
-    return open_port
 
 
 class EchosounderNode(DriverNode):

@@ -110,10 +110,7 @@ class EmulatedSerialPort:
 
 
 def nmea_sentence(body: str) -> bytes:
-    x = 0
-    for ch in body.encode():
-        x ^= ch
-    return f"${body}*{x:02X}\r\n".encode()
+    return nmea_depth.sentence(body)
 
 
 class EmulatedZedF9P:

@@ -21,7 +21,6 @@ from lotsen.drivers.config import HardwareConfig
 from lotsen.drivers.gnss import GnssNode, serial_opener
 from lotsen.drivers.imu import ImuNode
 from lotsen.drivers.echosounder import EchosounderNode
-from lotsen.drivers.echosounder import serial_opener as sounder_opener
 from lotsen.drivers.rc import RcReceiverNode, sbus_opener
 from lotsen.model.parameters import DEFAULT_LIMITS
 from lotsen.runtime.executor import RealtimeExecutor
@@ -88,7 +87,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         open_batt_bus = _smbus_opener(hw.battery.bus)
         open_pi = pigpio_opener(hw.actuators.pigpio_host, hw.actuators.pigpio_port)
         open_rc = sbus_opener(hw.rc.port)
-        open_sounder = sounder_opener(hw.echosounder.port, hw.echosounder.baudrate)
+        open_sounder = serial_opener(hw.echosounder.port, hw.echosounder.baudrate)
         sleep = time.sleep
     limits = DEFAULT_LIMITS  # the boat's configured limits, also with emulated devices (the twin has its own)
     if hw.actuators.enabled:
