@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from lotsen.errors import ConfigError
@@ -116,3 +117,24 @@ def test_lotsen_plan_reads_a_survey_plan_and_exports_it(tmp_path):
     assert res.returncode == 0, res.stderr
     assert "survey: 12 lines" in res.stdout
     assert survey_of(json.loads(out.read_text()))["complexItemType"] == "survey"
+
+
+def test_the_documented_survey_plan_flies_on_the_simulated_stack():
+    """The .plan's survey uploaded to the simulated stack as the page uploads it, armed and in AUTO
+    (truth as the estimate, the LOS follower: the plan is under test here, the controllers in
+    bench survey): the boat sounds along the first line, on it (the whole survey: tests/bathymetry)."""
+    from lotsen.harness.survey import SurveyRunConfig, run_survey
+    from lotsen.runtime.config import LakeBedSection
+
+    route = load_route(SAMPLE)
+    bed = LakeBedSection(depths_m=((3.0, 3.0), (3.0, 3.0)), origin_m=(-50.0, -50.0), cell_m=100.0, sounder_dropout=0.0)
+    run = run_survey(route, SurveyRunConfig(lakebed=bed, fusion="truth", controller="los", cell_m=2.5,
+                                            max_duration_s=60.0))
+    assert [m for _, m, _ in run.modes][:2] == ["MANUAL", "AUTO"] and run.modes[-1][1] == "AUTO", run.modes
+    first = route.survey_lines[0]
+    (n0, e0), (n1, e1) = first.start, first.end
+    lo, hi = min(n0, n1) + 4.0, max(n0, n1) - 4.0                      # the line's middle, past the turn-in
+    on_line = [s for s in run.soundings if lo <= s.north_m <= hi and abs(s.east_m - e0) < 2.0]
+    assert len(on_line) >= 60                                        # 5 Hz along its middle 12 m
+    assert max(abs(s.east_m - e0) for s in on_line) < 0.3
+    assert abs(float(np.mean([s.depth_m for s in on_line])) - 3.0) < 0.01
