@@ -53,7 +53,7 @@ def test_lines_run_at_the_angle_and_spacing_and_cover_the_polygon():
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(angle=st.floats(-180, 180), spacing=st.floats(1.5, 8.0),
+@given(angle=st.integers(-1800, 1800).map(lambda a: a / 10), spacing=st.integers(15, 80).map(lambda s: s / 10),
        corners=st.lists(st.tuples(st.integers(0, 300), st.integers(0, 300)), min_size=3, max_size=7))
 def test_any_convex_polygon_is_covered_by_its_strips_at_any_angle(angle, spacing, corners):
     hull = Polygon([(n / 10, e / 10) for n, e in corners]).convex_hull
