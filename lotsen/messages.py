@@ -18,7 +18,7 @@ __all__ = [
     "GnssFix", "RpmSample", "RtcmData", "VesselState", "PathMessage", "ControllerStatus", "SupervisorStatus",
     "OperatorCommand", "ManualCommand", "RcOverride", "BatteryStatus", "LogEvent", "RouteMessage", "LinkStatus",
     "OPERATOR_ACTIONS", "ModeName", "MagCalibrationResult", "Alert", "MissionProgress", "PlannedRoute", "EstimatorHealth",
-    "ModelInfo", "LATCHED_TOPICS", "CommandAck", "RecorderStatus", "SeaState",
+    "ModelInfo", "LATCHED_TOPICS", "CommandAck", "RecorderStatus", "SeaState", "DepthSample", "Sounding",
 ]
 
 
@@ -58,6 +58,8 @@ class Topic:
     MODEL = "model/in_use"  # ModelInfo: the model the estimator and controllers use, and its origin
     RECORDER = "logs/status"  # RecorderStatus: the recorder's disk and what it has kept (1 Hz)
     SEA_STATE = "fusion/sea_state"  # SeaState: Hs, Tp, direction from the IMU (every 2 s)
+    DEPTH = "depth/raw"  # DepthSample: the echosounder's depth below its transducer, per ping
+    SOUNDING = "depth/sounding"  # Sounding: depth below the surface where the transducer was at the ping
 
 
 #: state a late joiner needs (a recorder, a page, a ROS 2 node started after it was published):
@@ -178,6 +180,33 @@ class GnssFix:
     @property
     def usable(self) -> bool:
         return self.fix_type >= GnssFixType.FIX_3D and math.isfinite(self.lat_deg) and math.isfinite(self.lon_deg)
+
+
+@dataclass(slots=True, kw_only=True)
+class DepthSample:
+    """One echosounder ping as the sounder reports it (NMEA 0183 DPT or DBT): the depth below the
+    transducer, NaN when it found no bottom (out of range, air under the transducer); `offset_m`
+    DPT's transducer offset as sent (positive: transducer to waterline, negative: to keel; NaN in
+    DBT); `sentence` the talker and sentence ("SDDPT")."""
+
+    stamp_s: float
+    depth_m: float
+    offset_m: float = float("nan")
+    sentence: str = ""
+
+
+@dataclass(slots=True, kw_only=True)
+class Sounding:
+    """A depth below the water surface at a place: a ping's depth plus the transducer's draft, at
+    the transducer's position at the ping's time (the boat's estimate then, moved by the lever arm
+    from the hull's origin, which itself is the antenna's position less the antenna's offset).
+    `position_std_m` is the estimate's horizontal standard deviation then (NaN for the truth)."""
+
+    stamp_s: float
+    north_m: float
+    east_m: float
+    depth_m: float
+    position_std_m: float = float("nan")
 
 
 @dataclass(slots=True, kw_only=True)

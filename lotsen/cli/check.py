@@ -75,6 +75,9 @@ def run(args: argparse.Namespace) -> int:
     rc = boat.drivers.get("rc")
     if rc is not None and rc.health.opened:
         extra["rc"] = rc.detail()
+    sounder = boat.drivers.get("echosounder")
+    if sounder is not None and sounder.health.opened:
+        extra["echosounder"] = sounder.detail()
     rows = boat.health(since_s=measure_from_s)
     print(format_table(rows, extra))
     bad = [h.name for h in rows if not h.ok]

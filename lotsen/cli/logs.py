@@ -64,6 +64,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--ros2", metavar="BAG_DIR", help="write a ROS 2 bag (rosbag2 + MCAP, ros2msg/cdr) that "
                    "`ros2 bag info/play` accept, instead of the tables")
     e.add_argument("--namespace", default="", help="with --ros2: ROS namespace of every topic (e.g. /boat)")
+    e.add_argument("--depth-cell", type=Number(0.05, 100.0, "m"), metavar="M",
+                   help="cell of the depth map written when the log has soundings (default: the survey's line "
+                        "spacing, else 1 m)")
     e.set_defaults(func=export)
 
     r = sub.add_parser("record", help="record topics received over Zenoh to MCAP (shore side)")
@@ -109,6 +112,10 @@ def export(args: argparse.Namespace) -> int:
     files = export_topics(args.log, args.out, _topics(args.topics), args.format, problems)
     for topic, f in files.items():
         print(f"{topic} -> {f}")
+    from lotsen.cli.depthmap import export_depth_map
+
+    for line in export_depth_map(args.log, args.out, getattr(args, "depth_cell", None)):
+        print(line)
     if args.sysid != "none":
         try:
             rec = sysid_record(args.log, outputs=args.sysid, inputs=args.sysid_inputs)

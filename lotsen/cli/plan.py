@@ -16,6 +16,10 @@ COORDINATE = Number(-2000.0, 2000.0, "m")
 HEADING_DEG = Number(-360.0, 360.0, "deg")
 NODE_SPEED = Number(0.05, 5.0, "m/s")  # a moving node's speed (lotsen.planning.route.MIN/MAX_SPEED_MPS)
 LATITUDE, LONGITUDE = Number(-90.0, 90.0, "deg"), Number(-180.0, 180.0, "deg")
+# the survey's ranges (lotsen.planning.survey.pattern; the route file's `survey:` has the same)
+SPACING, ANGLE, TURNAROUND = Number(0.1, 100.0, "m"), Number(-360.0, 360.0, "deg"), Number(0.0, 100.0, "m")
+ENTRY_CORNERS = ("top_left", "top_right", "bottom_left", "bottom_right")
+SIDES = ("both", "port", "starboard")
 
 
 def register(subparsers) -> None:
@@ -40,7 +44,43 @@ def register(subparsers) -> None:
                    "station's file and for an export of a route without one; default: the route's, else its harbour")
     p.add_argument("--node-speed", type=NODE_SPEED, metavar="M/S", help="node speed where the file has none "
                    "(.waypoints, KML, GPX; a .plan's cruise speed; default 0.5)")
+    s = p.add_argument_group("survey", "lines over an area: make a survey of the route's area (or change the "
+                             "route's survey); the route's nodes, if any, are then refused")
+    s.add_argument("--spacing", type=SPACING, metavar="M", help="distance between lines (0.1 to 100 m; for a "
+                   "one-sided sensor the width it covers)")
+    s.add_argument("--angle", type=ANGLE, metavar="DEG", help="direction of the lines, clockwise from north "
+                   "(QGroundControl's survey angle; default 0)")
+    s.add_argument("--line-speed", type=NODE_SPEED, metavar="M/S", help="speed on the lines (default 0.5)")
+    s.add_argument("--turnaround", type=TURNAROUND, metavar="M", help="straight run before and after each line "
+                   "(default 2 m)")
+    s.add_argument("--entry", choices=ENTRY_CORNERS, help="the corner the first line starts at (default: the one "
+                   "nearest the harbour)")
+    s.add_argument("--crosshatch", action="store_true", help="fly the area again with lines at 90 deg")
+    s.add_argument("--side", choices=SIDES, help="one-sided sensor (side-scan): the side it covers (default both)")
     p.set_defaults(func=run)
+
+
+SURVEY_FLAGS = {"spacing": "spacing_m", "angle": "angle_deg", "line_speed": "speed_mps", "turnaround": "turnaround_m",
+                "entry": "entry", "side": "side"}
+
+
+def with_survey_flags(route, args):  # type: ignore[no-untyped-def]
+    """`route` with the survey flags applied: its survey changed, or a survey of its area made;
+    the route itself when no survey flag is given."""
+    given = {key: getattr(args, flag) for flag, key in SURVEY_FLAGS.items() if getattr(args, flag, None) is not None}
+    if getattr(args, "crosshatch", False):
+        given["crosshatch"] = True
+    if not given:
+        return route
+    from lotsen.planning.io import route_from_dict, route_to_dict
+
+    data = route_to_dict(route)
+    if data.get("nodes"):
+        raise ConfigError(f"{args.route}: the route has nodes; the survey flags make lines over its area (remove the "
+                          "nodes, or leave out --spacing, --angle, ...)")
+    data.pop("nodes", None)
+    data["survey"] = {**data.get("survey", {}), **given}
+    return route_from_dict(data)
 
 
 def return_pose(values: list[str] | None) -> tuple[float, float, float] | None:
@@ -115,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
         format_of(export)  # an unknown suffix is refused before any planning
     check_outputs((args.out, args.plot, export), (args.route,), ConfigError)
     route = load_route(args.route, origin=origin, default_speed_mps=getattr(args, "node_speed", None))
+    route = with_survey_flags(route, args)
     cfg = _config(args)
     path = plan_within_budget(route, cfg, pose)
     for m in path.segments:
@@ -122,7 +163,15 @@ def run(args: argparse.Namespace) -> int:
               f"{m.max_curvature_1pm:.3f} 1/m, clearance {m.min_clearance_m:.2f} m, "
               f"{m.candidates_tried} candidates")
     print(f"path: {path.length_m:.2f} m, {len(path)} points, "
-          f"speed {path.speed_mps.min():.2f}..{path.speed_mps.max():.2f} m/s")
+          f"speed {path.speed_mps.min():.2f}..{path.speed_mps.max():.2f} m/s, planned duration "
+          f"{path.duration_s():.0f} s")
+    if route.survey is not None and pose is None:
+        on_lines = sum(ln.length_m for ln in route.survey_lines)
+        p = route.survey
+        print(f"survey: {len(route.survey_lines)} lines, {on_lines:.1f} m on lines at {p.speed_mps:g} m/s "
+              f"({on_lines / p.speed_mps:.0f} s, {100 * on_lines / p.speed_mps / max(path.duration_s(), 1e-9):.0f} % "
+              f"of the planned time), spacing {p.spacing_m:g} m, angle {p.angle_deg:g} deg, turn radius "
+              f"{p.turn_radius():g} m")
     if args.out:
         write_output(args.out, json.dumps(path.to_dict()), (args.route,), ConfigError, "path")
         print(f"wrote {args.out}")

@@ -242,6 +242,19 @@ class RcSection:
 
 
 @dataclass(frozen=True)
+class EchosounderSection:
+    """A single-beam echosounder sending NMEA 0183 DPT/DBT on a serial port (a USB adapter, or
+    Blue Robotics' Ping2 through its NMEA output). Off unless configured: not every boat has one.
+    Where the transducer sits is the hull's (`vessel.antenna_to_transducer_m`, `vessel.transducer_draft_m`)."""
+
+    enabled: bool = False
+    port: str = "/dev/ttyUSB1"
+    baudrate: int = field(default=4800, metadata=_r(1200, 921600))  # NMEA 0183's 4800; many sounders 9600-115200
+    sentence: Literal["any", "DPT", "DBT"] = "any"  # any: DPT when the sounder sends it, else DBT
+    rate_hz: float = field(default=5.0, metadata=_r(0.2, 50.0))  # pings per second (`lotsen check`)
+
+
+@dataclass(frozen=True)
 class EmulationSection:
     """How the emulated twins differ from the driver's assumptions (to exercise the loops)."""
 
@@ -256,5 +269,6 @@ class HardwareConfig:
     actuators: ActuatorSection = field(default_factory=ActuatorSection)
     battery: BatterySection = field(default_factory=BatterySection)
     rc: RcSection = field(default_factory=RcSection)
+    echosounder: EchosounderSection = field(default_factory=EchosounderSection)
     emulation: EmulationSection = field(default_factory=EmulationSection)
 

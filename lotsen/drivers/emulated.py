@@ -10,6 +10,9 @@ fed by `lotsen.sim.Simulator`, so the real driver code runs end to end on any ma
   (Remote I/O error) as the kernel does; `error_probability` injects read errors.
 - `EmulatedX8R`: the RC receiver's SBUS frames from the transmitter's channels, with the
   frame-lost and failsafe flags of a lost transmitter and a cut wire (no bytes).
+- `EmulatedEchosounder`: a single-beam sounder's NMEA 0183 bytes (DPT, or DBT, or both per ping)
+  from the simulator's sounder (`lotsen.sim.lakebed`): depth below the transducer, an empty depth
+  field when it found no bottom; `corrupt_probability` flips bytes.
 - `EmulatedPigpio`: stores pulse widths and calls tachometer callbacks with edges at the
   simulated propeller speeds.
 - `EmulatedBoatNode`: steps the simulator at its dt: reads the ESC/servo pulses, turns them into
@@ -35,7 +38,8 @@ from lotsen.drivers import imu as mpu
 from lotsen.drivers import sbus
 from lotsen.drivers.config import HardwareConfig
 from lotsen.drivers.ubx import StreamFramer, encode_nav_pvt, ubx_frame
-from lotsen.messages import BatteryStatus, GnssFix, GnssFixType, ImuSample, MagSample, Topic
+from lotsen.drivers import nmea_depth
+from lotsen.messages import BatteryStatus, DepthSample, GnssFix, GnssFixType, ImuSample, MagSample, Topic
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.sim import Simulator
 
@@ -106,10 +110,7 @@ class EmulatedSerialPort:
 
 
 def nmea_sentence(body: str) -> bytes:
-    x = 0
-    for ch in body.encode():
-        x ^= ch
-    return f"${body}*{x:02X}\r\n".encode()
+    return nmea_depth.sentence(body)
 
 
 class EmulatedZedF9P:
@@ -189,6 +190,34 @@ class EmulatedZedF9P:
 
     def has_corrections(self, t: float, timeout_s: float = 5.0) -> bool:
         return t - self.last_rtcm_t < timeout_s
+
+
+class EmulatedEchosounder:
+    """Echosounder twin: `emit(sample)` writes the ping as the sounder's NMEA sentences."""
+
+    def __init__(self, sentences: tuple[str, ...] = ("DPT", "DBT"), offset_m: float = 0.1, talker: str = "SD",
+                 rng: np.random.Generator | None = None, corrupt_probability: float = 0.0) -> None:
+        self.port = EmulatedSerialPort("emulated:echosounder")
+        self.sentences = sentences
+        self.offset_m = offset_m
+        self.talker = talker
+        self.rng = rng or np.random.default_rng(0)
+        self.corrupt_probability = corrupt_probability
+        self.pings = 0
+
+    def emit(self, sample: DepthSample) -> None:
+        out = b""
+        for kind in self.sentences:
+            out += (nmea_depth.dpt(sample.depth_m, self.offset_m, self.talker) if kind == "DPT"
+                    else nmea_depth.dbt(sample.depth_m, self.talker))
+        if self.corrupt_probability > 0:
+            data = bytearray(out)
+            flips = self.rng.random(len(data)) < self.corrupt_probability
+            for i in np.flatnonzero(flips):
+                data[i] ^= 1 << int(self.rng.integers(0, 8))
+            out = bytes(data)
+        self.pings += 1
+        self.port.push(out)
 
 
 class EmulatedX8R:
@@ -507,6 +536,8 @@ class EmulatedBoatNode(Node):
         self.i2c.ina = Ina219Twin(hw.battery.shunt_ohm) if hw.battery.enabled else None
         self.pi = EmulatedPigpio()
         self.x8r = EmulatedX8R(rng=np.random.default_rng(sim.config.seed + 1002)) if hw.rc.enabled else None
+        self.sounder = (EmulatedEchosounder(rng=np.random.default_rng(sim.config.seed + 1003))
+                        if hw.echosounder.enabled else None)
         a = hw.actuators
         # the *true* ESCs: the driver's calibration scaled by esc_gain
         from dataclasses import replace
@@ -584,6 +615,8 @@ class EmulatedBoatNode(Node):
             elif isinstance(m, BatteryStatus) and self.i2c.ina is not None:
                 with self.i2c._lock:
                     self.i2c.ina.set(m.voltage_v, m.current_a)
+            elif isinstance(m, DepthSample) and self.sounder is not None:
+                self.sounder.emit(m)
         self._edges(t0, t1)
         if self.x8r is not None:
             self.x8r.advance(t1)

@@ -42,7 +42,8 @@ from lotsen.messages import (
 from lotsen.model import wrap_angle
 from lotsen.logs.reader import LogReader
 from lotsen.runtime.config import (
-    EnvironmentConfig, LaunchConfig, LoggingSection, NodesSection, SimSection, WavesConfig, WebSection, from_mapping,
+    EnvironmentConfig, LakeBedSection, LaunchConfig, LoggingSection, NodesSection, SimSection, WavesConfig, WebSection,
+    from_mapping,
 )
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.stack.launch import build_stack
@@ -59,6 +60,7 @@ class Trace:
     events: list[LogEvent] = field(default_factory=list)
     alerts: list[Alert] = field(default_factory=list)
     commands: list[tuple[float, ThrustCommand]] = field(default_factory=list)
+    depths: list[tuple[float, float]] = field(default_factory=list)  # (t, depth under the transducer) per ping
     max_outside_m: float = 0.0
     max_cte_m: float = 0.0
     max_heading_error_deg: float = 0.0
@@ -104,6 +106,7 @@ class Scenario:
     failsafes: dict = field(default_factory=dict)  # extra.failsafes of the run (FailsafeConfig keys)
     rc_receiver: bool = False  # an emulated X8R and the RC driver in the stack from the start
     rc_pilot: dict = field(default_factory=dict)  # takeover_at_s, throttle, steering, bow: RC control before the fault
+    lakebed: LakeBedSection = LakeBedSection()  # a lake bed under the route and the sounder that pings it (sim.lakebed)
 
 
 class _Observer(Node):
@@ -124,6 +127,7 @@ class _Observer(Node):
         ctx.subscribe(Topic.SHIP_COMMAND, lambda c: self.trace.commands.append((ctx.now(), c)))
         ctx.subscribe(Topic.TRUTH, self._on_truth)
         ctx.subscribe(Topic.CONTROL_STATUS, self._on_control)
+        ctx.subscribe(Topic.DEPTH, lambda d: self.trace.depths.append((ctx.now(), d.depth_m)))
 
     def _on_status(self, s: SupervisorStatus) -> None:
         modes = self.trace.modes
@@ -187,7 +191,7 @@ class FaultRun:
         failsafes = {"prearm_skip": ["pilot_link"], **sc.failsafes}
         cfg = LaunchConfig(seed=seed, route=example_route(sc.route),
                            nodes=NodesSection(fusion="ekf", controller=sc.controller),
-                           sim=SimSection(initial_state=tuple(sc.start), environment=sc.environment),
+                           sim=SimSection(initial_state=tuple(sc.start), environment=sc.environment, lakebed=sc.lakebed),
                            web=WebSection(enabled=False),
                            logging=LoggingSection(enabled=log_dir is not None, directory=log_dir or "logs"),
                            extra={"failsafes": failsafes})
@@ -415,11 +419,30 @@ def _check_latched(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
     return not left, None, (f"{mode} latched to the end" if not left else f"left {mode}: {left[0]}")
 
 
+def _check_depth_held(run: FaultRun, step: dict) -> tuple[bool, float | None, str]:
+    """The minimum-depth fence: the first ping shallower than `min_depth_m` is followed within
+    `within_s` (default: the fence's persistence + 0.5 s) by HOLD naming min_depth, and the boat
+    holds to the end; no HOLD for it before that ping."""
+    limit = float(step["min_depth_m"])
+    within = float(step.get("within_s", run.supervisor.config.failsafes.min_depth_persist_s + 0.5))
+    shallow = [t for t, d in run.trace.depths if math.isfinite(d) and d < limit]
+    if not shallow:
+        return False, None, f"no ping shallower than {limit:g} m"
+    t_hold = run.trace.first_time(lambda m, r: m == "HOLD" and "min_depth" in r, 0.0)
+    if t_hold is None:
+        return False, None, f"shallower than {limit:g} m at {shallow[0]:.1f} s but never held for min_depth"
+    dt = t_hold - shallow[0]
+    held = run.trace.mode_at(math.inf) == "HOLD"
+    ok = 0.0 <= dt <= within + 1e-9 and held
+    return ok, None, (f"first ping below {limit:g} m at {shallow[0]:.1f} s, HOLD (min_depth) {dt:.2f} s later "
+                      f"(<= {within:g} s), {'still holding' if held else 'no longer holding'} at the end")
+
+
 _CHECKS: dict[str, Callable[[FaultRun, dict], tuple[bool, float | None, str]]] = {
     "mode": _check_mode, "auto_continues": _check_auto_continues, "neutral": _check_neutral,
     "stays": _check_stays, "fallback": _check_fallback, "refused": _check_refused, "guard_non_finite": _check_guard,
     "geofence": _check_geofence, "estimate_close": _check_estimate, "command": _check_command,
-    "latched": _check_latched,
+    "latched": _check_latched, "depth_held": _check_depth_held,
 }
 
 
@@ -611,6 +634,8 @@ def _scenario(row: Any, where: str) -> Scenario:
         row["environment"] = from_mapping(EnvironmentConfig, row["environment"], f"{where}.environment")
     if "area" in row:
         row["area"] = tuple(tuple(float(v) for v in p) for p in row["area"])
+    if "lakebed" in row:
+        row["lakebed"] = from_mapping(LakeBedSection, row["lakebed"], f"{where}.lakebed")
     expect = row.get("expect", ())
     row["expect"] = tuple(expect if isinstance(expect, list) else [expect])
     try:

@@ -26,14 +26,15 @@ from pathlib import Path as FilePath
 from typing import Any
 
 import yaml
+from shapely.geometry import Polygon
 
 from lotsen.errors import ConfigError
 from lotsen.files import parse_json, parse_yaml, read_text
 from lotsen.model.geodetic import LocalFrame
 from lotsen.settings import Number
-from lotsen.planning.route import GeoOrigin, HarbourNode, Region, Route, RouteNode, validate_route
+from lotsen.planning.route import GeoOrigin, HarbourNode, Region, Route, RouteNode, check_polygon, validate_route
 
-_TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin"}
+_TOP_KEYS = {"harbour", "nodes", "area", "obstacles", "origin", "survey"}
 _FINITE = Number(-sys.float_info.max, sys.float_info.max)
 _INDEX = Number(0, 100_000, integer=True)  # a GeoJSON feature's place in the route
 
@@ -88,11 +89,18 @@ def _polygon(value: Any, where: str) -> tuple[tuple[float, float], ...]:
 
 
 def route_from_dict(data: Any, *, validate: bool = True) -> Route:
-    """Build a Route from the YAML schema; ConfigError names the offending key ("nodes[2].speed_mps")."""
-    data = _mapping(data, "route", {"harbour", "nodes"}, _TOP_KEYS - {"harbour", "nodes"})
+    """Build a Route from the YAML schema; ConfigError names the offending key ("nodes[2].speed_mps").
+
+    A route gives `nodes` or a `survey` (lotsen.planning.survey: the nodes are made from it), not both."""
+    surveyed = isinstance(data, dict) and data.get("survey") is not None
+    data = _mapping(data, "route", {"harbour"} if surveyed else {"harbour", "nodes"}, _TOP_KEYS - {"harbour"})
     h = _mapping(data["harbour"], "harbour", {"north", "east"}, {"heading_deg"})
     harbour = HarbourNode(_number(h["north"], "harbour.north"), _number(h["east"], "harbour.east"),
                           math.radians(_number(h.get("heading_deg", 0.0), "harbour.heading_deg")))
+    if surveyed and data.get("nodes"):
+        raise ConfigError("route: give nodes or a survey, not both (a survey's nodes are made from its lines)")
+    if surveyed:
+        data = {**data, "nodes": []}
     if not isinstance(data["nodes"], list):
         raise ConfigError(f"nodes: expected a list of nodes, got {type(data['nodes']).__name__}")
     nodes = []
@@ -128,9 +136,31 @@ def route_from_dict(data: Any, *, validate: bool = True) -> Route:
             raise ConfigError(f"origin: latitude {lat:g} / longitude {lon:g} out of range")
         origin = GeoOrigin(lat, lon, _number(o.get("height_m", 0.0), "origin.height_m"))
     route = Route(harbour, tuple(nodes), area, tuple(obstacles), origin)
+    if surveyed:
+        route = _surveyed(route, data["survey"])
     if validate:
         validate_route(route)
     return route
+
+
+def _surveyed(route: Route, survey: Any) -> Route:
+    """The route with the nodes of its survey (polygons checked first: the lines are clipped to them)."""
+    from dataclasses import replace
+
+    from lotsen.planning.route import check_route_limits
+    from lotsen.planning.survey import expand_survey, pattern_from_dict
+
+    pattern = pattern_from_dict(survey)
+    check_route_limits(route)
+    if route.area is not None:
+        check_polygon("area", route.area)
+    for i, r in enumerate(route.obstacles):
+        check_polygon(f"obstacles[{i}]", r.polygon)
+    if route.area is None and pattern.polygon is None and pattern.lines is None:
+        raise ConfigError("survey: no polygon and no navigable area: give the survey a polygon (or the route an area)")
+    plan = expand_survey(pattern, route.harbour, replace(route, survey=pattern).free_region(),
+                         Polygon(route.area) if route.area is not None else None)
+    return replace(route, nodes=plan.nodes, survey=pattern, survey_lines=plan.lines)
 
 
 def _deg(rad: float) -> float:
@@ -145,8 +175,13 @@ def route_to_dict(route: Route) -> dict:
         out["origin"] = {"lat_deg": route.origin.lat_deg, "lon_deg": route.origin.lon_deg,
                          "height_m": route.origin.height_m}
     out["harbour"] = {"north": h.north_m, "east": h.east_m, "heading_deg": _deg(h.heading_rad)}
-    out["nodes"] = [{"north": n.north_m, "east": n.east_m, "heading_deg": _deg(n.heading_rad),
-                     "speed_mps": n.speed_mps} for n in route.nodes]
+    if route.survey is not None:
+        from lotsen.planning.survey import pattern_to_dict
+
+        out["survey"] = pattern_to_dict(route.survey)
+    else:
+        out["nodes"] = [{"north": n.north_m, "east": n.east_m, "heading_deg": _deg(n.heading_rad),
+                         "speed_mps": n.speed_mps} for n in route.nodes]
     if route.area is not None:
         out["area"] = [list(p) for p in route.area]
     if route.obstacles:

@@ -99,6 +99,13 @@ class Path:
     def length_m(self) -> float:
         return float(self.s_m[-1] - self.s_m[0])
 
+    def duration_s(self, min_speed_mps: float = 0.05) -> float:
+        """Time to follow the path at its speed reference (each step at the mean of its ends' speeds,
+        at least `min_speed_mps`: the start from rest and the stop at the end take finite time)."""
+        ds = np.diff(self.s_m)
+        v_mid = np.maximum(0.5 * (self.speed_mps[1:] + self.speed_mps[:-1]), min_speed_mps)
+        return float(np.sum(ds / v_mid))
+
     def __len__(self) -> int:
         return int(self.s_m.shape[0])
 

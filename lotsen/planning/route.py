@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import shapely
 from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
 from lotsen.errors import ConfigError
+
+if TYPE_CHECKING:
+    from lotsen.planning.survey import SurveyPattern
 
 Forbidden = Literal["inside", "outside"]
 
@@ -80,13 +83,19 @@ class GeoOrigin:
 
 @dataclass(frozen=True)
 class Route:
-    """Harbour, then nodes in order; ``area`` is the navigable polygon (outside forbidden) or None."""
+    """Harbour, then nodes in order; ``area`` is the navigable polygon (outside forbidden) or None.
+
+    A survey route carries its pattern (`survey`) and lines (`survey_lines`, in flying order) beside
+    the nodes made from them (`lotsen.planning.survey.expand_survey`); its files give the pattern,
+    not the nodes."""
 
     harbour: HarbourNode
     nodes: tuple[RouteNode, ...]
     area: tuple[tuple[float, float], ...] | None = None
     obstacles: tuple[Region, ...] = ()
     origin: GeoOrigin | None = None
+    survey: "SurveyPattern | None" = None
+    survey_lines: tuple[Any, ...] = ()
     _free: object = field(default=None, init=False, repr=False, compare=False)
 
     def all_nodes(self) -> list[RouteNode]:
@@ -114,6 +123,8 @@ def _free_region(route: Route):
         free = Polygon(route.area)
     else:
         pts = [(n.north_m, n.east_m) for n in route.all_nodes()]
+        if route.survey is not None:
+            pts.extend(route.survey.polygon or [p for line in route.survey.lines or () for p in line])
         for r in route.obstacles:
             pts.extend(r.polygon)
         # a box 1 km beyond every point (buffering the envelope broke for collinear points: the
@@ -132,7 +143,7 @@ def _free_region(route: Route):
     return free
 
 
-def _check_polygon(label: str, ring: tuple[tuple[float, float], ...]) -> Polygon:
+def check_polygon(label: str, ring: tuple[tuple[float, float], ...]) -> Polygon:
     if len(ring) < 3:
         raise ConfigError(f"{label}: a polygon needs at least 3 vertices, got {len(ring)}")
     for j, p in enumerate(ring):
@@ -213,12 +224,12 @@ def validate_route(route: Route) -> None:
             raise ConfigError(
                 f"{Route.node_label(k)}: duplicates {Route.node_label(k - 1)} "
                 f"(only {d:.3f} m apart at north {nodes[k].north_m:g}, east {nodes[k].east_m:g})")
-    area = _check_polygon("area", route.area) if route.area is not None else None
+    area = check_polygon("area", route.area) if route.area is not None else None
     regions = []
     for i, r in enumerate(route.obstacles):
         if r.forbidden not in ("inside", "outside"):
             raise ConfigError(f"obstacles[{i}].forbidden: must be 'inside' or 'outside', got {r.forbidden!r}")
-        regions.append((i, r, _check_polygon(f"obstacles[{i}]", r.polygon)))
+        regions.append((i, r, check_polygon(f"obstacles[{i}]", r.polygon)))
     for k, n in enumerate(nodes):
         p = Point(n.north_m, n.east_m)
         where = f"{Route.node_label(k)} (north {n.north_m:g}, east {n.east_m:g})"

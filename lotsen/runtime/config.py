@@ -216,6 +216,37 @@ INITIAL_STATE_RANGES: tuple[tuple[str, Number], ...] = (
 
 
 @dataclass(frozen=True)
+class LakeBedSection:
+    """`sim.lakebed`: the simulated lake's bed (depths below the surface, m, on a grid: rows from
+    south to north, columns from west to east, the first point at `origin_m` [north, east]) and the
+    echosounder that pings it (lotsen.sim.lakebed). No depths: no bed, no sounder."""
+
+    depths_m: tuple[tuple[float, ...], ...] = ()
+    origin_m: tuple[float, float] = (0.0, 0.0)
+    cell_m: float = field(default=5.0, metadata=_r(0.1, 500.0))
+    sounder_rate_hz: float = field(default=5.0, metadata=_r(0.2, 50.0))
+    sounder_noise_m: float = field(default=0.02, metadata=_r(0.0, 2.0))
+    sounder_dropout: float = field(default=0.02, metadata=_r(0.0, 1.0))  # probability of a ping without a bottom
+    sounder_max_range_m: float = field(default=50.0, metadata=_r(0.5, 1000.0))
+
+    def __post_init__(self) -> None:
+        if not self.depths_m:
+            return
+        if len(self.depths_m) < 2 or len({len(r) for r in self.depths_m}) != 1 or len(self.depths_m[0]) < 2:
+            raise ConfigError("sim.lakebed.depths_m: rows of equal length, at least 2 x 2 points")
+        if len(self.depths_m) * len(self.depths_m[0]) > 1_000_000:
+            raise ConfigError("sim.lakebed.depths_m: more than a million points")
+        for i, row in enumerate(self.depths_m):
+            for j, d in enumerate(row):
+                if not 0.0 <= d <= 1000.0:
+                    raise ConfigError(f"sim.lakebed.depths_m[{i}][{j}]: {d:g} m is outside [0, 1000] m (depth below "
+                                      "the surface)")
+        for k, v in enumerate(self.origin_m):
+            if not abs(v) <= 2000.0:
+                raise ConfigError(f"sim.lakebed.origin_m[{k}]: {v:g} m is outside [-2000, 2000] m")
+
+
+@dataclass(frozen=True)
 class SimSection:
     dt_s: float = field(default=0.01, metadata=_r(0.001, 0.05))
     imu_rate_hz: float = field(default=100.0, metadata=_r(1.0, 100.0))
@@ -226,6 +257,7 @@ class SimSection:
     # the simulated ESCs arm after this long at neutral (the real ones after their arming beeps)
     esc_arm_time_s: float = field(default=1.0, metadata=_r(0.0, 30.0))
     boat: BoatSection = field(default_factory=BoatSection)
+    lakebed: LakeBedSection = field(default_factory=LakeBedSection)
 
     def __post_init__(self) -> None:
         for (name, number), v in zip(INITIAL_STATE_RANGES, self.initial_state):
@@ -243,6 +275,10 @@ class VesselSection:
     # the hull's waterline length, beam and draft (m): how much of the waves its heave follows, for the
     # sea-state estimate (lotsen.fusion.seastate); the lake boat's by default
     hull_m: tuple[float, float, float] = (0.99, 0.30, 0.08)
+    # the echosounder's transducer, measured on the hull: body x forward, y starboard from the GNSS
+    # antenna, and its face's depth below the surface (soundings are depths below the surface)
+    antenna_to_transducer_m: tuple[float, float] = (0.0, 0.0)
+    transducer_draft_m: float = field(default=0.1, metadata=_r(0.0, 5.0))
 
     def __post_init__(self) -> None:
         if not all(0.01 <= v <= 20.0 for v in self.hull_m) or not self.hull_m[2] < self.hull_m[1] <= self.hull_m[0]:
@@ -250,6 +286,15 @@ class VesselSection:
                               "(each 0.01-20 m)")
         if max(abs(v) for v in self.gnss_antenna_m) > 2.0:
             raise ConfigError(f"vessel.gnss_antenna_m: {list(self.gnss_antenna_m)} is more than 2 m from the hull's origin")
+        if max(abs(v) for v in self.antenna_to_transducer_m) > 3.0:
+            raise ConfigError(f"vessel.antenna_to_transducer_m: {list(self.antenna_to_transducer_m)} is more than 3 m "
+                              "from the antenna")
+
+    @property
+    def transducer_m(self) -> tuple[float, float]:
+        """The transducer's body x, y from the hull's (the model's) origin."""
+        return (self.gnss_antenna_m[0] + self.antenna_to_transducer_m[0],
+                self.gnss_antenna_m[1] + self.antenna_to_transducer_m[1])
 
 
 @dataclass(frozen=True)

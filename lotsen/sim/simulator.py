@@ -28,6 +28,7 @@ from lotsen.model.environment import Environment, WindCoefficients
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.sim.actuators import ActuatorDynamics
 from lotsen.sim.boat import SimulatedBoat
+from lotsen.sim.lakebed import LakeBed, SounderConfig, SounderModel, sounder_rng
 from lotsen.sim.plant import RANDOM_STREAMS, BoatPlant, Plant
 from lotsen.sim.sensors import (
     GnssConfig, GnssModel, ImuConfig, ImuModel, MagnetometerModel, TachometerConfig, TachometerModel,
@@ -78,6 +79,8 @@ class SimConfig:
     environment: Environment = field(default_factory=Environment)
     wind: WindCoefficients = field(default_factory=WindCoefficients)
     sensors: bool = True  # False: truth only (identification reference runs, MPC tests)
+    lakebed: LakeBed | None = None  # a bed under the boat: the sounder pings it (lotsen.sim.lakebed)
+    sounder: SounderConfig = field(default_factory=SounderConfig)
 
 
 class _Schedule:
@@ -137,6 +140,9 @@ class Simulator:
         self._sched_gnss = _Schedule(config.gnss.rate_hz, dt)
         self._sched_tacho = _Schedule(config.tachometer.rate_hz, dt)
         self._sched_batt = _Schedule(config.battery.rate_hz, dt)
+        self.sounder = (SounderModel(config.sounder, config.lakebed, sounder_rng(config.seed))
+                        if config.lakebed is not None else None)
+        self._sched_sounder = _Schedule(config.sounder.rate_hz if self.sounder is not None else 0.0, dt)
         self.battery_used_ah = (1.0 - config.battery.initial_charge_frac) * config.battery.capacity_ah
         self._antenna = plant.gnss_antenna_m
         self._antenna_height = plant.gnss_antenna_height_m
@@ -259,6 +265,10 @@ class Simulator:
             s.next_k += s.period_steps
             out.append(self._battery_sample(t, act, t - s.last_t))
             s.last_t = t
+        s = self._sched_sounder
+        if k >= s.next_k:
+            s.next_k += s.period_steps
+            out.append(self.sounder.sample(t, x[0], x[1], x[2]))  # type: ignore[union-attr]
         return out
 
     def _battery_sample(self, t: float, act: tuple[float, ...], dt_since_last: float) -> BatteryStatus:

@@ -20,6 +20,7 @@ from lotsen.drivers.battery import BatteryNode
 from lotsen.drivers.config import HardwareConfig
 from lotsen.drivers.gnss import GnssNode, serial_opener
 from lotsen.drivers.imu import ImuNode
+from lotsen.drivers.echosounder import EchosounderNode
 from lotsen.drivers.rc import RcReceiverNode, sbus_opener
 from lotsen.model.parameters import DEFAULT_LIMITS
 from lotsen.runtime.executor import RealtimeExecutor
@@ -73,6 +74,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         open_batt_bus = lambda: twin.i2c  # noqa: E731
         open_pi = lambda: twin.pi  # noqa: E731
         open_rc = twin.x8r.port.reopen if twin.x8r is not None else None
+        open_sounder = twin.sounder.port.reopen if twin.sounder is not None else None
         sleep = no_sleep
     else:
         import time
@@ -85,6 +87,7 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         open_batt_bus = _smbus_opener(hw.battery.bus)
         open_pi = pigpio_opener(hw.actuators.pigpio_host, hw.actuators.pigpio_port)
         open_rc = sbus_opener(hw.rc.port)
+        open_sounder = serial_opener(hw.echosounder.port, hw.echosounder.baudrate)
         sleep = time.sleep
     limits = DEFAULT_LIMITS  # the boat's configured limits, also with emulated devices (the twin has its own)
     if hw.actuators.enabled:
@@ -97,6 +100,8 @@ def add_hardware_boat(stack: Any, emulated: bool, config: HardwareConfig | None 
         boat.drivers["battery"] = BatteryNode(hw.battery, open_batt_bus, threaded=threaded)
     if hw.rc.enabled and open_rc is not None:
         boat.drivers["rc"] = RcReceiverNode(hw.rc, open_rc, threaded=threaded)
+    if hw.echosounder.enabled and open_sounder is not None:
+        boat.drivers["echosounder"] = EchosounderNode(hw.echosounder, open_sounder, threaded=threaded)
     for node in boat.drivers.values():
         if emulated:
             node.device = node.health.device = f"emulated {node.device}"

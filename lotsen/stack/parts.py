@@ -22,6 +22,7 @@ from lotsen.planning.io import load_route
 from lotsen.stack.fusion_node import FusionNode, TruthStateNode
 from lotsen.stack.logs import add_recorder as _add_recorder
 from lotsen.runtime.executor import Node, NodeContext, RealtimeExecutor
+from lotsen.stack.sounding import SoundingNode
 from lotsen.stack.stack import Stack, model_info
 from lotsen.stack.web import add_web as _add_web
 from lotsen.stack.zenoh import add_bridge
@@ -47,7 +48,14 @@ def _load_calibration(path: str) -> MagCalibration:
 
 
 def add_state(stack: Stack, estimator: Any = None) -> None:
-    """The state estimate: the configured estimator (or the given one: harnesses), or the truth."""
+    """The state estimate: the configured estimator (or the given one: harnesses), or the truth;
+    and the soundings placed by it (depth/sounding: nothing happens without an echosounder)."""
+    _add_estimator(stack, estimator)
+    v = stack.config.vessel
+    stack.add(SoundingNode(v.transducer_m, v.transducer_draft_m))
+
+
+def _add_estimator(stack: Stack, estimator: Any = None) -> None:
     cfg = stack.config.nodes
     if estimator is not None:
         stack.add(FusionNode(estimator, getattr(estimator, "calibration", None),

@@ -16,15 +16,15 @@ a late tick (a busy CPU) neither stretches simulated time nor lets the stamps fa
 from __future__ import annotations
 
 from lotsen.messages import (
-    ActuatorState, BatteryStatus, GnssFix, GnssFixType, ImuSample, MagSample, OperatorCommand, RpmSample,
-    ThrustCommand, Topic,
+    ActuatorState, BatteryStatus, DepthSample, GnssFix, GnssFixType, ImuSample, MagSample, OperatorCommand,
+    RpmSample, ThrustCommand, Topic,
 )
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.runtime.guard import ActuatorGuard
 from lotsen.sim.simulator import Simulator
 
 _TOPIC_OF = {ImuSample: Topic.IMU_RAW, MagSample: Topic.IMU_MAG, GnssFix: Topic.GNSS,
-             RpmSample: Topic.RPM, BatteryStatus: Topic.BATTERY}
+             RpmSample: Topic.RPM, BatteryStatus: Topic.BATTERY, DepthSample: Topic.DEPTH}
 
 #: at most this much simulated time is caught up in one tick; a longer stall (a debugger, a suspended
 #: laptop) is skipped and logged. Shorter ones are replayed: the water does not wait for a late

@@ -18,6 +18,7 @@ from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Executor, Node
 from lotsen.sim import DEFAULT_BOAT, GnssConfig, ImuConfig, Plant, SimConfig, SimulatedBoat, Simulator
+from lotsen.sim.lakebed import LakeBed, SounderConfig
 from lotsen.stack.config import StackConfig, stack_config
 
 #: the repository's examples (demonstration routes for `make run` and the harnesses)
@@ -82,7 +83,19 @@ def sim_config(config: LaunchConfig) -> SimConfig:
         o = config.origin
         gnss = GnssConfig(rate_hz=s.gnss_rate_hz, origin_lat_deg=o.lat_deg, origin_lon_deg=o.lon_deg,
                           origin_height_m=o.height_m)
-    return SimConfig(dt_s=s.dt_s, seed=config.seed, imu=ImuConfig(rate_hz=s.imu_rate_hz), gnss=gnss, environment=env)
+    lakebed, sounder = None, SounderConfig()
+    if s.lakebed.depths_m:
+        b = s.lakebed
+        lakebed = LakeBed(b.depths_m, b.origin_m, b.cell_m)
+        # the true transducer: the simulated boat's antenna plus the measured offset from it
+        antenna = simulated_boat(config).gnss_antenna_m
+        offset = config.vessel.antenna_to_transducer_m
+        sounder = SounderConfig(rate_hz=b.sounder_rate_hz, noise_std_m=b.sounder_noise_m,
+                                dropout_probability=b.sounder_dropout, max_range_m=b.sounder_max_range_m,
+                                transducer_m=(antenna[0] + offset[0], antenna[1] + offset[1]),
+                                draft_m=config.vessel.transducer_draft_m)
+    return SimConfig(dt_s=s.dt_s, seed=config.seed, imu=ImuConfig(rate_hz=s.imu_rate_hz), gnss=gnss, environment=env,
+                     lakebed=lakebed, sounder=sounder)
 
 
 def simulated_boat(config: LaunchConfig, model: VesselModel | None = None) -> SimulatedBoat:

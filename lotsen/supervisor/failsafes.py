@@ -116,6 +116,12 @@ class FailsafeConfig:
     # RC receiver: no rc/override for this long counts as a lost RC link (the driver itself
     # reports a lost link after its lost_after_s); while the RC has control: neutral
     rc_timeout_s: float = field(default=0.3, metadata=_r(0.1, 0.4))
+    # minimum depth (the echosounder's depth under its transducer): shallower for min_depth_persist_s
+    # -> hold where the boat is; 0 = off. Pings older than min_depth_max_age_s do not count
+    min_depth_m: float = field(default=0.0, metadata=_r(0.0, 100.0))
+    min_depth_persist_s: float = field(default=0.5, metadata=_r(0.0, 30.0))
+    min_depth_max_age_s: float = field(default=2.0, metadata=_r(0.2, 60.0))
+    min_depth_action: Literal["hold", "stop", "continue"] = "hold"
 
     @property
     def min_fix_type(self) -> GnssFixType:
@@ -568,6 +574,28 @@ class StorageMonitor(Monitor):
         return bool(why), why
 
 
+class MinDepthMonitor(Monitor):
+    """The minimum-depth fence: the echosounder's depth under the transducer below min_depth_m for
+    min_depth_persist_s while the boat moves by itself: hold where it is (docs/failsafes.md), the
+    reason with the depth and the limit. Pings without a bottom are not evidence either way; a
+    sounder silent for min_depth_max_age_s neither trips nor holds the fence."""
+
+    name = "min_depth"
+    severity = "error"
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        super().__init__(cfg.min_depth_persist_s, 3.0, _in(UNDER_WAY, cfg.min_depth_action))
+        self.min_depth_m = cfg.min_depth_m
+        self.max_age_s = cfg.min_depth_max_age_s
+
+    def check(self, inputs: "SupervisorInputs", t: float) -> tuple[bool, str]:
+        d = inputs.depth
+        if self.min_depth_m <= 0 or d is None or t - inputs.depth_arrival_s > self.max_age_s:
+            return False, ""
+        return d.depth_m < self.min_depth_m, (f"depth {d.depth_m:.2f} m under the transducer, shallower than the "
+                                              f"minimum {self.min_depth_m:g} m")
+
+
 def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> list[Monitor]:
     """The failsafe table of docs/failsafes.md that is checked every tick, in order (dead
     reckoning after the monitors it follows up on). The controller monitor is separate: it
@@ -586,6 +614,7 @@ def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMI
         BatteryMonitor("battery_low", cfg.battery_low_v, cfg.battery_persist_s,
                        _in((ModeName.AUTO, ModeName.HOLD, ModeName.EXPERIMENT), FailsafeAction.RETURN), "warning"),
         GeofenceMonitor(cfg),
+        MinDepthMonitor(cfg),
         StorageMonitor(cfg),
     ]
 

@@ -11,8 +11,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from lotsen.messages import ActuatorState, BatteryStatus, GnssFix, LinkStatus, ManualCommand, RcOverride, \
-    RecorderStatus, ThrustCommand, VesselState
+from lotsen.messages import ActuatorState, BatteryStatus, DepthSample, GnssFix, LinkStatus, ManualCommand, \
+    RcOverride, RecorderStatus, ThrustCommand, VesselState
 from lotsen.model.angles import all_finite
 
 
@@ -37,6 +37,8 @@ class SupervisorInputs:
     fix: GnssFix | None = None
     last_usable_fix_s: float | None = None
     battery: BatteryStatus | None = None
+    depth: DepthSample | None = None  # the echosounder's last ping that found a bottom
+    depth_arrival_s: float = -math.inf
     actuators: ActuatorState | None = None
     health: Any = None  # EstimatorHealth (lotsen.fusion) when the estimator publishes one
     route: Any = None  # the route in use (its navigable area and obstacles), None without one

@@ -23,6 +23,7 @@ from shapely import Point, contains_xy
 from lotsen.control import ControlConfig, HoldTarget, ThrustAllocator, make_path_follower, make_station_keeper
 from lotsen.errors import LotsenError
 from lotsen.messages import (
+    DepthSample,
     OPERATOR_ACTIONS, ActuatorState, CommandAck, ModeName, Alert, BatteryStatus, ControllerStatus, GnssFix, LinkStatus,
     MagCalibrationResult, MagSample, ManualCommand, MissionProgress, OperatorCommand, PathMessage, PlannedRoute,
     RcOverride, RecorderStatus, RouteMessage, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
@@ -157,6 +158,7 @@ class SupervisorNode(Node):
         ctx.subscribe(Topic.STATE, self._on_state)
         ctx.subscribe(Topic.GNSS, self._on_gnss)
         ctx.subscribe(Topic.BATTERY, self._on_battery)
+        ctx.subscribe(Topic.DEPTH, self._on_depth)
         ctx.subscribe(Topic.ROUTE, self._on_route)
         ctx.subscribe(Topic.IMU_MAG, self._on_mag)
         ctx.subscribe(Topic.RPM, self._on_rpm)
@@ -229,6 +231,11 @@ class SupervisorNode(Node):
 
     def _on_battery(self, msg: BatteryStatus) -> None:
         self.inputs.battery = msg
+
+    def _on_depth(self, msg: DepthSample) -> None:
+        if math.isfinite(msg.depth_m):  # a ping without a bottom says nothing about the depth
+            self.inputs.depth = msg
+            self.inputs.depth_arrival_s = self.ctx.now()
 
     def _on_actuators(self, msg: ActuatorState) -> None:
         self.inputs.actuators = msg

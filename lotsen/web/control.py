@@ -82,7 +82,8 @@ class ControlHandler:
                  planner_config: PlannerConfig | None = None, run_blocking: RunBlocking = _to_thread,
                  notify: Callable[[Session, dict], None] | None = None, origin: GeoOrigin | None = None,
                  auth_guard: AuthGuard | None = None, tiles: TileJobs | None = None,
-                 viewer_may_estop: bool = False, broadcast: Callable[[dict], None] | None = None) -> None:
+                 viewer_may_estop: bool = False, broadcast: Callable[[dict], None] | None = None,
+                 rerun: Callable[[], dict] | None = None) -> None:
         self.seat = seat
         self.publish = publish
         self.clock = clock
@@ -98,6 +99,7 @@ class ControlHandler:
         self.last_upload: dict | None = None  # {"route_id", "route", "detours"} of the pilot's last upload
         self.settings = Settings(self.planner_config)  # the parameter sheet (lotsen.web.settings)
         self.broadcast = broadcast or (lambda m: None)  # a message to every page
+        self.rerun = rerun  # the route over the holes of the held survey (lotsen.web.coverage)
         self._instance = secrets.token_hex(4)  # request ids of this process never repeat an earlier one's
 
     # -- connection life cycle ---------------------------------------------------------------
@@ -137,7 +139,7 @@ class ControlHandler:
         return status
 
     # -- messages ----------------------------------------------------------------------------
-    SLOW = frozenset({"plan", "route", "export", "import"})  # planner and conversions
+    SLOW = frozenset({"plan", "route", "export", "import", "rerun"})  # planner and conversions
 
     def receive(self, session: Session, raw: Any) -> tuple[list[dict], Awaitable[list[dict]] | None]:
         """Validate, authorise and rate-limit one frame. Fast messages are executed at once;
@@ -287,6 +289,14 @@ class ControlHandler:
     async def _on_import(self, session: Session, msg: Message) -> list[dict]:
         route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"], self.origin)
         return [{"type": "import_result", "id": msg.id, "route": route}]
+
+    async def _on_rerun(self, session: Session, msg: Message) -> list[dict]:
+        """The route over the holes of the survey the boat holds, for the editor (the pilot checks
+        and uploads it like any route)."""
+        if self.rerun is None:
+            raise LotsenError("re-run: this server keeps no coverage layer")
+        route = await self.run_blocking(self.rerun)
+        return [{"type": "rerun_result", "id": msg.id, "route": route}]
 
     def _on_pair_qr(self, session: Session, msg: Message) -> list[dict]:
         """The QR code of the pairing address on the page's own origin (the pilot shows it to pair

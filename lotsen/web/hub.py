@@ -37,6 +37,7 @@ from lotsen.web.tiles import Preloader, PreloadProgress, TileStore
 from lotsen.web.validation import MAX_MESSAGE_CHARS, VIEWER_ALLOWED, VIEWER_MAX_MESSAGE_CHARS
 
 LINK_PERIOD_S = 0.2  # LinkStatus at 5 Hz
+COVERAGE_PERIOD_S = 1.0  # the coverage layer's changed cells, at most this often
 SLOW_QUEUE = 4  # planning requests waiting per connection
 _seq = itertools.count(1)
 
@@ -160,7 +161,8 @@ class Hub:
                                       run_blocking=run_blocking, notify=self._notify, origin=origin,
                                       auth_guard=AuthGuard(clock), tiles=self.tiles,
                                       viewer_may_estop=options.viewer_may_estop,
-                                      broadcast=lambda m: self._broadcast_events([dumps(m)]))
+                                      broadcast=lambda m: self._broadcast_events([dumps(m)]),
+                                      rerun=lambda: self.state.coverage.rerun_route())
         self.clients: dict[Session, Client] = {}
         self.loop: asyncio.AbstractEventLoop | None = None
         self.state = TelemetryState(options.battery_capacity_ah)
@@ -210,12 +212,18 @@ class Hub:
     def _read_loop(self) -> None:
         q = self._queue
         last_frame = -1e9
+        last_coverage = -1e9
         while not self._stop.is_set():
             item = q.get(timeout=self.period_s / 2)
             items = ([item] if item is not None else []) + q.get_all()
             for topic, msg in items:
                 self.state.update(topic, msg)
             events = self.state.take_events()
+            if self.clock() - last_coverage >= COVERAGE_PERIOD_S:
+                last_coverage = self.clock()
+                cov = self.state.coverage_event()
+                if cov is not None:
+                    events.append(cov)
             if events:
                 self._call(self._broadcast_events, [dumps(e) for e in events])
             now = self.clock()

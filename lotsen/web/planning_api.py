@@ -81,18 +81,16 @@ def _error(exc: BaseException) -> dict[str, Any]:
 def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
     step = max(1, int(round(DISPLAY_SPACING_M / max(float(np.median(np.diff(path.s_m))), 1e-4))))
     idx = np.unique(np.r_[np.arange(0, len(path), step), len(path) - 1])
-    ds = np.diff(path.s_m)
-    v_mid = np.maximum(0.5 * (path.speed_mps[1:] + path.speed_mps[:-1]), 0.05)
     first = route.nodes[0].speed_mps if route.nodes else 0.0
     a = config.a_long_max_mps2
-    return {
+    out = {
         "ok": True,
         "route": route_to_dict(route),
         "route_id": route_id(route),
         "path": {"n": np.round(path.north_m[idx], 3).tolist(), "e": np.round(path.east_m[idx], 3).tolist(),
                  "v": np.round(path.speed_mps[idx], 3).tolist(), "s": np.round(path.s_m[idx], 2).tolist()},
         "length_m": round(path.length_m, 2),
-        "duration_s": round(float(np.sum(ds / v_mid)), 1),
+        "duration_s": round(path.duration_s(), 1),
         "segments": [{"label": operator_text(s.label), "length_m": round(s.length_m, 2),
                       "straight_m": round(s.straight_m, 2), "detour": bool(s.detour),
                       "s0": round(s.s_start_m, 2), "s1": round(s.s_end_m, 2)} for s in path.segments],
@@ -101,6 +99,29 @@ def _display(route, path, config: PlannerConfig) -> dict[str, Any]:
         "start_ramp": {"speed_mps": first, "accel_mps2": a, "distance_m": round(first**2 / (2 * a), 3),
                        "time_s": round(first / a, 2)},
     }
+    if route.survey is not None:
+        out["survey"] = survey_json(route, path)
+    return out
+
+
+def survey_json(route: Any, path: Any) -> dict[str, Any]:
+    """What the page's survey tool shows: the lines (as flown), their length and time at the line
+    speed, the share of the planned time on lines, the polygon they cover (the drawn one, or the
+    area shrunk to leave room to turn) and the turn radius."""
+    from lotsen.planning.survey import survey_polygon
+
+    p = route.survey
+    on_lines = sum(ln.length_m for ln in route.survey_lines)
+    duration = max(path.duration_s(), 1e-9)
+    poly = p.polygon
+    if poly is None and p.lines is None:
+        poly = tuple(survey_polygon(p, route.free_region()).exterior.coords[:-1])
+    return {"count": len(route.survey_lines), "line_length_m": round(on_lines, 1),
+            "line_time_s": round(on_lines / p.speed_mps, 1), "share_on_lines": round(on_lines / p.speed_mps / duration, 3),
+            "turn_radius_m": round(p.turn_radius(), 2), "speed_mps": p.speed_mps, "spacing_m": p.spacing_m,
+            "polygon": [[round(c, 3) for c in v] for v in poly] if poly is not None else None,
+            "lines": [[[round(c, 3) for c in a], [round(c, 3) for c in b]] for ln in route.survey_lines
+                      for a, b in ln.pieces][:2000]}
 
 
 def detours(route: Any, segments: list) -> list[dict[str, Any]]:

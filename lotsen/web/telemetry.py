@@ -11,14 +11,15 @@ from typing import Any
 
 from lotsen.messages import (
     ActuatorState, Alert, BatteryStatus, CommandAck, ControllerStatus, GnssFix, GnssFixType, LogEvent, MagCalibrationResult,
-    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RecorderStatus, RouteMessage, SeaState, SupervisorStatus,
-    ThrustCommand, Topic, VesselState,
+    MissionProgress, ModelInfo, PathMessage, PlannedRoute, RcOverride, RecorderStatus, RouteMessage, SeaState,
+    Sounding, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
+from lotsen.web.coverage import CoverageLayer
 
 TOPICS = (Topic.STATE, Topic.TRUTH, Topic.CONTROL_STATUS, Topic.SUPERVISOR, Topic.GNSS, Topic.BATTERY,
           Topic.SHIP_COMMAND, Topic.ACTUATORS, Topic.PATH, Topic.ROUTE, Topic.ACTIVE_ROUTE, Topic.LOG, Topic.RC,
           Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL, Topic.OPERATOR_ACK, Topic.RECORDER,
-          Topic.SEA_STATE)
+          Topic.SEA_STATE, Topic.SOUNDING)
 
 #: the estimate is shown when it is this fresh; otherwise the simulator's truth (simulation only)
 STATE_FRESH_S = 1.0
@@ -174,9 +175,15 @@ class TelemetryState:
         self._lock = threading.Lock()  # the replay state below is read from the event loop
         self.alerts: dict[str, dict] = {}  # code -> latest alert (active or recently cleared)
         self.replay: dict[str, dict] = {}  # "active_route" / "path" / "uploaded" / "magcal" -> latest event
+        self.coverage = CoverageLayer()  # soundings gridded for the page (lotsen.web.coverage)
 
     def update(self, topic: str, msg: Any) -> None:
         event = None
+        if topic == Topic.SOUNDING and isinstance(msg, Sounding):
+            self.coverage.add(msg)
+            return
+        if topic == Topic.ACTIVE_ROUTE and isinstance(msg, RouteMessage):
+            self.coverage.set_route(msg.route)
         if topic == Topic.PATH and isinstance(msg, PathMessage):
             event = path_json(msg)
         elif topic == Topic.ACTIVE_ROUTE and isinstance(msg, RouteMessage):
@@ -231,6 +238,9 @@ class TelemetryState:
         ev, self.events = self.events, []
         return ev
 
+    def coverage_event(self) -> dict | None:
+        return self.coverage.take_update()
+
     def replay_events(self, now_s: float) -> list[dict]:
         """What a page that connects now needs at once: the boat's route and path, the last upload,
         the magnetometer fit, the active alerts and those of the last minute (most severe first)."""
@@ -238,6 +248,9 @@ class TelemetryState:
             out = [self.replay[k] for k in ("model", "uploaded", "active_route", "path", "magcal") if k in self.replay]
             alerts = [a for a in self.alerts.values()
                       if a["active"] or (a["t"] is not None and now_s - a["t"] < ALERT_REPLAY_S)]
+        cov = self.coverage.replay()
+        if cov is not None:
+            out.append(cov)
         alerts.sort(key=lambda a: (-SEVERITIES.index(a["severity"]), -(a["t"] or 0.0)))
         return out + alerts
 

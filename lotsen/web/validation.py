@@ -93,11 +93,12 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     "params": {"name": Field("enum", choices=EDITABLE_NAMES), "value": Field("number", lo=-1e6, hi=1e6)},
     # the pairing QR code for another phone: the page's own origin (scheme://host:port)
     "pair_qr": {"origin": Field("str", max_len=200)},
+    "rerun": {},  # the route over the held survey's holes
 }
 
 #: everything that plans, commands or downloads on the boat's behalf needs the pilot seat
 PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel",
-                        "params", "pair_qr"})
+                        "params", "pair_qr", "rerun"})
 #: what a viewer may send (docs/web.md, "Access rules")
 VIEWER_ALLOWED = frozenset(SCHEMAS) - PILOT_ONLY
 
@@ -176,6 +177,15 @@ def _check_route_size(route: Any, where: str) -> None:
         for k in ("north", "east"):
             _check_coordinate(harbour.get(k), f"{where}.harbour.{k}")
     polys = [("area", route.get("area"))] if route.get("area") is not None else []
+    survey = route.get("survey")
+    if isinstance(survey, dict):
+        if survey.get("polygon") is not None:
+            polys.append(("survey.polygon", survey.get("polygon")))
+        lines = survey.get("lines")
+        if isinstance(lines, list):
+            if len(lines) > MAX_ROUTE_NODES:
+                raise ValidationError("too_large", f"{where}.survey.lines: {len(lines)} lines, at most {MAX_ROUTE_NODES}")
+            polys += [(f"survey.lines[{i}]", ln) for i, ln in enumerate(lines)]
     obstacles = route.get("obstacles")
     if isinstance(obstacles, list):
         if len(obstacles) > MAX_POLYGONS:

@@ -16,7 +16,7 @@ LAYERS: dict[str, int] = {
     "errors": 0, "messages": 0, "files": 0, "settings": 0,
     "model": 1,
     "sim": 2, "planning": 2,
-    "fusion": 3, "control": 3, "sysid": 3,
+    "fusion": 3, "control": 3, "sysid": 3, "bathymetry": 3,
     "runtime": 4,
     "supervisor": 5, "drivers": 5, "logs": 5, "transport": 5, "web": 5, "physics": 5,
     "stack": 6,
@@ -102,7 +102,7 @@ def test_the_checker_sees_hidden_and_relative_imports(tmp_path):
 
 # What the algorithms share with the simulated boat is the model, never the simulator itself:
 # a controller or an estimator that imported lotsen.sim could quietly use the boat's truth.
-ALGORITHMS_WITHOUT_SIM = ("model", "planning", "fusion", "control", "sysid", "supervisor", "runtime")
+ALGORITHMS_WITHOUT_SIM = ("model", "planning", "fusion", "control", "sysid", "bathymetry", "supervisor", "runtime")
 
 
 def test_no_algorithm_imports_the_simulator():
@@ -118,13 +118,13 @@ BASE = {"errors", "messages", "files", "settings", "__version__"}
 ALLOWED: dict[str, set[str]] = {
     "model": set(),
     "sim": {"model"}, "planning": {"model"},
-    "fusion": {"model"}, "control": {"model"}, "sysid": {"model"},
+    "fusion": {"model"}, "control": {"model"}, "sysid": {"model"}, "bathymetry": {"model", "planning"},
     "runtime": {"model"},
     "supervisor": {"runtime", "model", "control", "planning"},
     "drivers": {"runtime", "model", "sim"},
     "logs": {"runtime", "model", "transport", "sysid"},
     "transport": {"runtime", "model"},
-    "web": {"runtime", "planning", "logs"},
+    "web": {"runtime", "planning", "logs", "bathymetry"},
     "physics": {"model", "sim"},
 }
 DOC = Path(__file__).resolve().parents[2] / "docs" / "architecture.md"

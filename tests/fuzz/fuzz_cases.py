@@ -41,7 +41,7 @@ SEED_FILES = {
     "boat.json": "params", "schedule.yaml": "schedule", "mag.csv": "mag_csv", "cal.json": "calibration",
     "data.csv": "data_csv", "run.mcap": "mcap", "capture.ubx": "ubx",
 }
-EXTRA_ROUTES = ("harbour_approach.yaml", "square_with_obstacle.yaml", "figure_eight_loop.yaml")
+EXTRA_ROUTES = ("harbour_approach.yaml", "square_with_obstacle.yaml", "figure_eight_loop.yaml", "survey_lake.yaml")
 EXTRA_EXPERIMENTS = ("speed_steps.yaml", "zigzag_10_10.yaml", "prbs_multisine.yaml", "turning_circles.yaml",
                      "bow_thruster_steps.yaml")
 

@@ -155,7 +155,9 @@ def test_what_a_boat_cannot_do_is_refused_naming_the_item(items, words):
 
 
 def test_bad_files_are_refused_with_the_reason():
-    with pytest.raises(ConfigError, match="complex|not supported"):
+    with pytest.raises(ConfigError, match="StructureScan item is not supported"):
+        read_route_text(qgc_plan([{"type": "ComplexItem", "complexItemType": "StructureScan"}]), "plan", ORIGIN)
+    with pytest.raises(ConfigError, match="survey item version None; lotsen reads versions 4 and 5"):
         read_route_text(qgc_plan([{"type": "ComplexItem", "complexItemType": "survey"}]), "plan", ORIGIN)
     with pytest.raises(ConfigError, match="DOCTYPE"):
         read_route_text('<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "b">]><kml/>', "kml", ORIGIN)

@@ -135,7 +135,7 @@ def test_every_returned_path_satisfies_the_constraints(route):
     assert_path_ok(path, route, cfg)
 
 
-@pytest.mark.parametrize("name", ["figure_eight", "harbour_approach", "square_with_obstacle"])
+@pytest.mark.parametrize("name", ["figure_eight", "harbour_approach", "square_with_obstacle", "survey_lake"])
 def test_example_routes_plan_and_satisfy_constraints(name):
     route = load_route(EXAMPLES / f"{name}.yaml")
     cfg = PlannerConfig()

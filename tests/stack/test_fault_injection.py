@@ -62,3 +62,13 @@ def test_rc_scenarios_fail_when_the_supervisor_does_not_act(name, sabotage, monk
     scenario = next(s for s in SCENARIOS if s.name == name)
     row = FaultRun(scenario, seed=1).run()
     assert not row["safe_state_reached"] and not row["pass"], row
+
+
+def test_the_shoal_scenario_fails_without_the_minimum_depth_fence(monkeypatch):
+    """The minimum-depth check can fail: a fence that never trips leaves the boat running onto the shoal."""
+    from lotsen.supervisor.failsafes import MinDepthMonitor
+
+    monkeypatch.setattr(MinDepthMonitor, "check", lambda self, inputs, t: (False, ""))
+    scenario = next(s for s in SCENARIOS if s.name == "shoal_ahead")
+    row = FaultRun(scenario, seed=1).run()
+    assert not row["safe_state_reached"] and not row["pass"], row

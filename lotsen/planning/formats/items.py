@@ -113,15 +113,34 @@ class MissionItem:
         return _COMMAND_NAMES.get(self.command, f"MAV_CMD {self.command}")
 
 
+@dataclass(frozen=True)
+class SurveyItem:
+    """A ground station's survey pattern (QGroundControl's Survey complex item) in WGS84: the
+    polygon's corners (latitude, longitude), the lines' angle (deg clockwise from north), spacing
+    and turnaround (m), QGroundControl's entry location (0-3), crosshatch (Refly90Degrees), and
+    lotsen's own settings a .plan carries under "lotsen" (speed, turn radius, margin, side)."""
+
+    polygon: tuple[tuple[float, float], ...]
+    angle_deg: float
+    spacing_m: float
+    turnaround_m: float
+    entry: int = 0
+    crosshatch: bool = False
+    extra: dict = field(default_factory=dict)
+
+
 @dataclass
 class Plan:
-    """Home, mission, fence and rally items of one plan (a file, or what a ground station uploaded)."""
+    """Home, mission, fence and rally items of one plan (a file, or what a ground station uploaded).
+    `survey`: a survey pattern (a .plan's Survey item); `mission` then holds the speed items before
+    it (read) or the waypoints it expands to (written, for ground stations that fly items)."""
 
     home: MissionItem | None = None
     mission: list[MissionItem] = field(default_factory=list)
     fence: list[MissionItem] = field(default_factory=list)
     rally: list[MissionItem] = field(default_factory=list)
     cruise_speed_mps: float | None = None
+    survey: SurveyItem | None = None
 
 
 def command_name(command: int) -> str:
@@ -188,7 +207,10 @@ def route_from_plan(plan: Plan, origin: GeoOrigin | None = None, default_speed_m
     frame = LocalFrame(origin.lat_deg, origin.lon_deg, origin.height_m)
     route: dict[str, Any] = {k: v for k, v in (base or {}).items() if k != "origin"}
 
-    if plan.home is not None or plan.mission:
+    if plan.survey is not None:
+        route.pop("nodes", None)
+        route["survey"] = _survey(plan.survey, plan.mission, frame, default_speed_mps)
+    elif plan.home is not None or plan.mission:
         nodes = _nodes(plan.mission, frame, default_speed_mps)
         if not nodes:
             raise ConfigError("mission: no waypoint (a route needs at least one after home)")
@@ -199,13 +221,19 @@ def route_from_plan(plan: Plan, origin: GeoOrigin | None = None, default_speed_m
         harbour = (float(route["harbour"]["north"]), float(route["harbour"]["east"]))
     else:
         raise ConfigError("mission: no home position and no rally point: the harbour is unknown")
-    if "nodes" not in route:
+    if "nodes" not in route and "survey" not in route:
         raise ConfigError("mission: no waypoints yet (upload the mission)")
-    pts = [harbour] + [(float(n["north"]), float(n["east"])) for n in route["nodes"]]
     given = _yaw(harbour_item.param4) if harbour_item is not None else route.get("harbour", {}).get("heading_deg")
-    route["harbour"] = {"north": harbour[0], "east": harbour[1],
-                        "heading_deg": given if given is not None else round(_bearing_deg(harbour, pts[1]), 6)}
-    _fill_headings(route["nodes"], pts)
+    if "survey" in route:
+        ring = route["survey"]["polygon"]
+        centre = (sum(p[0] for p in ring) / len(ring), sum(p[1] for p in ring) / len(ring))
+        route["harbour"] = {"north": harbour[0], "east": harbour[1],
+                            "heading_deg": given if given is not None else round(_bearing_deg(harbour, centre), 6)}
+    else:
+        pts = [harbour] + [(float(n["north"]), float(n["east"])) for n in route["nodes"]]
+        route["harbour"] = {"north": harbour[0], "east": harbour[1],
+                            "heading_deg": given if given is not None else round(_bearing_deg(harbour, pts[1]), 6)}
+        _fill_headings(route["nodes"], pts)
     if plan.fence:
         route.pop("area", None)
         route.pop("obstacles", None)
@@ -234,6 +262,34 @@ def _nodes(items: list[MissionItem], frame: LocalFrame, default_speed_mps: float
             raise MissionItemError(MISSION, it.seq, f"MAV_CMD {it.command}: not supported by lotsen (waypoints and "
                                    "DO_CHANGE_SPEED only)")
     return nodes
+
+
+def _survey(item: SurveyItem, before: list[MissionItem], frame: LocalFrame, default_speed_mps: float) -> dict:
+    """The route file's `survey:` mapping of a survey item; the speed items before it set its speed
+    (else the plan's cruise speed). Any other item beside a survey is refused naming it."""
+    speed = default_speed_mps
+    for it in before:
+        if it.command == DO_CHANGE_SPEED:
+            if not _finite(it.param2):
+                raise MissionItemError(MISSION, it.seq, f"DO_CHANGE_SPEED: speed {it.param2!r} is not a number")
+            if it.param2 > 0:
+                speed = float(it.param2)
+        elif it.command in _REFUSED:
+            raise MissionItemError(MISSION, it.seq, _REFUSED[it.command])
+        else:
+            raise MissionItemError(MISSION, it.seq, f"{it.name()} beside a survey: lotsen flies a survey as one route "
+                                   "from the harbour (put waypoints in a plan of their own)")
+    corners = []
+    for j, (lat, lon) in enumerate(item.polygon):
+        if not (_finite(lat) and _finite(lon)) or not -90 <= lat <= 90 or not -180 <= lon <= 180:
+            raise ConfigError(f"survey polygon[{j}]: latitude {lat:g} / longitude {lon:g} is not a position")
+        n, e = frame.to_ne(lat, lon)
+        corners.append([round(n, 4), round(e, 4)])
+    out = {"polygon": corners, "angle_deg": item.angle_deg, "spacing_m": item.spacing_m,
+           "turnaround_m": item.turnaround_m, "entry": item.entry, "crosshatch": item.crosshatch,
+           "speed_mps": round(speed, 4)}
+    out.update(item.extra)
+    return out
 
 
 def _yaw(yaw: float) -> float | None:
@@ -361,7 +417,28 @@ def plan_from_route(route: Route, origin: GeoOrigin) -> Plan:
                          lat_deg=hl[0], lon_deg=hl[1])]
     speeds = [n.speed_mps for n in route.nodes]
     return Plan(home=home, mission=mission, fence=fence, rally=rally,
-                cruise_speed_mps=max(set(speeds), key=speeds.count) if speeds else None)
+                cruise_speed_mps=max(set(speeds), key=speeds.count) if speeds else None,
+                survey=_survey_item(route, ll))
+
+
+def _survey_item(route: Route, ll: Any) -> SurveyItem | None:
+    """The survey item of a survey route whose lines cover a polygon (explicit lines, a re-run,
+    have no Survey item: they are written as their waypoints)."""
+    p = route.survey
+    if p is None or p.lines is not None:
+        return None
+    from lotsen.planning.survey import survey_polygon
+
+    ring = p.polygon or tuple(tuple(c) for c in survey_polygon(p, route.free_region()).exterior.coords[:-1])
+    extra: dict[str, Any] = {"margin_m": p.margin_m}
+    if p.entry is None:
+        extra["entry"] = None   # the corner nearest the harbour (QGroundControl's entryLocation says 0)
+    if p.turn_radius_m is not None:
+        extra["turn_radius_m"] = p.turn_radius_m
+    if p.side != "both":
+        extra["side"] = p.side
+    return SurveyItem(tuple(ll(c[0], c[1]) for c in ring), p.angle_deg, p.spacing_m, p.turnaround_m,
+                      p.entry if p.entry is not None else 0, p.crosshatch, extra)
 
 
 def fence_parts(items: list[MissionItem], origin: GeoOrigin) -> dict:

@@ -15,7 +15,7 @@ from lotsen.files import parse_json
 from lotsen.planning.formats.items import (
     FRAME_GLOBAL, FRAME_GLOBAL_RELATIVE_ALT, NAV_FENCE_CIRCLE_EXCLUSION, NAV_FENCE_CIRCLE_INCLUSION,
     NAV_FENCE_POLYGON_VERTEX_EXCLUSION, NAV_FENCE_POLYGON_VERTEX_INCLUSION, NAV_RALLY_POINT, NAV_WAYPOINT,
-    MissionItem, Plan,
+    MissionItem, Plan, SurveyItem,
 )
 from lotsen.settings import Number
 
@@ -73,9 +73,17 @@ def parse_plan(text: str, where: str = "plan") -> Plan:
     for k, it in enumerate(items):
         w = f"{where}.mission.items[{k}]"
         it = _dict(it, w)
+        if it.get("type") == "ComplexItem" and it.get("complexItemType") == "survey":
+            if plan.survey is not None:
+                raise ConfigError(f"{w}: a second survey; lotsen flies one survey a route (save each in a plan of its own)")
+            plan.survey = parse_survey_item(it, w)
+            continue
         if it.get("type") != "SimpleItem":
             raise ConfigError(f"{w}: a {str(it.get('complexItemType') or it.get('type'))[:40]} item is not supported; "
-                              "lotsen takes waypoints (in QGroundControl: convert the pattern to waypoints)")
+                              "lotsen takes waypoints and surveys (in QGroundControl: convert the pattern to waypoints)")
+        if plan.survey is not None:
+            raise ConfigError(f"{w}: an item after the survey; lotsen's survey route ends with its last line, where the "
+                              "boat holds (send RTL to return)")
         params = it.get("params")
         if not isinstance(params, list) or len(params) != 7:
             raise ConfigError(f"{w}.params: expected 7 numbers")
@@ -114,6 +122,74 @@ def parse_plan(text: str, where: str = "plan") -> Plan:
     return plan
 
 
+SURVEY_SPACING = Number(0.1, 100.0, "m")      # lotsen.planning.survey.pattern's ranges
+SURVEY_TURNAROUND = Number(0.0, 100.0, "m")
+SURVEY_ANGLE = Number(-360.0, 360.0, "deg")
+SURVEY_ENTRY = Number(0, 3, integer=True)
+MANUAL_CAMERA = "Manual (no camera specs)"    # QGroundControl's CameraCalc name for a spacing set by hand
+_LOTSEN_SURVEY_KEYS = {"speed_mps", "turn_radius_m", "margin_m", "side", "entry"}
+
+
+def parse_survey_item(it: dict, w: str) -> SurveyItem:
+    """QGroundControl's Survey complex item (versions 4 and 5: `polygon`, `angle`, `entryLocation`,
+    `flyAlternateTransects`, TransectStyleComplexItem's `TurnAroundDistance`, `Refly90Degrees` and
+    CameraCalc's `AdjustedFootprintSide`, the line spacing whether typed or computed from a camera's
+    footprint). lotsen makes its own lines from these (with the boat's turns); the item's saved
+    `Items` (QGroundControl's expansion for its vehicle) are not flown."""
+    version = it.get("version")
+    if version not in (4, 5):
+        raise ConfigError(f"{w}: survey item version {str(version)[:10]}; lotsen reads versions 4 and 5 (QGroundControl "
+                          "4.x; open and save the plan in a current QGroundControl)")
+    corners = it.get("polygon")
+    if not isinstance(corners, list):
+        raise ConfigError(f"{w}.polygon: expected a list of [latitude, longitude] corners")
+    if len(corners) > 3 and corners[0] == corners[-1]:
+        corners = corners[:-1]
+    if len(corners) < 3:
+        raise ConfigError(f"{w}.polygon: {len(corners)} corner(s) do not close a polygon (a survey area needs at least 3)")
+    if len(corners) > MAX_ITEMS:
+        raise ConfigError(f"{w}.polygon: {len(corners)} corners, at most {MAX_ITEMS}")
+    ring = tuple(_latlon(c, f"{w}.polygon[{j}]") for j, c in enumerate(corners))
+    if it.get("flyAlternateTransects"):
+        raise ConfigError(f"{w}.flyAlternateTransects: true; lotsen turns between neighbouring lines itself (the "
+                          "boat's turns are part of its plan): set it false")
+    transect = _dict(it.get("TransectStyleComplexItem"), f"{w}.TransectStyleComplexItem")
+    camera = _dict(transect.get("CameraCalc"), f"{w}.TransectStyleComplexItem.CameraCalc")
+    spacing = SURVEY_SPACING.check(camera.get("AdjustedFootprintSide"),
+                                   f"{w}.TransectStyleComplexItem.CameraCalc.AdjustedFootprintSide (line spacing)")
+    turnaround = SURVEY_TURNAROUND.check(transect.get("TurnAroundDistance", 0.0),
+                                         f"{w}.TransectStyleComplexItem.TurnAroundDistance")
+    refly = transect.get("Refly90Degrees", False)
+    if not isinstance(refly, bool):
+        raise ConfigError(f"{w}.TransectStyleComplexItem.Refly90Degrees: expected true or false")
+    extra = it.get("lotsen") or {}
+    if not isinstance(extra, dict) or set(map(str, extra)) - _LOTSEN_SURVEY_KEYS:
+        raise ConfigError(f"{w}.lotsen: expected a mapping with keys {sorted(_LOTSEN_SURVEY_KEYS)}")
+    return SurveyItem(ring, float(SURVEY_ANGLE.check(it.get("angle"), f"{w}.angle")), float(spacing),
+                      float(turnaround), int(SURVEY_ENTRY.check(it.get("entryLocation", 0), f"{w}.entryLocation")),
+                      refly, dict(extra))
+
+
+def survey_item_json(survey: SurveyItem, items: list[dict], speed_mps: float | None) -> dict:
+    """QGroundControl's Survey complex item (version 5) for `survey`; `items`: the waypoints it
+    expands to (QGroundControl shows and flies these, lotsen makes its lines from the pattern)."""
+    points = [[it["params"][4], it["params"][5]] for it in items if it["command"] == NAV_WAYPOINT]
+    extra = dict(survey.extra)
+    if speed_mps:
+        extra["speed_mps"] = speed_mps
+    return {"type": "ComplexItem", "complexItemType": "survey", "version": 5,
+            "polygon": [list(c) for c in survey.polygon], "angle": survey.angle_deg,
+            "entryLocation": survey.entry, "flyAlternateTransects": False, "splitConcavePolygons": False,
+            "TransectStyleComplexItem": {
+                "version": 1, "TurnAroundDistance": survey.turnaround_m, "Refly90Degrees": survey.crosshatch,
+                "CameraTriggerInTurnAround": False, "HoverAndCapture": False, "FollowTerrain": False, "CameraShots": 0,
+                "CameraCalc": {"version": 1, "CameraName": MANUAL_CAMERA, "AdjustedFootprintSide": survey.spacing_m,
+                               "AdjustedFootprintFrontal": survey.spacing_m, "DistanceToSurface": 0,
+                               "DistanceToSurfaceRelative": True},
+                "Items": items, "VisualTransectPoints": points},
+            "lotsen": extra}
+
+
 def _json_num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
@@ -125,6 +201,8 @@ def write_plan(plan: Plan) -> str:
                                                                      it.lat_deg, it.lon_deg, it.alt_m)],
               **({"Altitude": 0, "AltitudeMode": 1, "AMSLAltAboveTerrain": None} if it.command == NAV_WAYPOINT else {})}
              for k, it in enumerate(plan.mission)]
+    if plan.survey is not None:
+        items = [survey_item_json(plan.survey, items, plan.cruise_speed_mps)]
     polygons, circles = [], []
     i = 0
     while i < len(plan.fence):

@@ -1,6 +1,6 @@
 // lotsen operator interface: connection to the boat, HUD and alerts, route editor with undo,
 // upload with read-back, operation (arm, modes, keyboard), offline map tiles, logs.
-import { RouteModel, parseField, routeDiff, longLegs, LIMITS } from "./route.js";
+import { RouteModel, parseField, routeDiff, longLegs, LIMITS, SURVEY_DEFAULTS, SURVEY_LIMITS } from "./route.js";
 import { MapView } from "./map.js";
 import { StripChart } from "./plot.js";
 import { KeyboardDriver, PERIOD_MS } from "./keys.js";
@@ -137,6 +137,7 @@ function onMessage(m) {
     case "ack": { const r = state.requests.get(m.request); if (r) r.server = true; state.lastRequest = { action: m.action, t: performance.now() }; renderRequests(); break; }
     case "confirmed": onConfirmed(m); break;
     case "tiles_progress": onTileProgress(m); break;
+    case "coverage": onCoverage(m); break;
     case "evicted": alerts.push({ severity: "warning", code: "web:evicted", text: `disconnected by the boat's server: ${m.reason}; reconnecting` }); break;
     case "error": onError(m); break;
   }
@@ -635,7 +636,7 @@ state.pollGamepad = pollGamepad;
 function setTool(tool) {
   map.setTool(tool);
   $$("#maptools .tool").forEach(b => b.classList.toggle("active", b.dataset.tool === tool));
-  $("#btn-finish").hidden = !(tool === "area" || tool === "obstacle");
+  $("#btn-finish").hidden = !(tool === "area" || tool === "obstacle" || tool === "survey");
 }
 $$("#maptools .tool").forEach(b => b.addEventListener("click", () => setTool(b.dataset.tool)));
 $("#btn-finish").onclick = () => { if (!route.finishPolygon()) toast("a polygon needs at least 3 corners", true); setTool("select"); };
@@ -669,9 +670,11 @@ function schedulePlan() {
 }
 
 async function plan() {
+  renderSurvey();
   if (!route.complete()) {
-    route.errors = []; map.draftPath = null; state.lastPlan = null;
-    setPlanStatus(route.harbour ? "add at least one route node" : "place the harbour node (Harbour tool), then route nodes", "");
+    route.errors = []; map.draftPath = null; state.lastPlan = null; map.surveyLines = null; map.surveyPolygon = null;
+    setPlanStatus(route.harbour ? (route.survey ? "draw the survey polygon (Survey tool), or survey the whole area" : "add at least one route node")
+      : "place the harbour node (Harbour tool), then route nodes or a survey", "");
     $("#rampinfo").textContent = "";
     map.invalidate(); renderTable(); return;
   }
@@ -691,6 +694,11 @@ async function plan() {
     map.draftDetours = det;
     const vmax = Math.max(...res.path.v);
     const long = longLegs(route);
+    const sv = res.survey;
+    map.surveyLines = sv ? sv.lines : null; map.surveyPolygon = sv ? sv.polygon : null;
+    $("#surveyinfo").textContent = sv ? `survey: ${sv.count} lines, ${sv.line_length_m.toFixed(0)} m of lines at ${sv.speed_mps} m/s ` +
+      `(${fmtDuration(sv.line_time_s)}, ${Math.round(100 * sv.share_on_lines)} % of the planned time); the whole route ` +
+      `${res.length_m.toFixed(0)} m, about ${fmtDuration(res.duration_s)}; turns of ${sv.turn_radius_m} m radius` : "";
     setPlanStatus(`planned: ${res.length_m.toFixed(1)} m, about ${fmtDuration(res.duration_s)}, up to ${vmax.toFixed(2)} m/s` +
       det.map(d => `\ndetour: ${d.leg} goes round an obstacle or the area edge (${d.length_m.toFixed(1)} m of path, ${d.straight_m.toFixed(1)} m in a straight line)`).join("") +
       long.map(l => `\ncheck: ${longLegText(l)}`).join(""), long.length ? "warn" : "ok");
@@ -698,10 +706,70 @@ async function plan() {
     $("#rampinfo").textContent = r && r.speed_mps > 0 ? `leaves the harbour from rest: 0 → ${r.speed_mps} m/s in ${r.distance_m} m (${r.time_s} s at ${r.accel_mps2} m/s²), then the node speeds` : "";
   } else {
     route.errors = res.errors || [{ kind: "route", message: res.error || "planning failed" }];
-    map.draftPath = null; map.draftDetours = [];
+    map.draftPath = null; map.draftDetours = []; map.surveyLines = null; map.surveyPolygon = null;
     setPlanStatus(route.errors.map(e => e.message).join("\n") + longLegs(route).map(l => `\ncheck: ${longLegText(l)}`).join(""), "bad");
   }
   map.invalidate(); renderTable(); updateButtons();
+}
+
+// -- the survey tool: settings of the drawn (or whole-area) survey; the boat's planner makes the lines
+const SURVEY_FIELDS = ["spacing_m", "angle_deg", "speed_mps", "turnaround_m"];
+function renderSurvey() {
+  const s = route.survey;
+  for (const k of SURVEY_FIELDS) {
+    const inp = $(`#sv-${k}`);
+    if (document.activeElement !== inp) inp.value = s && s[k] !== undefined ? String(s[k]) : String(SURVEY_DEFAULTS[k]);
+    inp.removeAttribute("aria-invalid");
+  }
+  $("#sv-crosshatch").checked = !!(s && s.crosshatch);
+  $("#btn-survey-off").disabled = !s;
+  if (!s) $("#surveyinfo").textContent = "draw the survey polygon with the Survey tool, or survey the whole area";
+}
+function surveyField(k, text) {
+  const [lo, hi, unit] = SURVEY_LIMITS[k];
+  const t = String(text).trim().replace(",", ".");
+  const v = Number(t);
+  if (t === "" || !Number.isFinite(v)) return { error: `${k.replace(/_.*/, "")}: "${t.slice(0, 20)}" is not a number` };
+  if (v < lo || v > hi) return { error: `${k.replace(/_.*/, "")}: ${t.slice(0, 20)} ${unit} is outside ${lo} to ${hi} ${unit}` };
+  return { value: v };
+}
+for (const k of SURVEY_FIELDS) {
+  $(`#sv-${k}`).addEventListener("change", (ev) => {
+    const res = surveyField(k, ev.target.value);
+    if (res.error) { ev.target.setAttribute("aria-invalid", "true"); $("#surveyinfo").textContent = `${res.error} (not applied)`; return; }
+    if (!route.survey) { toast("draw the survey polygon first (Survey tool), or Survey the area", true); renderSurvey(); return; }
+    route.survey[k] = res.value; route.changed();
+  });
+}
+$("#sv-crosshatch").addEventListener("change", (ev) => { if (route.survey) { route.survey.crosshatch = ev.target.checked; route.changed(); } });
+$("#btn-survey-area").onclick = () => {
+  if (!route.area) { toast("draw the navigable area first (Area tool)", true); return; }
+  const vals = {};
+  for (const k of SURVEY_FIELDS) { const r = surveyField(k, $(`#sv-${k}`).value); vals[k] = r.error ? SURVEY_DEFAULTS[k] : r.value; }
+  route.survey = { ...SURVEY_DEFAULTS, ...vals, crosshatch: $("#sv-crosshatch").checked, polygon: null };
+  route.nodes = []; route.changed();
+};
+$("#btn-survey-off").onclick = () => { route.survey = null; map.surveyLines = null; map.surveyPolygon = null; route.changed(); };
+$("#btn-rerun").onclick = async () => {
+  const res = await request({ type: "rerun" });
+  if (res.type === "rerun_result") { route.fromDict(res.route); map.fit(); toast(`re-run over the holes loaded: ${res.route.survey.lines.length} lines (check, then Upload)`); }
+  else toast(res.error || "no re-run route", true);
+};
+
+// the live coverage layer: cells with soundings by depth, the survey's holes
+function onCoverage(m) {
+  if (!map.coverage || m.reset || map.coverage.cell_m !== m.cell_m) map.coverage = { cell_m: m.cell_m, cells: new Map(), holes: [], lo: Infinity, hi: -Infinity };
+  const c = map.coverage;
+  for (const [i, j, depth, count] of m.cells) {
+    c.cells.set(`${i},${j}`, [depth, count]);
+    c.lo = Math.min(c.lo, depth); c.hi = Math.max(c.hi, depth);
+  }
+  if (m.survey) c.holes = m.survey.holes || [];
+  $("#coverageinfo").textContent = m.survey
+    ? `coverage: ${(100 * m.survey.fraction).toFixed(1)} % of ${m.survey.cells} cells of ${m.cell_m} m, ${m.survey.hole_cells} cells in ${m.survey.holes.length} holes; ${m.soundings} soundings, ${c.lo.toFixed(2)}–${c.hi.toFixed(2)} m deep`
+    : `depth map: ${m.soundings} soundings in cells of ${m.cell_m} m, ${c.lo.toFixed(2)}–${c.hi.toFixed(2)} m deep`;
+  $("#btn-rerun").disabled = !(m.survey && m.survey.hole_cells > 0);
+  map.invalidate();
 }
 
 function setPlanStatus(text, cls) {
@@ -739,6 +807,7 @@ function renderTable() {
   if (!tb.contains(document.activeElement) && tb.innerHTML !== html) tb.innerHTML = html;
   const polys = [];
   if (route.area) polys.push(`<div class="${route.errorFor("area") ? "err" : ""}">navigable area, ${route.area.length} corners <button type="button" data-delpoly="area" title="delete the area">✕</button></div>`);
+  if (route.survey && route.survey.polygon) polys.push(`<div>survey polygon, ${route.survey.polygon.length} corners <button type="button" data-delpoly="survey" title="delete the survey">✕</button></div>`);
   route.obstacles.forEach((o, i) => polys.push(`<div class="${route.errorFor("obstacle", i) ? "err" : ""}">obstacle ${i + 1}, ${o.polygon.length} corners, forbidden ` +
     `<select data-forbid="${i}"><option ${o.forbidden === "inside" ? "selected" : ""}>inside</option><option ${o.forbidden === "outside" ? "selected" : ""}>outside</option></select>` +
     ` <button type="button" data-delpoly="${i}" title="delete the obstacle">✕</button></div>`));
@@ -755,7 +824,7 @@ function geoTarget() {
   const poly = sel && sel.kind === "vertex" ? route.polygon(sel.poly) : null;
   const c = poly ? poly[sel.k] : null;
   if (!c) return null;
-  return { label: `${sel.poly === "area" ? "area" : "obstacle " + (sel.poly + 1)} corner ${sel.k + 1}`, n: c[0], e: c[1], set: (n, e) => { poly[sel.k] = [n, e]; } };
+  return { label: `${sel.poly === "area" || sel.poly === "survey" ? sel.poly : "obstacle " + (sel.poly + 1)} corner ${sel.k + 1}`, n: c[0], e: c[1], set: (n, e) => { poly[sel.k] = [n, e]; } };
 }
 
 function renderNodeGeo() {
@@ -854,7 +923,7 @@ $("#nodetable").addEventListener("click", ev => {
 $("#polylist").addEventListener("click", ev => {
   const d = ev.target.dataset && ev.target.dataset.delpoly;
   if (d === undefined) return;
-  route.deletePolygon(d === "area" ? "area" : Number(d));
+  route.deletePolygon(d === "area" || d === "survey" ? d : Number(d));
 });
 $("#polylist").addEventListener("change", ev => {
   const i = ev.target.dataset && ev.target.dataset.forbid;

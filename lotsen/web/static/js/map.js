@@ -18,6 +18,9 @@ export class MapView {
     this.truth = null;
     this.trail = [];
     this.draftPath = null;            // {n: [], e: []}
+    this.surveyLines = null;          // the draft survey's lines [[[n, e], [n, e]], ...] and polygon (plan result)
+    this.surveyPolygon = null;
+    this.coverage = null;             // {cell_m, cells: Map "i,j" -> [depth, count], holes: [[[n, e]...]], lo, hi}
     this.activePath = null;
     this.draftDetours = [];           // [{leg, s0, s1, length_m, straight_m}] on the draft path
     this.activeDetours = [];          // the same on the active path (when it is this page's upload)
@@ -73,6 +76,7 @@ export class MapView {
     if (r.harbour) pts.push([r.harbour.north, r.harbour.east]);
     r.nodes.forEach(n => pts.push([n.north, n.east]));
     if (r.area) pts.push(...r.area);
+    if (r.survey && r.survey.polygon) pts.push(...r.survey.polygon);
     r.obstacles.forEach(o => pts.push(...o.polygon));
     const ap = this.activePath;
     if (ap && ap.n) for (let i = 0; i < ap.n.length; i += 10) pts.push([ap.n[i], ap.e[i]]);
@@ -102,7 +106,7 @@ export class MapView {
   setTool(tool) {
     if (this.route.drawing && tool !== this.route.drawing.kind) this.route.finishPolygon();
     this.tool = tool;
-    if (tool === "area" || tool === "obstacle") this.route.startPolygon(tool);
+    if (tool === "area" || tool === "obstacle" || tool === "survey") this.route.startPolygon(tool);
     this.invalidate();
   }
 
@@ -271,7 +275,7 @@ export class MapView {
       else if (h && h.kind === "vinsert") r.insertVertex(h.poly, h.k, round2(h.n), round2(h.e));
       else if (this.tool === "harbour") r.setHarbour(n, e);
       else if (this.tool === "node" && !h) r.addNode(n, e, this.opts.defaultSpeed ? this.opts.defaultSpeed() : 0.5);
-      else if (this.tool === "area" || this.tool === "obstacle") {
+      else if (this.tool === "area" || this.tool === "obstacle" || this.tool === "survey") {
         if (!r.drawing) r.startPolygon(this.tool);
         r.drawing.pts.push([n, e]);
         r.changed(false, false);
@@ -303,7 +307,9 @@ export class MapView {
     g.fillStyle = "#0b1a2a"; g.fillRect(0, 0, w, h);
     this.tilesDrawn = this.tiles && this.origin ? this.tiles.draw(g, this, this.origin) : 0;
     this.drawGrid(g, w, h, this.tilesDrawn > 0);
+    this.drawCoverage(g);
     this.drawRegions(g);
+    this.drawSurvey(g);
     this.drawLine(g, this.activePath, "#38c172", 3, []);
     this.drawDetours(g, this.activePath, this.activeDetours);
     this.drawLine(g, this.draftPath, "#3fa7ff", 2, [8, 5]);
@@ -382,8 +388,47 @@ export class MapView {
     if (r.drawing && r.drawing.pts.length) {
       const pts = this.cursor ? [...r.drawing.pts, this.cursor] : r.drawing.pts;
       this.polyPath(g, pts, false);
-      g.strokeStyle = r.drawing.kind === "area" ? "#3fa7ff" : "#ef4c4c"; g.setLineDash([5, 4]); g.lineWidth = 2; g.stroke(); g.setLineDash([]);
+      g.strokeStyle = r.drawing.kind === "area" ? "#3fa7ff" : r.drawing.kind === "survey" ? "#c8e64a" : "#ef4c4c"; g.setLineDash([5, 4]); g.lineWidth = 2; g.stroke(); g.setLineDash([]);
       this.drawVertices(g, r.drawing.pts, "#ffffff", -1);
+    }
+  }
+
+  // the live coverage layer: each cell with soundings coloured by its mean depth (shallow light,
+  // deep dark blue), the survey's holes outlined in red
+  drawCoverage(g) {
+    const c = this.coverage;
+    if (!c || !c.cells.size) return;
+    const span = Math.max(c.hi - c.lo, 0.1);
+    for (const [key, [depth]] of c.cells) {
+      const [i, j] = key.split(",").map(Number);
+      const [x0, y0] = this.toScreen((i + 1) * c.cell_m, j * c.cell_m), [x1, y1] = this.toScreen(i * c.cell_m, (j + 1) * c.cell_m);
+      const f = Math.min(1, Math.max(0, (depth - c.lo) / span));
+      g.fillStyle = `rgba(${Math.round(170 - 150 * f)},${Math.round(230 - 150 * f)},255,0.55)`;
+      g.fillRect(x0, y0, Math.max(1, x1 - x0), Math.max(1, y1 - y0));
+    }
+    for (const h of c.holes || []) {
+      this.polyPath(g, h, true);
+      g.strokeStyle = "#ff5a5a"; g.lineWidth = 2; g.setLineDash([3, 3]); g.stroke(); g.setLineDash([]);
+    }
+  }
+
+  drawSurvey(g) {
+    const s = this.route.survey;
+    const poly = (s && s.polygon) || this.surveyPolygon;
+    if (poly) {
+      this.polyPath(g, poly, true);
+      g.strokeStyle = "#c8e64a"; g.lineWidth = 2; g.setLineDash([6, 4]); g.stroke(); g.setLineDash([]);
+      if (s && s.polygon) {
+        const sel = this.route.selected && this.route.selected.kind === "vertex" && this.route.selected.poly === "survey" ? this.route.selected.k : -1;
+        this.drawVertices(g, s.polygon, "#c8e64a", sel);
+      }
+    }
+    if (this.surveyLines) {
+      g.strokeStyle = "rgba(200,230,74,0.9)"; g.lineWidth = 1.5;
+      for (const [a, b] of this.surveyLines) {
+        const [x0, y0] = this.toScreen(a[0], a[1]), [x1, y1] = this.toScreen(b[0], b[1]);
+        g.beginPath(); g.moveTo(x0, y0); g.lineTo(x1, y1); g.stroke();
+      }
     }
   }
 

@@ -23,6 +23,9 @@ export function parseField(field, text) {
 }
 
 const HISTORY_MAX = 200;
+// a new survey's settings (the survey tool's fields change them; the boat's planner checks them again)
+export const SURVEY_DEFAULTS = { spacing_m: 2.0, angle_deg: 0.0, speed_mps: 0.5, turnaround_m: 2.0, crosshatch: false };
+export const SURVEY_LIMITS = { spacing_m: [0.1, 100, "m"], angle_deg: [-360, 360, "deg"], speed_mps: [0.05, 1.5, "m/s"], turnaround_m: [0, 100, "m"] };
 
 export class RouteModel {
   constructor() {
@@ -31,6 +34,7 @@ export class RouteModel {
     this.area = null;             // [[n, e], ...] navigable (outside forbidden)
     this.obstacles = [];          // [{polygon: [[n, e], ...], forbidden: "inside" | "outside"}]
     this.origin = null;           // geographic origin {lat_deg, lon_deg, height_m} of a loaded route
+    this.survey = null;           // {polygon: [[n, e]] | null, lines?, spacing_m, angle_deg, speed_mps, turnaround_m, crosshatch}
     this.drawing = null;          // polygon being drawn: {kind: "area" | "obstacle", pts: [[n, e]]}
     this.selected = null;         // {kind: "node", index} | {kind: "harbour"} | {kind: "vertex", poly, k}
     this.errors = [];             // planner errors with {kind, index?, message}
@@ -47,11 +51,11 @@ export class RouteModel {
 
   // -- undo / redo ------------------------------------------------------------------------------
   snapshot() {
-    return JSON.stringify({ h: this.harbour, n: this.nodes, a: this.area, o: this.obstacles, g: this.origin });
+    return JSON.stringify({ h: this.harbour, n: this.nodes, a: this.area, o: this.obstacles, g: this.origin, s: this.survey });
   }
   restore(s) {
     const d = JSON.parse(s);
-    this.harbour = d.h; this.nodes = d.n; this.area = d.a; this.obstacles = d.o; this.origin = d.g;
+    this.harbour = d.h; this.nodes = d.n; this.area = d.a; this.obstacles = d.o; this.origin = d.g; this.survey = d.s || null;
     this.selected = null; this.drawing = null; this.errors = [];
   }
   commit() {
@@ -78,14 +82,26 @@ export class RouteModel {
     return true;
   }
 
-  complete() { return this.harbour !== null && this.nodes.length >= 1; }
+  complete() { return this.harbour !== null && (this.nodes.length >= 1 || this.surveyReady()); }
+  surveyReady() { return !!this.survey && (!!this.survey.polygon || !!this.survey.lines || !!this.area); }
 
   toDict() {
     const r = (x) => Math.round(x * 1000) / 1000;
     const d = {
       harbour: { north: r(this.harbour.north), east: r(this.harbour.east), heading_deg: r(this.harbour.heading_deg) },
-      nodes: this.nodes.map(n => ({ north: r(n.north), east: r(n.east), heading_deg: r(n.heading_deg), speed_mps: r(n.speed_mps) })),
     };
+    if (this.survey) {   // a survey route: its nodes are made from the lines on the boat's planner
+      const s = this.survey, out = {};
+      for (const k of ["spacing_m", "angle_deg", "speed_mps", "turnaround_m", "turn_radius_m", "margin_m", "entry", "side"]) {
+        if (s[k] !== undefined && s[k] !== null) out[k] = typeof s[k] === "number" ? r(s[k]) : s[k];
+      }
+      if (s.crosshatch) out.crosshatch = true;
+      if (s.polygon) out.polygon = s.polygon.map(p => [r(p[0]), r(p[1])]);
+      if (s.lines) out.lines = s.lines.map(l => [[r(l[0][0]), r(l[0][1])], [r(l[1][0]), r(l[1][1])]]);
+      d.survey = out;
+    } else {
+      d.nodes = this.nodes.map(n => ({ north: r(n.north), east: r(n.east), heading_deg: r(n.heading_deg), speed_mps: r(n.speed_mps) }));
+    }
     if (this.origin) d.origin = { ...this.origin };
     if (this.area) d.area = this.area.map(p => [r(p[0]), r(p[1])]);
     if (this.obstacles.length) d.obstacles = this.obstacles.map(o => ({ polygon: o.polygon.map(p => [r(p[0]), r(p[1])]), forbidden: o.forbidden }));
@@ -95,6 +111,7 @@ export class RouteModel {
   fromDict(d) {
     this.harbour = d.harbour ? { north: d.harbour.north, east: d.harbour.east, heading_deg: d.harbour.heading_deg || 0 } : null;
     this.nodes = (d.nodes || []).map(n => ({ north: n.north, east: n.east, heading_deg: n.heading_deg, speed_mps: n.speed_mps }));
+    this.survey = d.survey ? { ...SURVEY_DEFAULTS, ...d.survey } : null;
     this.origin = d.origin ? { ...d.origin } : null;
     this.area = d.area ? d.area.map(p => [p[0], p[1]]) : null;
     this.obstacles = (d.obstacles || []).map(o => Array.isArray(o) ? { polygon: o, forbidden: "inside" } : { polygon: o.polygon, forbidden: o.forbidden || "inside" });
@@ -103,14 +120,14 @@ export class RouteModel {
   }
 
   clear() {
-    this.harbour = null; this.nodes = []; this.area = null; this.obstacles = []; this.origin = null;
+    this.harbour = null; this.nodes = []; this.area = null; this.obstacles = []; this.origin = null; this.survey = null;
     this.drawing = null; this.selected = null; this.errors = [];
     this.changed();
   }
 
   // the harbour and the nodes go; the navigable area and the obstacles stay (the usual "Clear")
   clearNodes() {
-    this.harbour = null; this.nodes = [];
+    this.harbour = null; this.nodes = []; this.survey = null;
     this.drawing = null; this.selected = null; this.errors = [];
     this.changed();
   }
@@ -161,10 +178,14 @@ export class RouteModel {
   }
 
   // polygons: "area" or an obstacle index
-  polygon(which) { return which === "area" ? this.area : (this.obstacles[which] ? this.obstacles[which].polygon : null); }
+  polygon(which) {
+    if (which === "survey") return this.survey ? this.survey.polygon : null;
+    return which === "area" ? this.area : (this.obstacles[which] ? this.obstacles[which].polygon : null);
+  }
   polygons() {
     const out = [];
     if (this.area) out.push(["area", this.area]);
+    if (this.survey && this.survey.polygon) out.push(["survey", this.survey.polygon]);
     this.obstacles.forEach((o, i) => out.push([i, o.polygon]));
     return out;
   }
@@ -185,7 +206,9 @@ export class RouteModel {
     return true;
   }
   deletePolygon(which) {
-    if (which === "area") this.area = null; else this.obstacles.splice(Number(which), 1);
+    if (which === "area") this.area = null;
+    else if (which === "survey") this.survey = null;
+    else this.obstacles.splice(Number(which), 1);
     this.selected = null;
     this.changed();
   }
@@ -196,7 +219,9 @@ export class RouteModel {
     const d = this.drawing;
     this.drawing = null;
     if (!d || d.pts.length < 3) { this.changed(false, false); return false; }
-    if (d.kind === "area") this.area = d.pts; else this.obstacles.push({ polygon: d.pts, forbidden: "inside" });
+    if (d.kind === "area") this.area = d.pts;
+    else if (d.kind === "survey") { this.survey = { ...SURVEY_DEFAULTS, ...(this.survey || {}), polygon: d.pts, lines: undefined }; this.nodes = []; }
+    else this.obstacles.push({ polygon: d.pts, forbidden: "inside" });
     this.changed();
     return true;
   }
@@ -218,6 +243,11 @@ export function normalizeRoute(d) {
   const hdg = (x) => (typeof x === "number" ? ((x % 360) + 360) % 360 : x);
   const out = { harbour: d.harbour ? { ...d.harbour, heading_deg: hdg(d.harbour.heading_deg) } : d.harbour,
     nodes: (d.nodes || []).map(n => ({ ...n, heading_deg: hdg(n.heading_deg) })) };
+  if (d.survey) {   // with the defaults the boat fills in, so a page's draft and the boat's read-back compare equal
+    const s = { ...SURVEY_DEFAULTS, margin_m: 0.5, ...d.survey };
+    for (const k of Object.keys(s)) if (s[k] === null || s[k] === undefined || s[k] === false) delete s[k];
+    out.survey = s;
+  }
   if (d.area) out.area = d.area;
   const obs = (d.obstacles || []).map(o => Array.isArray(o) ? { polygon: o, forbidden: "inside" } : { polygon: o.polygon, forbidden: o.forbidden || "inside" });
   if (obs.length) out.obstacles = obs;
