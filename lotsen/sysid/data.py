@@ -222,6 +222,12 @@ def check_record(record: IdRecord) -> None:
                         "stamp until the next, so every column needs at least one)")
     if not np.isfinite(record.outputs).any():
         raise DataError(f"{src}: no finite measurement in any output column ({', '.join(record.output_names)})")
+    # a column that is there but never measured (a heading channel lost for the whole run) would be read
+    # as data by every estimator: refuse it by name rather than fail deep inside one of them
+    empty = [c for j, c in enumerate(record.output_names) if not np.isfinite(record.outputs[:, j]).any()]
+    if empty:
+        raise DataError(f"{src}: output column(s) {', '.join(empty)} never have a value (every cell empty or NaN): "
+                        "the channel was not recorded; drop the column from the file or record it")
 
 
 def split_segments(record: IdRecord, gap_s: float = 1.0, min_samples: int = 8) -> list[Segment]:

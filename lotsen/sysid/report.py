@@ -117,6 +117,9 @@ def _parameter_rows(result: IdentificationResult, initial: VesselParameters) -> 
         if n in result.fixed:
             rows.append(([n, f"{v:.5g}", "fixed", "", "", f"{getattr(initial, n):.5g}"], False))
             continue
+        if n not in result.std:  # an optional model term left off (lotsen.model.parameters.OPTIONAL_TERMS)
+            rows.append(([n, f"{v:.5g}", "not estimated (off)", "", "", f"{getattr(initial, n):.5g}"], False))
+            continue
         s = result.std[n]
         rel = 196 * s / abs(v) if v != 0 else math.inf
         rows.append(([n, f"{v:.5g}", f"{s:.3g}", f"[{v - 1.96 * s:.4g}, {v + 1.96 * s:.4g}]", f"{rel:.1f} %",

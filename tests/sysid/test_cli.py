@@ -88,6 +88,7 @@ def _csv(path, t, U, Y):
 @pytest.mark.parametrize("case, message", [
     ("all_nan", "never have a value"),
     ("no_outputs", "no finite measurement"),
+    ("heading_nan", "output column(s) psi never have a value"),  # was an IndexError in the equation-error start
     ("all_zero", "every input (alpha1, alpha2, n1, n2, nt) is zero"),
     ("motionless", "the boat did not move"),
     ("backwards", "must not decrease"),
@@ -105,6 +106,8 @@ def test_identify_refuses_data_without_information(tmp_path, capsys, case, messa
         Y[:] = np.nan
     elif case == "no_outputs":
         Y[:] = np.nan
+    elif case == "heading_nan":
+        Y[:, 2] = np.nan
     elif case == "all_zero":
         U[:] = 0.0
         Y[:] = 0.0

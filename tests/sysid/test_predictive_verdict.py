@@ -126,4 +126,11 @@ def test_a_real_hull_gets_a_predictive_answer_that_beats_the_defaults(tmp_path, 
     chosen = pred[content["prediction"]["chosen"]]["position_rms_m"]["10"]
     assert chosen <= 0.6 * pred["defaults"]["position_rms_m"]["10"], pred
     assert load_parameters(str(out)) is not None  # the loaders accept it
+    # the same record with the optional term off and a report: the equation-error answer has no X_uuu
+    # interval, which made the report a KeyError after the parameter file was written (exit 1)
+    rep = tmp_path / "hull.html"
+    assert main(["identify", str(data), "--fix", "m11=14.2", "--terms", "none", "--out", str(tmp_path / "off.json"),
+                 "--report", str(rep)]) == 0
+    html = rep.read_text()
+    assert "X_uuu" in html and "not estimated (off)" in html
     assert set(CORE_PARAMETERS) <= set(content)
