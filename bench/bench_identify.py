@@ -63,6 +63,7 @@ def lake_rows(quick: bool = False) -> list[dict]:
     from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
     from lotsen.sysid.identify import identify, split_holdout
     from lotsen.sysid.prediction import improvement
+    from lotsen.sysid.problem import IdentificationProblem
 
     rows: list[dict] = []
     answered = wrong = 0
@@ -74,7 +75,7 @@ def lake_rows(quick: bool = False) -> list[dict]:
         true = VesselParameters.from_vector([params[n] for n in NAMES])
         est, val = split_holdout([g.record], 0.2)
         t0 = time.process_time()
-        ident = identify(est, val, DEFAULT_PARAMETERS, {"m11": true.m11}, lake=True)
+        ident = identify(IdentificationProblem(tuple(est), tuple(val), {"m11": true.m11}, lake=True))
         cpu = time.process_time() - t0
         cpus.append(cpu)
         v = ident.verdict.verdict
@@ -106,6 +107,7 @@ def fixed_rows(quick: bool = False) -> list[dict]:
     from lotsen.harness.identification import lake_run
     from lotsen.model import DEFAULT_PARAMETERS
     from lotsen.sysid.identify import identify, split_holdout
+    from lotsen.sysid.problem import IdentificationProblem
 
     rows: list[dict] = []
     for seed in ((2500,) if quick else (2500, 1002, 1005)):
@@ -115,7 +117,7 @@ def fixed_rows(quick: bool = False) -> list[dict]:
         off = {n: 100 * (getattr(DEFAULT_PARAMETERS, n) / getattr(true, n) - 1) for n in WEAK_SET}
         est, val = split_holdout([lake.run.record], 0.2)
         t0 = time.process_time()
-        ident = identify(est, val, DEFAULT_PARAMETERS, fixed, lake=True)
+        ident = identify(IdentificationProblem(tuple(est), tuple(val), fixed, lake=True))
         cpu = time.process_time() - t0
         v = ident.verdict.verdict
         right = _physical_right(ident, true) if v in ("ok", "weak") else None

@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.planning.io import load_route
     from lotsen.harness.mission import MissionConfig, make_sim_ekf, planned_duration_s, run_mission
     from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
-    from lotsen.stack.stack import load_parameter_file
+    from lotsen.model import load_parameter_file
 
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")

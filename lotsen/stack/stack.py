@@ -12,7 +12,9 @@ from typing import Any
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.messages import ModelInfo
-from lotsen.model import Environment, ParameterFile, VesselGeometry, VesselModel, VesselParameters, parameters_from_file
+from lotsen.model import (
+    Environment, VesselGeometry, VesselModel, VesselParameters, load_parameter_file, parameters_from_file,
+)
 from lotsen.planning import GeoOrigin
 from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig
@@ -29,13 +31,6 @@ def example_route(name: str = "figure_eight") -> str:
     if not path.is_file():
         raise ConfigError(f"example route {name!r} not found at {path} (the examples ship with the repository)")
     return str(path)
-
-
-def load_parameter_file(path: str) -> ParameterFile:
-    """The one loader of parameter files (as `lotsen identify --out` writes them): every coefficient
-    present and physical, or listed in "defaults_for"; a file identification refused is refused
-    here too, with its reasons (`lotsen.model.parameters.parameters_from_file`)."""
-    return parameters_from_file(read_json(path, ConfigError), str(path))
 
 
 def load_parameters(path: str | None) -> VesselParameters:

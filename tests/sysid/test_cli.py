@@ -170,3 +170,26 @@ def test_loaders_ignore_identification_extras_but_not_typos():
     with pytest.raises(ConfigError, match="not converge"):
         VesselParameters.from_dict({**d, "verdict": "refused",
                                     "identification": {"reasons": ["the estimation did not converge"]}})
+
+
+def test_a_record_too_long_for_the_budget_is_refused_first_with_the_time_it_would_take(short_run, tmp_path, capsys):
+    """Issue 49 item 5: a 50-MB record of repeated zigzags computed for minutes without a word. The time
+    expected is said before any work, and a record over the budget (--max-cpu) is refused (exit 2,
+    nothing written) with how much of it would fit."""
+    import numpy as np
+
+    from lotsen.sysid.data import IdRecord
+
+    r = short_run.record
+    span = r.t[-1] - r.t[0] + 0.05
+    copies = -(-8000 // len(r.t))  # more rows than 1 s of CPU at CPU_S_PER_ROW
+    long = IdRecord(np.concatenate([r.t + k * span for k in range(copies)]), np.vstack([r.inputs] * copies),
+                    np.vstack([r.outputs] * copies), r.output_names, "long", r.input_kind)
+    data = tmp_path / "long.csv"
+    save_csv(long, data)
+    out = tmp_path / "p.json"
+    assert main_standalone(["identify", str(data), "--out", str(out), "--max-cpu", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{len(long.t)} rows" in err and "expect about" in err
+    assert "more than the budget of 1 s" in err and "--max-cpu" in err and "Traceback" not in err
+    assert not out.exists()
