@@ -23,7 +23,7 @@ from lotsen.settings import Number
 #: shows the record needs it: lotsen.sysid.identify)
 OPTIONAL_TERMS = {"X_uuu": "the surge resistance grows faster than speed squared (wave making)"}
 
-#: identification's verdicts (lotsen.sysid.verdict) a loader takes: "ok", "weak" (usable, some
+#: identification's verdicts (lotsen.sysid.judge) a loader takes: "ok", "weak" (usable, some
 #: coefficients weakly determined), "predictive" (effective values: they predict the boat's motion
 #: though some are not its physical coefficients). "refused" and anything else is refused. The one
 #: place the verdict of a parameter file is judged (`check_verdict`).

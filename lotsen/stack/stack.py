@@ -33,6 +33,19 @@ def example_route(name: str = "figure_eight") -> str:
     return str(path)
 
 
+def example_or_file(text: str, kind: str = "routes") -> str:
+    """TEXT as given, or, when no such file exists and it is a bare name, the example of that name
+    (examples/KIND/NAME.yaml: a route, an experiment): the README's walkthrough runs from any folder."""
+    p = Path(text)
+    if p.exists() or p.suffix or len(p.parts) != 1:
+        return text
+    path = EXAMPLES / kind / f"{text}.yaml"
+    if not path.is_file():
+        names = ", ".join(sorted(f.stem for f in (EXAMPLES / kind).glob("*.yaml")))
+        raise ConfigError(f"{kind[:-1]} {text[:40]!r}: no such file, nor an example {kind[:-1]} of that name ({names})")
+    return str(path)
+
+
 def load_parameters(path: str | None) -> VesselParameters:
     """The coefficients of a parameter file (`load_parameter_file`); the defaults without one."""
     if not path:

@@ -744,7 +744,7 @@ def score_covariance(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, F:
 
 
 #: `misfit_check`: the track's lag-1 s residual autocorrelation above which a model that has not
-#: converged is taken not to explain the record (lotsen.sysid.verdict.MAX_TRACK_AUTOCORR: 0.5)
+#: converged is taken not to explain the record (lotsen.sysid.judge.MAX_TRACK_AUTOCORR: 0.5)
 MISFIT_TRACK_AUTOCORR = 0.5
 #: residuals whose correlation time (in samples) stays below this are white (sensor noise alone)
 WHITE_CORRELATION_TIME = 1.5
