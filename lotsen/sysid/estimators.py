@@ -18,15 +18,16 @@ them is meant to be handed to its constructor by the command, so that the algori
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import numpy as np
 
 from lotsen.model import VesselParameters
+from lotsen.sysid.data import MEAN_FORWARD, IdRecord
 from lotsen.sysid.equation_error import EquationErrorResult, estimate_equation_error
 from lotsen.sysid.estimate import (
-    NAMES, EstimationError, Identifiability, IdentificationResult, estimate, parameter_bounds,
+    NAMES, EstimationError, Identifiability, IdentificationResult, SolverOptions, estimate, parameter_bounds,
 )
 from lotsen.sysid.multiple import (
     MultipleShootingProblem, MultipleShootingResult, ShootingStart, estimate_multiple_shooting,
@@ -152,10 +153,10 @@ class OutputError:
     def estimate(self, problem: IdentificationProblem, start: Start) -> Estimate:
         terms = tuple(problem.terms or ())
         if not problem.lake:
-            res = estimate_multiple_shooting(
-                problem.records, start.params, problem.fixed,
-                problem.solver_options(test_fixed=problem.tested_fixed, misfit_check=CALM_MISFIT_CHECK_ITERATIONS,
-                                       terms=terms), progress=self.progress)
+            calm = problem.solver_options(test_fixed=problem.tested_fixed, misfit_check=CALM_MISFIT_CHECK_ITERATIONS,
+                                          terms=terms)
+            res = estimate_multiple_shooting(problem.records, start.params, problem.fixed, calm, progress=self.progress)
+            res = reconstruction_spread(problem.records, res, calm)
             return Estimate(self.name, res, None, res.details)
         # the steady-wind stage only brings coefficients, current and wind together before the gusts are
         # released: a few iterations, the noise as assumed (its residuals carry the gusts by design)
@@ -173,7 +174,41 @@ class OutputError:
         res = estimate_multiple_shooting(problem.records, first.params, problem.fixed, gusts,
                                          ShootingStart(first.details.nodes, env, first.details.gyro_bias),
                                          self.progress)
+        res = reconstruction_spread(problem.records, res, gusts)
         return Estimate(self.name, res, _environment_of(res), res.details)
+
+
+def reconstruction_spread(records: Sequence[IdRecord], res: IdentificationResult,
+                          options: SolverOptions) -> IdentificationResult:
+    """`res` with the uncertainty of how the inputs moved within their logged intervals in its covariance.
+
+    Achieved actuator values logged as interval means (input kind "mean") are reconstructed piecewise
+    linearly, each interval's slope from its neighbours' means; the slope from the next interval alone
+    (MEAN_FORWARD) is as defensible a guess, and the record cannot tell them apart. The estimate under
+    that reconstruction, one Gauss-Newton step from `res` (the shift is small: one step reproduced the
+    full re-estimation on 12 records), moves by h; the covariance grows by h h^T, as the two gust
+    models' average does (the central reconstruction lies halfway between the two one-sided ones).
+    Measured on 12 calm 10-min records of one boat of the model's structure (lotsen's simulator): the
+    reported std was 0.51 of the spread over records (median over the 17 coefficients), the truth within
+    3 sigma in 79 %; with the spread 0.93 and 96 %; on the same records with exact inputs it was 1.4
+    without any spread, so this reconstruction was most of the over-confidence."""
+    if not any(r.input_kind == "mean" for r in records) or not isinstance(res.details, MultipleShootingResult):
+        return res
+    d = res.details
+    variant = [replace(r, input_kind=MEAN_FORWARD) if r.input_kind == "mean" else r for r in records]
+    one = replace(options, max_iterations=1, total_iterations=None, estimate_noise=False, noise_std=d.noise_std,
+                  test_fixed=(), misfit_check=0)
+    env = list(d.environment.values.values()) if d.environment is not None else None
+    try:
+        moved = estimate_multiple_shooting(variant, res.params, res.fixed, one, ShootingStart(d.nodes, env, d.gyro_bias))
+    except EstimationError:
+        return res
+    names = res.free_names
+    h = np.array([getattr(moved.params, n) - getattr(res.params, n) for n in names])
+    cov = np.asarray(res.covariance, float) + np.outer(h, h)
+    std = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
+    shift = {n: float(h[i] / res.std[n]) if res.std[n] > 0 else math.inf for i, n in enumerate(names)}
+    return replace(res, covariance=cov, std=std, details=replace(d, reconstruction_shift=shift))
 
 
 class SingleShooting:

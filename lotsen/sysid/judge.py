@@ -217,6 +217,10 @@ class Identification:
             # null for a coefficient without a sigma to measure the shift in (strict JSON has no inf)
             out["gust_interval_shift_sigma"] = {n: round(x, 2) if math.isfinite(x) else None
                                                 for n, x in sh.gust_interval_shift.items()}
+        if sh is not None and sh.reconstruction_shift is not None:
+            # how far each coefficient moved with the inputs' other reconstruction (already in its std)
+            out["input_reconstruction_shift_sigma"] = {n: round(x, 2) if math.isfinite(x) else None
+                                                       for n, x in sh.reconstruction_shift.items()}
         if sh is not None and sh.gyro_bias is not None and sh.gyro_bias_std is not None:
             out["gyro_bias_radps"] = {"values": [float(b) for b in sh.gyro_bias],
                                       "std": [float(b) for b in sh.gyro_bias_std]}

@@ -504,6 +504,9 @@ class MultipleShootingResult:
     # longer intervals (estimate_lake_averaged); already part of the covariance
     gust_interval_shift: dict[str, float] | None = None
     fixed_test: "FixedValueTest | None" = None  # do the fixed coefficients agree with the record?
+    # records of interval means: how far each coefficient moved, in its own sigma before the spread was
+    # added, with the other reconstruction of the inputs within their intervals (estimators.reconstruction_spread)
+    reconstruction_shift: dict[str, float] | None = None
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
