@@ -148,10 +148,11 @@ def test_identify_refuses_a_record_too_short_to_support_an_answer(short_run, tmp
 
     data = tmp_path / "short.csv"
     save_csv(short_run.record.slice(0.0, 15.0), data)
-    out = tmp_path / "p.json"
-    assert main_standalone(["identify", str(data), "--out", str(out), "--holdout", "0"]) == 1
+    out, rep = tmp_path / "p.json", tmp_path / "r.html"
+    assert main_standalone(["identify", str(data), "--out", str(out), "--holdout", "0", "--report", str(rep)]) == 1
     err = capsys.readouterr().err
     assert "REFUSED" in err and "Traceback" not in err
+    assert "Verdict: refused" in rep.read_text()  # a report for this verdict too
     d = json.loads(out.read_text())
     assert d["verdict"] == "refused" and d["identification"]["reasons"]
     with pytest.raises(ConfigError, match="refused"):
@@ -193,3 +194,18 @@ def test_a_record_too_long_for_the_budget_is_refused_first_with_the_time_it_woul
     assert f"{len(long.t)} rows" in err and "expect about" in err
     assert "more than the budget of 1 s" in err and "--max-cpu" in err and "Traceback" not in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("method", ["single", "multiple"])
+def test_every_estimator_writes_its_report_and_says_what_judged_it(run_csv, tmp_path, capsys, method):
+    """The one judge behind both estimators: a report for either, exit codes as the README gives them
+    (0 for ok / weak / predictive, 1 for refused), and the data that judged the answer named."""
+    out, rep = tmp_path / "p.json", tmp_path / "r.html"
+    rc = main_standalone(["identify", str(run_csv), "--out", str(out), "--report", str(rep), "--method", method])
+    err = capsys.readouterr().err
+    data = json.loads(out.read_text())
+    assert rc == (1 if data["verdict"] == "refused" else 0) and "Traceback" not in err
+    assert data["identification"]["judged_on"].startswith("the last 20 % of ")
+    assert data["identification"]["estimator"] in ("single shooting", "output error", "equation error")
+    html = rep.read_text()
+    assert f"Verdict: {data['verdict']}" in html and "Judged on the last 20 %" in html
