@@ -36,7 +36,7 @@ from scipy.interpolate import make_smoothing_spline
 from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import least_squares, lsq_linear, minimize
 
-from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
+from lotsen.model import VesselGeometry, VesselParameters
 from lotsen.model.dynamics import array_tau
 from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
 from lotsen.sysid.data import IdRecord, Segment, split_segments
