@@ -20,10 +20,11 @@ from lotsen.sysid.data import IdRecord
 from lotsen.sysid.estimate import NAMES, SCALE_GROUP, SolverOptions, parameter_bounds, parameter_scale
 
 #: CPU seconds per row of a record (estimation and held-out rows together), measured on this project's
-#: 2-core machine with the whole `identify` (equation error, output error, prediction): calm 10-min
-#: records of the 6-DOF hull (33 600 rows) 3.4-3.5 s, 0.10 ms a row; lake records 10-12 s, 0.34 ms a
-#: row. Rounded up, so that the time said first is not an underestimate.
-CPU_S_PER_ROW = {"calm": 1.5e-4, "lake": 5e-4, "single": 5e-5}
+#: 2-core machine with the whole `identify` (equation error, output error, prediction; 2026-11-28): calm
+#: 10-min records of the 6-DOF hull (33 600 rows) 4.4 s, 0.13 ms a row, of lotsen's simulator (14 400
+#: rows) 2.8 s, 0.19 ms; lake records of the hull 12.3 s (0.37 ms), of lotsen's simulator 12.9 s
+#: (0.90 ms). Rounded up, so that the time said first is not an underestimate.
+CPU_S_PER_ROW = {"calm": 2.5e-4, "lake": 1.0e-3, "single": 1.0e-4}
 #: the default budget of one identification: a record that would need more is refused before any work,
 #: with the time it would take (a 50-MB record of repeated zigzags computed for minutes without a word)
 DEFAULT_BUDGET_CPU_S = 120.0

@@ -183,7 +183,7 @@ def test_a_record_too_long_for_the_budget_is_refused_first_with_the_time_it_woul
 
     r = short_run.record
     span = r.t[-1] - r.t[0] + 0.05
-    copies = -(-8000 // len(r.t))  # more rows than 1 s of CPU at CPU_S_PER_ROW
+    copies = -(-5000 // len(r.t))  # more rows than 1 s of CPU at CPU_S_PER_ROW (calm)
     long = IdRecord(np.concatenate([r.t + k * span for k in range(copies)]), np.vstack([r.inputs] * copies),
                     np.vstack([r.outputs] * copies), r.output_names, "long", r.input_kind)
     data = tmp_path / "long.csv"
