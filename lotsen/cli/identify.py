@@ -10,12 +10,20 @@ those parameters is given with --fix, the command fixes m11 = 14.0 kg (weighed 1
 mu_az from a bollard-pull test) to set it from your own knowledge, or --no-default-scale to refuse.
 Every other parameter is estimated unless fixed.
 
-Refused with a clear error (exit 2, nothing written): unreadable or non-finite data, time going
-backwards, no excitation (all inputs zero, a boat that did not move), and data that leave a
-parameter direction unidentifiable (fix those parameters with --fix). Refused with a verdict
-(exit 1, the file written and marked "verdict": "refused", which every loader refuses): no
-convergence, a coefficient at its physical bound, a track the model does not explain (residuals
-correlated over 1 s), more than four weakly determined coefficients (lotsen.sysid.verdict).
+The command builds one `IdentificationProblem` from the flags and files (`_problem`), hands it to
+`lotsen.sysid.identify.identify` (the lab loop and the benches do the same) and writes the answer
+(`_answer`): the best predictor of the held-out data among the estimates, ok / weak when it is the
+physical one, predictive (exit 0) when effective coefficients predict measurably better than the
+model in use, refused otherwise (lotsen.sysid.judge).
+
+Refused with a clear error (exit 2, nothing written): unreadable or non-finite data, a column never
+measured, time going backwards, no excitation (all inputs zero, a boat that did not move), a record
+whose identification would take more than --max-cpu (the time expected is said first), and data that
+leave a parameter direction unidentifiable for the only estimator (fix those parameters with --fix).
+Refused with a verdict (exit 1, the file written and marked "verdict": "refused", which every loader
+refuses): no estimate predicts the held-out data measurably better than the model in use and the
+physical checks fail (no convergence, a coefficient at its physical bound, a track the model does not
+explain, intervals too wide).
 
 Validation: files given with --validate; otherwise the last `--holdout` fraction (default 0.2) of
 every file is held out (not used for estimation). --holdout 0 uses all data for estimation and

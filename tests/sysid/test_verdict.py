@@ -1,4 +1,4 @@
-"""The verdict on an identification result (lotsen.sysid.verdict) and the loaders that honour it."""
+"""The verdict on an identification result (lotsen.sysid.judge.physical_verdict) and the loaders that honour it."""
 
 from __future__ import annotations
 
