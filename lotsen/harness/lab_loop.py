@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from lotsen.control import ControlConfig, make_path_follower
-from lotsen.errors import LotsenError
+from lotsen.errors import ConfigError, LotsenError
+from lotsen.files import read_yaml
 from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 from lotsen.logs.export import sysid_record
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
@@ -32,7 +33,7 @@ from lotsen.runtime.config import BoatSection, LaunchConfig, LoggingSection, Web
 from lotsen.sim import SimulatedBoat
 from lotsen.stack.experiment import ExperimentNode, run_on_stack
 from lotsen.stack.stack import EXAMPLES, example_route
-from lotsen.sysid.experiment import Experiment, load_experiment
+from lotsen.sysid.experiment import Experiment, load_experiment, parse_experiment
 from lotsen.sysid.identify import identify
 from lotsen.sysid.judge import Identification
 from lotsen.sysid.problem import IdentificationProblem, held_out_split
@@ -83,10 +84,20 @@ def lab_experiments() -> list[Experiment]:
     return [load_experiment(EXAMPLES / "experiments" / f"{name}.yaml") for name in EXPERIMENTS]
 
 
+def validation_experiment(seed: int = 1) -> Experiment:
+    """The record that judges the lab loop's answer: the broadband example (prbs_multisine) with its
+    random sequences drawn from `seed`, so its inputs are not those of any estimation record (the
+    battery's own prbs_multisine flown again would be a replay: in calm water the same true track)."""
+    data = read_yaml(EXAMPLES / "experiments" / "prbs_multisine.yaml", ConfigError, "experiment file")
+    pieces = [dict(p, seed=int(p["seed"]) + 100 * seed) if "seed" in p else dict(p) for p in data["pieces"]]
+    return parse_experiment({**data, "name": f"prbs_multisine_seed{seed}", "pieces": pieces}, "validation")
+
+
 def identify_on(boat: SimulatedBoat, work: Path, experiments: Sequence[Experiment] | None = None,
                 base_seed: int = 100) -> tuple[VesselParameters | None, dict[str, Any]]:
     """The lab loop on `boat`: the designed experiments (default the battery `EXPERIMENTS`) recorded
-    on the simulated stack (seeds `base_seed` + i) into `work`, identified together; m11 fixed as the
+    on the simulated stack (seeds `base_seed` + i) into `work`, and a record with other inputs to judge
+    the answer on (`validation_experiment`), identified together; m11 fixed as the
     weighed hull gives it, and the geometry a lab measures on the hull given (the GNSS antenna's
     position; astern/ahead thrust from a bollard pull). Returns (parameters, the parameter file's
     content, also written to work/identified.json); the parameters are None when identification
@@ -101,10 +112,14 @@ def identify_on(boat: SimulatedBoat, work: Path, experiments: Sequence[Experimen
         out = work / f"{exp.name}.mcap"
         record_on_simulated_stack(exp, out, dataclasses.replace(config, seed=base_seed + i))
         logs.append(out)
+    check = validation_experiment()
+    check_log = work / f"{check.name}.mcap"
+    record_on_simulated_stack(check, check_log, dataclasses.replace(config, seed=base_seed + len(logs)))
     hull = dict(fixed={"m11": boat.parameters.m11}, gnss_antenna_m=tuple(boat.gnss_antenna_m),
                 reverse_thrust_ratio=boat.geometry.reverse_thrust_ratio)
-    # the equation-error start depends on the data alone: no staged start from the broadband record is needed
-    ident = identify_logs(logs, work / "identified.json", **hull)
+    # the equation-error start depends on the data alone: no staged start from the broadband record is
+    # needed; the answer is judged on a record with other inputs
+    ident = identify_logs(logs, work / "identified.json", validate=[check_log], **hull)
     return (None if ident.refused else ident.result.params), ident.to_json_dict()
 
 
