@@ -73,3 +73,16 @@ def test_undetermined_coefficients_are_named_not_numbered():
     und = undetermined_coefficients(est)
     assert set(und) == {"N_vv", "kappa"} and und["N_vv"] == "at its physical bound"
     assert "reaches zero" in und["kappa"]
+
+
+def test_where_a_search_stopped_is_the_answer_only_when_it_predicts_better_on_each_half():
+    """An unconverged estimate that wins on the sum of the windows but loses on one half is not the
+    answer (the 6-DOF hull's lab loop: such an answer tracked 1.4-2.0 x worse than the defaults)."""
+    oe, ee = _estimate("output error", converged=False), _estimate("equation error", converged=True)
+    rule = _Choice([oe, ee], physical=None)
+    wins_once = {"output error": _score(np.r_[np.full(10, 0.10), np.full(10, 0.50)]),
+                 "equation error": _score(np.full(20, 0.40))}
+    assert wins_once["output error"].position_at_horizon_m < wins_once["equation error"].position_at_horizon_m
+    assert rule.choose(wins_once) == "equation error"
+    wins_twice = {"output error": _score(np.full(20, 0.30)), "equation error": _score(np.full(20, 0.40))}
+    assert rule.choose(wins_twice) == "output error"
