@@ -50,15 +50,16 @@ from lotsen.harness.lab_loop import identify_on, track_with_model as mission
 def _identify(lake):  # type: ignore[no-untyped-def]
     """`lotsen identify --lake` on the record (m11 fixed), and its peer: the first of its two
     estimates alone (2-s gust intervals; no average over the gust models)."""
-    from lotsen.sysid.identify import identification_verdict, parameters_at_bounds
+    from lotsen.sysid.estimators import Estimate
+    from lotsen.sysid.judge import physical_checks
     from lotsen.sysid.multiple import average_over_model_choice, estimate_lake_two_gust_models
 
     c0 = time.process_time()
     alone, other = estimate_lake_two_gust_models([lake.run.record], fixed={"m11": 14.0})
     res = average_over_model_choice(alone, other)
     cpu = time.process_time() - c0
-    v = identification_verdict(res, parameters_at_bounds(res))
-    v_alone = identification_verdict(alone, parameters_at_bounds(alone))
+    v = physical_checks(Estimate("output error", res, None, res.details))
+    v_alone = physical_checks(Estimate("output error", alone, None, alone.details))
     return res, v.verdict, v.reasons, v.weakly_determined, cpu, alone, v_alone
 
 
@@ -99,7 +100,7 @@ def _summary(label: str, Z: np.ndarray, verdicts: list[str], right: list[bool], 
 def _coefficient_right(name: str, estimate: float, true: float, std: float, weak: Sequence[str]) -> bool:
     """Issue 25's bar for one coefficient of an answer: within 3 reported sigma, and within 5 % for the
     core eight, 15 % for the rest unless identify named it weakly determined."""
-    from lotsen.sysid.verdict import CORE_PARAMETERS
+    from lotsen.sysid.judge import CORE_PARAMETERS
 
     bound = 0.05 if name in CORE_PARAMETERS else (None if name in weak else 0.15)
     return abs(estimate - true) <= 3 * std and (bound is None or abs(estimate - true) <= bound * abs(true))
@@ -107,7 +108,7 @@ def _coefficient_right(name: str, estimate: float, true: float, std: float, weak
 
 def identification_rows(quick: bool = False) -> list[dict]:
     from lotsen.harness.identification import lake_run
-    from lotsen.sysid.verdict import CORE_PARAMETERS
+    from lotsen.sysid.judge import CORE_PARAMETERS
 
     rows: list[dict] = []
     n_seeds = 3 if quick else 20
@@ -185,7 +186,7 @@ def lab_loop_rows(quick: bool = False) -> list[dict]:
     and wind, seed 0) against the exact model. A refusal is an honest outcome, a wrong answer is not."""
     from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
     from lotsen.sim import parameter_mismatch, random_boat
-    from lotsen.sysid.verdict import CORE_PARAMETERS
+    from lotsen.sysid.judge import CORE_PARAMETERS
 
     table = "the lab loop on random boats 10-40 % off the defaults (battery -> identify -> track)"
     rows: list[dict] = []

@@ -68,7 +68,7 @@ def _whole_record_row(g, style: str, dur: float) -> list[dict]:  # type: ignore[
     from independent_sim import NAMES
 
     from lotsen.model import VesselParameters
-    from lotsen.sysid.estimate import estimate
+    from lotsen.sysid.estimate import SolverOptions, estimate
     from lotsen.sysid.multiple import estimate_multiple_shooting, record_fisher
 
     rows = []
@@ -93,7 +93,7 @@ def _whole_record_row(g, style: str, dur: float) -> list[dict]:  # type: ignore[
                  "target": "<= 20 s CPU, |err| < 3 bound", "pass": bool(cpu <= 20 and np.abs(zb).max() < 3)})
     if style == "aligned":
         w0, c0 = time.perf_counter(), time.process_time()
-        r1 = estimate([g.record], _start(), fixed={"m11": 14.0}, window_s=10.0)
+        r1 = estimate([g.record], _start(), fixed={"m11": 14.0}, options=SolverOptions(window_s=10.0))
         cpu1 = time.process_time() - c0
         e1 = np.array([getattr(r1.params, n) - g.params[n] for n in r1.free_names])
         rel1 = np.abs(e1) / np.abs([g.params[n] for n in r1.free_names])

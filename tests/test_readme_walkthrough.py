@@ -76,11 +76,15 @@ def test_the_readme_walkthrough_runs_as_written_on_a_boat_that_is_not_the_defaul
     assert p.returncode == 0, said[-5000:]
     boat = "lake boat with myboat.json"
     # the experiment's lines, identify's output, report and parameter file name the boat file
-    assert said.count(f"of 'designed_60s' on {boat}") == 2, said[-5000:]
+    assert said.count(f"of 'designed_60s' on {boat}") == 1, said[-5000:]
+    # the answer is judged on a record with other inputs, not on the design flown again (a replay)
+    assert said.count(f"of 'prbs_multisine' on {boat}") == 1, said[-5000:]
     assert f"run.mcap: recorded on {boat}" in said and f"check.mcap: recorded on {boat}" in said
     identified = json.loads((tmp_path / "params.json").read_text())
     assert identified["verdict"] in ("ok", "weak", "predictive"), identified.get("identification")
     assert set(identified["recorded_on"]) == {"run.mcap", "check.mcap"}
+    judged = identified["identification"]["judged_on"]
+    assert judged.startswith("check.mcap") and judged.endswith("(another record)"), judged
     assert all(v.startswith(boat) for v in identified["recorded_on"].values())
     assert boat in (tmp_path / "report.html").read_text()
     # both missions flew the boat file's boat, one with the answer, one with the defaults

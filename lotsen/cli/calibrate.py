@@ -123,13 +123,17 @@ def run(args: argparse.Namespace) -> int:
     t, x, y, skipped = load_mag_csv(args.data, notes)
     for note in notes:
         print(f"calibrate-mag: {args.data}: skipped {note}", file=sys.stderr)
-    if skipped > len(notes):
-        print(f"calibrate-mag: {args.data}: ... {skipped} rows skipped in all", file=sys.stderr)
+    # how many, always, before the fit: the answer rests on the rows that remain
+    read = len(x) + skipped
+    if skipped:
+        print(f"calibrate-mag: {args.data}: {skipped} of {read} rows skipped (unreadable), {len(x)} used",
+              file=sys.stderr)
     limits = CalibrationLimits(min_points=args.min_points, min_coverage_deg=args.min_coverage_deg)
     try:
         cal = fit_mag_calibration(x, y, limits, heading_offset_rad=math.radians(args.heading_offset_deg))
     except DataError as exc:
-        raise type(exc)(f"{args.data}: {exc}") from None
+        why = f" ({skipped} of {read} rows were unreadable and skipped)" if skipped else ""
+        raise type(exc)(f"{args.data}: {exc}{why}") from None
     out = write_output(args.out, json.dumps(cal.to_dict(), indent=2) + "\n", (args.data,), DataError, "calibration")
     (c0, c1), ((a, b), (_, d)) = cal.center, cal.matrix
     print(f"{len(x)} samples ({skipped} rows skipped) over {t[-1] - t[0]:.1f} s: coverage {cal.coverage_deg:.0f} deg, "

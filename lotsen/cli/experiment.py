@@ -72,6 +72,10 @@ def _run_inputs(args: argparse.Namespace, config_files: tuple[str, ...] = ()) ->
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from lotsen.stack.stack import example_or_file
+
+    # a bare NAME is the example experiment of that name (examples/experiments/NAME.yaml), from any folder
+    args.experiment = example_or_file(args.experiment, "experiments")
     exp = load_experiment(args.experiment)
     if args.physics:
         if args.hardware:

@@ -10,12 +10,20 @@ those parameters is given with --fix, the command fixes m11 = 14.0 kg (weighed 1
 mu_az from a bollard-pull test) to set it from your own knowledge, or --no-default-scale to refuse.
 Every other parameter is estimated unless fixed.
 
-Refused with a clear error (exit 2, nothing written): unreadable or non-finite data, time going
-backwards, no excitation (all inputs zero, a boat that did not move), and data that leave a
-parameter direction unidentifiable (fix those parameters with --fix). Refused with a verdict
-(exit 1, the file written and marked "verdict": "refused", which every loader refuses): no
-convergence, a coefficient at its physical bound, a track the model does not explain (residuals
-correlated over 1 s), more than four weakly determined coefficients (lotsen.sysid.verdict).
+The command builds one `IdentificationProblem` from the flags and files (`_problem`), hands it to
+`lotsen.sysid.identify.identify` (the lab loop and the benches do the same) and writes the answer
+(`_answer`): the best predictor of the held-out data among the estimates, ok / weak when it is the
+physical one, predictive (exit 0) when effective coefficients predict measurably better than the
+model in use, refused otherwise (lotsen.sysid.judge).
+
+Refused with a clear error (exit 2, nothing written): unreadable or non-finite data, a column never
+measured, time going backwards, no excitation (all inputs zero, a boat that did not move), a record
+whose identification would take more than --max-cpu (the time expected is said first), and data that
+leave a parameter direction unidentifiable for the only estimator (fix those parameters with --fix).
+Refused with a verdict (exit 1, the file written and marked "verdict": "refused", which every loader
+refuses): no estimate predicts the held-out data measurably better than the model in use and the
+physical checks fail (no convergence, a coefficient at its physical bound, a track the model does not
+explain, intervals too wide).
 
 Validation: files given with --validate; otherwise the last `--holdout` fraction (default 0.2) of
 every file is held out (not used for estimation). --holdout 0 uses all data for estimation and
@@ -35,10 +43,13 @@ from typing import Any
 from lotsen.cli.progress import progress_printer as _progress_printer
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
-from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters
+from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters, load_parameter_file
 from lotsen.runtime.config import VesselSection
 from lotsen.settings import Number
-from lotsen.sysid.identify import estimate_records, identify, judge_identification, split_holdout
+from lotsen.sysid.estimate import SolverOptions, check_scale_fixed
+from lotsen.sysid.identify import identify
+from lotsen.sysid.judge import Identification
+from lotsen.sysid.problem import DEFAULT_BUDGET_CPU_S, IdentificationProblem, budget_refusal, held_out_split
 
 SCALE_DEFAULT = ("m11", 14.0)
 # Parameters that anchor the scale well when known (a fixed damping term such as Y_rv formally
@@ -101,112 +112,96 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
 
 
 def _cmd_identify(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    """`lotsen identify`: the problem from the flags and files, `identify(problem)`, the answer written."""
+    problem, warnings = _problem(args)
+    ident = identify(problem, _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)"))
+    return _answer(args, problem, ident, warnings)
 
+
+def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]]:
+    """The identification problem the flags and files describe, and the warnings to report; the files
+    first (a bad file is reported before any warning about the estimate), the time it will take said
+    before any work, and refused when over the budget (--max-cpu)."""
     from lotsen.logs.export import sysid_record
-    from lotsen.stack.stack import load_parameter_file
     from lotsen.sysid.data import load_record, register_loader
 
     antenna = _parse_antenna(args.gnss_antenna) if args.gnss_antenna else (0.0, 0.0)
     # the project's own run logs (the same path as `lotsen export`), the fixes moved to the hull's origin
     register_loader(".mcap", lambda path: sysid_record(path, gnss_antenna_m=antenna))
-    geometry = dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio)
-
     fixed = _parse_fix(args.fix or [])
+    provenance = {n: "--fix" for n in fixed}
     noise = _parse_noise(args.noise or [])
     inputs = (*args.data, *(args.validate or ()), args.init, args.in_use)
     check_outputs((args.out, args.report), inputs, ConfigError)  # never over a record (it was, exit 1)
-    # the files first: a bad file is reported before any warning about the estimate
     init = load_parameter_file(args.init) if args.init else None
-    theta0 = init.parameters if init else DEFAULT_PARAMETERS
-    in_use_file = load_parameter_file(args.in_use) if args.in_use else None
+    in_use = load_parameter_file(args.in_use) if args.in_use else init
     records = [_with_kind(load_record(p), args.inputs) for p in args.data]
     validation = [_with_kind(load_record(p), args.inputs) for p in args.validate] if args.validate else None
     args.recorded_on = _recorded_on([*args.data, *(args.validate or [])])
-    warnings: list[str] = []
-    if init is not None and init.defaults_for:
-        warnings.append(f"initial guess {init.describe()}")
+    args.inputs_checked = inputs
+    warnings = [f"initial guess {init.describe()}"] if init is not None and init.defaults_for else []
     if not any(n in fixed for n in SCALE_ANCHORS):
         if args.no_default_scale:
-            from lotsen.sysid.estimate import check_scale_fixed
-
             check_scale_fixed(fixed)
         fixed[SCALE_DEFAULT[0]] = SCALE_DEFAULT[1]
+        provenance[SCALE_DEFAULT[0]] = "the default scale (weighed 13 kg + surge added mass)"
         msg = ("WARNING: nothing fixes the common scale of mass, damping and thrust (unidentifiable from motion "
                f"data); fixing m11 = {SCALE_DEFAULT[1]} kg (weighed 13 kg + surge added mass). All of M, damping, "
                "C_N, mu_az, mu_t scale with this choice. Use --fix m11=... or --fix mu_az=... to set it.")
         print(msg, file=sys.stderr)
         warnings.append(msg)
-    if validation is not None:
-        est_records, val_records = records, validation
-    elif args.holdout > 0:
-        est_records, val_records = split_holdout(records, args.holdout)
-    else:
-        est_records = val_records = records
+    est, val, judged_on, held_out = held_out_split(records, validation, args.holdout)
+    if not held_out:
         warnings.append("validation on the estimation data (--holdout 0): fit figures are optimistic")
-    progress = _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)")
-    in_use = in_use_file.parameters if in_use_file else theta0
-    if args.method == "single":
-        res = estimate_records(est_records, theta0, fixed, method=args.method, lake=args.lake, geometry=geometry,
-                               noise_std=noise, window_s=args.window, gap_s=args.gap, node_s=args.node,
-                               max_iterations=args.max_iter, gust_std=args.gust_std,
-                               estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
-                               progress=lambda i, cost: progress(f"iteration {i}: cost {cost:.5g}"))
-        ident = judge_identification(res)  # refuses (exit 2) rather than writing numbers the data do not determine
-    else:
-        ident = identify(est_records, val_records, theta0, fixed, lake=args.lake, geometry=geometry, in_use=in_use,
-                         noise_std=noise, gap_s=args.gap, node_s=args.node, max_iterations=args.max_iter,
-                         gust_std=args.gust_std, estimate_noise=not args.fixed_noise, gyro_offset=args.gyro_offset,
-                         held_out=val_records is not est_records, terms=_parse_terms(args.terms), progress=progress)
-    progress(None)
+    solver = SolverOptions(gap_s=args.gap, noise_std=noise, max_iterations=args.max_iter, window_s=args.window,
+                           node_s=args.node, estimate_noise=not args.fixed_noise, gust_std=args.gust_std,
+                           gyro_bias=True if args.gyro_offset else None)
+    problem = IdentificationProblem(
+        est, val, fixed, provenance, dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio),
+        init.parameters if init else DEFAULT_PARAMETERS, in_use.parameters if in_use else None, args.lake,
+        _parse_terms(args.terms), args.method, judged_on, held_out, solver)
+    print(f"identify: {problem.n_rows} rows, judged on {judged_on}: expect about "
+          f"{max(problem.expected_cpu_s(), 1.0):.0f} s of CPU", file=sys.stderr)
+    too_long = budget_refusal(problem, args.max_cpu)
+    if too_long:
+        raise ConfigError(too_long)
+    return problem, warnings
+
+
+def _answer(args: argparse.Namespace, problem: IdentificationProblem, ident: Identification,
+            warnings: list[str]) -> int:
+    """The parameter file, the report and the words on stderr; the exit code the README gives (0 for
+    ok, weak and predictive; 1 for refused, the file written and marked so)."""
     res = ident.result
     for d in res.identifiability.directions:
         print(f"identifiability: {d}", file=sys.stderr)
-    if res.identifiability.poorly_determined:
-        warnings.append("poorly determined (95 % relative error above 5 %): "
-                        + ", ".join(res.identifiability.poorly_determined))
+    if ident.undetermined:
+        warnings.append("undetermined (no interval given): " + ", ".join(f"{n} ({w})" for n, w in ident.undetermined.items()))
     if ident.at_bounds:
-        msg = ("WARNING: at a physical bound (its interval is not meaningful): " + ", ".join(ident.at_bounds))
+        msg = "WARNING: at a physical bound (undetermined: no interval): " + ", ".join(ident.at_bounds)
         print(msg, file=sys.stderr)
         warnings.append(msg)
-    verdict = ident.verdict
     out = ident.to_json_dict()
     if args.recorded_on:
         out["recorded_on"] = args.recorded_on
-    env = getattr(res.details, "environment", None)
-    if env is not None:
-        cn, ce = env.current_ne
-        wn, we = env.wind_ne
-        print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
-              f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
-              f"intervals from the residuals' own correlation (sandwich; residuals correlated over up to "
-              f"{env.autocorrelation_factor:.0f} samples)", file=sys.stderr)
-    shift = getattr(res.details, "gust_interval_shift", None)
-    if shift:
-        moved = sorted((n for n in shift if abs(shift[n]) > 1.0), key=lambda n: -abs(shift[n]))
-        print("gust model: with the gusts cut into longer intervals the coefficients move "
-              + (", ".join(f"{n} {shift[n]:+.1f} sigma" for n in moved) if moved else "by less than 1 sigma each")
-              + "; the answer is the average of the two, its intervals include the difference", file=sys.stderr)
-    bias = getattr(res.details, "gyro_bias", None)
-    if bias is not None:
-        out["gyro_bias_radps"] = {"values": [float(b) for b in bias],
-                                  "std": [float(b) for b in res.details.gyro_bias_std]}
-        print("gyro offset per record (rad/s): " + ", ".join(
-            f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(bias, res.details.gyro_bias_std)), file=sys.stderr)
-    write_output(args.out, json.dumps(out, indent=2) + "\n", inputs, ConfigError, "parameter file")
-    how = (f"{res.method} shooting, {res.iterations} iterations, s^2 = {res.noise_factor:.3g}"
-           if res.method != "equation error" else "equation error: the equations of motion fitted to the record")
+    _print_environment(ident)
+    write_output(args.out, json.dumps(out, indent=2) + "\n", args.inputs_checked, ConfigError, "parameter file")
+    how = (f"{ident.estimator}, {res.iterations} iterations, s^2 = {res.noise_factor:.3g}"
+           if ident.estimator != "equation error" else "equation error: the equations of motion fitted to the record")
     print(f"{args.out}: {len(res.free_names)} parameters estimated ({how})", file=sys.stderr)
     for n in res.free_names:
         v, sd = getattr(res.params, n), res.std[n]
-        print(f"  {n:6s} {v: .6g} +- {1.96 * sd:.3g} (95 %, {196 * sd / abs(v) if v else math.inf:.2g} %)",
-              file=sys.stderr)
+        if n in ident.undetermined:
+            print(f"  {n:6s} {v: .6g}  undetermined ({ident.undetermined[n]})", file=sys.stderr)
+        else:
+            print(f"  {n:6s} {v: .6g} +- {1.96 * sd:.3g} (95 %, {196 * sd / abs(v):.2g} %)", file=sys.stderr)
     if ident.prediction:
         _print_prediction(ident)
-    for a in ident.advice or []:
+    for a in ident.advice:
         print(f"advice: {a}", file=sys.stderr)
     if args.report:
-        _write_report(args, res, est_records, val_records, warnings, theta0, inputs)
+        _write_report(args, ident, problem, warnings)
+    verdict = ident.verdict
     if verdict.verdict == "predictive":
         print(f"verdict: predictive — effective coefficients ({ident.estimator}): use them to predict and "
               "control this boat, not as its physical values (the loaders accept the file, the page labels it):",
@@ -225,6 +220,30 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     else:
         print("verdict: ok", file=sys.stderr)
     return 0
+
+
+def _print_environment(ident: Identification) -> None:
+    """A lake answer's current and wind, the gust models' difference and the gyro offsets, in words."""
+    sh = ident.estimate.shooting
+    if sh is None:
+        return
+    env = sh.environment
+    if env is not None:
+        cn, ce = env.current_ne
+        wn, we = env.wind_ne
+        print(f"environment: current {math.hypot(cn, ce):.3f} m/s towards {math.degrees(math.atan2(ce, cn)) % 360:.0f} "
+              f"deg, wind {math.hypot(wn, we):.1f} m/s from {math.degrees(math.atan2(-we, -wn)) % 360:.0f} deg; "
+              f"intervals from the residuals' own correlation (sandwich; residuals correlated over up to "
+              f"{env.autocorrelation_factor:.0f} samples)", file=sys.stderr)
+    shift = sh.gust_interval_shift
+    if shift:
+        moved = sorted((n for n in shift if abs(shift[n]) > 1.0), key=lambda n: -abs(shift[n]))
+        print("gust model: with the gusts cut into longer intervals the coefficients move "
+              + (", ".join(f"{n} {shift[n]:+.1f} sigma" for n in moved) if moved else "by less than 1 sigma each")
+              + "; the answer is the average of the two, its intervals include the difference", file=sys.stderr)
+    if sh.gyro_bias is not None and sh.gyro_bias_std is not None:
+        print("gyro offset per record (rad/s): " + ", ".join(
+            f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(sh.gyro_bias, sh.gyro_bias_std)), file=sys.stderr)
 
 
 def _parse_terms(text: str) -> tuple[str, ...] | None:
@@ -253,40 +272,25 @@ def _print_prediction(ident) -> None:  # type: ignore[no-untyped-def]
         mark = " <- written" if name == ident.chosen else ""
         print(f"  {name:15s} " + "  ".join(f"{sc.position_m[h]:6.2f} m {sc.heading_deg[h]:5.1f} deg" for h in hs)
               + ("" if sc.stable else "  (diverges)") + mark, file=sys.stderr)
+    held = ident.held_out_score
+    if held is not None and held.n_windows and held.horizons_s == hs:
+        print(f"  {'the answer':15s} " + "  ".join(f"{held.position_m[h]:6.2f} m {held.heading_deg[h]:5.1f} deg"
+                                                   for h in hs)
+              + "  (each half of the windows by the estimate chosen on the other half)", file=sys.stderr)
+    print(f"  judged on {ident.judged_on}", file=sys.stderr)
 
 
-def _write_report(args: argparse.Namespace, res, est_records: list, val_records: list, warnings: list[str],
-                  theta0, inputs: tuple = ()) -> None:  # type: ignore[no-untyped-def]
-    from lotsen.errors import LotsenError as _LE
-    from lotsen.sysid.blackbox import fit_narx, narx_fit
-    from lotsen.sysid.report import render_pdf, render_report
-    from lotsen.sysid.validate import inputs_at_outputs, residual_analysis, simulate_fit
+def _write_report(args: argparse.Namespace, ident: Identification, problem: IdentificationProblem,
+                  warnings: list[str]) -> None:
+    from lotsen.sysid.report import Report, render_pdf, render_report
 
-    fit_est = fit_val = bb = ra = None
-    try:
-        fit_est = simulate_fit(res.params, est_records, args.window, args.gap)
-    except _LE as exc:
-        warnings.append(f"no fit on the estimation data: {exc}")
-    try:
-        fit_val = simulate_fit(res.params, val_records, args.window, args.gap)
-        ra = residual_analysis(fit_val, inputs_at_outputs(val_records, args.window, args.gap))
-        if not ra.autocorr:  # no output with enough samples for a correlation
-            ra = None
-    except _LE as exc:
-        warnings.append(f"no validation: {exc} (the held-out part is too short; use --validate or a longer "
-                        "record)")
-    try:
-        bb = narx_fit(fit_narx(est_records, args.gap), val_records, args.window, args.gap)
-    except _LE as exc:
-        warnings.append(f"no black-box peer: {exc}")
     sources = [f"{p} (recorded on {args.recorded_on[str(p)]})" if str(p) in args.recorded_on else str(p)
                for p in args.data]
-    report_args = (res, sources, fit_est, fit_val, bb, ra, warnings, theta0)
-    if Path(args.report).suffix.lower() == ".pdf":
-        write_output(args.report, render_pdf(*report_args), inputs, ConfigError, "report")
-    else:
-        write_output(args.report, render_report(*report_args), inputs, ConfigError, "report")
-    print(f"{args.report}: written" + ("" if fit_val else " (no validation data)"), file=sys.stderr)
+    report = Report.of(ident, problem, sources, warnings)
+    pdf = Path(args.report).suffix.lower() == ".pdf"
+    write_output(args.report, render_pdf(report) if pdf else render_report(report), args.inputs_checked,
+                 ConfigError, "report")
+    print(f"{args.report}: written" + ("" if report.fit_val else " (no validation data)"), file=sys.stderr)
 
 
 def _recorded_on(paths: list[str]) -> dict[str, str]:
@@ -360,6 +364,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--gnss-antenna", metavar="X,Y",
                    help="the GNSS antenna's body position from the model's origin, m (vessel.gnss_antenna_m; "
                         "default 0,0): run logs' fixes are moved to the origin")
+    p.add_argument("--max-cpu", type=Number(1.0, 86400.0, "s"), default=DEFAULT_BUDGET_CPU_S,
+                   help="refuse, before any work, a record whose identification would take more CPU than this "
+                        f"(default {DEFAULT_BUDGET_CPU_S:g} s); the time expected is printed first")
     p.add_argument("--no-default-scale", action="store_true",
                    help="refuse instead of fixing m11 when no scale parameter is fixed")
     p.set_defaults(func=_cmd_identify)

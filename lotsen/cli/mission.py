@@ -105,16 +105,9 @@ def waves_report(waves: Any) -> dict | None:
 def route_file(text: str) -> str:
     """ROUTE as given, or, when no such file exists and it is a bare name, the example route of
     that name (examples/routes/NAME.yaml): the README's walkthrough runs from any folder."""
-    from lotsen.stack.stack import EXAMPLES, example_route
+    from lotsen.stack.stack import example_or_file
 
-    p = FilePath(text)
-    if p.exists() or p.suffix or len(p.parts) != 1:
-        return text
-    try:
-        return example_route(text)
-    except ConfigError:
-        names = ", ".join(sorted(f.stem for f in (EXAMPLES / "routes").glob("*.yaml")))
-        raise ConfigError(f"route {text!r}: no such file, nor an example route of that name ({names})") from None
+    return example_or_file(text, "routes")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -138,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from lotsen.planning.io import load_route
     from lotsen.harness.mission import MissionConfig, make_sim_ekf, planned_duration_s, run_mission
     from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
-    from lotsen.stack.stack import load_parameter_file
+    from lotsen.model import load_parameter_file
 
     cur = parse_speed_dir(args.current, "current")
     wind = parse_speed_dir(args.wind, "wind")

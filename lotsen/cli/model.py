@@ -10,7 +10,7 @@ import numpy as np
 from lotsen.model import VesselModel, VesselParameters, linearise, stability_report, straight_trim
 from lotsen.model.linear import linearise_straight
 from lotsen.settings import Number
-from lotsen.stack.stack import load_parameter_file
+from lotsen.model import load_parameter_file
 
 
 def register(sub: argparse._SubParsersAction) -> None:

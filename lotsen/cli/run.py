@@ -135,7 +135,7 @@ def with_model_and_boat(config: StackConfig, params: str | None, boat: str | Non
         config = replace(config, sim=replace(config.sim, boat=BoatSection(ideal=True)))
     elif boat:
         from lotsen.sim import DEFAULT_BOAT
-        from lotsen.stack.stack import load_parameter_file
+        from lotsen.model import load_parameter_file
 
         named = f"{config.sim.boat.name or DEFAULT_BOAT.name} with {load_parameter_file(boat).describe()}"
         config = replace(config, sim=replace(config.sim, boat=replace(

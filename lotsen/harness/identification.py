@@ -17,7 +17,7 @@ from lotsen.model import DEFAULT_LIMITS, DEFAULT_PARAMETERS, VesselModel, Vessel
 from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import IdRecord
 from lotsen.sysid.experiment import Experiment, InputGenerator
-from lotsen.sysid.verdict import CORE_PARAMETERS
+from lotsen.sysid.judge import CORE_PARAMETERS
 
 
 @dataclass

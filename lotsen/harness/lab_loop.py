@@ -6,8 +6,8 @@ a mission with the identified model, on a simulated boat that is not its model.
 
 `record_on_simulated_stack` is what `lotsen experiment run --sim --out RUN.mcap` does: the
 experiment node drives the stack's supervisor, the recorder writes every topic. `identify_logs`
-is what `lotsen identify RUN.mcap ... --out params.json` does with the hull's measured geometry
-(the same estimator and verdict, lotsen.sysid.identify). A lab knows the scale from the weighed
+is what `lotsen identify RUN.mcap ... --validate CHECK.mcap --out params.json` does with the hull's
+measured geometry: the same problem handed to the same `lotsen.sysid.identify.identify`. A lab knows the scale from the weighed
 hull (m11 fixed), the GNSS antenna's position from a tape, and the astern/ahead thrust ratio from a
 bollard pull: `identify_on` gives those, nothing else of the boat.
 """
@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from lotsen.control import ControlConfig, make_path_follower
-from lotsen.errors import LotsenError
+from lotsen.errors import ConfigError, LotsenError
+from lotsen.files import read_yaml
 from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
 from lotsen.logs.export import sysid_record
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, Environment, VesselModel, VesselParameters
@@ -32,8 +33,10 @@ from lotsen.runtime.config import BoatSection, LaunchConfig, LoggingSection, Web
 from lotsen.sim import SimulatedBoat
 from lotsen.stack.experiment import ExperimentNode, run_on_stack
 from lotsen.stack.stack import EXAMPLES, example_route
-from lotsen.sysid.experiment import Experiment, load_experiment
-from lotsen.sysid.identify import Identification, estimate_records, judge_identification, split_holdout
+from lotsen.sysid.experiment import Experiment, load_experiment, parse_experiment
+from lotsen.sysid.identify import identify
+from lotsen.sysid.judge import Identification
+from lotsen.sysid.problem import IdentificationProblem, held_out_split
 
 #: the battery of designed experiments (examples/experiments), the broadband PRBS first
 EXPERIMENTS = ("prbs_multisine", "zigzag_20_20", "turning_circles", "bow_thruster_steps", "zigzag_10_10",
@@ -59,17 +62,19 @@ def record_on_simulated_stack(experiment: Experiment, out: Path, config: LaunchC
 
 def identify_logs(logs: Sequence[str | Path], out: Path | None = None, *, fixed: Mapping[str, float],
                   gnss_antenna_m: tuple[float, float] = (0.0, 0.0), reverse_thrust_ratio: float = 1.0,
-                  init: VesselParameters | None = None, holdout: float = 0.2) -> Identification:
-    """`lotsen identify LOGS --fix ... --gnss-antenna X,Y --reverse-thrust-ratio R [--init] --out OUT`
-    with its defaults (multiple shooting, the last `holdout` of each record held out): the run
-    logs' fixes moved to the hull's origin, estimated from `init` (default: the defaults), judged;
-    the parameter file written to `out` when given (marked refused when the verdict is). Raises
-    IdentifiabilityError when the data leave a direction undetermined (nothing written)."""
+                  init: VesselParameters | None = None, validate: Sequence[str | Path] = ()) -> Identification:
+    """`lotsen identify LOGS --validate VALIDATE --fix ... --gnss-antenna X,Y --reverse-thrust-ratio R
+    [--init] --out OUT` with its defaults: the run logs' fixes moved to the hull's origin, the one
+    `identify(problem)`, judged on `validate` (records with other inputs; without them the last 20 % of
+    each log); the parameter file written to `out` when given (marked refused when the verdict is)."""
     records = [sysid_record(p, gnss_antenna_m=gnss_antenna_m) for p in logs]
-    est_records, _ = split_holdout(records, holdout) if holdout > 0 else (records, records)
+    validation = [sysid_record(p, gnss_antenna_m=gnss_antenna_m) for p in validate]
+    est, val, judged_on, held_out = held_out_split(records, validation, 0.2)
     geometry = dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=reverse_thrust_ratio)
-    ident = judge_identification(estimate_records(est_records, init or DEFAULT_PARAMETERS, fixed,
-                                                  geometry=geometry))
+    problem = IdentificationProblem(est, val, dict(fixed), {n: "measured on the hull" for n in fixed}, geometry,
+                                    init or DEFAULT_PARAMETERS, DEFAULT_PARAMETERS, validation_source=judged_on,
+                                    held_out=held_out)
+    ident = identify(problem)
     if out is not None:
         Path(out).write_text(json.dumps(ident.to_json_dict(), indent=2) + "\n")
     return ident
@@ -79,10 +84,20 @@ def lab_experiments() -> list[Experiment]:
     return [load_experiment(EXAMPLES / "experiments" / f"{name}.yaml") for name in EXPERIMENTS]
 
 
+def validation_experiment(seed: int = 1) -> Experiment:
+    """The record that judges the lab loop's answer: the broadband example (prbs_multisine) with its
+    random sequences drawn from `seed`, so its inputs are not those of any estimation record (the
+    battery's own prbs_multisine flown again would be a replay: in calm water the same true track)."""
+    data = read_yaml(EXAMPLES / "experiments" / "prbs_multisine.yaml", ConfigError, "experiment file")
+    pieces = [dict(p, seed=int(p["seed"]) + 100 * seed) if "seed" in p else dict(p) for p in data["pieces"]]
+    return parse_experiment({**data, "name": f"prbs_multisine_seed{seed}", "pieces": pieces}, "validation")
+
+
 def identify_on(boat: SimulatedBoat, work: Path, experiments: Sequence[Experiment] | None = None,
                 base_seed: int = 100) -> tuple[VesselParameters | None, dict[str, Any]]:
     """The lab loop on `boat`: the designed experiments (default the battery `EXPERIMENTS`) recorded
-    on the simulated stack (seeds `base_seed` + i) into `work`, identified together; m11 fixed as the
+    on the simulated stack (seeds `base_seed` + i) into `work`, and a record with other inputs to judge
+    the answer on (`validation_experiment`), identified together; m11 fixed as the
     weighed hull gives it, and the geometry a lab measures on the hull given (the GNSS antenna's
     position; astern/ahead thrust from a bollard pull). Returns (parameters, the parameter file's
     content, also written to work/identified.json); the parameters are None when identification
@@ -97,17 +112,14 @@ def identify_on(boat: SimulatedBoat, work: Path, experiments: Sequence[Experimen
         out = work / f"{exp.name}.mcap"
         record_on_simulated_stack(exp, out, dataclasses.replace(config, seed=base_seed + i))
         logs.append(out)
+    check = validation_experiment()
+    check_log = work / f"{check.name}.mcap"
+    record_on_simulated_stack(check, check_log, dataclasses.replace(config, seed=base_seed + len(logs)))
     hull = dict(fixed={"m11": boat.parameters.m11}, gnss_antenna_m=tuple(boat.gnss_antenna_m),
                 reverse_thrust_ratio=boat.geometry.reverse_thrust_ratio)
-    # the broadband record first, and the battery from there when that estimate converged inside the
-    # bounds (refused only for weakly determined coefficients is still a far better start): from the
-    # defaults, a boat 10-40 % away can fall into a wrong basin on the whole battery (refused, not wrong)
-    try:
-        first = identify_logs(logs[:1], work / "first.json", **hull)
-        init = first.result.params if first.result.converged and not first.at_bounds else None
-    except LotsenError:
-        init = None
-    ident = identify_logs(logs, work / "identified.json", init=init, **hull)
+    # the equation-error start depends on the data alone: no staged start from the broadband record is
+    # needed; the answer is judged on a record with other inputs
+    ident = identify_logs(logs, work / "identified.json", validate=[check_log], **hull)
     return (None if ident.refused else ident.result.params), ident.to_json_dict()
 
 

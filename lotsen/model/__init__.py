@@ -13,7 +13,7 @@ from lotsen.model.linear import (
 from lotsen.model.quantities import ModelArrays, geometry_tuple
 from lotsen.model.parameters import (
     DEFAULT_GEOMETRY, DEFAULT_LIMITS, DEFAULT_PARAMETERS, ActuatorLimits, ParameterFile, VesselGeometry,
-    VesselParameters, parameter_table_markdown, parameters_from_file,
+    VesselParameters, load_parameter_file, parameter_table_markdown, parameters_from_file,
 )
 
 __all__ = [
@@ -21,5 +21,5 @@ __all__ = [
     "thruster_forces", "vessel_rhs", "geometry_tuple", "rk4_step", "symbolic_rhs", "Environment", "WindCoefficients", "wind_force",
     "LinearSwayYaw", "StabilityReport", "condition_16d", "linearise", "linearise_straight",
     "stability_report", "straight_trim", "DEFAULT_GEOMETRY", "DEFAULT_LIMITS", "DEFAULT_PARAMETERS",
-    "ActuatorLimits", "ModelArrays", "ParameterFile", "VesselGeometry", "VesselParameters", "parameters_from_file", "parameter_table_markdown", "all_finite", "wrap_angle",
+    "ActuatorLimits", "ModelArrays", "ParameterFile", "VesselGeometry", "VesselParameters", "load_parameter_file", "parameters_from_file", "parameter_table_markdown", "all_finite", "wrap_angle",
 ]

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Mapping
 
 from lotsen.errors import ConfigError
+from lotsen.files import read_json
 from lotsen.settings import Number
 
 
@@ -22,7 +23,7 @@ from lotsen.settings import Number
 #: shows the record needs it: lotsen.sysid.identify)
 OPTIONAL_TERMS = {"X_uuu": "the surge resistance grows faster than speed squared (wave making)"}
 
-#: identification's verdicts (lotsen.sysid.verdict) a loader takes: "ok", "weak" (usable, some
+#: identification's verdicts (lotsen.sysid.judge) a loader takes: "ok", "weak" (usable, some
 #: coefficients weakly determined), "predictive" (effective values: they predict the boat's motion
 #: though some are not its physical coefficients). "refused" and anything else is refused. The one
 #: place the verdict of a parameter file is judged (`check_verdict`).
@@ -256,3 +257,11 @@ def parameter_table_markdown() -> str:
         rows.append(f"| {f.name} | {getattr(DEFAULT_PARAMETERS, f.name):g} | {f.metadata['unit']} "
                     f"| [{lo:g}, {hi:g}] | {f.metadata['doc']} |")
     return "\n".join(rows)
+
+
+def load_parameter_file(path: str) -> ParameterFile:
+    """The one loader of parameter files (as `lotsen identify --out` writes them): every coefficient
+    present and physical, or listed in "defaults_for"; a file identification refused is refused
+    here too, with its reasons (`parameters_from_file`). Below the commands and the stack, so that
+    both read a file the same way."""
+    return parameters_from_file(read_json(path, ConfigError), str(path))

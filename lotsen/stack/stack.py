@@ -12,7 +12,9 @@ from typing import Any
 from lotsen.errors import ConfigError
 from lotsen.files import read_json
 from lotsen.messages import ModelInfo
-from lotsen.model import Environment, ParameterFile, VesselGeometry, VesselModel, VesselParameters, parameters_from_file
+from lotsen.model import (
+    Environment, VesselGeometry, VesselModel, VesselParameters, load_parameter_file, parameters_from_file,
+)
 from lotsen.planning import GeoOrigin
 from lotsen.runtime.bus import Bus
 from lotsen.runtime.config import LaunchConfig
@@ -32,11 +34,17 @@ def example_route(name: str = "figure_eight") -> str:
     return str(path)
 
 
-def load_parameter_file(path: str) -> ParameterFile:
-    """The one loader of parameter files (as `lotsen identify --out` writes them): every coefficient
-    present and physical, or listed in "defaults_for"; a file identification refused is refused
-    here too, with its reasons (`lotsen.model.parameters.parameters_from_file`)."""
-    return parameters_from_file(read_json(path, ConfigError), str(path))
+def example_or_file(text: str, kind: str = "routes") -> str:
+    """TEXT as given, or, when no such file exists and it is a bare name, the example of that name
+    (examples/KIND/NAME.yaml: a route, an experiment): the README's walkthrough runs from any folder."""
+    p = Path(text)
+    if p.exists() or p.suffix or len(p.parts) != 1:
+        return text
+    path = EXAMPLES / kind / f"{text}.yaml"
+    if not path.is_file():
+        names = ", ".join(sorted(f.stem for f in (EXAMPLES / kind).glob("*.yaml")))
+        raise ConfigError(f"{kind[:-1]} {text[:40]!r}: no such file, nor an example {kind[:-1]} of that name ({names})")
+    return str(path)
 
 
 def load_parameters(path: str | None) -> VesselParameters:

@@ -50,6 +50,11 @@ PSI_OUTPUT = "psi"
 #   "sample" - achieved values sampled at their stamps: linearly interpolated between stamps.
 # After a column's last stamp every kind holds its last value.
 INPUT_KINDS = ("held", "mean", "sample")
+#: interval means reconstructed with each slope taken from the next interval's mean instead of the two
+#: neighbours' (central): an equally defensible guess at how the actuators moved within each logged
+#: interval, which identification uses to measure how much its answer depends on that guess
+#: (lotsen.sysid.estimators.reconstruction_spread); not a kind a file declares
+MEAN_FORWARD = "mean_forward"
 # what a value of a record may be (magnitude, unit): beyond these a cell is damaged data, and a
 # 1e308 would overflow the estimator's arithmetic. Generous: a servo angle within a turn, propeller
 # speeds a motor cannot reach, positions 100 km from the first fix, a heading unwrapped over 1600 turns.
@@ -72,7 +77,7 @@ class IdRecord:
     input_kind: str = "held"  # one of INPUT_KINDS
 
     def __post_init__(self) -> None:
-        if self.input_kind not in INPUT_KINDS:
+        if self.input_kind not in (*INPUT_KINDS, MEAN_FORWARD):
             raise DataError(f"{self.source}: input kind {self.input_kind!r} is not one of {', '.join(INPUT_KINDS)}")
         self.t = np.asarray(self.t, dtype=float)
         self.inputs = np.asarray(self.inputs, dtype=float).reshape(len(self.t), 5)
@@ -162,7 +167,7 @@ def _reconstruct_inputs(t: np.ndarray, inputs: np.ndarray, kind: str) -> tuple[n
             nq = len(c)
             sl = np.zeros(nq)
             if nq >= 2:
-                lo = np.maximum(np.arange(nq) - 1, 0)
+                lo = np.maximum(np.arange(nq) - (0 if kind == MEAN_FORWARD else 1), 0)
                 hi = np.minimum(np.arange(nq) + 1, nq - 1)
                 dc = c[hi] - c[lo]
                 sl = np.where(dc > 0, (m[hi] - m[lo]) / np.where(dc > 0, dc, 1.0), 0.0)
@@ -222,6 +227,12 @@ def check_record(record: IdRecord) -> None:
                         "stamp until the next, so every column needs at least one)")
     if not np.isfinite(record.outputs).any():
         raise DataError(f"{src}: no finite measurement in any output column ({', '.join(record.output_names)})")
+    # a column that is there but never measured (a heading channel lost for the whole run) would be read
+    # as data by every estimator: refuse it by name rather than fail deep inside one of them
+    empty = [c for j, c in enumerate(record.output_names) if not np.isfinite(record.outputs[:, j]).any()]
+    if empty:
+        raise DataError(f"{src}: output column(s) {', '.join(empty)} never have a value (every cell empty or NaN): "
+                        "the channel was not recorded; drop the column from the file or record it")
 
 
 def split_segments(record: IdRecord, gap_s: float = 1.0, min_samples: int = 8) -> list[Segment]:

@@ -49,13 +49,15 @@ class InformationModel:
     node_s: float = 2.0
 
     def _problem(self, U_rows: np.ndarray, rows: np.ndarray, node_s: float):  # type: ignore[no-untyped-def]
+        from lotsen.sysid.estimate import SolverOptions
         from lotsen.sysid.multiple import MultipleShootingProblem
 
         n = len(self.t)
         Y = np.full((n, len(self.output_names)), np.nan)
         Y[rows] = 0.0
         rec = IdRecord(self.t, U_rows, Y, self.output_names, "design")
-        return MultipleShootingProblem([rec], node_s, math.inf, self.noise_std, h_max=self.h_max)
+        return MultipleShootingProblem([rec], SolverOptions(gap_s=math.inf, noise_std=dict(self.noise_std or {}),
+                                                            h_max=self.h_max, node_s=node_s))
 
     def trajectory(self, U_rows: np.ndarray, theta: Sequence[float], x0: Sequence[float]) -> np.ndarray:
         """The model's prediction at every row from x0 (one simulation, no noise)."""

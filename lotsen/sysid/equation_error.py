@@ -36,11 +36,11 @@ from scipy.interpolate import make_smoothing_spline
 from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import least_squares, lsq_linear, minimize
 
-from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
+from lotsen.model import VesselGeometry, VesselParameters
 from lotsen.model.dynamics import array_tau
 from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
 from lotsen.sysid.data import IdRecord, Segment, split_segments
-from lotsen.sysid.estimate import NAMES, IdentifiabilityError, parameter_bounds, with_terms_off
+from lotsen.sysid.estimate import NAMES, IdentifiabilityError, SolverOptions, parameter_bounds, with_terms_off
 
 FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard deviation)
 # the splines' smoothing: lambda = 1 / (dt (2 pi f_c)^4) passes motion below f_c and cuts above it (a
@@ -251,16 +251,17 @@ def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float
 
 
 def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, float],
-                            theta0: VesselParameters, geometry: VesselGeometry = DEFAULT_GEOMETRY,
-                            gap_s: float = 1.0, lake: bool = False, gyro_bias: Sequence[float] | None = None,
-                            env0: Sequence[float] | None = None, terms: Sequence[str] = (),
+                            theta0: VesselParameters, options: SolverOptions = SolverOptions(),
+                            gyro_bias: Sequence[float] | None = None, env0: Sequence[float] | None = None,
                             hold: "EquationErrorResult | None" = None) -> EquationErrorResult:
     """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
     bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
     wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
     coefficients' values where `fixed` does not and kappa's start. `hold`: on a lake, another fit of the
     same records whose kappa, current and wind are kept (only the linear part is solved again: the
-    optional terms' trial)."""
+    optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
+    and the optional `terms` to estimate."""
+    geometry, gap_s, lake, terms = options.geometry, options.gap_s, options.lake, options.terms
     segs = [s for r in records for s in split_segments(r, gap_s)]
     per_segment_bias = None
     if gyro_bias is not None:

@@ -44,6 +44,32 @@ DEFAULT_NOISE_STD = {"north": 0.01, "east": 0.01, "psi": 0.01, "r": 0.003, "u": 
 _STRICT_POSITIVE = ("X_u", "Y_v", "N_r")
 
 
+@dataclass(frozen=True)
+class SolverOptions:
+    """How an output-error solver runs on a record (single and multiple shooting alike): the record's
+    gaps, the assumed noise, the hull's known geometry, the integration step and the iteration budget;
+    for multiple shooting the interval length, the lake model (current, wind, gusts), a yaw-rate
+    offset per record, which fixed values to test and which optional model terms to estimate."""
+
+    gap_s: float = 1.0  # a longer time gap between measurements splits a record
+    noise_std: Mapping[str, float] = field(default_factory=dict)  # per output (DEFAULT_NOISE_STD)
+    geometry: VesselGeometry = DEFAULT_GEOMETRY
+    h_max: float = 0.0625  # the longest RK4 step, s
+    max_iterations: int = 60  # per pass
+    total_iterations: int | None = None  # both passes together (None: no common cap)
+    tol: float = 1e-9
+    window_s: float | None = 10.0  # single shooting: window length
+    node_s: float = 2.0  # multiple shooting: shooting interval length
+    estimate_noise: bool = True  # re-estimate each output's noise from its residuals (a second pass)
+    lake: bool = False  # current, wind and gusts estimated with the coefficients
+    gust_std: float = 0.3  # lake: prior spread of the per-interval gust factors
+    wind_coefficient_spread: float = 0.01  # lake: relative prior spread of the wind's drag coefficients
+    gyro_bias: bool | None = None  # a yaw-rate offset per record (None: with `lake`)
+    test_fixed: tuple[str, ...] = ()  # fixed coefficients whose value the record may contradict
+    misfit_check: int = 0  # stop after this many iterations when the track's errors stay correlated
+    terms: tuple[str, ...] = ()  # optional model terms estimated (OPTIONAL_TERMS; the others off)
+
+
 class IdentifiabilityError(LotsenError):
     """The data/parameter choice cannot determine the parameters (e.g. the common scale)."""
 
@@ -345,9 +371,7 @@ def starting_point(theta0: VesselParameters, fixed: Mapping[str, float], terms: 
 
 
 def estimate(records: Sequence[IdRecord] | WindowedProblem, theta0: VesselParameters = DEFAULT_PARAMETERS,
-             fixed: Mapping[str, float] | None = None, window_s: float | None = 10.0, gap_s: float = 1.0,
-             noise_std: Mapping[str, float] | None = None, geometry: VesselGeometry = DEFAULT_GEOMETRY,
-             max_iterations: int = 60, tol: float = 1e-9, h_max: float = 0.0625,
+             fixed: Mapping[str, float] | None = None, options: SolverOptions = SolverOptions(),
              x0s: np.ndarray | None = None, estimate_x0: bool = True,
              progress: Callable[[int, float], None] | None = None) -> IdentificationResult:
     """Single-shooting Levenberg-Marquardt estimate of the free parameters and window initial states.
@@ -364,8 +388,10 @@ def estimate(records: Sequence[IdRecord] | WindowedProblem, theta0: VesselParame
     if isinstance(records, WindowedProblem):
         prob = records
     else:
-        prob = build_problem(records, window_s, gap_s, noise_std, geometry, h_max)
+        prob = build_problem(records, options.window_s, options.gap_s, options.noise_std, options.geometry,
+                             options.h_max)
         check_excitation(prob.windows)
+    max_iterations, tol = options.max_iterations, options.tol
     theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
     X0 = np.array(x0s, float) if x0s is not None else np.array([initial_state_guess(w) for w in prob.windows])

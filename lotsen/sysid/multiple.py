@@ -53,8 +53,8 @@ from lotsen.sysid.data import (
     OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_input_lines,
 )
 from lotsen.sysid.estimate import (
-    DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, check_scale_fixed,
-    identifiability, parameter_bounds, parameter_scale, starting_point, with_terms_off,
+    DEFAULT_NOISE_STD, NAMES, EstimationError, IdentifiabilityError, IdentificationResult, SolverOptions,
+    check_scale_fixed, identifiability, parameter_bounds, parameter_scale, starting_point, with_terms_off,
 )
 from lotsen.model.environment import wind_drag_coefficients
 from lotsen.sysid.kernels import step_kernels
@@ -283,10 +283,11 @@ class _Lin:
 class MultipleShootingProblem:
     """Residuals, Jacobians and the structured KKT solves of one data set."""
 
-    def __init__(self, records: Sequence[IdRecord], node_s: float = 2.0, gap_s: float = 1.0,
-                 noise_std: Mapping[str, float] | None = None, geometry: VesselGeometry = DEFAULT_GEOMETRY,
-                 h_max: float = 0.0625, lake: bool = False, gust_std: float = 0.3,
-                 wind_coefficient_spread: float = 0.01, gyro_bias: bool = False) -> None:
+    def __init__(self, records: Sequence[IdRecord], options: SolverOptions = SolverOptions()) -> None:
+        node_s, gap_s, noise_std, geometry = options.node_s, options.gap_s, options.noise_std, options.geometry
+        h_max, lake, gust_std = options.h_max, options.lake, options.gust_std
+        wind_coefficient_spread = options.wind_coefficient_spread
+        gyro_bias = lake if options.gyro_bias is None else options.gyro_bias
         segs: list[Segment] = []
         seg_record: list[int] = []
         for q, r in enumerate(records):
@@ -503,6 +504,9 @@ class MultipleShootingResult:
     # longer intervals (estimate_lake_averaged); already part of the covariance
     gust_interval_shift: dict[str, float] | None = None
     fixed_test: "FixedValueTest | None" = None  # do the fixed coefficients agree with the record?
+    # records of interval means: how far each coefficient moved, in its own sigma before the spread was
+    # added, with the other reconstruction of the inputs within their intervals (estimators.reconstruction_spread)
+    reconstruction_shift: dict[str, float] | None = None
 
 
 def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
@@ -540,20 +544,21 @@ def _quad(prob: MultipleShootingProblem, blocks: tuple, ds: np.ndarray, dp: np.n
     return float(q)
 
 
+@dataclass(frozen=True)
+class ShootingStart:
+    """Where a multiple-shooting search starts beyond the coefficients (None: from the data): the node
+    states, the lake model's environment (ENV_NAMES order) and the yaw-rate offsets per record."""
+
+    nodes: np.ndarray | None = None
+    environment: Sequence[float] | None = None
+    gyro_bias: Sequence[float] | None = None
+
+
 def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
-                               fixed: Mapping[str, float] | None = None, gap_s: float = 1.0,
-                               noise_std: Mapping[str, float] | None = None,
-                               geometry: VesselGeometry = DEFAULT_GEOMETRY, h_max: float = 0.0625,
-                               max_iterations: int = 60, node_s: float = 2.0,
-                               estimate_noise: bool = True, tol: float = 1e-9,
+                               fixed: Mapping[str, float] | None = None, options: SolverOptions = SolverOptions(),
+                               start: ShootingStart = ShootingStart(),
                                progress: Callable[[int, float], None] | None = None,
-                               problem: MultipleShootingProblem | None = None,
-                               nodes0: np.ndarray | None = None, lake: bool = False,
-                               gust_std: float = 0.3, env0: Sequence[float] | None = None,
-                               wind_coefficient_spread: float = 0.01, gyro_bias: bool | None = None,
-                               gyro_bias0: Sequence[float] | None = None,
-                               test_fixed: Sequence[str] = (), misfit_check: int = 0,
-                               terms: Sequence[str] = (), total_iterations: int | None = None) -> IdentificationResult:
+                               problem: MultipleShootingProblem | None = None) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
@@ -571,15 +576,17 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from the data
     (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
     """
-    fixed = with_terms_off(dict(fixed or {}), theta0, terms)  # optional model terms off unless in `terms`
+    max_iterations, total_iterations, tol = options.max_iterations, options.total_iterations, options.tol
+    estimate_noise, misfit_check = options.estimate_noise, options.misfit_check
+    nodes0, env0, gyro_bias0 = start.nodes, start.environment, start.gyro_bias
+    fixed = with_terms_off(dict(fixed or {}), theta0, options.terms)  # optional model terms off unless in `terms`
     unknown = [n for n in fixed if n not in NAMES]
     if unknown:
         raise LotsenError(f"cannot fix unknown parameter(s) {', '.join(unknown)} (known: {', '.join(NAMES)})")
     check_scale_fixed(fixed)
     prob = problem
     if prob is None:
-        prob = MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max, lake, gust_std,
-                                       wind_coefficient_spread, lake if gyro_bias is None else gyro_bias)
+        prob = MultipleShootingProblem(records, options)
         check_excitation(prob.segments)
     theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
@@ -601,6 +608,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
         lo = np.concatenate([lo, np.full(prob.n_bias, -GYRO_BIAS_LIMIT)])
         hi = np.concatenate([hi, np.full(prob.n_bias, GYRO_BIAS_LIMIT)])
     history: list[float] = []
+    search = _Search(free, free_names, tscale, lo, hi, tol, history, progress, fixed)
     total_it = 0
     converged = False
     passes = 2 if estimate_noise else 1
@@ -614,8 +622,8 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
             # answer: after `misfit_check` iterations with the track's errors still correlated over a
             # second (the verdict's own test), stop; the estimate is then judged (refused as physical,
             # perhaps predictive) without the rest of the work
-            theta, nodes, it, converged = _gauss_newton(prob, theta, nodes, free, tscale, lo, hi,
-                                                        min(misfit_check, budget), tol, history, progress, total_it)
+            theta, nodes, it, converged = _gauss_newton(prob, search, theta, nodes, min(misfit_check, budget),
+                                                        total_it)
             total_it += it
             budget -= it
             ac = residual_autocorr(prob.linearise(theta, nodes, free, tscale, False).e, prob.mask, prob.names)
@@ -629,8 +637,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
             if converged and passes == 1:
                 break
         if not (misfit_check and pass_no == 0 and converged) and budget > 0:
-            theta, nodes, it, converged = _gauss_newton(prob, theta, nodes, free, tscale, lo, hi, budget, tol,
-                                                        history, progress, total_it)
+            theta, nodes, it, converged = _gauss_newton(prob, search, theta, nodes, budget, total_it)
             total_it += it
         if pass_no + 1 < passes:
             lin = prob.linearise(theta, nodes, free, tscale, False)
@@ -664,10 +671,9 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     # (0.87-1.21 of the bound on 60-s records of a boat equal to its model)
     if prob.lake or float(np.max(residual_correlation_times(prob, lin))) > WHITE_CORRELATION_TIME:
         F_rel, factor = sandwich_information(prob, lin, blocks, F_rel), 1.0
-    res = _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, total_it,
-                  converged, history, passes, lin)
-    if test_fixed:
-        res.details.fixed_test = fixed_value_test(prob, theta, nodes, free, tscale, test_fixed)
+    res = _result(prob, search, theta, nodes, _Fit(F_rel, factor, cost, s2, total_it, converged, passes, lin))
+    if options.test_fixed:
+        res.details.fixed_test = fixed_value_test(prob, theta, nodes, free, tscale, options.test_fixed)
     return res
 
 
@@ -741,7 +747,7 @@ def score_covariance(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, F:
 
 
 #: `misfit_check`: the track's lag-1 s residual autocorrelation above which a model that has not
-#: converged is taken not to explain the record (lotsen.sysid.verdict.MAX_TRACK_AUTOCORR: 0.5)
+#: converged is taken not to explain the record (lotsen.sysid.judge.MAX_TRACK_AUTOCORR: 0.5)
 MISFIT_TRACK_AUTOCORR = 0.5
 #: residuals whose correlation time (in samples) stays below this are white (sensor noise alone)
 WHITE_CORRELATION_TIME = 1.5
@@ -889,8 +895,42 @@ class EnvironmentEstimate:
         return g * self.values["wind_n"], g * self.values["wind_e"]
 
 
-def _result(prob, theta, nodes, free, free_names, tscale, F_rel, factor, fixed, cost, s2, iterations, converged,
-            history, passes, lin) -> IdentificationResult:  # type: ignore[no-untyped-def]
+@dataclass
+class _Search:
+    """What one Gauss-Newton search carries through its passes: the free parameters (indices, names,
+    scale, bounds), the tolerance, the cost's history, the progress callback and the fixed values."""
+
+    free: np.ndarray
+    free_names: tuple[str, ...]
+    tscale: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    tol: float
+    history: list[float]
+    progress: Callable[[int, float], None] | None
+    fixed: Mapping[str, float]
+
+
+@dataclass
+class _Fit:
+    """The search's end: the (relative) information, the covariance factor, the cost, s^2, the
+    iterations, convergence, the noise passes run and the last linearisation."""
+
+    F_rel: np.ndarray
+    factor: float
+    cost: float
+    s2: float
+    iterations: int
+    converged: bool
+    passes: int
+    lin: _Lin
+
+
+def _result(prob: MultipleShootingProblem, search: _Search, theta: np.ndarray, nodes: np.ndarray,
+            fit: _Fit) -> IdentificationResult:
+    free, free_names, tscale, fixed, history = search.free, search.free_names, search.tscale, search.fixed, search.history
+    F_rel, factor, cost, s2, iterations = fit.F_rel, fit.factor, fit.cost, fit.s2, fit.iterations
+    converged, passes, lin = fit.converged, fit.passes, fit.lin
     F_rel = 0.5 * (F_rel + F_rel.T)
     try:
         cov_all = np.linalg.inv(F_rel) * factor
@@ -953,10 +993,10 @@ def residual_autocorr(e: np.ndarray, mask: np.ndarray, names: Sequence[str], max
     return out
 
 
-def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray,
-                  tscale: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_iterations: int, tol: float,
-                  history: list[float], progress: Callable[[int, float], None] | None,
-                  it_offset: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
+def _gauss_newton(prob: MultipleShootingProblem, search: _Search, theta: np.ndarray, nodes: np.ndarray,
+                  max_iterations: int, it_offset: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
+    free, tscale, lo, hi = search.free, search.tscale, search.lo, search.hi
+    tol, history, progress = search.tol, search.history, search.progress
     lin = prob.linearise(theta, nodes, free, tscale, True)
     if not math.isfinite(lin.cost):
         raise EstimationError("the simulation with the initial parameters diverged within a shooting interval "
@@ -1051,20 +1091,19 @@ def _gauss_newton(prob: MultipleShootingProblem, theta: np.ndarray, nodes: np.nd
 
 
 def record_fisher(records: Sequence[IdRecord], params: VesselParameters, free_names: Sequence[str],
-                  noise_std: Mapping[str, float] | None = None, node_s: float = 2.0, gap_s: float = 1.0,
-                  geometry: VesselGeometry = DEFAULT_GEOMETRY, h_max: float = 0.0625,
-                  nodes: np.ndarray | None = None, problem: MultipleShootingProblem | None = None) -> np.ndarray:
+                  options: SolverOptions = SolverOptions(), nodes: np.ndarray | None = None,
+                  problem: MultipleShootingProblem | None = None) -> np.ndarray:
     """Fisher information (absolute units) of `free_names` from the whole record, every segment's
     initial state free, at `params` and the given noise: its inverse is the Cramer-Rao bound.
 
     The trajectory is the model's own at `params`: node states fitted to the data with the
     parameters held (`nodes` skips that fit, e.g. the true states of a simulation)."""
-    prob = problem or MultipleShootingProblem(records, node_s, gap_s, noise_std, geometry, h_max)
+    prob = problem or MultipleShootingProblem(records, replace(options, lake=False, gyro_bias=False))
     theta = np.array(params.to_vector(), float)
     if nodes is None:
         all_fixed = dict(zip(NAMES, theta))
-        res = estimate_multiple_shooting(records, params, all_fixed, problem=prob, estimate_noise=False,
-                                         max_iterations=30)
+        res = estimate_multiple_shooting(records, params, all_fixed, replace(options, estimate_noise=False,
+                                                                             max_iterations=30), problem=prob)
         nodes = res.details.nodes
     free = np.array([NAMES.index(n) for n in free_names], dtype=int)
     tscale = parameter_scale(theta)
@@ -1083,27 +1122,24 @@ def check_identifiable(result: IdentificationResult) -> None:
 
 
 def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
-                  fixed: Mapping[str, float] | None = None, gust_std: float = 0.3,
-                  wind_coefficient_spread: float = 0.01, max_iterations: int = 60,
-                  progress: Callable[[int, float], None] | None = None, **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
+                  fixed: Mapping[str, float] | None = None, options: SolverOptions = SolverOptions(lake=True),
+                  progress: Callable[[int, float], None] | None = None) -> IdentificationResult:
     """The lake model in stages (a homotopy): the current and a steady wind with the parameters held
     at `theta0`; then the parameters too (gust factors held at 1); then from there with the gust
-    factors free. Started with everything free, the first iterations, far from the parameters,
-    explain the model error by wild gusts or a wrong wind and never recover."""
+    factors free (prior spread `options.gust_std`). Started with everything free, the first iterations,
+    far from the parameters, explain the model error by wild gusts or a wrong wind and never recover."""
+    options = replace(options, lake=True)
+    steady = replace(options, gust_std=1e-3)
     all_fixed = {**theta0.to_dict(), **(fixed or {})}
-    zero = estimate_multiple_shooting(records, theta0, all_fixed, lake=True, gust_std=1e-3,
-                                      max_iterations=max_iterations, wind_coefficient_spread=wind_coefficient_spread,
-                                      progress=progress, **kwargs)
+    zero = estimate_multiple_shooting(records, theta0, all_fixed, steady, progress=progress)
     env = zero.details.environment
-    first = estimate_multiple_shooting(records, theta0, fixed, lake=True, gust_std=1e-3, max_iterations=max_iterations,
-                                       wind_coefficient_spread=wind_coefficient_spread, progress=progress,
-                                       env0=list(env.values.values()), nodes0=zero.details.nodes,
-                                       gyro_bias0=zero.details.gyro_bias, **kwargs)
+    first = estimate_multiple_shooting(records, theta0, fixed, steady,
+                                       ShootingStart(zero.details.nodes, list(env.values.values()),
+                                                     zero.details.gyro_bias), progress)
     env = first.details.environment
-    return estimate_multiple_shooting(records, first.params, fixed, lake=True, gust_std=gust_std,
-                                      max_iterations=max_iterations, env0=list(env.values.values()),
-                                      nodes0=first.details.nodes, wind_coefficient_spread=wind_coefficient_spread,
-                                      gyro_bias0=first.details.gyro_bias, progress=progress, **kwargs)
+    return estimate_multiple_shooting(records, first.params, fixed, options,
+                                      ShootingStart(first.details.nodes, list(env.values.values()),
+                                                    first.details.gyro_bias), progress)
 
 
 #: The lake model holds each gust factor constant over one shooting interval. How the gusts are cut
@@ -1113,24 +1149,25 @@ SECOND_GUST_INTERVAL_FACTOR = 1.5
 
 
 def estimate_lake_two_gust_models(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
-                                  fixed: Mapping[str, float] | None = None, node_s: float = 2.0,
-                                  **kwargs) -> tuple[IdentificationResult, IdentificationResult]:  # type: ignore[no-untyped-def]
-    """`estimate_lake` twice from the same start: with `node_s` and with SECOND_GUST_INTERVAL_FACTOR
-    x `node_s` gust intervals."""
-    return (estimate_lake(records, theta0, fixed, node_s=node_s, **kwargs),
-            estimate_lake(records, theta0, fixed, node_s=node_s * SECOND_GUST_INTERVAL_FACTOR, **kwargs))
+                                  fixed: Mapping[str, float] | None = None,
+                                  options: SolverOptions = SolverOptions(lake=True)
+                                  ) -> tuple[IdentificationResult, IdentificationResult]:
+    """`estimate_lake` twice from the same start: with `options.node_s` and with
+    SECOND_GUST_INTERVAL_FACTOR x `options.node_s` gust intervals."""
+    longer = replace(options, node_s=options.node_s * SECOND_GUST_INTERVAL_FACTOR)
+    return estimate_lake(records, theta0, fixed, options), estimate_lake(records, theta0, fixed, longer)
 
 
 def estimate_lake_averaged(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
-                           fixed: Mapping[str, float] | None = None, node_s: float = 2.0,
-                           **kwargs) -> IdentificationResult:  # type: ignore[no-untyped-def]
+                           fixed: Mapping[str, float] | None = None,
+                           options: SolverOptions = SolverOptions(lake=True)) -> IdentificationResult:
     """The two gust models' estimates (`estimate_lake_two_gust_models`) averaged
     (`average_over_model_choice`). The sandwich covariance of one estimate sees the noise, not the
     bias of a gust model that is not the lake's:
     on 20 lake records one estimate's 3-sigma intervals held 86 % of the true values and it answered
     4 records wrongly; the average's held all of them and answered none wrongly (docs/sysid.md).
     Converged only when both are; twice the work."""
-    return average_over_model_choice(*estimate_lake_two_gust_models(records, theta0, fixed, node_s, **kwargs))
+    return average_over_model_choice(*estimate_lake_two_gust_models(records, theta0, fixed, options))
 
 
 def average_over_model_choice(first: IdentificationResult, second: IdentificationResult) -> IdentificationResult:

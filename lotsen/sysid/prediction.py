@@ -99,6 +99,32 @@ class PredictionScore:
                 "heading_rms_deg": {f"{h:g}": _round(v, 2) for h, v in self.heading_deg.items()}}
 
 
+def windows_of(score: PredictionScore, idx: np.ndarray) -> PredictionScore:
+    """The score on the windows `idx` only (their RMS errors recomputed)."""
+    idx = np.asarray(idx, int)
+    pe, he = score.position_errors_m[idx], score.heading_errors_deg[idx]
+    pos = {h: float(np.sqrt(np.mean(pe[:, j] ** 2))) if len(idx) else math.nan for j, h in enumerate(score.horizons_s)}
+    hdg = {h: float(np.sqrt(np.mean(he[:, j] ** 2))) if len(idx) else math.nan for j, h in enumerate(score.horizons_s)}
+    ne = score.error_ne_m[idx] if len(score.error_ne_m) else score.error_ne_m
+    sp = score.start_speed_mps[idx] if len(score.start_speed_mps) else score.start_speed_mps
+    return PredictionScore(score.horizons_s, len(idx), pos, hdg, pe, he, bool(np.all(np.isfinite(pe))), ne, sp)
+
+
+def stacked(parts: Sequence[tuple[PredictionScore, np.ndarray]], n_windows: int) -> PredictionScore:
+    """One score from the windows `idx` of each (score, idx) in `parts`, in window order: the
+    held-out errors of a choice made window by window on other data (judge.cross_checked)."""
+    first = parts[0][0]
+    nh = len(first.horizons_s)
+    pe, he = np.zeros((n_windows, nh)), np.zeros((n_windows, nh))
+    ne, sp = np.zeros((n_windows, 2)), np.zeros(n_windows)
+    for sc, idx in parts:
+        pe[idx], he[idx] = sc.position_errors_m[idx], sc.heading_errors_deg[idx]
+        if len(sc.error_ne_m):
+            ne[idx], sp[idx] = sc.error_ne_m[idx], sc.start_speed_mps[idx]
+    whole = PredictionScore(first.horizons_s, n_windows, {}, {}, pe, he, True, ne, sp)
+    return windows_of(whole, np.arange(n_windows))
+
+
 def _round(v: float, n: int) -> float | None:
     return round(v, n) if math.isfinite(v) else None
 

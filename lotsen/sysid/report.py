@@ -1,7 +1,10 @@
 """The identification report: self-contained HTML (plots embedded as base64 PNG) or PDF.
 
-`render_report(...)` returns the HTML text; `render_pdf(...)` returns the PDF bytes (a summary
-page, then the same figures, through matplotlib's PdfPages). Writing them is the CLI's job.
+`Report.of(identification, problem, sources, warnings)` gathers what the report shows (the answer, its
+verdict and the data that judged it, the held-out prediction of every model compared, the simulation
+fit, the residuals, the black-box peer); `render_report(report)` returns the HTML text,
+`render_pdf(report)` the PDF bytes (a summary page, then the same figures, through matplotlib's
+PdfPages). Writing them is the CLI's job.
 """
 
 from __future__ import annotations
@@ -10,15 +13,66 @@ import base64
 import html
 import io
 import math
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
+from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
+from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.sysid.estimate import NAMES, IdentificationResult
+from lotsen.sysid.judge import Identification
+from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.validate import OutputFit, ResidualAnalysis
 
 _UNITS = {"north": "m", "east": "m", "psi": "rad", "r": "rad/s", "u": "m/s", "v": "m/s"}
+
+
+@dataclass
+class Report:
+    """What one identification report shows (module docstring)."""
+
+    ident: Identification
+    sources: list[str]
+    warnings: list[str] = field(default_factory=list)
+    initial: VesselParameters = DEFAULT_PARAMETERS
+    fit_est: OutputFit | None = None
+    fit_val: OutputFit | None = None
+    blackbox_val: OutputFit | None = None
+    residuals: ResidualAnalysis | None = None
+
+    @property
+    def result(self) -> IdentificationResult:
+        return self.ident.result
+
+    @classmethod
+    def of(cls, ident: Identification, problem: IdentificationProblem, sources: Sequence[str],
+           warnings: Sequence[str] = ()) -> "Report":
+        """The report of `ident` on `problem`: the answer simulated on the estimation and held-out records
+        (10-s windows), its residuals, and the black-box peer; what cannot be computed on too short data
+        is said in a warning instead."""
+        from lotsen.sysid.blackbox import fit_narx, narx_fit
+        from lotsen.sysid.validate import inputs_at_outputs, residual_analysis, simulate_fit
+
+        rep = cls(ident, list(sources), list(warnings), problem.start)
+        window, gap, geom = problem.solver.window_s or 10.0, problem.gap_s, problem.geometry
+        try:
+            rep.fit_est = simulate_fit(ident.result.params, problem.records, window, gap, geom)
+        except LotsenError as exc:
+            rep.warnings.append(f"no fit on the estimation data: {exc}")
+        try:
+            rep.fit_val = simulate_fit(ident.result.params, problem.validation, window, gap, geom)
+            ra = residual_analysis(rep.fit_val, inputs_at_outputs(problem.validation, window, gap))
+            rep.residuals = ra if ra.autocorr else None  # no output with enough samples for a correlation
+        except LotsenError as exc:
+            rep.warnings.append(f"no validation: {exc} (the held-out part is too short; use --validate or a longer "
+                                "record)")
+        try:
+            rep.blackbox_val = narx_fit(fit_narx(problem.records, gap), problem.validation, window, gap)
+        except LotsenError as exc:
+            rep.warnings.append(f"no black-box peer: {exc}")
+        return rep
 
 
 def _png(fig) -> str:  # type: ignore[no-untyped-def]
@@ -108,14 +162,22 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     return f"<table><tr>{h}</tr>{body}</table>"
 
 
-def _parameter_rows(result: IdentificationResult, initial: VesselParameters) -> list[tuple[list[str], bool]]:
+def _parameter_rows(result: IdentificationResult, initial: VesselParameters,
+                    undetermined: dict[str, str] | None = None) -> list[tuple[list[str], bool]]:
     """[name, estimate, std, 95 % interval, relative 95 % error, initial], and whether it is poorly determined."""
+    undetermined = undetermined or {}
     p = result.params
     rows = []
     for n in NAMES:
         v = getattr(p, n)
+        if n not in result.std and n in OPTIONAL_TERMS and v == 0:  # an optional model term left off
+            rows.append(([n, f"{v:.5g}", "not estimated (off)", "", "", f"{getattr(initial, n):.5g}"], False))
+            continue
         if n in result.fixed:
             rows.append(([n, f"{v:.5g}", "fixed", "", "", f"{getattr(initial, n):.5g}"], False))
+            continue
+        if n in undetermined:  # the data do not determine it: no number for its interval
+            rows.append(([n, f"{v:.5g}", "undetermined", undetermined[n], "", f"{getattr(initial, n):.5g}"], True))
             continue
         s = result.std[n]
         rel = 196 * s / abs(v) if v != 0 else math.inf
@@ -138,11 +200,30 @@ def _fit_rows(fit_est: OutputFit | None, fit_val: OutputFit | None,
     return names, rows
 
 
-def _summary(result: IdentificationResult, sources: Sequence[str]) -> str:
-    return (f"Data: {', '.join(sources)}. Method: {result.method} shooting; {len(result.windows)} windows; "
-            f"{result.n_residuals} residuals; V = {result.cost:.4g}; noise factor s^2 = {result.noise_factor:.3g} "
-            f"({'model error or noise larger than assumed' if result.noise_factor > 1.5 else 'consistent with the assumed noise'}); "
-            f"{result.iterations} iterations, {'converged' if result.converged else 'NOT converged'}.")
+def _summary(rep: Report) -> str:
+    ident, result = rep.ident, rep.result
+    held = ident.held_out_score
+    judged = (f" Judged on {ident.judged_on}" + (f": the answer's {held.horizon_s:g}-s prediction misses by "
+                                                 f"{held.position_at_horizon_m:.2f} m (RMS over {held.n_windows} "
+                                                 "windows)" if held is not None and held.n_windows else "") + ".")
+    how = ("the equations of motion fitted to the record" if ident.estimator == "equation error" else
+           f"{result.n_residuals} residuals; V = {result.cost:.4g}; noise factor s^2 = {result.noise_factor:.3g} "
+           f"({'model error or noise larger than assumed' if result.noise_factor > 1.5 else 'consistent with the assumed noise'}); "
+           f"{result.iterations} iterations, {'converged' if result.converged else 'NOT converged'}")
+    return (f"Verdict: {ident.verdict.verdict}. Data: {', '.join(rep.sources)}. The answer: the {ident.estimator} "
+            f"estimate ({how}).{judged}")
+
+
+def _verdict_lines(rep: Report) -> list[str]:
+    """The verdict's reasons, the advice and the held-out prediction of every model, as lines."""
+    ident = rep.ident
+    lines = [f"verdict {ident.verdict.verdict}: {r}" for r in ident.verdict.reasons]
+    lines += [f"advice: {a}" for a in ident.advice]
+    for name, sc in ident.prediction.items():
+        if sc.n_windows:
+            lines.append(f"{name}: " + ", ".join(f"{sc.position_m[h]:.2f} m / {sc.heading_deg[h]:.1f} deg after {h:g} s"
+                                                 for h in sc.horizons_s) + (" <- the answer" if name == ident.chosen else ""))
+    return lines
 
 
 def _figures(fit_est: OutputFit | None, fit_val: OutputFit | None, blackbox_val: OutputFit | None,
@@ -158,11 +239,10 @@ def _figures(fit_est: OutputFit | None, fit_val: OutputFit | None, blackbox_val:
     return [(t, f) for t, f in out if f is not None]
 
 
-def render_pdf(result: IdentificationResult, sources: Sequence[str], fit_est: OutputFit | None = None,
-               fit_val: OutputFit | None = None, blackbox_val: OutputFit | None = None,
-               residuals: ResidualAnalysis | None = None, warnings: Sequence[str] = (),
-               initial: VesselParameters = DEFAULT_PARAMETERS) -> bytes:
-    """The report as PDF: a text summary page (parameters, identifiability, fit), then the figures."""
+def render_pdf(rep: Report) -> bytes:
+    """The report as PDF: a text summary page (verdict, parameters, identifiability, fit), then the figures."""
+    result, fit_est, fit_val, blackbox_val = rep.result, rep.fit_est, rep.fit_val, rep.blackbox_val
+    residuals, warnings, initial = rep.residuals, rep.warnings, rep.initial
     import textwrap
 
     import matplotlib
@@ -171,13 +251,16 @@ def render_pdf(result: IdentificationResult, sources: Sequence[str], fit_est: Ou
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
-    lines = ["Identification report", ""] + textwrap.wrap(_summary(result, sources), 110) + [""]
+    lines = ["Identification report", ""] + textwrap.wrap(_summary(rep), 110) + [""]
+    for ln in _verdict_lines(rep):
+        lines += textwrap.wrap(ln, 110)
+    lines.append("")
     for w in warnings:
         lines += textwrap.wrap(w if w.startswith("WARNING") else "WARNING: " + w, 110)
     widths = (8, 12, 11, 26, 18, 10)
     lines += ["", "Parameters (95 % = estimate +- 1.96 sigma from the Fisher information; * = above 5 %)",
               "".join(h.ljust(w) for h, w in zip(PARAMETER_HEADER, widths))]
-    for row, bad in _parameter_rows(result, initial):
+    for row, bad in _parameter_rows(result, initial, rep.ident.undetermined):
         lines.append("".join(c.ljust(w) for c, w in zip(row, widths)) + (" *" if bad else ""))
     lines += ["", f"Identifiability: condition number of the relative Fisher information "
                   f"{result.identifiability.condition_number:.3g}"]
@@ -200,12 +283,12 @@ def render_pdf(result: IdentificationResult, sources: Sequence[str], fit_est: Ou
     return buf.getvalue()
 
 
-def render_report(result: IdentificationResult, sources: Sequence[str], fit_est: OutputFit | None = None,
-                  fit_val: OutputFit | None = None, blackbox_val: OutputFit | None = None,
-                  residuals: ResidualAnalysis | None = None, warnings: Sequence[str] = (),
-                  initial: VesselParameters = DEFAULT_PARAMETERS) -> str:
+def render_report(rep: Report) -> str:
+    """The report as one self-contained HTML page."""
+    result, fit_est, fit_val, blackbox_val = rep.result, rep.fit_est, rep.fit_val, rep.blackbox_val
+    residuals, warnings, initial = rep.residuals, rep.warnings, rep.initial
     rows = []
-    for row, bad in _parameter_rows(result, initial):
+    for row, bad in _parameter_rows(result, initial, rep.ident.undetermined):
         if row[4]:
             css = " class='bad'" if bad else ""
             row[4] = f"<span{css}>{row[4]}</span>"
@@ -216,7 +299,8 @@ def render_report(result: IdentificationResult, sources: Sequence[str], fit_est:
         "td,th{border:1px solid #bbb;padding:2px 8px;text-align:right}.bad{color:#b00;font-weight:bold}"
         ".warn{background:#fee;border:1px solid #b00;padding:6px}</style></head><body>",
         "<h1>Identification report</h1>",
-        f"<p>{html.escape(_summary(result, sources))}</p>",
+        f"<p>{html.escape(_summary(rep))}</p>",
+        "<ul>" + "".join(f"<li>{html.escape(ln)}</li>" for ln in _verdict_lines(rep)) + "</ul>",
     ]
     for w in warnings:
         parts.append(f"<p class='warn'>{html.escape(w)}</p>")

@@ -18,7 +18,7 @@ import numpy as np
 from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters
 from lotsen.sysid.data import INPUT_COLUMNS, IdRecord
 from lotsen.model.angles import wrap_angle
-from lotsen.sysid.estimate import NAMES, build_problem, estimate
+from lotsen.sysid.estimate import NAMES, SolverOptions, build_problem, estimate
 
 
 @dataclass
@@ -59,7 +59,7 @@ def simulate_fit(params: VesselParameters, records: Sequence[IdRecord], window_s
                  gap_s: float = 1.0, geometry: VesselGeometry = DEFAULT_GEOMETRY) -> OutputFit:
     """Simulate the grey-box model over `records` (window initial states estimated, theta fixed)."""
     prob = build_problem(records, window_s, gap_s, None, geometry)
-    res = estimate(prob, params, fixed=dict(zip(NAMES, params.to_vector())), max_iterations=20)
+    res = estimate(prob, params, dict(zip(NAMES, params.to_vector())), SolverOptions(max_iterations=20))
     X = prob.sim.simulate(params.to_vector(), res.x0s)
     yhat = X[:, prob.out_idx]
     names = prob.windows[0].output_names

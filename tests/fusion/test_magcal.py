@@ -104,7 +104,8 @@ def test_cli_round_trip(tmp_path, capsys) -> None:  # type: ignore[no-untyped-de
     d = json.loads(out.read_text())
     assert set(d) >= {"center", "matrix", "residual_rms", "coverage_deg"}
     assert np.allclose(d["center"], c, atol=0.1) and np.allclose(d["matrix"], M, atol=0.2)
-    assert "1 rows skipped" in capsys.readouterr().out
+    said = capsys.readouterr()
+    assert "1 rows skipped" in said.out and "1 of 301 rows skipped (unreadable), 300 used" in said.err
     cal = calibrate.load_mag_calibration(out)
     assert cal.heading(x[10], y[10]) == pytest.approx(math.remainder(psi[10], 2 * math.pi), abs=0.05)
 
@@ -120,5 +121,19 @@ def test_cli_errors(tmp_path) -> None:  # type: ignore[no-untyped-def]
     half.write_text("t,mag_x,mag_y\n" + "".join(f"{i},{a},{b}\n" for i, (a, b) in enumerate(zip(x, y))))
     args = _args("calibrate-mag", str(half), "--out", str(tmp_path / "o.json"))
     with pytest.raises(CalibrationError, match="half.csv.*cover"):
+        args.func(args)
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_cli_refuses_when_too_few_readable_rows_remain_and_says_how_many_were_skipped(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Issue 49: unreadable rows are skipped and counted; when the rest are too few to fit (an ellipse
+    needs --min-points), the refusal says how many were skipped."""
+    _, x, y = _turn(np.eye(2) * 15.0, np.zeros(2), n=40)
+    rows = [f"{i * 0.1:.1f},{a:.4f},{b:.4f}" for i, (a, b) in enumerate(zip(x, y))]
+    rows[3] = "0.3,x,1.0"  # one unreadable row in 40: a record, not a damaged file
+    data = tmp_path / "few.csv"
+    data.write_text("t,mag_x,mag_y\n" + "\n".join(rows) + "\n")
+    args = _args("calibrate-mag", str(data), "--out", str(tmp_path / "o.json"), "--min-points", "100")
+    with pytest.raises(DataError, match=r"few.csv.*\(1 of 40 rows were unreadable and skipped\)"):
         args.func(args)
     assert not (tmp_path / "o.json").exists()

@@ -15,7 +15,7 @@ from lotsen.runtime.config import load_config
 from lotsen.sim import DEFAULT_BOAT, LAKE_BOAT_PARAMETERS
 from lotsen.cli.run import with_model_and_boat
 from lotsen.stack.stack import simulated_boat, vessel_model
-from lotsen.sysid.verdict import CORE_PARAMETERS
+from lotsen.sysid.judge import CORE_PARAMETERS
 
 ROOT = Path(__file__).resolve().parents[2]
 ROUTE = str(ROOT / "examples" / "routes" / "harbour_approach.yaml")

@@ -137,3 +137,31 @@ def test_stage_inputs_integrate_a_line_exactly():
     err, err_held = np.abs(one - fine).max(), np.abs(held - fine).max()
     # measured: 7.9e-8 (the fine steps' own error) against 2.6e-4 for the line's mean held over the step
     assert err < 1e-3 * err_held, (err, err_held)
+
+
+def test_the_intervals_carry_the_inputs_reconstruction_within_their_logged_intervals():
+    """A record of interval means is reconstructed with central slopes; the slope from the next interval
+    alone is as defensible, and the estimate's covariance grows by the move that choice makes (on 12 calm
+    10-min records of one boat the reported std went from 0.51 to 1.05 of the spread over records, the
+    truth within 3 sigma from 79 % to 98.5 %: bench identify). A record of held commands has no such
+    choice and keeps its intervals."""
+    from lotsen.sysid.estimate import SolverOptions
+    from lotsen.sysid.estimators import reconstruction_spread
+    from lotsen.sysid.multiple import estimate_multiple_shooting
+
+    g = generate(60.0, seed=3, style="async", params=perturbed(np.random.default_rng(3)))
+    true = VesselParameters.from_vector([g.params[n] for n in NAMES])
+    fixed = {"m11": true.m11}
+    assert g.record.input_kind == "mean"
+    res = estimate_multiple_shooting([g.record], true, fixed)
+    wider = reconstruction_spread([g.record], res, SolverOptions())
+    shift = wider.details.reconstruction_shift
+    assert shift is not None and set(shift) == set(res.free_names)
+    assert all(wider.std[n] >= res.std[n] for n in res.free_names)
+    assert max(abs(s) for s in shift.values()) > 1e-3  # the choice moves the answer (0.02 sigma at most here)
+    grown = [n for n in res.free_names if wider.std[n] ** 2 == pytest.approx(res.std[n] ** 2 * (1 + shift[n] ** 2),
+                                                                               rel=1e-6)]
+    assert grown == list(res.free_names)  # each variance grew by exactly the move's square
+    held = dataclasses.replace(g.record, input_kind="held")
+    res_held = estimate_multiple_shooting([held], true, fixed)
+    assert reconstruction_spread([held], res_held, SolverOptions()) is res_held

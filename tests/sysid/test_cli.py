@@ -30,6 +30,7 @@ def test_identify_writes_params_and_report(run_csv, tmp_path, capsys):
     assert set(data["std"]) == set(NAMES) - {"m11", "kappa", "Y_rv", "N_vv"} - terms_off
     html = rep.read_text()
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html and "black-box" in html
+    assert data["identification"]["judged_on"].startswith("the last 20 % of ") and "Judged on the last 20 %" in html
 
 
 def test_cli_errors_are_clean(run_csv, tmp_path, capsys):
@@ -88,6 +89,7 @@ def _csv(path, t, U, Y):
 @pytest.mark.parametrize("case, message", [
     ("all_nan", "never have a value"),
     ("no_outputs", "no finite measurement"),
+    ("heading_nan", "output column(s) psi never have a value"),  # was an IndexError in the equation-error start
     ("all_zero", "every input (alpha1, alpha2, n1, n2, nt) is zero"),
     ("motionless", "the boat did not move"),
     ("backwards", "must not decrease"),
@@ -105,6 +107,8 @@ def test_identify_refuses_data_without_information(tmp_path, capsys, case, messa
         Y[:] = np.nan
     elif case == "no_outputs":
         Y[:] = np.nan
+    elif case == "heading_nan":
+        Y[:, 2] = np.nan
     elif case == "all_zero":
         U[:] = 0.0
         Y[:] = 0.0
@@ -145,10 +149,11 @@ def test_identify_refuses_a_record_too_short_to_support_an_answer(short_run, tmp
 
     data = tmp_path / "short.csv"
     save_csv(short_run.record.slice(0.0, 15.0), data)
-    out = tmp_path / "p.json"
-    assert main_standalone(["identify", str(data), "--out", str(out), "--holdout", "0"]) == 1
+    out, rep = tmp_path / "p.json", tmp_path / "r.html"
+    assert main_standalone(["identify", str(data), "--out", str(out), "--holdout", "0", "--report", str(rep)]) == 1
     err = capsys.readouterr().err
     assert "REFUSED" in err and "Traceback" not in err
+    assert "Verdict: refused" in rep.read_text()  # a report for this verdict too
     d = json.loads(out.read_text())
     assert d["verdict"] == "refused" and d["identification"]["reasons"]
     with pytest.raises(ConfigError, match="refused"):
@@ -167,3 +172,41 @@ def test_loaders_ignore_identification_extras_but_not_typos():
     with pytest.raises(ConfigError, match="not converge"):
         VesselParameters.from_dict({**d, "verdict": "refused",
                                     "identification": {"reasons": ["the estimation did not converge"]}})
+
+
+def test_a_record_too_long_for_the_budget_is_refused_first_with_the_time_it_would_take(short_run, tmp_path, capsys):
+    """Issue 49 item 5: a 50-MB record of repeated zigzags computed for minutes without a word. The time
+    expected is said before any work, and a record over the budget (--max-cpu) is refused (exit 2,
+    nothing written) with how much of it would fit."""
+    import numpy as np
+
+    from lotsen.sysid.data import IdRecord
+
+    r = short_run.record
+    span = r.t[-1] - r.t[0] + 0.05
+    copies = -(-5000 // len(r.t))  # more rows than 1 s of CPU at CPU_S_PER_ROW (calm)
+    long = IdRecord(np.concatenate([r.t + k * span for k in range(copies)]), np.vstack([r.inputs] * copies),
+                    np.vstack([r.outputs] * copies), r.output_names, "long", r.input_kind)
+    data = tmp_path / "long.csv"
+    save_csv(long, data)
+    out = tmp_path / "p.json"
+    assert main_standalone(["identify", str(data), "--out", str(out), "--max-cpu", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"{len(long.t)} rows" in err and "expect about" in err
+    assert "more than the budget of 1 s" in err and "--max-cpu" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("method", ["single"])  # multiple: test_identify_writes_params_and_report
+def test_every_estimator_writes_its_report_and_says_what_judged_it(run_csv, tmp_path, capsys, method):
+    """The one judge behind both estimators: a report for either, exit codes as the README gives them
+    (0 for ok / weak / predictive, 1 for refused), and the data that judged the answer named."""
+    out, rep = tmp_path / "p.json", tmp_path / "r.html"
+    rc = main_standalone(["identify", str(run_csv), "--out", str(out), "--report", str(rep), "--method", method])
+    err = capsys.readouterr().err
+    data = json.loads(out.read_text())
+    assert rc == (1 if data["verdict"] == "refused" else 0) and "Traceback" not in err
+    assert data["identification"]["judged_on"].startswith("the last 20 % of ")
+    assert data["identification"]["estimator"] in ("single shooting", "output error", "equation error")
+    html = rep.read_text()
+    assert f"Verdict: {data['verdict']}" in html and "Judged on the last 20 %" in html

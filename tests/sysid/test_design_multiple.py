@@ -3,7 +3,7 @@ import numpy as np
 from lotsen.model import DEFAULT_PARAMETERS
 from lotsen.sysid.design import DesignConfig, design_experiment, time_to_accuracy
 from lotsen.model.parameters import OPTIONAL_TERMS
-from lotsen.sysid.estimate import NAMES
+from lotsen.sysid.estimate import NAMES, SolverOptions
 from lotsen.sysid.experiment import InputGenerator, check_experiment
 from lotsen.sysid.multiple import estimate_multiple_shooting
 
@@ -31,7 +31,7 @@ def test_multiple_shooting_recovers_a_few_parameters(short_run):
     free = ("m22", "m33", "N_r", "mu_t")
     fixed = {n: v for n, v in zip(NAMES, DEFAULT_PARAMETERS.to_vector()) if n not in free}
     start = DEFAULT_PARAMETERS.with_updates(m22=30.0, m33=1.4, N_r=3.6, mu_t=0.0005)
-    res = estimate_multiple_shooting([rec], start, fixed, max_iterations=100)
+    res = estimate_multiple_shooting([rec], start, fixed, SolverOptions(max_iterations=100))
     assert res.method == "multiple" and res.converged
     for n in free:
         true = getattr(DEFAULT_PARAMETERS, n)

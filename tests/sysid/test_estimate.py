@@ -5,7 +5,7 @@ from lotsen.model import DEFAULT_PARAMETERS
 from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.sysid.data import IdRecord, Segment
 from lotsen.sysid.estimate import (
-    NAMES, IdentifiabilityError, build_problem, estimate, fisher_information, identifiability,
+    NAMES, IdentifiabilityError, SolverOptions, build_problem, estimate, fisher_information, identifiability,
 )
 from lotsen.sysid.kernels import WindowSimulator
 
@@ -62,7 +62,7 @@ def test_recovers_parameters_from_noisy_simulated_run(short_run):
              "kappa": TRUE.kappa}
     rng = np.random.default_rng(2)
     start = TRUE.with_updates(**{n: v * rng.uniform(0.8, 1.2) for n, v in TRUE.to_dict().items() if n not in known})
-    res = estimate([short_run.record], start, fixed=known, window_s=10.0)
+    res = estimate([short_run.record], start, fixed=known, options=SolverOptions(window_s=10.0))
     assert res.converged and 0.7 < res.noise_factor < 1.5
     for n in res.free_names:
         true, est, s = getattr(TRUE, n), getattr(res.params, n), res.std[n]

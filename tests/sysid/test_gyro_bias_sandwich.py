@@ -7,7 +7,7 @@ import numpy as np
 
 from independent_sim import DEFAULTS, NAMES, generate, perturbed
 from lotsen.model import VesselParameters
-from lotsen.sysid.estimate import parameter_scale
+from lotsen.sysid.estimate import SolverOptions, parameter_scale
 from lotsen.sysid.multiple import (
     MultipleShootingProblem, _fisher_from, estimate_multiple_shooting, sandwich_information,
 )
@@ -26,7 +26,7 @@ def _record(seed: int, bias: float, boat_seed: int | None = None):  # type: igno
 def test_a_constant_gyro_offset_is_estimated_and_leaves_the_coefficients_as_without_it():
     g, rec = _record(103, 0.04)  # 13 x the gyro noise, as a bias "calibrated" on a drifting boat
     plain = estimate_multiple_shooting([g.record], START, {"m11": 14.0})
-    res = estimate_multiple_shooting([rec], START, {"m11": 14.0}, gyro_bias=True)
+    res = estimate_multiple_shooting([rec], START, {"m11": 14.0}, SolverOptions(gyro_bias=True))
     assert res.converged
     b, sb = float(res.details.gyro_bias[0]), float(res.details.gyro_bias_std[0])
     assert abs(b - 0.04) <= max(3 * sb, 1e-4) and sb < 0.003
@@ -42,7 +42,7 @@ def test_a_constant_gyro_offset_is_estimated_and_leaves_the_coefficients_as_with
 def test_one_offset_per_record():
     _, a = _record(104, 0.03)
     _, b = _record(105, -0.02, boat_seed=104)  # two experiments on one boat
-    res = estimate_multiple_shooting([a, b], START, {"m11": 14.0}, gyro_bias=True)
+    res = estimate_multiple_shooting([a, b], START, {"m11": 14.0}, SolverOptions(gyro_bias=True))
     assert res.converged
     assert np.allclose(res.details.gyro_bias, [0.03, -0.02], atol=3 * res.details.gyro_bias_std.max())
     assert res.details.gyro_bias_std.max() < 0.002
@@ -51,7 +51,7 @@ def test_one_offset_per_record():
 def test_sandwich_reduces_to_the_fisher_information_for_white_residuals():
     g, _ = _record(106, 0.0)
     res = estimate_multiple_shooting([g.record], START, {"m11": 14.0})
-    prob = MultipleShootingProblem([g.record], noise_std=res.details.noise_std)
+    prob = MultipleShootingProblem([g.record], SolverOptions(noise_std=res.details.noise_std))
     theta = np.array(res.params.to_vector())
     free = np.arange(1, len(NAMES))
     tscale = parameter_scale(theta)

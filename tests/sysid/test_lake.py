@@ -144,7 +144,7 @@ def test_done_when_lake_record_is_answered_within_bounds_or_refused(tmp_path, ca
     import json
 
     from lotsen.harness.identification import lake_run
-    from lotsen.sysid.verdict import CORE_PARAMETERS
+    from lotsen.sysid.judge import CORE_PARAMETERS
 
     lake = lake_run(2500, current_mps=0.08, wind_mps=4.0)
     rc, out = _identify_cli(lake, tmp_path, *(["--lake"] if lake_flag else []))

@@ -17,8 +17,9 @@ import pytest
 from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
 from lotsen.sysid.equation_error import estimate_equation_error
 from lotsen.sysid.identify import identify, split_holdout
+from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.prediction import improvement, prediction_score
-from lotsen.sysid.verdict import CORE_PARAMETERS
+from lotsen.sysid.judge import CORE_PARAMETERS
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "physics"))
 
@@ -93,11 +94,11 @@ def test_wrongly_fixed_coefficients_are_misfit_not_a_confident_answer(boat_recor
     names = ("Y_v", "N_r", "X_uu", "mu_t")
     wrong = {"m11": 14.0, **{n: getattr(DEFAULT_PARAMETERS, n) for n in names}}
     assert all(abs(getattr(DEFAULT_PARAMETERS, n) / getattr(true, n) - 1) > 0.05 for n in names)
-    bad = identify(est, val, DEFAULT_PARAMETERS, wrong)
+    bad = identify(IdentificationProblem(tuple(est), tuple(val), wrong))
     assert bad.verdict.verdict not in ("ok", "weak")
     assert bad.fixed_test.contradicted
     assert any("fixed values disagree" in r for r in bad.verdict.reasons)
-    right = identify(est, val, DEFAULT_PARAMETERS, {"m11": 14.0, **{n: getattr(true, n) for n in names}})
+    right = identify(IdentificationProblem(tuple(est), tuple(val), {"m11": 14.0, **{n: getattr(true, n) for n in names}}))
     assert not right.fixed_test.contradicted
     assert right.verdict.verdict in ("ok", "weak"), right.verdict.reasons
     assert "holds_if" in right.to_json_dict()["identification"]
@@ -126,4 +127,11 @@ def test_a_real_hull_gets_a_predictive_answer_that_beats_the_defaults(tmp_path, 
     chosen = pred[content["prediction"]["chosen"]]["position_rms_m"]["10"]
     assert chosen <= 0.6 * pred["defaults"]["position_rms_m"]["10"], pred
     assert load_parameters(str(out)) is not None  # the loaders accept it
+    # the same record with the optional term off and a report: the equation-error answer has no X_uuu
+    # interval, which made the report a KeyError after the parameter file was written (exit 1)
+    rep = tmp_path / "hull.html"
+    assert main(["identify", str(data), "--fix", "m11=14.2", "--terms", "none", "--out", str(tmp_path / "off.json"),
+                 "--report", str(rep)]) == 0
+    html = rep.read_text()
+    assert "X_uuu" in html and "not estimated (off)" in html
     assert set(CORE_PARAMETERS) <= set(content)

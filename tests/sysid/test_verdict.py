@@ -1,4 +1,4 @@
-"""The verdict on an identification result (lotsen.sysid.verdict) and the loaders that honour it."""
+"""The verdict on an identification result (lotsen.sysid.judge.physical_verdict) and the loaders that honour it."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import pytest
 from lotsen.errors import ConfigError
 from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
 from lotsen.stack.stack import load_parameters
-from lotsen.sysid.verdict import MAX_WEAK, judge
+from lotsen.sysid.judge import MAX_WEAK
+from lotsen.sysid.judge import physical_verdict as judge
 
 WHITE = {"north": np.full(40, 0.1), "east": np.full(40, 0.15)}
 DRIVEN = {"north": np.full(40, 0.9), "east": np.full(40, 0.95)}
