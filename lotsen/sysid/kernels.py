@@ -124,9 +124,9 @@ class StepKernels:
         while a < n_steps:
             call = long if n_steps - a > long.chunk - short.chunk or long is short else short
             b = min(a + call.chunk, n_steps)
-            call.load(theta, h[a:b], U[a:b], reset[a:b], x0, S0)
             lo, hi = np.searchsorted(reset_step, [a, b])
-            call.XR[reset_step[lo:hi] - a] = reset_states[lo:hi]
+            call.load(theta, h[a:b], U[a:b], reset[a:b], x0, S0 if sens else None)
+            call.set_resets(reset_step[lo:hi] - a, reset_states[lo:hi])
             i0, i1 = np.searchsorted(need, [a, b])
             cols = need[i0:i1] - a
             n = b - a
@@ -157,6 +157,8 @@ class _ChunkCall:
         self.XR = np.zeros((L, nx))
         self.X = np.zeros((L, nx))
         self.S = np.zeros((L, ns, nx))  # S[k, j, i] = d x_i / d p_j after step k
+        self._theta: np.ndarray | None = None  # what TH holds (the same for a whole run)
+        self._reset_rows = np.zeros(0, int)  # the rows of XR the last chunk set
         self._fs = acc_sim  # keep the functions alive with their buffers
         self._fss = acc_sens
         self.buf_sim, self._ev_sim = acc_sim.buffer()
@@ -170,18 +172,28 @@ class _ChunkCall:
         self.buf_sens.set_res(1, memoryview(self.S))
 
     def load(self, theta: np.ndarray, h: np.ndarray, U: np.ndarray, reset: np.ndarray, x0: np.ndarray,
-             S0: np.ndarray) -> None:
-        """One chunk's inputs (the steps beyond len(h) do nothing: zero length, no reset)."""
+             S0: np.ndarray | None) -> None:
+        """One chunk's inputs (the steps beyond len(h) do nothing: zero length, no reset); what stays the
+        same from chunk to chunk (the parameters) is not copied again."""
         n = len(h)
         self.x0[:] = x0
-        self.S0[:] = S0
-        self.TH[:] = theta[None, :]
+        if S0 is not None:
+            self.S0[:] = S0
+        if self._theta is None or not np.array_equal(theta, self._theta):
+            self.TH[:] = theta[None, :]
+            self._theta = theta.copy()
         self.H[:n] = h
-        self.H[n:] = 0.0
         self.U[:n] = U
         self.RS[:n] = reset
-        self.RS[n:] = 0.0
-        self.XR[:] = 0.0
+        if n < self.chunk:
+            self.H[n:] = 0.0
+            self.RS[n:] = 0.0
+
+    def set_resets(self, rows: np.ndarray, states: np.ndarray) -> None:
+        """The node states loaded at `rows` of this chunk (the other rows' reset flags are 0)."""
+        self.XR[self._reset_rows] = 0.0
+        self.XR[rows] = states
+        self._reset_rows = rows
 
     def run_sim(self) -> None:
         self._ev_sim()
