@@ -1,4 +1,4 @@
-"""The worker processes of the numerical commands (`identify --jobs`, `experiment design --jobs`).
+"""The worker processes of the numerical commands (`identify --jobs`; `experiment design` runs on one core).
 
 The algorithms never start a process (lotsen.sysid.parallel): the command makes the pool and hands its
 `map` in. Workers are forked from the command after it has read its files and built the compiled
