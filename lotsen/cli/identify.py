@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from lotsen.cli.progress import progress_printer as _progress_printer
-from lotsen.cli.workers import add_jobs_flag, worker_pool
+from lotsen.cli.workers import add_jobs_flag, keep_freed_memory, worker_pool
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters, load_parameter_file
@@ -116,6 +116,7 @@ def _cmd_identify(args: argparse.Namespace) -> int:
     """`lotsen identify`: the problem from the flags and files, `identify(problem)`, the answer written."""
     problem, warnings = _problem(args)
     say = _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)")
+    keep_freed_memory()
     with worker_pool(args.jobs, lambda: _warm_kernels(problem)) as parallel:
         ident = identify(problem, say, parallel)
     return _answer(args, problem, ident, warnings)

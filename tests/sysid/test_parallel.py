@@ -112,3 +112,35 @@ def test_held_values_are_sent_once_and_summed_in_order():
     assert ordered_sum(parts)[0] == (1e16 + 1.0) - 1e16  # the parts' order, whatever ran them
     assert ordered_sum(iter(parts)) is not parts[0]
     parallel._held.clear()
+
+
+def test_the_filter_on_runs_of_segments_is_the_masked_filter_to_the_last_digit():
+    """equation_error._filtered filters each segment's run in place (no copies in and out): the numbers
+    of the per-segment masked filter, for a C-ordered and a transposed input."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from lotsen.sysid.equation_error import FILTER_SIGMA_S, _filtered
+
+    rng = np.random.default_rng(4)
+    seg = np.repeat([0, 1, 2], [300, 41, 500])
+    for x in (rng.normal(size=(len(seg), 7)), rng.normal(size=(3, len(seg))).T):
+        ref = np.empty(x.shape)
+        for q in np.unique(seg):
+            ref[seg == q] = gaussian_filter1d(x[seg == q], FILTER_SIGMA_S / 0.125, axis=0, mode="nearest")
+        assert np.array_equal(_filtered(x, seg, 0.125), ref)
+    scattered = np.array([0, 1, 0, 1] * 50)  # not runs: the masked filter itself
+    x = rng.normal(size=(len(scattered), 2))
+    ref = np.empty(x.shape)
+    for q in (0, 1):
+        ref[scattered == q] = gaussian_filter1d(x[scattered == q], 4.0, axis=0, mode="nearest")
+    assert np.array_equal(_filtered(x, scattered, 0.125), ref)
+
+
+def test_the_command_keeps_freed_memory_on_glibc():
+    import platform
+    import sys
+
+    from lotsen.cli.workers import keep_freed_memory
+
+    glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
+    assert keep_freed_memory() == glibc
