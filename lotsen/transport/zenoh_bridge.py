@@ -141,6 +141,7 @@ class BridgeStats:
     published_locally: int = 0
     decode_errors: int = 0
     encode_errors: int = 0
+    send_errors: int = 0
     echoes_ignored: int = 0
     dropped_out: int = 0
     dropped_in: int = 0
@@ -270,10 +271,17 @@ class ZenohBridge(Node):
                     self.stats.encode_errors += 1
                     self.stats.last_error = f"{topic}: {exc!r}"
                     continue
-                pub = self._publishers.get(topic)
-                if pub is None:
-                    pub = self._publishers[topic] = self._declare_publisher(topic, cc)
-                pub.put(data)
+                try:
+                    pub = self._publishers.get(topic)
+                    if pub is None:
+                        pub = self._publishers[topic] = self._declare_publisher(topic, cc)
+                    pub.put(data)
+                except Exception as exc:  # noqa: BLE001 - the session closed under a slow sender, or the link
+                    if self._stop.is_set():  # closing: close() waited 2 s for this thread and went on
+                        return
+                    self.stats.send_errors += 1
+                    self.stats.last_error = f"{topic}: {exc!r}"
+                    continue
                 self.stats.sent += 1
             self.stats.dropped_out = self._out.dropped
 

@@ -180,6 +180,37 @@ def test_stalled_sender_drops_oldest_and_never_blocks_the_bus(monkeypatch):
         bridge.close()
 
 
+def test_a_sender_outliving_its_session_neither_raises_nor_stops(monkeypatch):
+    """A publisher that cannot be declared or put (the session closed under a sender slower than
+    close()'s 2 s wait, as a replay under a busy CPU met it): counted, the sender goes on; once the
+    bridge is closing it leaves quietly instead of a traceback from its thread."""
+    bridge = ZenohBridge(BridgeConfig(vessel="a", listen=(f"tcp/127.0.0.1:{free_port()}",), publish=("*",)))
+    failed = threading.Event()
+
+    def refuse(*_a, **_k):
+        failed.set()
+        raise RuntimeError("session closed")
+
+    monkeypatch.setattr(bridge, "_declare_publisher", refuse)
+    hook_errors: list = []
+    monkeypatch.setattr(threading, "excepthook", lambda args: hook_errors.append(args.exc_value))
+    ex = SimExecutor()
+    try:
+        ex.add_node(bridge)
+        ex.bus.publish(M.Topic.IMU_RAW, M.ImuSample(stamp_s=0.0, gyro_radps=(0.0,) * 3, accel_mps2=(0.0,) * 3))
+        assert failed.wait(5.0)
+        deadline = time.monotonic() + 5.0
+        while bridge.stats.send_errors == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert bridge.stats.send_errors >= 1 and "session closed" in bridge.stats.last_error
+        assert bridge._sender.is_alive()
+        ex.bus.publish(M.Topic.IMU_RAW, M.ImuSample(stamp_s=1.0, gyro_radps=(0.0,) * 3, accel_mps2=(0.0,) * 3))
+    finally:
+        bridge.close()
+    bridge._sender.join(5.0)
+    assert not bridge._sender.is_alive() and hook_errors == []
+
+
 def test_two_processes_round_trip_and_shore_recording(tmp_path, same):
     """The test process is the boat (listens on loopback); a second process, the shore, connects,
     answers pings and records what it receives from the boat to MCAP."""
