@@ -163,6 +163,15 @@ class MPCConfig:
     # 8.7 cm at 20), so s_thrust stays small and the ESC's own time constant filters the rest.
     s_alpha: float = 10.0  # rate penalty per rad^2 (per step)
     s_thrust: float = 1.0  # rate penalty per q^2 (per step)
+    # In a sea the rate penalties grow, up to `wave_rate_scale` times, as the wave-frequency displacement
+    # the estimator separates out (`VesselState.wave_motion`, its RMS over `wave_rate_time_constant_s`)
+    # grows from `wave_rate_deadband_m` by `wave_rate_ref_m`: what the wave filter leaves of the waves in the
+    # estimate is not chased (issue 46; docs/control.md "Waves"). Flat water: unchanged.
+    wave_rate_scale: float = 3.0
+    wave_rate_deadband_m: float = 0.001
+    wave_rate_ref_m: float = 0.005
+    wave_rate_time_constant_s: float = 5.0
+    wave_reversal_scaled: bool = True  # the reversal guard's crossing price scaled alike
     min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
     min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
     # where stage k's reference lies on the path: "predicted" = the projection of the nominal (shifted
@@ -617,18 +626,21 @@ class MPCController:
         R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth_per_N2 * tq[0] ** 2,
                       cfg.r_thrust_azimuth_per_N2 * tq[1] ** 2, cfg.r_thrust_bow_per_N2 * tq[2] ** 2])
         S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
-        self._R, self._S = R, S
+        self._R, self._S, self._S_calm = R, S, S.copy()
         p_in_vals: list[float] = []
+        self._p_in_rate: list[tuple[int, float]] = []  # (input entry, how many S it holds) for `_scale_rate`
         for k in range(N):
             b = self._wi(k)
             for j in range(NW):
                 diag = R[j] + S[j] + (S[j] if k < N - 1 else 0.0)
                 p_entries.append((b + j, b + j))
                 p_in_vals.append(diag)
+                self._p_in_rate.append((j, 2.0 if k < N - 1 else 1.0))
             if k >= 1:
                 for j in range(NW):
                     p_entries.append((self._wi(k - 1) + j, b + j))
                     p_in_vals.append(-S[j])
+                    self._p_in_rate.append((j, -1.0))
         for k in range(N):
             for j in range(NREV):
                 p_entries.append((self._ti(k) + j, self._ti(k) + j))
@@ -637,6 +649,11 @@ class MPCController:
         self._p_state_pos = self._p_pos[:n_state_p].reshape(N, len(iu[0]))
         self._Px = np.zeros(P.nnz)
         self._Px[self._p_pos[n_state_p:]] = p_in_vals
+        n_in = len(self._p_in_rate)
+        self._p_in_pos = self._p_pos[n_state_p:n_state_p + n_in]
+        self._p_in_R = np.array([R[j] for j, _ in self._p_in_rate]) * np.array([1.0 if c > 0 else 0.0 for _, c in self._p_in_rate])
+        self._p_in_j = np.array([j for j, _ in self._p_in_rate])
+        self._p_in_count = np.array([c for _, c in self._p_in_rate])
         self._Px[self._p_state_pos] = 1e-6  # replaced before the first solve
         # --- A: x0 = x_meas; dynamics; input bounds; rate bounds
         a_entries: list[tuple[int, int]] = []
@@ -810,6 +827,30 @@ class MPCController:
         self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
+        self._wave_ms = 0.0  # mean square of the estimate's wave displacement (north, east)
+        self.rate_scale = 1.0
+        self._set_rate_scale(1.0)
+
+    def _set_rate_scale(self, scale: float) -> None:
+        """The input-rate penalties times `scale`: S in the first stage's linear term (the kernel's
+        s_rate) and in P's input entries (R + count S on the diagonal, -S off it)."""
+        self.rate_scale = scale
+        self._S[:] = self._S_calm * scale
+        self._Px[self._p_in_pos] = self._p_in_R + self._p_in_count * self._S[self._p_in_j]
+
+    def _schedule_rate(self, state: VesselState) -> None:
+        """In a sea, dearer input changes (MPCConfig.wave_rate_*): the RMS of the wave displacement the
+        estimator separated out, beyond its dead band, scales the rate penalties up to wave_rate_scale."""
+        cfg = self.config
+        w = getattr(state, "wave_motion", (0.0, 0.0, 0.0))
+        if not (cfg.wave_rate_scale > 1.0 and math.isfinite(w[0]) and math.isfinite(w[1])):
+            return
+        self._wave_ms += min(1.0, cfg.dt_s / cfg.wave_rate_time_constant_s) * (w[0] * w[0] + w[1] * w[1] - self._wave_ms)
+        rms = math.sqrt(0.5 * self._wave_ms)
+        f = min(1.0, max(0.0, (rms - cfg.wave_rate_deadband_m) / cfg.wave_rate_ref_m))
+        scale = 1.0 + (cfg.wave_rate_scale - 1.0) * f
+        if abs(scale - self.rate_scale) > 0.01 * self.rate_scale:
+            self._set_rate_scale(scale)
 
     def _q_achieved(self) -> np.ndarray:
         n = self._n_achieved
@@ -869,6 +910,8 @@ class MPCController:
         changed direction less than reversal_dwell_s ago."""
         cfg = self.config
         lam = self._crossing_cost_q * np.where(self._since_flip_s < cfg.reversal_dwell_s, cfg.reversal_dwell_factor, 1.0)
+        if cfg.wave_reversal_scaled:
+            lam = lam * self.rate_scale
         self._q[self._ti(0):] = np.tile(lam, self.N)
 
     def reset(self, path: Any, progress_m: float = 0.0) -> None:
@@ -984,6 +1027,7 @@ class MPCController:
             return self._failure(t, state, "state not finite", t0, 0.0, 0.0, self._s, 0.0)
         cfg, N = self.config, self.N
         x = np.array(state.as_array_tuple(), dtype=float)
+        self._schedule_rate(state)
         self._current = self._current_estimate(state)
         self._update_disturbance(x)
         s0, cte, hdg = self.path.project(x[0], x[1], self._s)

@@ -1,4 +1,5 @@
 import itertools
+from dataclasses import replace
 import math
 from types import SimpleNamespace
 
@@ -460,3 +461,37 @@ def test_approach_from_one_metre_off_does_not_overshoot():
         overshoot[far_m] = -float(np.min(cte))
     assert overshoot[0.1] < 0.1, overshoot
     assert overshoot[0.0] > 0.3, overshoot  # the case is one where the schedule matters
+
+
+def test_rate_penalties_grow_with_the_wave_motion_and_stay_in_calm_water():
+    """MPCConfig.wave_rate_*: flat water keeps the calm rate penalties; a sustained wave-frequency
+    displacement in the estimate (1 cm RMS) scales them to wave_rate_scale, exactly as a controller
+    set up with those penalties; the motion gone, they fall back."""
+    path = straight_path(30.0)
+    calm = MPCController(config=NO_TIME_LIMIT)
+    calm.reset(path)
+    P_calm = calm._Px[calm._p_in_pos].copy()
+    state = VesselState(stamp_s=0.0, north_m=0.0, east_m=0.05, heading_rad=0.0, u_mps=0.4, v_mps=0.0, r_radps=0.0)
+    for k in range(40):
+        calm.update(0.1 * k, state)
+    assert calm.rate_scale == 1.0
+    np.testing.assert_array_equal(calm._Px[calm._p_in_pos], P_calm)
+
+    cfg = NO_TIME_LIMIT
+    sea = MPCController(config=cfg)
+    sea.reset(path)
+    for k in range(200):  # 20 s, four time constants: 1 cm north and east, as a wave would swing the boat
+        w = 0.01 * math.sqrt(2.0) * math.sin(2.0 * math.pi * 0.1 * k)
+        sea.update(0.1 * k, replace(state, stamp_s=0.1 * k, wave_motion=(w, w, 0.0)))
+    assert sea.rate_scale == pytest.approx(cfg.wave_rate_scale, rel=0.01)
+    dear = MPCController(config=replace(cfg, s_alpha=cfg.s_alpha * sea.rate_scale,
+                                        s_thrust=cfg.s_thrust * sea.rate_scale, wave_rate_scale=1.0))
+    dear.reset(path)
+    np.testing.assert_allclose(sea._Px[sea._p_in_pos], dear._Px[dear._p_in_pos], rtol=1e-12)
+    np.testing.assert_allclose(sea._S, dear._S, rtol=1e-12)
+    dwell = np.where(sea._since_flip_s < cfg.reversal_dwell_s, cfg.reversal_dwell_factor, 1.0)
+    np.testing.assert_allclose(sea._q[sea._ti(0):sea._ti(0) + 3],  # the reversal guard's crossing price alike
+                               sea.rate_scale * dwell * sea._crossing_cost_q, rtol=1e-12)
+    for k in range(200, 500):  # six time constants
+        sea.update(0.1 * k, replace(state, stamp_s=0.1 * k))
+    assert sea.rate_scale == pytest.approx(1.0, abs=0.01)  # (re-set on a 1 % change)
