@@ -22,7 +22,9 @@ Rows:
      identify()'s wall time inside it, the CPU of the process and its workers, the speed-up over one
      job, and whether the file written is the one of one job byte for byte. The peer: main's code
      (`git archive main`, one process, no --jobs) on the same record in the same run. Targets (issue
-     49): lake <= 6 s wall with 2 workers, calm <= 3 s, the same file with any --jobs.
+     49): lake <= 6 s wall with 2 workers, calm <= 3 s, the same file with any --jobs. A control before
+     and after: two 2-s busy loops one after the other and in a pool of two (the speed-up two
+     processes can get on the machine at that moment).
   5. experiment design (issue 49 item 2): `lotsen experiment design --duration 60 --area 30x30` with
      this code and main's, alternated (main, this, this, main): CPU of the process, wall, and the
      design's A and D criteria (the design's own measures: A the log of the p-norm of the relative
@@ -306,14 +308,43 @@ def _max_rel_diff(a: dict, b: dict) -> float:
     return max(abs(a[n] - b[n]) / max(abs(a[n]), 1e-300) for n in NAMES if n in a and n in b)
 
 
+def _burn(seconds: float) -> float:
+    t0 = time.process_time()
+    x = 0
+    while time.process_time() - t0 < seconds:
+        x += 1
+    return float(x)
+
+
+def cores_control_row() -> dict:
+    """The control of row 4: what two cores give now. Two busy loops of 2 s of CPU each, one after the
+    other and in a pool of two forked processes; the ratio of the walls is the speed-up the machine
+    allows two workers at this moment (2 on two idle cores)."""
+    import multiprocessing
+
+    load = _load()
+    t0 = time.perf_counter()
+    for _ in range(2):
+        _burn(2.0)
+    serial = time.perf_counter() - t0
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        t0 = time.perf_counter()
+        pool.map(_burn, [2.0, 2.0])
+        pooled = time.perf_counter() - t0
+    return {"table": "control: the speed-up two processes get on this machine now", "code": "busy loops",
+            "jobs": 2, "wall_s": round(pooled, 2), "serial_wall_s": round(serial, 2),
+            "speed_up_vs_1_job": round(serial / pooled, 2), "load_1_5_15": load}
+
+
 def cores_rows(quick: bool = False) -> list[dict]:
     """Row 4 of the module docstring: each configuration ROUNDS times, interleaved (1, 2, 4 jobs, main's
-    code; again), the median reported (the other engineers' jobs come and go)."""
+    code; again), the median reported (the other engineers' jobs come and go); the control
+    (cores_control_row) before and after."""
     import json
     import tempfile
 
     rounds = 1 if quick else 3
-    rows: list[dict] = []
+    rows: list[dict] = [cores_control_row()]
     with tempfile.TemporaryDirectory(prefix="bench-cores-") as tmp:
         work = Path(tmp)
         peer, rev = main_code(work)
@@ -354,6 +385,7 @@ def cores_rows(quick: bool = False) -> list[dict]:
                     elif who == "4":
                         row.update(target="the same file as 1 job", **{"pass": same})
                 rows.append(row)
+    rows.append(cores_control_row())
     return rows
 
 
