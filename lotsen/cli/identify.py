@@ -159,7 +159,11 @@ def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]
     problem = IdentificationProblem(
         est, val, fixed, provenance, dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio),
         init.parameters if init else DEFAULT_PARAMETERS, in_use.parameters if in_use else None, args.lake,
-        _parse_terms(args.terms), args.method, judged_on, held_out, solver)
+        _parse_terms(args.terms), args.method, judged_on, held_out, solver, _sea_state(records))
+    if problem.sea is not None:
+        from lotsen.sysid.waves import describe
+
+        print(f"sea state: {describe(problem.sea)}", file=sys.stderr)
     print(f"identify: {problem.n_rows} rows, judged on {judged_on}: expect about "
           f"{max(problem.expected_cpu_s(), 1.0):.0f} s of CPU", file=sys.stderr)
     too_long = budget_refusal(problem, args.max_cpu)
@@ -305,6 +309,14 @@ def _recorded_on(paths: list[str]) -> dict[str, str]:
             boats[str(p)] = boat
             print(f"{p}: recorded on {boat}", file=sys.stderr)
     return boats
+
+
+def _sea_state(records):  # type: ignore[no-untyped-def]
+    """The highest sea among the records' own IMU estimates (None: no record has IMU columns)."""
+    from lotsen.harness.identification import record_sea_state
+
+    seas = [s for s in (record_sea_state(r) for r in records) if s is not None]
+    return max(seas, key=lambda s: s.hs_m if s.valid and s.hs_m == s.hs_m else -1.0, default=None)
 
 
 def _with_kind(record, kind: str | None):  # type: ignore[no-untyped-def]
