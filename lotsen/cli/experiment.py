@@ -124,6 +124,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             node = record_on_simulated_stack(exp, tmp, config)
         print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {boat_description(config, model)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        _say_measured_sea(node)
         if hasattr(node.plant, "silent_at_s"):  # an external physics
             check_physics_answered(node.plant, [node.aborted] if node.aborted else [], args.out)
         return 1 if node.aborted else 0
@@ -142,6 +143,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         where = "the emulated boat" if args.emulated else "the boat"
         print(f"{args.out}: {len(record.t)} rows, {record.t[-1] if len(record.t) else 0:.1f} s of '{exp.name}' "
               f"on {where}" + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        _say_measured_sea(node)
         return 1 if node.aborted else 0
     from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
     from lotsen.stack.stack import load_parameters
@@ -164,6 +166,19 @@ def _say_sea(waves: Any) -> None:
     from lotsen.sysid.waves import experiment_sea_warning
 
     msg = experiment_sea_warning(waves.hs_m, waves.tp_s, waves.from_deg) if waves is not None else None
+    if msg:
+        print(msg, file=sys.stderr)
+
+
+def _say_measured_sea(node: Any) -> None:
+    """The sea the boat's IMU measured during a run on the stack (and the warning when too high)."""
+    from lotsen.sysid.waves import describe, experiment_sea_warning
+
+    sea = node.sea
+    if sea is None:
+        return
+    print(f"sea state during the run: {describe(sea).replace('the record', 'the boat')}", file=sys.stderr)
+    msg = experiment_sea_warning(sea.hs_m, sea.tp_s, sea.from_deg)
     if msg:
         print(msg, file=sys.stderr)
 

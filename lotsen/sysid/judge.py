@@ -36,7 +36,7 @@ from lotsen.sysid.prediction import (
 )
 from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.sensitivity import ENV_NAMES
-from lotsen.sysid.waves import MAX_HS_M, describe as describe_sea, in_waves, sea_advice, sea_to_json, too_high
+from lotsen.sysid.waves import describe as describe_sea, in_waves, sea_advice, sea_to_json
 
 WEAK_RELATIVE_SIGMA = 0.07  # above this a coefficient is weakly determined
 # above this a core coefficient is not determined well enough for the controller: with honest
@@ -397,15 +397,16 @@ def _verdict(problem: IdentificationProblem, rule: _Choice, chosen: str | None, 
             "--validate a second one)"], weak, ac)
     gain = improvement(held, baseline)
     lo, _ = improvement_interval(held, baseline, z=PREDICTIVE_Z, horizons="all")
-    if too_high(problem.sea):
-        # effective coefficients fitted to wave motion and drift: on lotsen's simulator they predicted calm
-        # water 4-6 x worse than a calm record's answer (lotsen.sysid.waves): not given
+    if in_waves(problem.sea):
+        # effective coefficients fitted to wave motion and drift are the hull in that sea: on lotsen's simulator
+        # they predicted a calm record 2-8 x worse than the same boat's calm record's answer (lotsen.sysid.waves)
         return Verdict("refused", reasons + [
             f"the record was taken {describe_sea(problem.sea)}: the wave motion and the waves' drift are not in "
-            f"the hull model, and above Hs {100 * MAX_HS_M:.0f} cm effective coefficients from such a record "
-            f"predict calm water several times worse than a calm record's (these: {held.position_at_horizon_m:.2f} m "
-            f"against the model in use's {baseline.position_at_horizon_m:.2f} m after {held.horizon_s:g} s on the "
-            "record's own waves); " + sea_advice(problem.sea)], weak, ac)
+            "the hull model, and effective coefficients from a record in waves describe the hull in that sea "
+            "(on lotsen's simulator they predicted calm water 2-4 x worse than a calm record's answer in Hs 3 cm, "
+            f"8 x in Hs 6 cm; these predict the record's own held-out waves {held.position_at_horizon_m:.2f} m "
+            f"against the model in use's {baseline.position_at_horizon_m:.2f} m after {held.horizon_s:g} s): "
+            "see the advice for how to record instead"], weak, ac)
     if gain >= PREDICTIVE_MIN_IMPROVEMENT and lo > 0:
         notes = [f"not the hull's physical coefficients: {r}" for r in reasons]
         notes.append(f"effective coefficients ({chosen}): their {held.horizon_s:g}-s prediction of the held-out data "

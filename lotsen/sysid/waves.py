@@ -6,19 +6,23 @@ fusion) and handed to the identification problem (`IdentificationProblem.sea`). 
 identification makes of it: the record's heading and speed for that estimator, whether the record is
 "in waves", and the words the judge and the experiment's checks use.
 
-Why a sea changes the verdict (measured on lotsen's simulator, a boat of the model's structure, 10-min
-PRBS records, Hs 6 cm, Tp 1.0 s, seed 0): the wave-frequency yaw rate (0.1 rad/s RMS, 15 times the
-calm record's in 0.5-3 Hz) and the waves' mean drift (0.045 m/s over the record) are not in the
-3-DOF hull model. The calm-water estimate was refused (no convergence, coefficients at bounds); with
-the lake model (current and wind stand in for the drift) the output-error estimate came within 1-7 %
-of the boat only when started at the boat's own coefficients, and from the equation-error start (the
-derivatives of wave-frequency motion bias it to 25-35 % low, low-passing the data at 0.3-0.5 Hz did not
-help) or the defaults it stopped 13-35 % off. Effective coefficients from the record predicted a held-out
-calm record 4-6 times worse than the calm record's answer (0.33-0.51 m against 0.08 m after 10 s),
-though 3-5 times better than the defaults. So in a sea above MAX_HS_M no effective coefficients are
-given ("predictive" is refused with the sea state named); a physical answer is still given when it
-passes every check of one (its intervals then include the wave motion as coloured residuals: the
-multiple-shooting covariance is the sandwich one for correlated residuals).
+Why a sea changes the verdict (lotsen's simulator, boats of the model's structure, 10-min PRBS records,
+bench/bench_identify_waves.py, seeds 0-2): the wave-frequency yaw rate (0.1 rad/s RMS in 0.5-3 Hz, 15
+times a calm record's, in Hs 6 cm) and the waves' mean drift (0.045 m/s over a record) are not in the
+3-DOF hull model. No estimate came near the calm-water coefficients: the calm-water output-error estimate
+did not converge; the equation-error fit (the derivatives of wave-frequency motion in its regressors) was
+17-85 % off in its worst core coefficient; with the lake model (current and wind standing in for the
+drift) the output-error estimate came within 1-7 % only when started at the boat's own coefficients, and
+from the equation-error start or the defaults stopped 13-35 % off; low-passing the data at 0.3-0.5 Hz
+did not help (it biased the yaw inertia by 40 % instead). Effective coefficients from these records did
+predict a held-out calm record far better than the defaults (0.19-0.83 m after 10 s against 1.8 m), but
+2.1-4.1 times worse than the same boat's calm record's answer in Hs 3 cm and 7.8-8.3 times worse in Hs
+6 cm. So a record in waves (IN_WAVES_HS_M and above) gets no effective coefficients: they would be the
+hull in that sea, not in calm water ("predictive" is refused with the sea state named, and the advice
+says how to record instead); a physical answer is still given when it passes every check of one (none
+did in waves). Why the low-frequency motion in waves is not the calm hull's is not traced; one candidate
+is the hull's quadratic damping acting on the wave-frequency relative velocity, which raises the
+effective linear damping of sway and yaw.
 """
 
 from __future__ import annotations
@@ -30,13 +34,11 @@ import numpy as np
 from lotsen.messages import SeaState
 from lotsen.sysid.data import IdRecord
 
-#: below this significant height the record is calm water (the sea-state estimator's floor reads a few
-#: millimetres on a calm record's manoeuvres)
+#: from this significant height on the record is "in waves" and gets no effective coefficients (module
+#: docstring: in Hs 3 cm they predicted calm water 2.1-4.1 x worse than a calm record's answer); below it
+#: calm water (calm records read 0 on lotsen's simulator; Hs 3 cm read 2.8 cm). The calmest wind sea of
+#: issue 46 is Hs 3 cm (4 m/s over 300 m of fetch)
 IN_WAVES_HS_M = 0.02
-#: above this, effective coefficients from the record are not given (module docstring: at Hs 6 cm they
-#: predicted calm water 4-6 x worse than a calm record's answer); Hs 3 cm is the fetch-limited sea of a
-#: 4 m/s wind over 300 m (issue 46), the calmest wind sea a 1 m boat meets
-MAX_HS_M = 0.03
 SPEED_SPAN_S = 1.0  # the speed over ground from fixes this far apart
 
 
@@ -75,11 +77,6 @@ def in_waves(sea: SeaState | None) -> bool:
     return sea is not None and sea.valid and math.isfinite(sea.hs_m) and sea.hs_m >= IN_WAVES_HS_M
 
 
-def too_high(sea: SeaState | None) -> bool:
-    """Whether the sea is too high for effective coefficients (MAX_HS_M)."""
-    return in_waves(sea) and sea.hs_m > MAX_HS_M  # type: ignore[union-attr]
-
-
 def describe(sea: SeaState | None) -> str:
     """The record's sea in words (from its IMU)."""
     if sea is None:
@@ -97,7 +94,7 @@ def sea_advice(sea: SeaState | None) -> str:
     """What to do about a sea too high for a trustworthy record."""
     frm = (f" (they come from {sea.from_deg:.0f} deg: start the experiment heading {sea.from_deg:.0f} deg)"
            if sea is not None and math.isfinite(sea.from_deg) else "")
-    return (f"record in a calmer moment (Hs below {100 * MAX_HS_M:.0f} cm: wind sea builds with wind and fetch, "
+    return (f"record in a calmer moment (Hs below {100 * IN_WAVES_HS_M:.0f} cm: wind sea builds with wind and fetch, "
             f"so early morning or the lee shore), head to the sea{frm}, and make the manoeuvres larger and the "
             "record longer, so that the boat's own motion stands out of the wave motion")
 
@@ -116,16 +113,13 @@ def sea_to_json(sea: SeaState | None) -> dict | None:
 
 def experiment_sea_warning(hs_m: float, tp_s: float = math.nan, from_deg: float = math.nan) -> str | None:
     """The experiment's check of the sea it will run in (`lotsen experiment run --waves`, `check --sea`):
-    None in calm water or below IN_WAVES_HS_M; a note in a sea identification can still use; a warning,
-    with what to do, above MAX_HS_M (identification will give no effective coefficients from the record)."""
+    None in calm water (below IN_WAVES_HS_M); in waves a warning with what to do (identification will give
+    no effective coefficients from the record, and a physical answer only if every check of one passes)."""
     if not (math.isfinite(hs_m) and hs_m >= IN_WAVES_HS_M):
         return None
     sea = SeaState(stamp_s=0.0, valid=True, hs_m=hs_m, tp_s=tp_s, tp_encounter_s=math.nan, from_deg=from_deg,
                    heave_std_m=math.nan, roll_std_deg=math.nan, pitch_std_deg=math.nan)
     words = describe(sea).replace(" (from the record's IMU)", "")
-    if hs_m > MAX_HS_M:
-        return (f"WARNING: the sea is too high for a trustworthy identification record ({words}; above Hs "
-                f"{100 * MAX_HS_M:.0f} cm identification gives no effective coefficients and a physical answer only "
-                f"if every check of one passes): {sea_advice(sea)}")
-    return (f"note: {words}: the record's sea state will be estimated from its IMU and named in the identification; "
-            "head to the sea and keep the manoeuvres large")
+    return (f"WARNING: the sea is too high for a trustworthy identification record ({words}; from Hs "
+            f"{100 * IN_WAVES_HS_M:.0f} cm on, identification gives no effective coefficients, and a physical answer "
+            f"only if every check of one passes): {sea_advice(sea)}")
