@@ -248,6 +248,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
     write_output(args.out, yaml.safe_dump(experiment_to_dict(result.experiment), sort_keys=False, width=120),
                  (args.params,), ConfigError, "experiment")
     print(f"{args.out}: {result.summary()}", file=sys.stderr)
+    if args.sea is not None:
+        _say_sea(args.sea.waves())
     return 0
 
 
@@ -317,4 +319,7 @@ def register(subparsers: Any) -> None:
     d.add_argument("--robust-spread", type=Number(0.0, 0.5), default=0.15,
                    help="relative spread of those parameter sets (default 0.15 = +-15 %%)")
     d.add_argument("--seed", type=SEED, default=0)
+    d.add_argument("--sea", metavar="HS,TP,FROM_DEG", type=waves_flag,
+                   help="the sea the experiment will run in: says whether it is too high for a trustworthy record "
+                        "and what to do")
     d.set_defaults(func=_cmd_design)

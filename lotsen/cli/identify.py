@@ -159,16 +159,17 @@ def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]
     problem = IdentificationProblem(
         est, val, fixed, provenance, dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio),
         init.parameters if init else DEFAULT_PARAMETERS, in_use.parameters if in_use else None, args.lake,
-        _parse_terms(args.terms), args.method, judged_on, held_out, solver, _sea_state(records))
-    if problem.sea is not None:
-        from lotsen.sysid.waves import describe
-
-        print(f"sea state: {describe(problem.sea)}", file=sys.stderr)
+        _parse_terms(args.terms), args.method, judged_on, held_out, solver)
     print(f"identify: {problem.n_rows} rows, judged on {judged_on}: expect about "
           f"{max(problem.expected_cpu_s(), 1.0):.0f} s of CPU", file=sys.stderr)
     too_long = budget_refusal(problem, args.max_cpu)
     if too_long:
         raise ConfigError(too_long)
+    problem = dataclasses.replace(problem, sea=_sea_state(records))  # after the budget: it reads every IMU row
+    if problem.sea is not None:
+        from lotsen.sysid.waves import describe
+
+        print(f"sea state: {describe(problem.sea)}", file=sys.stderr)
     return problem, warnings
 
 

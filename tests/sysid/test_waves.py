@@ -149,3 +149,16 @@ def test_the_experiment_on_the_stack_warns_when_it_starts_in_waves():
                           heave_std_m=0.01, roll_std_deg=3.0, pitch_std_deg=2.0))
     node._check_sea()
     assert logged and logged[0][0] == "warning" and "too high for a trustworthy identification record" in logged[0][1]
+
+
+def test_experiment_check_says_when_the_sea_is_too_high(capsys):
+    from pathlib import Path
+
+    from lotsen.cli.main import main
+
+    exp = Path(__file__).parents[2] / "examples" / "experiments" / "zigzag_10_10.yaml"
+    assert main(["experiment", "check", str(exp), "--sea", "0.06,1.0,250"]) == 0
+    err = capsys.readouterr()
+    assert "too high for a trustworthy identification record" in err.err and "heading 250 deg" in err.err
+    assert main(["experiment", "check", str(exp), "--sea", "0,1.0,250"]) == 0
+    assert "WARNING" not in capsys.readouterr().err  # calm water: nothing to say
