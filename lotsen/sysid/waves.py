@@ -17,7 +17,7 @@ from the equation-error start or the defaults stopped 13-35 % off; low-passing t
 did not help (it biased the yaw inertia by 40 % instead). Effective coefficients from these records did
 predict a held-out calm record far better than the defaults (0.19-0.83 m after 10 s against 1.8 m), but
 2.1-4.1 times worse than the same boat's calm record's answer in Hs 3 cm and 7.8-8.3 times worse in Hs
-6 cm. So a record in waves (IN_WAVES_HS_M and above) gets no effective coefficients: they would be the
+6 cm (with the lake model 2.1-3.3 and 6.4-7.3 times). So a record in waves (IN_WAVES_HS_M and above) gets no effective coefficients: they would be the
 hull in that sea, not in calm water ("predictive" is refused with the sea state named, and the advice
 says how to record instead); a physical answer is still given when it passes every check of one (none
 did in waves). With the simulator's wave effects switched off one at a time (seed 0), the drift alone
