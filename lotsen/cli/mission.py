@@ -27,10 +27,9 @@ from lotsen.cli.outputs import check_plot_name, save_plot
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
 from lotsen.physics.config import address_flag as physics_address
+from lotsen.cli.prediction import parse_speed_dir  # noqa: F401 - the flags' parser, shared with plan and physics-server
 from lotsen.settings import SEED, Number
 
-#: the environment's ranges are the config's (sim.environment), one definition
-_CURRENT_MPS, _WIND_MPS, _DIRECTION_DEG = Number(0.0, 2.0, "m/s"), Number(0.0, 20.0, "m/s"), Number(-360.0, 360.0, "deg")
 #: planned time a simulated mission may take (its simulation runs up to twice that + 60 s):
 #: beyond it a route is a typo or a hostile file, and the command would run for hours. 3600 s (was
 #: 900): a survey is long (the 40 x 30 m example at 2 m: 1000 s; ~1 ms of CPU per simulated second
@@ -85,18 +84,6 @@ def waves_flag(text: str) -> Any:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("value ")) from None
 
 
-def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
-    """'0.1,90' -> (0.1, 90.0); ConfigError naming the option otherwise."""
-    if text is None:
-        return 0.0, 0.0
-    parts = text.split(",")
-    if len(parts) != 2:
-        raise ConfigError(f"--{what} {text[:40]!r}: expected SPEED,DIR_DEG, e.g. 0.1,90")
-    speed_range = _CURRENT_MPS if what == "current" else _WIND_MPS
-    where = f"--{what} {text[:40]!r} (SPEED,DIR_DEG)"
-    return speed_range.parse(parts[0], f"{where}: the speed"), _DIRECTION_DEG.parse(parts[1], f"{where}: the direction")
-
-
 def waves_report(waves: Any) -> dict | None:
     """The sea of a run as a report writes it (None: flat water, "calm water")."""
     if waves is None:
@@ -126,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--config: only read for --physics (its extra.physics section)")
     from dataclasses import replace
 
-    from lotsen.cli.plan import plan_within_budget, predict
+    from lotsen.cli.plan import plan_within_budget
+    from lotsen.cli.prediction import predict
     from lotsen.control import ControlConfig, MPCConfig, make_path_follower
     from lotsen.model import Environment, VesselModel, VesselParameters
     from lotsen.planning import PlannerConfig

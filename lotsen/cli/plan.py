@@ -151,46 +151,6 @@ def plan_within_budget(route, cfg, return_from: tuple[float, float, float] | Non
         worker.close()
 
 
-#: the planned time a prediction (or a simulated mission) may take: beyond it a route is a typo or a
-#: hostile file, and the simulation would run for many minutes (~7 ms of CPU per simulated second)
-MAX_PREDICTED_PLANNED_S = 3600.0
-
-
-def model_in_use(params: str | None):  # type: ignore[no-untyped-def]
-    """The model in use and its name: the parameter file's, else the default coefficients."""
-    from lotsen.model import VesselModel, VesselParameters, load_parameter_file
-
-    f = load_parameter_file(params) if params else None
-    return VesselModel(f.parameters if f else VesselParameters()), (f.describe() if f else "default coefficients")
-
-
-def predict(route, path, model, model_name: str, current: tuple[float, float], wind: tuple[float, float],
-            controller: str = "mpc"):  # type: ignore[no-untyped-def]
-    """The mission's time and energy (lotsen.stack.prediction) in the current (m/s, to deg) and wind
-    (m/s, from deg) given; ConfigError for a path too long to predict."""
-    from lotsen.control import ControlConfig
-    from lotsen.planning.survey.keeping import line_spans
-    from lotsen.stack.prediction import predict_mission
-
-    planned = path.duration_s()
-    if planned > MAX_PREDICTED_PLANNED_S:
-        raise ConfigError(f"the planned path takes {planned:.0f} s; a prediction (a simulated mission) is at most "
-                          f"{MAX_PREDICTED_PLANNED_S:.0f} s")
-    a = math.radians(current[1])
-    return predict_mission(path, model, current_ne_mps=(current[0] * math.cos(a), current[0] * math.sin(a)),
-                           wind_mps=wind[0], wind_from_deg=wind[1], control=ControlConfig(controller=controller),
-                           survey_lines=line_spans(route, path), model_name=model_name)
-
-
-def describe_prediction(p) -> str:  # type: ignore[no-untyped-def]
-    """One line for the console: what the prediction says and what it was made with."""
-    c = math.hypot(*p.current_ne_mps)
-    lines = (f", {100 * p.share_on_lines:.0f} % on lines" if p.time_on_lines_s > 0 else "")
-    return (f"predicted: {p.duration_s:.0f} s ({p.duration_s / 60:.1f} min{lines}), {p.energy_J / 3600:.1f} Wh "
-            f"at the motors (mean {p.mean_power_W:.0f} W); {p.controller} on the {p.model}, current {c:.2f} m/s, "
-            f"wind {p.wind_mps:g} m/s" + ("" if p.reached_end else "; the model did NOT reach the end"))
-
-
 def run(args: argparse.Namespace) -> int:
     from lotsen.planning.io import load_route
 
@@ -204,6 +164,15 @@ def run(args: argparse.Namespace) -> int:
         format_of(export)  # an unknown suffix is refused before any planning
     check_outputs((args.out, args.plot, export), (args.route,) + ((args.params,) if getattr(args, "params", None)
                                                                    else ()), ConfigError)
+    predicting = None
+    if getattr(args, "predict", False):
+        from lotsen.cli.prediction import model_in_use, parse_speed_dir
+
+        # the flags and the model first: a bad one is reported before the planning
+        predicting = (parse_speed_dir(args.current, "current"), parse_speed_dir(args.wind, "wind"),
+                      *model_in_use(args.params))
+    elif any(getattr(args, k, None) for k in ("current", "wind", "params")):
+        raise ConfigError("--current/--wind/--params: read only with --predict (the prediction's water, air and model)")
     route = load_route(args.route, origin=origin, default_speed_mps=getattr(args, "node_speed", None))
     route = with_survey_flags(route, args)
     cfg = _config(args)
@@ -222,13 +191,11 @@ def run(args: argparse.Namespace) -> int:
               f"({on_lines / p.speed_mps:.0f} s, {100 * on_lines / p.speed_mps / max(path.duration_s(), 1e-9):.0f} % "
               f"of the planned time), spacing {p.spacing_m:g} m, angle {p.angle_deg:g} deg, turn radius "
               f"{p.turn_radius():g} m")
-    if getattr(args, "predict", False) and pose is None:
-        from lotsen.cli.mission import parse_speed_dir
+    if predicting is not None and pose is None:
+        from lotsen.cli.prediction import describe_prediction, predict
 
-        model, model_name = model_in_use(args.params)
-        p = predict(route, path, model, model_name, parse_speed_dir(args.current, "current"),
-                    parse_speed_dir(args.wind, "wind"), args.controller)
-        print(describe_prediction(p))
+        current, wind, model, model_name = predicting
+        print(describe_prediction(predict(route, path, model, model_name, current, wind, args.controller)))
     if args.out:
         write_output(args.out, json.dumps(path.to_dict()), (args.route,), ConfigError, "path")
         print(f"wrote {args.out}")

@@ -127,3 +127,4 @@ def compare_with_flown(prediction: MissionPrediction, duration_s: float, energy_
             "duration_error": rel(prediction.duration_s, duration_s),
             "energy_flown_J": round(energy_J, 0), "energy_predicted_J": round(prediction.energy_J, 0),
             "energy_error": rel(prediction.energy_J, energy_J)}
+
