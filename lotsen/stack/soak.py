@@ -64,6 +64,10 @@ class LivePlan:
     route: dict | None = None  # uploaded through the socket; None: the config's route
     return_home: bool = True
     route_timeout_s: float = 600.0
+    # the pilot arms this long after the boat reported holding the route (reads the read-back first). A
+    # survey's route (the 40 x 30 m one: 86 000 path points) stalls the core's loop 0.15-0.2 s when it
+    # arrives (2026-11-28): an AUTO asked for then is refused (the estimator's health blinks)
+    arm_after_route_s: float = 0.0
     seed: int = 0
     environment: dict | None = None  # overrides sim.environment (current, wind)
     flood_viewers: int = 0  # strangers sending maximal valid `plan` requests while the boat is in AUTO
@@ -383,6 +387,7 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
             if pilot.wait_for(lambda f: (f.get("sup") or {}).get("route_id") == rid, 10) is None:
                 raise RuntimeError("the boat never reported holding the uploaded route")
             note(f"route {rid} held by the boat")
+            time.sleep(plan.arm_after_route_s)
         pilot.request({"type": "command", "action": "arm"})
         if pilot.wait_for(lambda f: (f.get("sup") or {}).get("armed") is True, 10) is None:
             raise RuntimeError(f"arm not accepted: {pilot.alerts[-3:]}")
