@@ -51,7 +51,7 @@ class SeaStateConfig:
     rate_hz: float = 10.0  # the IMU decimated to this for the spectra (the wave band ends at 3 Hz)
     window_s: float = 120.0
     segment_s: float = 25.6  # Welch segments (Hann, half overlapping): 0.04 Hz resolution
-    min_data_s: float = 40.0  # no estimate before this much data
+    min_data_s: float = 30.0  # no estimate before this much data (more than one Welch segment)
     update_s: float = 2.0
     band_hz: tuple[float, float] = (0.3, 3.0)
     # below this heave acceleration standard deviation in the band the sea is flat water (the
@@ -160,6 +160,16 @@ class SeaStateEstimator:
         return SeaState(stamp_s=t, valid=True, window_s=span, hs_m=4.0 * math.sqrt(m0),
                         tp_s=2.0 * math.pi / float(w_true[k_peak]), tp_encounter_s=2.0 * math.pi / w_e,
                         from_deg=from_deg, heave_std_m=heave_std, roll_std_deg=roll_std, pitch_std_deg=pitch_std)
+
+
+def encounter_frequency(sea: SeaState, heading_rad: float, speed_mps: float) -> float | None:
+    """The frequency a boat on `heading_rad` at `speed_mps` meets the sea's peak at: w_e = |w_p - k_p U
+    cos(chi)|, chi the waves' travel relative to the bow (deep water). None without a sea or a direction."""
+    if not (sea.valid and sea.hs_m > 0 and math.isfinite(sea.tp_s) and math.isfinite(sea.from_deg)):
+        return None
+    w = 2.0 * math.pi / sea.tp_s
+    chi = math.radians(sea.from_deg) + math.pi - heading_rad
+    return abs(w - w * w / GRAVITY_MPS2 * speed_mps * math.cos(chi))
 
 
 def true_frequency(w_encounter: float, speed_along_waves_mps: float) -> float:
