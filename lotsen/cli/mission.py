@@ -155,10 +155,10 @@ def run(args: argparse.Namespace) -> int:
     plant = physics_plant(args.config, args.physics, cfg.sim_dt_s) if args.physics else None
     boat = plant if plant is not None else boat
     estimator = make_sim_ekf(cfg, path, model, boat=boat) if args.estimator == "ekf" else None
-    # before the boat leaves: the time and energy the model in use predicts in the current and wind given
-    # (with --physics none are given: the prediction is in calm water)
+    # before the boat leaves: the time and energy the model in use predicts in the current, wind and waves
+    # given (with --physics none are given: the prediction is in calm water)
     prediction = predict(route, path, model, model_file.describe() if model_file else "default coefficients",
-                         cur, wind, args.controller)
+                         cur, wind, args.controller, waves=waves)
     try:
         result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator,
                              survey_lines=line_spans(route, path),

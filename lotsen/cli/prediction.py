@@ -39,9 +39,9 @@ def model_in_use(params: str | None):  # type: ignore[no-untyped-def]
 
 
 def predict(route, path, model, model_name: str, current: tuple[float, float], wind: tuple[float, float],
-            controller: str = "mpc"):  # type: ignore[no-untyped-def]
-    """The mission's time and energy (lotsen.stack.prediction) in the current (m/s, to deg) and wind
-    (m/s, from deg) given; ConfigError for a path too long to predict."""
+            controller: str = "mpc", waves=None):  # type: ignore[no-untyped-def]
+    """The mission's time and energy (lotsen.stack.prediction) in the current (m/s, to deg), wind
+    (m/s, from deg) and sea (a `Waves`, None: flat water) given; ConfigError for a path too long to predict."""
     from lotsen.control import ControlConfig
     from lotsen.planning.survey.keeping import line_spans
     from lotsen.stack.prediction import predict_mission
@@ -53,7 +53,7 @@ def predict(route, path, model, model_name: str, current: tuple[float, float], w
     a = math.radians(current[1])
     return predict_mission(path, model, current_ne_mps=(current[0] * math.cos(a), current[0] * math.sin(a)),
                            wind_mps=wind[0], wind_from_deg=wind[1], control=ControlConfig(controller=controller),
-                           survey_lines=line_spans(route, path), model_name=model_name)
+                           survey_lines=line_spans(route, path), model_name=model_name, waves=waves)
 
 
 def describe_prediction(p) -> str:  # type: ignore[no-untyped-def]
@@ -62,4 +62,5 @@ def describe_prediction(p) -> str:  # type: ignore[no-untyped-def]
     lines = (f", {100 * p.share_on_lines:.0f} % on lines" if p.time_on_lines_s > 0 else "")
     return (f"predicted: {p.duration_s:.0f} s ({p.duration_s / 60:.1f} min{lines}), {p.energy_J / 3600:.1f} Wh "
             f"at the motors (mean {p.mean_power_W:.0f} W); {p.controller} on the {p.model}, current {c:.2f} m/s, "
-            f"wind {p.wind_mps:g} m/s" + ("" if p.reached_end else "; the model did NOT reach the end"))
+            f"wind {p.wind_mps:g} m/s" + (f", waves Hs {p.waves.hs_m * 100:.0f} cm" if p.waves is not None else "")
+            + ("" if p.reached_end else "; the model did NOT reach the end"))

@@ -4,7 +4,10 @@
 takes and draws depends on the model in use (identified or the defaults), the controller and the
 water and air: so the prediction flies the path with the controller in use on a boat equal to the
 model in use (`SimulatedBoat.ideal_for`), on simulated time, in the current and wind the estimator
-knows (the controller is given that current, as the estimate carries it). Its figures are measured
+knows (the controller is given that current, as the estimate carries it), and in the sea given (a
+`Waves`, as `lotsen mission --waves` gives it; a wind sea costs energy: `lotsen mission survey_lake --waves
+0.05,0.9,45` in 0.1 m/s current and 3 m/s wind flew 26.2 Wh against 11.8 Wh predicted in flat water,
+2026-11-28). Its figures are measured
 as a flown mission's are: the duration from the start to the route's end, the motors' electrical
 energy from the propeller speeds (`lotsen.sim.propulsion_energy_j`, the measure of the mission
 report's `energy_J`), the time on survey lines (`lotsen.planning.survey.keeping`).
@@ -25,6 +28,7 @@ import numpy as np
 from lotsen.control import ControlConfig, make_path_follower
 from lotsen.messages import VesselState
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
+from lotsen.model.environment import Waves
 from lotsen.planning.survey.keeping import LineSpan, line_keeping, track_on_path
 from lotsen.sim import SimConfig, SimulatedBoat, Simulator, propulsion_energy_j
 from lotsen.sim.loop import control_ticks
@@ -51,6 +55,7 @@ class MissionPrediction:
     wind_mps: float
     wind_from_deg: float
     cpu_s: float
+    waves: Waves | None = None
 
     @property
     def share_on_lines(self) -> float:
@@ -62,7 +67,9 @@ class MissionPrediction:
                "planned_duration_s": round(self.planned_duration_s, 1), "reached_end": self.reached_end,
                "model": self.model, "controller": self.controller,
                "current_ne_mps": [round(c, 3) for c in self.current_ne_mps], "wind_mps": round(self.wind_mps, 2),
-               "wind_from_deg": round(self.wind_from_deg, 1), "cpu_s": round(self.cpu_s, 2)}
+               "wind_from_deg": round(self.wind_from_deg, 1), "cpu_s": round(self.cpu_s, 2),
+               "waves": None if self.waves is None else {"hs_m": self.waves.hs_m, "tp_s": self.waves.tp_s,
+                                                         "from_deg": self.waves.from_deg}}
         if self.time_on_lines_s > 0:
             out["time_on_lines_s"] = round(self.time_on_lines_s, 1)
             out["share_on_lines"] = round(self.share_on_lines, 4)
@@ -72,16 +79,18 @@ class MissionPrediction:
 def predict_mission(path: Any, model: VesselModel | None = None, *, current_ne_mps: tuple[float, float] = (0.0, 0.0),
                     wind_mps: float = 0.0, wind_from_deg: float = 0.0, control: ControlConfig = ControlConfig(),
                     limits: ActuatorLimits = DEFAULT_LIMITS, survey_lines: tuple[LineSpan, ...] = (),
-                    model_name: str = "default coefficients", sim_dt_s: float = 0.01) -> MissionPrediction:
+                    model_name: str = "default coefficients", sim_dt_s: float = 0.01,
+                    waves: Waves | None = None) -> MissionPrediction:
     """Fly `path` from its start at rest with `control`'s controller on a boat equal to `model`, in the
-    current (north, east, m/s over ground) and the wind (m/s, from deg) given; the controller sees the
-    true state with that current, as it sees the estimator's."""
+    current (north, east, m/s over ground), the wind (m/s, from deg) and the sea (`waves`; None: flat
+    water) given; the controller sees the true state with that current, as it sees the estimator's."""
     cpu0 = time.process_time()
     model = model or VesselModel()
     speed = math.hypot(*current_ne_mps)
     env = Environment(current_speed_mps=speed, current_to_deg=math.degrees(math.atan2(current_ne_mps[1],
                                                                                    current_ne_mps[0])),
-                      wind_speed_mps=wind_mps, wind_from_deg=wind_from_deg)
+                      wind_speed_mps=wind_mps, wind_from_deg=wind_from_deg,
+                      waves=waves if waves is not None and waves.hs_m > 0.0 else None)
     h0 = float(path.heading_rad[0])
     sim = Simulator(SimulatedBoat.ideal_for(model, limits), config=SimConfig(dt_s=sim_dt_s, sensors=False,
                                                                              environment=env),
@@ -116,7 +125,7 @@ def predict_mission(path: Any, model: VesselModel | None = None, *, current_ne_m
                              planned_duration_s=planned, time_on_lines_s=on_lines, reached_end=bool(follower.done),
                              model=model_name, controller=getattr(follower, "name", control.controller),
                              current_ne_mps=cur, wind_mps=float(wind_mps), wind_from_deg=float(wind_from_deg),
-                             cpu_s=time.process_time() - cpu0)
+                             cpu_s=time.process_time() - cpu0, waves=env.waves)
 
 
 def compare_with_flown(prediction: MissionPrediction, duration_s: float, energy_J: float) -> dict[str, float]:

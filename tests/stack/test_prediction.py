@@ -52,3 +52,18 @@ def test_the_prediction_answers_to_the_current_and_the_wind(survey):
     assert windy.energy_J > 1.1 * calm.energy_J
     assert calm.current_ne_mps == (0.0, 0.0) and windy.wind_mps == 6.0
     assert math.isclose(calm.mean_power_W * calm.duration_s, calm.energy_J, rel_tol=1e-9)
+
+
+def test_the_prediction_flies_in_the_sea_it_is_given(survey):
+    """A wind sea (`lotsen mission --waves`, the estimator's sea state) costs energy: the prediction flies in
+    it (measured 2026-11-28 on this survey at 0.6 m/s: Hs 5 cm, Tp 0.9 s, 2.5 x the energy of flat water)."""
+    from lotsen.model.environment import Waves
+
+    path, spans = survey
+    calm = predict_mission(path, survey_lines=spans)
+    sea = predict_mission(path, survey_lines=spans, waves=Waves(0.05, 0.9, 45.0))
+    assert sea.reached_end and sea.waves is not None and calm.waves is None
+    assert sea.energy_J > 1.5 * calm.energy_J, (sea.energy_J, calm.energy_J)
+    assert sea.as_dict()["waves"] == {"hs_m": 0.05, "tp_s": 0.9, "from_deg": 45.0}
+    flat = predict_mission(path, survey_lines=spans, waves=Waves(0.0, 0.9, 45.0))   # Hs 0: flat water
+    assert flat.waves is None and flat.energy_J == pytest.approx(calm.energy_J)
