@@ -11,7 +11,9 @@ polygon (6 lines), and no live rows.
    cross-track RMS and max, distance after the turn until within 5 cm; the share of the mission's time
    on lines; the time and energy predicted before the boat leaves (`lotsen.stack.prediction`: the model
    in use flown by the MPC in the same current and wind) against what was flown (the same energy
-   measure, `lotsen.sim.propulsion_energy_j`).
+   measure, `lotsen.sim.propulsion_energy_j`). 1d (info): the same survey in a wind sea of Hs 6 cm on
+   the lake boat, the prediction given the sea. 1e (info): where the energy prediction's gap comes from
+   (the 16 x 12 m survey: truth or EKF under the controller, the MPC's default or azimuth_astern_hold_s).
 2. Live (item 5): `lotsen run` at wall-clock pace, the survey uploaded, armed and flown through the
    WebSocket as the page does (`lotsen.stack.soak.run_live`), judged by its own log; the lake boat, and
    the hull over the SITL-JSON seam (hull_server.py). ~17 min of wall clock each.
@@ -178,6 +180,97 @@ def keeping_rows(quick: bool) -> list[dict]:
     return rows
 
 
+#: the sea of table 1d: a wind sea from the wind's direction (bench_waves' Hs 6 cm, Tp 1.0 s)
+WAVES = (0.06, 1.0, WIND[1])
+
+
+def waves_rows(quick: bool) -> list[dict]:
+    """Table 1d (info): the survey of table 1 on the lake boat (its own coefficients) in a wind sea of Hs 6 cm
+    as well, the prediction given the same sea (as `lotsen mission --waves` gives it), the line keeping on the
+    true track (the waves' own motion is in it: no controller should chase it, bench_waves)."""
+    from lotsen.control import ControlConfig, make_path_follower
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.model import Environment, VesselModel
+    from lotsen.model.environment import Waves
+    from lotsen.planning.survey.keeping import line_spans
+    from lotsen.sim import DEFAULT_BOAT, LAKE_BOAT_PARAMETERS
+    from lotsen.stack.prediction import predict_mission
+
+    size = (16.0, 12.0) if quick else (40.0, 30.0)
+    route = route_from_dict(survey_dict(size))
+    path = plan_route(route)
+    spans = line_spans(route, path)
+    a = math.radians(CURRENT[1])
+    waves = Waves(*WAVES)
+    env = Environment(current_speed_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_speed_mps=WIND[0],
+                      wind_from_deg=WIND[1], waves=waves)
+    model = VesselModel(LAKE_BOAT_PARAMETERS)
+    t0 = time.perf_counter()
+    prediction = predict_mission(path, model, current_ne_mps=(CURRENT[0] * math.cos(a), CURRENT[0] * math.sin(a)),
+                                 wind_mps=WIND[0], wind_from_deg=WIND[1], survey_lines=spans, waves=waves,
+                                 model_name="the lake boat's coefficients")
+    cfg = MissionConfig(environment=env, seed=0, sensors=True, hold_s=1.0)
+    res = run_mission(path, make_path_follower(ControlConfig(), model), cfg, model=model,
+                      estimator=make_sim_ekf(cfg, path, model, boat=DEFAULT_BOAT), survey_lines=spans, boat=DEFAULT_BOAT)
+    row = keeping_row("lake boat", "the lake boat's coefficients", res, prediction, size, time.perf_counter() - t0)
+    row.pop("pass")
+    row.update(table=f"1d. the same survey in waves ({waves.describe()}; info, not the issue's bar, which is for calm water)",
+               target="(info) line keeping and prediction in a wind sea; the bars of table 1 for comparison",
+               failsafes=", ".join(res.metrics.get("failsafes_triggered", [])) or "none")
+    return [row]
+
+
+def energy_gap_rows(quick: bool = True) -> list[dict]:
+    """Table 1e (info): where the energy prediction's gap comes from, on the 16 x 12 m survey (6 lines) in the
+    current and wind of table 1: the prediction against the flight with the controller on the truth (no
+    estimator noise) and on the EKF, with the MPC's default and with azimuth_astern_hold_s = 10 s; mean |n|
+    of each propeller (azimuth 1, azimuth 2, bow) on the achieved speeds."""
+    sys.path.insert(0, str(PHYSICS))
+    from hull6dof import HullEnvironment
+    from hull_plant import HullPlant
+
+    from lotsen.control import ControlConfig, make_path_follower
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.model import Environment, VesselModel
+    from lotsen.sim import DEFAULT_BOAT, LAKE_BOAT_PARAMETERS
+    from lotsen.stack.prediction import predict_mission
+
+    path = plan_route(route_from_dict(survey_dict((16.0, 12.0))))
+    a = math.radians(CURRENT[1])
+    current_ne = (CURRENT[0] * math.cos(a), CURRENT[0] * math.sin(a))
+    env = Environment(current_speed_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_speed_mps=WIND[0],
+                      wind_from_deg=WIND[1])
+    hull_env = HullEnvironment(current_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_mps=WIND[0],
+                               wind_from_deg=WIND[1])
+    with tempfile.TemporaryDirectory(prefix="bench-survey-") as work:
+        hull_model, hull_name = hull_model_identified(Path(work))
+    rows = []
+    for hull, model_name, model in (("lake boat", "the lake boat's coefficients", VesselModel(LAKE_BOAT_PARAMETERS)),
+                                    ("6-DOF hull", hull_name, hull_model)):
+        for hold in (math.inf, 10.0):
+            control = replace(ControlConfig(), mpc=replace(ControlConfig().mpc, azimuth_astern_hold_s=hold))
+            p = predict_mission(path, model, current_ne_mps=current_ne, wind_mps=WIND[0], wind_from_deg=WIND[1],
+                                control=control)
+            for state in ("truth", "EKF"):
+                cfg = MissionConfig(environment=env if hull == "lake boat" else Environment(), seed=0, sensors=True,
+                                    hold_s=1.0)
+                boat = DEFAULT_BOAT if hull == "lake boat" else HullPlant(environment=hull_env, dt_s=cfg.sim_dt_s)
+                est = make_sim_ekf(cfg, path, model, boat=boat) if state == "EKF" else None
+                res = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=est,
+                                  **({"boat": boat} if hull == "lake boat" else {"plant": boat}))
+                f = res.mode == "follow"
+                n = np.abs(res.achieved[f][:, 2:5]).mean(axis=0)
+                e = res.metrics["energy_J"]
+                rows.append({"table": "1e. where the energy prediction's gap comes from (16 x 12 m survey; info)",
+                             "boat": hull, "model": model_name, "azimuth_astern_hold_s": hold, "controller_state": state,
+                             "energy_predicted_Wh": round(p.energy_J / 3600, 2), "energy_flown_Wh": round(e / 3600, 2),
+                             "energy_err_pct": round(100 * (p.energy_J - e) / e, 1),
+                             "mean_abs_n_flown_rps": " / ".join(f"{x:.0f}" for x in n),
+                             "target": "(info) the prediction flies both azimuths sharing, on the truth, on a boat "
+                                       "equal to the model"})
+    return rows
+
+
 def share_rows() -> list[dict]:
     """Table 1c: the planned share of the time on lines against the run-in and the turn radius (planning only)."""
     rows = []
@@ -273,7 +366,7 @@ def lake_bed(n0: float, e0: float, cell: float, rows: int, cols: int) -> LakeBed
 
 
 def run(quick: bool = False) -> list[dict]:
-    rows = keeping_rows(quick) + share_rows()
+    rows = keeping_rows(quick) + waves_rows(quick) + (energy_gap_rows() if not quick else []) + share_rows()
     if not quick:
         rows += live_rows()
     return rows + depth_rows(quick)
