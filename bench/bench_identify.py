@@ -17,6 +17,8 @@ alone, one BLAS thread as the command sets it):
      records, else 12), `identify(problem)` on each: per coefficient the RMS of the reported std over the
      spread of the estimates (target 0.8-1.25 for the core eight) and the truth within 3 reported sigma
      (target >= 97 %); undetermined coefficients (no interval) are left out and counted.
+  4. records in waves (issue 46 item 4): bench/bench_identify_waves.py (also alone: `python bench/run.py
+     identify_waves`).
 """
 
 from __future__ import annotations
@@ -179,4 +181,6 @@ def repeated_records_rows(quick: bool = False) -> list[dict]:
 
 
 def run(quick: bool = False) -> list[dict]:
-    return lake_rows(quick) + fixed_rows(quick) + repeated_records_rows(quick)
+    from bench_identify_waves import run as waves_rows  # 4. records in waves (its own module docstring)
+
+    return lake_rows(quick) + fixed_rows(quick) + repeated_records_rows(quick) + waves_rows(quick)

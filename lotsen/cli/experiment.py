@@ -119,10 +119,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
         config = with_waves(with_physics(replace(config, mode="sim"), args.physics), args.waves)
         from lotsen.stack.config import config_files
 
+        _say_sea(args.waves.waves() if args.waves else None)
         with atomic_output(out, _run_inputs(args, config_files(config)), ConfigError, "log") as tmp:
             node = record_on_simulated_stack(exp, tmp, config)
         print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {boat_description(config, model)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        _say_measured_sea(node)
         if hasattr(node.plant, "silent_at_s"):  # an external physics
             check_physics_answered(node.plant, [node.aborted] if node.aborted else [], args.out)
         return 1 if node.aborted else 0
@@ -141,6 +143,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         where = "the emulated boat" if args.emulated else "the boat"
         print(f"{args.out}: {len(record.t)} rows, {record.t[-1] if len(record.t) else 0:.1f} s of '{exp.name}' "
               f"on {where}" + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
+        _say_measured_sea(node)
         return 1 if node.aborted else 0
     from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
     from lotsen.stack.stack import load_parameters
@@ -150,11 +153,34 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from lotsen.model import Environment
 
     env = Environment(waves=args.waves.waves()) if args.waves else None
+    _say_sea(env.waves if env is not None else None)
     run = run_on_simulator(exp, boat, seed=args.seed, psi_noise_rad=args.psi_noise, environment=env)
     save_csv(run.record, args.out, _run_inputs(args))
     print(f"{args.out}: {len(run.record.t)} rows, {exp.duration_s:.1f} s of '{exp.name}' on the simulator "
           f"(gyro bias estimate {run.gyro_bias_estimate_radps:+.4f} rad/s)", file=sys.stderr)
     return 0
+
+
+def _say_sea(waves: Any) -> None:
+    """The experiment's check of the sea it runs in (lotsen.sysid.waves.experiment_sea_warning)."""
+    from lotsen.sysid.waves import experiment_sea_warning
+
+    msg = experiment_sea_warning(waves.hs_m, waves.tp_s, waves.from_deg) if waves is not None else None
+    if msg:
+        print(msg, file=sys.stderr)
+
+
+def _say_measured_sea(node: Any) -> None:
+    """The sea the boat's IMU measured during a run on the stack (and the warning when too high)."""
+    from lotsen.sysid.waves import describe, experiment_sea_warning
+
+    sea = node.sea
+    if sea is None:
+        return
+    print(f"sea state during the run: {describe(sea).replace('the record', 'the boat')}", file=sys.stderr)
+    msg = experiment_sea_warning(sea.hs_m, sea.tp_s, sea.from_deg)
+    if msg:
+        print(msg, file=sys.stderr)
 
 
 def _cmd_lake(args: argparse.Namespace) -> int:
@@ -179,6 +205,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin)
     if args.params:
         print(f"model: {describe_parameters(args.params)}")
+    if args.sea is not None:
+        _say_sea(args.sea.waves())
     print(f"{args.experiment}: OK ({exp.duration_s:.1f} s, predicted north {pred.x[:, 0].min():.1f}..{pred.x[:, 0].max():.1f} m, "
           f"east {pred.x[:, 1].min():.1f}..{pred.x[:, 1].max():.1f} m, inside the area)")
     return 0
@@ -220,6 +248,8 @@ def _cmd_design(args: argparse.Namespace) -> int:
     write_output(args.out, yaml.safe_dump(experiment_to_dict(result.experiment), sort_keys=False, width=120),
                  (args.params,), ConfigError, "experiment")
     print(f"{args.out}: {result.summary()}", file=sys.stderr)
+    if args.sea is not None:
+        _say_sea(args.sea.waves())
     return 0
 
 
@@ -269,6 +299,9 @@ def register(subparsers: Any) -> None:
     c.add_argument("experiment")
     c.add_argument("--params", help="vessel parameters JSON for the prediction")
     c.add_argument("--margin", type=MARGIN, default=1.0, help="area safety margin in metres (default 1)")
+    c.add_argument("--sea", metavar="HS,TP,FROM_DEG", type=waves_flag,
+                   help="the sea the experiment will run in (as the page shows the boat's estimate): says whether "
+                        "it is too high for a trustworthy record and what to do")
     c.set_defaults(func=_cmd_check)
     d = sub.add_parser("design", help="optimise an experiment's inputs for the Fisher information")
     d.add_argument("--duration", type=Number(5.0, 600.0, "s"), default=60.0, help="experiment length, s")
@@ -286,4 +319,7 @@ def register(subparsers: Any) -> None:
     d.add_argument("--robust-spread", type=Number(0.0, 0.5), default=0.15,
                    help="relative spread of those parameter sets (default 0.15 = +-15 %%)")
     d.add_argument("--seed", type=SEED, default=0)
+    d.add_argument("--sea", metavar="HS,TP,FROM_DEG", type=waves_flag,
+                   help="the sea the experiment will run in: says whether it is too high for a trustworthy record "
+                        "and what to do")
     d.set_defaults(func=_cmd_design)

@@ -177,6 +177,11 @@ def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]
     too_long = budget_refusal(problem, args.max_cpu)
     if too_long:
         raise ConfigError(too_long)
+    problem = dataclasses.replace(problem, sea=_sea_state(records))  # after the budget: it reads every IMU row
+    if problem.sea is not None:
+        from lotsen.sysid.waves import describe
+
+        print(f"sea state: {describe(problem.sea)}", file=sys.stderr)
     return problem, warnings
 
 
@@ -317,6 +322,14 @@ def _recorded_on(paths: list[str]) -> dict[str, str]:
             boats[str(p)] = boat
             print(f"{p}: recorded on {boat}", file=sys.stderr)
     return boats
+
+
+def _sea_state(records):  # type: ignore[no-untyped-def]
+    """The highest sea among the records' own IMU estimates (None: no record has IMU columns)."""
+    from lotsen.harness.identification import record_sea_state
+
+    seas = [s for s in (record_sea_state(r) for r in records) if s is not None]
+    return max(seas, key=lambda s: s.hs_m if s.valid and s.hs_m == s.hs_m else -1.0, default=None)
 
 
 def _with_kind(record, kind: str | None):  # type: ignore[no-untyped-def]

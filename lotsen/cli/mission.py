@@ -27,13 +27,14 @@ from lotsen.cli.outputs import check_plot_name, save_plot
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
 from lotsen.physics.config import address_flag as physics_address
+from lotsen.cli.prediction import parse_speed_dir  # noqa: F401 - the flags' parser, shared with plan and physics-server
 from lotsen.settings import SEED, Number
 
-#: the environment's ranges are the config's (sim.environment), one definition
-_CURRENT_MPS, _WIND_MPS, _DIRECTION_DEG = Number(0.0, 2.0, "m/s"), Number(0.0, 20.0, "m/s"), Number(-360.0, 360.0, "deg")
 #: planned time a simulated mission may take (its simulation runs up to twice that + 60 s):
-#: beyond it a route is a typo or a hostile file, and the command would run for hours
-MAX_MISSION_PLANNED_S = 900.0
+#: beyond it a route is a typo or a hostile file, and the command would run for hours. 3600 s (was
+#: 900): a survey is long (the 40 x 30 m example at 2 m: 1000 s; ~1 ms of CPU per simulated second
+#: with the EKF, 2-3 min)
+MAX_MISSION_PLANNED_S = 3600.0
 
 
 def register(subparsers: Any) -> None:
@@ -83,18 +84,6 @@ def waves_flag(text: str) -> Any:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("value ")) from None
 
 
-def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
-    """'0.1,90' -> (0.1, 90.0); ConfigError naming the option otherwise."""
-    if text is None:
-        return 0.0, 0.0
-    parts = text.split(",")
-    if len(parts) != 2:
-        raise ConfigError(f"--{what} {text[:40]!r}: expected SPEED,DIR_DEG, e.g. 0.1,90")
-    speed_range = _CURRENT_MPS if what == "current" else _WIND_MPS
-    where = f"--{what} {text[:40]!r} (SPEED,DIR_DEG)"
-    return speed_range.parse(parts[0], f"{where}: the speed"), _DIRECTION_DEG.parse(parts[1], f"{where}: the direction")
-
-
 def waves_report(waves: Any) -> dict | None:
     """The sea of a run as a report writes it (None: flat water, "calm water")."""
     if waves is None:
@@ -125,11 +114,14 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from lotsen.cli.plan import plan_within_budget
+    from lotsen.cli.prediction import predict
     from lotsen.control import ControlConfig, MPCConfig, make_path_follower
     from lotsen.model import Environment, VesselModel, VesselParameters
     from lotsen.planning import PlannerConfig
     from lotsen.planning.io import load_route
     from lotsen.harness.mission import MissionConfig, make_sim_ekf, planned_duration_s, run_mission
+    from lotsen.planning.survey.keeping import line_spans
+    from lotsen.stack.prediction import compare_with_flown
     from lotsen.sim import DEFAULT_BOAT, SimulatedBoat
     from lotsen.model import load_parameter_file
 
@@ -149,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
     boat = SimulatedBoat.ideal_for(model) if args.boat == "ideal" else (
         DEFAULT_BOAT.with_parameters(boat_file.parameters, name=f"lake boat with {boat_file.describe()}")
         if boat_file else DEFAULT_BOAT)
-    path = plan_within_budget(load_route(args.route), PlannerConfig())
+    route = load_route(args.route)
+    path = plan_within_budget(route, PlannerConfig())
     planned_s = planned_duration_s(path)
     if planned_s > MAX_MISSION_PLANNED_S:
         raise ConfigError(f"{args.route}: the planned path takes {planned_s:.0f} s at its speeds; a simulated "
@@ -162,8 +155,13 @@ def run(args: argparse.Namespace) -> int:
     plant = physics_plant(args.config, args.physics, cfg.sim_dt_s) if args.physics else None
     boat = plant if plant is not None else boat
     estimator = make_sim_ekf(cfg, path, model, boat=boat) if args.estimator == "ekf" else None
+    # before the boat leaves: the time and energy the model in use predicts in the current, wind and waves
+    # given (with --physics none are given: the prediction is in calm water)
+    prediction = predict(route, path, model, model_file.describe() if model_file else "default coefficients",
+                         cur, wind, args.controller, waves=waves)
     try:
         result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator,
+                             survey_lines=line_spans(route, path),
                              **({"plant": plant} if plant is not None else {"boat": boat}))
     finally:
         if plant is not None:
@@ -176,7 +174,11 @@ def run(args: argparse.Namespace) -> int:
     report.update(route=str(args.route), environment={"current_mps": cur[0], "current_to_deg": cur[1],
                                                        "wind_mps": wind[0], "wind_from_deg": wind[1],
                                                        "waves": waves_report(waves)},
-                  seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz)
+                  seed=args.seed, estimator=args.estimator, control_rate_hz=cfg.control_rate_hz,
+                  prediction=prediction.as_dict())
+    if result.completed and "energy_J" in result.metrics:
+        report["predicted_vs_flown"] = compare_with_flown(prediction, result.metrics["duration_s"],
+                                                          result.metrics["energy_J"])
     write_output(args.report, json.dumps(report, indent=2) + "\n", inputs, ConfigError, "report")
     m = result.metrics
     print(f"boat: {report['boat']}; model: {model_file.describe() if model_file else report['model']}"
@@ -189,6 +191,19 @@ def run(args: argparse.Namespace) -> int:
              if "reversals_per_s" in m else "")
           + (f"; solve median {m['solve_time_median_ms']:.2f} ms, max "
                                                   f"{m['solve_time_max_ms']:.1f} ms" if m['solve_time_median_ms'] else ""))
+    if "survey" in m:
+        sv = m["survey"]
+        settle = sv.get("settle_distance_max_m")
+        print(f"survey: {sv['lines_flown']} of {sv['lines']} lines; worst line cross-track RMS "
+              f"{sv['cross_track_rms_m'] * 100:.1f} cm, max {sv['cross_track_max_m'] * 100:.1f} cm; within "
+              f"{sv['settle_tolerance_m'] * 100:.0f} cm " + (f"at most {settle:.2f} m after a turn" if settle is not None
+                                                           else "NOT reached on every line")
+              + f"; {sv['share_on_lines'] * 100:.1f} % of the time on lines")
+    if "predicted_vs_flown" in report:
+        c = report["predicted_vs_flown"]
+        print(f"predicted {c['duration_predicted_s']:.0f} s and {c['energy_predicted_J'] / 3600:.2f} Wh, flown "
+              f"{c['duration_flown_s']:.0f} s and {c['energy_flown_J'] / 3600:.2f} Wh "
+              f"({c['duration_error'] * 100:+.1f} %, {c['energy_error'] * 100:+.1f} %)")
     print(f"wrote {args.report}")
     if args.plot:
         save_plot(args.plot, lambda p: plot_mission(result, p), inputs)

@@ -57,6 +57,15 @@ def register(subparsers) -> None:
                    "nearest the harbour)")
     s.add_argument("--crosshatch", action="store_true", help="fly the area again with lines at 90 deg")
     s.add_argument("--side", choices=SIDES, help="one-sided sensor (side-scan): the side it covers (default both)")
+    e = p.add_argument_group("prediction", "time and energy predicted by flying the path on the model in use "
+                             "(simulated time, seconds of CPU for a survey)")
+    e.add_argument("--predict", action="store_true", help="predict the mission's time and the motors' energy")
+    e.add_argument("--current", metavar="SPEED,TO_DEG", help="the current the estimator knows: speed (m/s) and the "
+                   "direction it flows TO (deg)")
+    e.add_argument("--wind", metavar="SPEED,FROM_DEG", help="the wind: speed (m/s) and the direction it comes FROM (deg)")
+    e.add_argument("--params", metavar="PARAMS.json", help="the model in use (default: the default coefficients)")
+    e.add_argument("--controller", default="mpc", choices=("mpc", "pursuit", "los", "lq"),
+                   help="the path follower in use (default mpc)")
     p.set_defaults(func=run)
 
 
@@ -153,7 +162,17 @@ def run(args: argparse.Namespace) -> int:
         from lotsen.planning.formats import format_of
 
         format_of(export)  # an unknown suffix is refused before any planning
-    check_outputs((args.out, args.plot, export), (args.route,), ConfigError)
+    check_outputs((args.out, args.plot, export), (args.route,) + ((args.params,) if getattr(args, "params", None)
+                                                                   else ()), ConfigError)
+    predicting = None
+    if getattr(args, "predict", False):
+        from lotsen.cli.prediction import model_in_use, parse_speed_dir
+
+        # the flags and the model first: a bad one is reported before the planning
+        predicting = (parse_speed_dir(args.current, "current"), parse_speed_dir(args.wind, "wind"),
+                      *model_in_use(args.params))
+    elif any(getattr(args, k, None) for k in ("current", "wind", "params")):
+        raise ConfigError("--current/--wind/--params: read only with --predict (the prediction's water, air and model)")
     route = load_route(args.route, origin=origin, default_speed_mps=getattr(args, "node_speed", None))
     route = with_survey_flags(route, args)
     cfg = _config(args)
@@ -172,6 +191,11 @@ def run(args: argparse.Namespace) -> int:
               f"({on_lines / p.speed_mps:.0f} s, {100 * on_lines / p.speed_mps / max(path.duration_s(), 1e-9):.0f} % "
               f"of the planned time), spacing {p.spacing_m:g} m, angle {p.angle_deg:g} deg, turn radius "
               f"{p.turn_radius():g} m")
+    if predicting is not None and pose is None:
+        from lotsen.cli.prediction import describe_prediction, predict
+
+        current, wind, model, model_name = predicting
+        print(describe_prediction(predict(route, path, model, model_name, current, wind, args.controller)))
     if args.out:
         write_output(args.out, json.dumps(path.to_dict()), (args.route,), ConfigError, "path")
         print(f"wrote {args.out}")

@@ -8,43 +8,20 @@ product's loop with all of them is `lotsen.harness.mission.run_mission`.
     for tick in control_ticks(sim, lambda t, s: keeper.update(t, s, target), until_s=60.0):
         errors.append(math.hypot(sim.x[0], sim.x[1]))
 
-Every `period_s` of simulated time: the controller gets (t, the true state) and returns
-(command, status); the simulator takes the command and advances by `period_s` with it held.
+The loop itself (`control_ticks`) is `lotsen.sim.loop`'s: a mission's prediction
+(lotsen.stack.prediction) runs the same one.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from lotsen.messages import ThrustCommand, VesselState
 from lotsen.model import Environment
 from lotsen.sim import SimConfig, SimulatedBoat, Simulator
-
-#: the controller's step: (time in s, state) -> (command, status)
-ControllerStep = Callable[[float, VesselState], tuple[ThrustCommand, Any]]
-
-
-@dataclass(frozen=True)
-class Tick:
-    t_s: float  # when the controller ran
-    x: tuple[float, ...]  # the true state it saw (north, east, psi, u, v, r)
-    command: ThrustCommand
-    status: Any  # what the controller returned with the command
-
-
-def control_ticks(sim: Simulator, step: ControllerStep, period_s: float = 0.1,
-                  until_s: float | None = None) -> Iterator[Tick]:
-    """Run `step` on `sim` every `period_s` until the simulator's time reaches `until_s` (or for
-    as long as the caller iterates); yields each tick after the simulator advanced."""
-    while until_s is None or sim.t < until_s:
-        t, x = sim.t, sim.x
-        command, status = step(t, sim.truth())
-        sim.command(command)
-        sim.advance(period_s)
-        yield Tick(t, tuple(x), command, status)
+from lotsen.sim.loop import ControllerStep, Tick, control_ticks  # noqa: F401 - the loop, in lotsen.sim since the prediction uses it
 
 
 @dataclass

@@ -31,7 +31,8 @@ class SimulatedRun:
 def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
                      psi_noise_rad: float = 0.01, environment: Any = None, preroll_s: float = 2.0,
                      keep_truth: bool = False) -> SimulatedRun:
-    """Run `experiment` on the simulated boat with sensors; returns the measured record. `model`: the
+    """Run `experiment` on the simulated boat with sensors; returns the measured record (with the IMU's
+    means over each row interval, from which the record's sea state is estimated). `model`: the
     simulated boat (a `SimulatedBoat`, or a `VesselModel` for a boat exactly that model; default the
     default model)."""
     from lotsen.messages import GnssFix, ImuSample
@@ -58,6 +59,7 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
     rows_u: list[np.ndarray] = []
     rows_n: list[int] = []
     rows_y: list[list[float]] = []
+    rows_imu: list[np.ndarray] = []  # sums of the IMU samples within each row interval, and their count
     truth_t, truth_x = [], []
     last_gyro = 0.0
     for k in range(n_steps):
@@ -69,9 +71,11 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
             sim.command(gen.command(t, (math.nan, math.nan, psi_meas)))
         msgs = sim.step()
         fix = None
+        imu = np.zeros(7)
         for m in msgs:
             if isinstance(m, ImuSample):
                 last_gyro = m.gyro_radps[2]
+                imu += (*m.accel_mps2, *m.gyro_radps, 1.0)
             elif isinstance(m, GnssFix) and math.isfinite(m.lat_deg):
                 fix = m
         if tick or fix is not None:
@@ -83,13 +87,18 @@ def run_on_simulator(experiment: Experiment, model: Any = None, seed: int = 0,
             rows_u.append(np.zeros(5))
             rows_n.append(0)
             rows_y.append(y)
+            rows_imu.append(np.zeros(7))
+        rows_imu[-1] += imu
         rows_u[-1] += np.array(sim.step_input)  # what acted during this step
         rows_n[-1] += 1
         if keep_truth:
             truth_t.append(t)
             truth_x.append(x_true)
     U = np.array(rows_u) / np.array(rows_n)[:, None]
-    rec = IdRecord(np.array(rows_t), U, np.array(rows_y), source=f"sim:{experiment.name}")
+    S = np.array(rows_imu).reshape(-1, 7)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        imu_mean = S[:, :6] / S[:, 6:]  # the IMU's mean over each row interval (NaN: no sample in it)
+    rec = IdRecord(np.array(rows_t), U, np.array(rows_y), source=f"sim:{experiment.name}", imu=imu_mean)
     return SimulatedRun(rec, np.array(truth_t), np.array(truth_x).reshape(-1, 6), bias)
 
 
@@ -130,12 +139,13 @@ def lake_boat(seed: int, core_range: tuple[float, float] = (0.05, 0.25), other_m
 
 def lake_run(seed: int, duration_s: float = 600.0, current_mps: float | None = None,
              wind_mps: float | None = None, boat: VesselParameters | None = None,
-             experiment: Experiment | None = None) -> LakeRun:
+             experiment: Experiment | None = None, waves: Any = None) -> LakeRun:
     """A lake record: `experiment` (default a 10-min PRBS on all five inputs, bow thruster included)
     on the boat `boat` (default `lake_boat(seed)`) in a constant earth-frame current (`current_mps`,
     default random up to 0.1 m/s, random direction) and gusty wind (`wind_mps` mean, default random
     up to 5 m/s; gusts 15-30 % of the mean with a 3-10 s time constant, direction wandering by 10 deg),
-    with the simulator's noisy asynchronous sensors (run_on_simulator). Seeded, pure."""
+    with the simulator's noisy asynchronous sensors (run_on_simulator); `waves` (a
+    lotsen.model.Waves): a wind sea besides. Seeded, pure."""
     from lotsen.model import Environment
     from lotsen.sysid.experiment import parse_experiment
 
@@ -144,7 +154,8 @@ def lake_run(seed: int, duration_s: float = 600.0, current_mps: float | None = N
     w = float(rng.uniform(0.0, 5.0)) if wind_mps is None else float(wind_mps)
     env = Environment(current_speed_mps=c, current_to_deg=float(rng.uniform(0, 360)), wind_speed_mps=w,
                       wind_from_deg=float(rng.uniform(0, 360)), wind_gust_std_mps=w * float(rng.uniform(0.15, 0.3)),
-                      wind_gust_time_constant_s=float(rng.uniform(3.0, 10.0)), wind_direction_std_deg=10.0 if w else 0.0)
+                      wind_gust_time_constant_s=float(rng.uniform(3.0, 10.0)), wind_direction_std_deg=10.0 if w else 0.0,
+                      waves=waves)
     if experiment is None:
         spec = dict(LAKE_EXPERIMENT)
         spec["pieces"] = [dict(LAKE_EXPERIMENT["pieces"][0], duration_s=duration_s, seed=seed)]
@@ -154,3 +165,15 @@ def lake_run(seed: int, duration_s: float = 600.0, current_mps: float | None = N
     # the rows carry interval means of the achieved actuator values (run_on_simulator)
     run.record = dataclasses.replace(run.record, input_kind="mean")
     return LakeRun(run, boat, env)
+
+
+def record_sea_state(record: IdRecord) -> Any:
+    """The record's sea state from its own IMU (lotsen.fusion.seastate.record_sea_state, the boat's
+    estimator run offline), or None for a record without IMU columns."""
+    from lotsen.fusion.seastate import record_sea_state as from_imu
+    from lotsen.sysid.waves import heading_and_speed
+
+    if record.imu is None or not np.isfinite(record.imu).all(axis=1).any():
+        return None
+    psi, speed = heading_and_speed(record)
+    return from_imu(record.t, record.imu, psi, speed)

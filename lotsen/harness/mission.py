@@ -31,6 +31,7 @@ from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF
 from lotsen.messages import ActuatorState, ControllerStatus, OperatorCommand, SupervisorStatus, ThrustCommand, Topic, VesselState
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
 from lotsen.model.angles import wrap_angle
+from lotsen.planning.survey.keeping import LineSpan, line_keeping, track_on_path
 from lotsen.runtime.config import LaunchConfig, NodesSection, SimSection, WebSection
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.sim import DEFAULT_BOAT, Plant, SimConfig, SimulatedBoat, Simulator, propulsion_energy_j
@@ -149,7 +150,8 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
                 *, station_keeper: StationKeeper | None = None, model: VesselModel | None = None,
                 boat: SimulatedBoat | None = None, sim_model: VesselModel | None = None,
                 limits: ActuatorLimits = DEFAULT_LIMITS, estimator: Any = None,
-                sim_config: SimConfig | None = None, plant: Plant | None = None) -> MissionResult:
+                sim_config: SimConfig | None = None, plant: Plant | None = None,
+                survey_lines: tuple[LineSpan, ...] = ()) -> MissionResult:
     """Run one mission in simulation on the stack's closed loop: the simulated boat node (with
     its actuator guard), the estimator node (or the truth), and the supervisor with its
     failsafes, armed and sent to AUTO at the start. `model` is the controllers' and the
@@ -157,7 +159,9 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
     boat, which is not the default model). `sim_model`: a boat exactly equal to that model
     (no unmodelled effects; `SimulatedBoat.ideal_for`). `plant`: another body behind lotsen's
     sensors instead (an external physics, `lotsen.physics.client.UdpPhysics`, or any `Plant`),
-    placed at the path's start; its water and air are its own (`config.environment` must be calm)."""
+    placed at the path's start; its water and air are its own (`config.environment` must be calm).
+    `survey_lines`: a survey's lines on the path (`lotsen.planning.survey.keeping.line_spans`): the
+    report gets their line keeping (`survey`)."""
     model = model or VesselModel()
     follower = follower or make_path_follower(ControlConfig(), model, limits)
     keeper = station_keeper or make_station_keeper(ControlConfig(), model, limits)
@@ -233,11 +237,22 @@ def run_mission(path: Any, follower: PathFollower | None = None, config: Mission
         res.cross_track_estimated_m = res.cross_track_m
         res.cross_track_m = true_cte
     res.metrics = mission_metrics(res, follower, t_done[0] if t_done else None)
+    if survey_lines and res.t.size:
+        res.metrics["survey"] = survey_keeping(res, survey_lines, t_done[0] if t_done else None).summary()
     res.metrics["failsafes_triggered"] = sorted({e.split(":")[0] for e in sup.failsafe_history})
     plant_status = sim.plant.status()  # an external physics's counters (lotsen's own boat has none)
     if plant_status:
         res.metrics["physics"] = plant_status
     return res
+
+
+def survey_keeping(res: MissionResult, spans: tuple[LineSpan, ...], t_done: float | None) -> Any:
+    """The line keeping of a survey mission on the true track (`lotsen.planning.survey.keeping`): per
+    line the cross-track RMS and max, the distance after the turn until within 5 cm, the time on it;
+    the share of the mission's time (AUTO until the route's end) on lines."""
+    f = res.mode == "follow"
+    s, cte = track_on_path(res.path, res.x[f, 0], res.x[f, 1])
+    return line_keeping(spans, res.t[f], s, cte, t_done if t_done is not None else float(res.t[f][-1]))
 
 
 def propeller_reversals(speeds_rps: np.ndarray, band_rps: float = REVERSAL_BAND_RPS) -> list[int]:

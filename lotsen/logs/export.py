@@ -203,8 +203,8 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
     names = ("north", "east", "psi", "r") + (("u", "v") if outputs != "raw" else ())
     ny = len(names)
     nan = float("nan")
-    rows: list[tuple[float, ...]] = []  # (t, 5 inputs, ny outputs)
-    blank_u, blank_y = (nan,) * 5, (nan,) * ny
+    rows: list[tuple[float, ...]] = []  # (t, 5 inputs, ny outputs, 6 IMU_COLUMNS)
+    blank_u, blank_y, blank_imu = (nan,) * 5, (nan,) * ny, (nan,) * 6
     frame = FixFrame()  # the identification record's frame: at the first usable fix
     bias = 0.0
     psi_last = nan
@@ -212,7 +212,7 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
     for topic, msg in reader.messages(need):
         t = float(msg.stamp_s)
         if topic == in_topic:
-            rows.append((t, *msg.as_tuple(), *blank_y))
+            rows.append((t, *msg.as_tuple(), *blank_y, *blank_imu))
         elif outputs == "raw" and topic == Topic.GNSS:
             if not msg.usable:
                 continue
@@ -222,22 +222,26 @@ def sysid_record(path: str | os.PathLike, outputs: str = "auto", inputs: str = "
                     continue  # no heading yet to carry the lever arm: the fix cannot be placed
                 dn, de = lever_arm_ne(psi_last, arm)
                 n, e = n - dn, e - de
-            rows.append((t, *blank_u, n, e, nan, nan))
+            rows.append((t, *blank_u, n, e, nan, nan, *blank_imu))
         elif outputs == "raw" and topic == Topic.IMU_RAW:
-            rows.append((t, *blank_u, nan, nan, nan, msg.gyro_radps[2] - bias))
+            # the IMU sample itself too: the record's sea state is estimated from it (lotsen.sysid.waves)
+            rows.append((t, *blank_u, nan, nan, nan, msg.gyro_radps[2] - bias, *msg.accel_mps2, *msg.gyro_radps))
         elif outputs == "raw":  # the estimate: heading, and the gyro bias for the following IMU rows
             bias = msg.gyro_bias_radps if math.isfinite(msg.gyro_bias_radps) else bias
             psi_last = msg.heading_rad if math.isfinite(msg.heading_rad) else psi_last
-            rows.append((t, *blank_u, nan, nan, msg.heading_rad, nan))
+            rows.append((t, *blank_u, nan, nan, msg.heading_rad, nan, *blank_imu))
         else:
-            rows.append((t, *blank_u, msg.north_m, msg.east_m, msg.heading_rad, msg.r_radps, msg.u_mps, msg.v_mps))
+            rows.append((t, *blank_u, msg.north_m, msg.east_m, msg.heading_rad, msg.r_radps, msg.u_mps, msg.v_mps,
+                         *blank_imu))
     if len(rows) < 2:
         raise DataError(f"{path}: fewer than 2 identification rows")
     a = np.array(rows, dtype=float)
     a[~np.isfinite(a)] = np.nan  # an infinite reading is no reading
     a = a[np.argsort(a[:, 0], kind="stable")]  # topics are recorded on receipt: order by stamp
-    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], names,
+    imu = a[:, 6 + ny:]
+    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:6 + ny], names,
                    f"{path} (inputs {in_topic}, outputs {outputs})",
-                   input_kind="sample" if in_topic == Topic.ACTUATORS else "held")
+                   input_kind="sample" if in_topic == Topic.ACTUATORS else "held",
+                   imu=imu if np.isfinite(imu).all(axis=1).any() else None)
     check_record(rec)
     return rec

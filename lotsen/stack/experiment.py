@@ -13,7 +13,9 @@ record as it goes:
   - outputs: north, east, psi, r, u, v of state/estimate at each command tick.
 It aborts (and disarms) when the estimate is not finite, when it leaves the experiment's area
 (relative to where the experiment started), when the supervisor refuses the mode or leaves it (a
-failsafe, the RC pilot, an e-stop).
+failsafe, the RC pilot, an e-stop). It knows the sea the boat's IMU measures (fusion/sea_state): when
+the experiment starts in waves it warns that the sea is too high for a trustworthy record and what to
+do (lotsen.sysid.waves.experiment_sea_warning); `sea` is the last estimate.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from lotsen.messages import (
-    Alert, ModeName, OperatorCommand, RpmSample, SupervisorStatus, ThrustCommand, Topic, VesselState,
+    Alert, ModeName, OperatorCommand, RpmSample, SeaState, SupervisorStatus, ThrustCommand, Topic, VesselState,
 )
 from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Node, NodeContext
@@ -54,6 +56,7 @@ class ExperimentNode(Node):
         self.done = False
         self.aborted = ""
         self.plant: Any = None  # set by run_on_stack in simulation
+        self.sea: SeaState | None = None  # the boat's last valid sea-state estimate
 
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
@@ -62,10 +65,15 @@ class ExperimentNode(Node):
         ctx.subscribe(Topic.RPM, self._on_rpm)
         ctx.subscribe(Topic.SUPERVISOR, self._on_status)
         ctx.subscribe(Topic.ALERT, self._on_alert)
+        ctx.subscribe(Topic.SEA_STATE, self._on_sea)
         ctx.add_timer(1.0 / self.experiment.command_rate_hz, self._tick)
 
     def _on_state(self, msg: VesselState) -> None:
         self.state = msg
+
+    def _on_sea(self, msg: SeaState) -> None:
+        if msg.valid:
+            self.sea = msg
 
     def _on_rpm(self, msg: RpmSample) -> None:
         self.rpm = msg
@@ -114,6 +122,7 @@ class ExperimentNode(Node):
                 self.t0, self.origin = t, (s.north_m, s.east_m)
                 self.ctx.log("info", f"experiment '{self.experiment.name}' started "
                                      f"({self.experiment.duration_s:.0f} s)")
+                self._check_sea()
             elif self.requested_s is not None and t - self.requested_s > self.request_timeout_s:
                 self._end(t, f"the supervisor did not enter EXPERIMENT within {self.request_timeout_s:g} s "
                              f"(mode {mode or 'unknown'})")
@@ -132,6 +141,15 @@ class ExperimentNode(Node):
         self.ctx.publish(Topic.EXPERIMENT_COMMAND, ThrustCommand.from_tuple(t, u, source="experiment"))
         n = (self.rpm.n1_rps, self.rpm.n2_rps, self.rpm.nt_rps) if self.rpm is not None else u[2:]
         self.rows.append((tau, u[0], u[1], *n, s.north_m, s.east_m, s.heading_rad, s.r_radps, s.u_mps, s.v_mps))
+
+    def _check_sea(self) -> None:
+        """The experiment's check of the sea (the boat's IMU estimate at the start): a warning in waves."""
+        from lotsen.sysid.waves import experiment_sea_warning
+
+        sea = self.sea
+        msg = experiment_sea_warning(sea.hs_m, sea.tp_s, sea.from_deg) if sea is not None else None
+        if msg:
+            self.ctx.log("warning", f"experiment '{self.experiment.name}': {msg}")
 
     def _inside(self, s: VesselState) -> bool:
         a, m = self.experiment.area, self.margin_m

@@ -127,17 +127,20 @@ class PlannerWorker:
                 self._start()
 
     def call(self, fn: Callable[..., Any], *args: Any) -> Any:
-        """Run fn(*args) in the worker (blocking); PlanningError when over budget or busy."""
+        """Run fn(*args) in the worker (blocking); PlanningError when over budget or busy. A job that
+        names its own budget (`fn.budget_key`, a field of PlanningBudget: `predict_time_s`) gets that."""
+        key = getattr(fn, "budget_key", "time_s")
+        limit = float(getattr(self.budget, key))
         with self._lock:
             if self._proc is None or not self._proc.is_alive():
                 self._start()
             conn = self._conn
             conn.send((fn, args))
-            if not conn.poll(self.budget.time_s):
+            if not conn.poll(limit):
                 self.stats["timeouts"] += 1
                 self._kill()
-                raise PlanningError(f"planning took longer than its budget of {self.budget.time_s:g} s and was "
-                                    "stopped (extra.planning.time_s); simplify the route")
+                raise PlanningError(f"planning took longer than its budget of {limit:g} s and was "
+                                    f"stopped (extra.planning.{key}); simplify the route")
             try:
                 kind, value = conn.recv()
             except (EOFError, OSError):

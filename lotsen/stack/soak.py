@@ -34,7 +34,9 @@ import yaml
 from lotsen.errors import ConfigError
 from lotsen.files import read_yaml
 from lotsen.logs.reader import read_log
-from lotsen.messages import Alert, EstimatorHealth, SupervisorStatus, ThrustCommand, Topic, VesselState
+from lotsen.messages import (
+    ActuatorState, Alert, EstimatorHealth, PlannedRoute, SupervisorStatus, ThrustCommand, Topic, VesselState,
+)
 from lotsen.model.angles import wrap_angle
 from lotsen.runtime.clock import CLOCK_ENV
 from lotsen.runtime.lifetime import RUNTIME_DIR_ENV
@@ -62,6 +64,10 @@ class LivePlan:
     route: dict | None = None  # uploaded through the socket; None: the config's route
     return_home: bool = True
     route_timeout_s: float = 600.0
+    # the pilot arms this long after the boat reported holding the route (reads the read-back first). A
+    # survey's route (the 40 x 30 m one: 86 000 path points) stalls the core's loop 0.15-0.2 s when it
+    # arrives (2026-11-28): an AUTO asked for then is refused (the estimator's health blinks)
+    arm_after_route_s: float = 0.0
     seed: int = 0
     environment: dict | None = None  # overrides sim.environment (current, wind)
     flood_viewers: int = 0  # strangers sending maximal valid `plan` requests while the boat is in AUTO
@@ -381,6 +387,7 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
             if pilot.wait_for(lambda f: (f.get("sup") or {}).get("route_id") == rid, 10) is None:
                 raise RuntimeError("the boat never reported holding the uploaded route")
             note(f"route {rid} held by the boat")
+            time.sleep(plan.arm_after_route_s)
         pilot.request({"type": "command", "action": "arm"})
         if pilot.wait_for(lambda f: (f.get("sup") or {}).get("armed") is True, 10) is None:
             raise RuntimeError(f"arm not accepted: {pilot.alerts[-3:]}")
@@ -469,6 +476,8 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
     else:
         figures.update(analyse_log(log_path, t_auto, t_route_end if math.isfinite(t_route_end) else t_stop, t_stop,
                                    failures, plan.allowed_failsafes))
+        if plan.route is not None and plan.route.get("survey") is not None and math.isfinite(t_route_end):
+            figures.update(survey_figures(log_path, t_auto, t_route_end))
     figures.update(telemetry_figures(frames, t_auto, t_route_end if math.isfinite(t_route_end) else t_stop))
     if flood_counts:
         figures.update({f"flood_{k}": v for k, v in flood_counts.items() if isinstance(v, (int, float))})
@@ -578,6 +587,38 @@ def analyse_log(path: str, t_from: float, t_to: float, t_stop: float, failures: 
         failures.append("no ship_command in the AUTO window")
     fig["auto_s"] = round(t_to - t_from, 1)
     return fig
+
+
+def survey_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
+    """The line keeping of the survey the boat flew in [t_from, t_to] (AUTO until the route's end), on
+    the simulator's truth against the planned route the boat held (its last `planning/route`), and the
+    motors' energy over it (`lotsen.sim.propulsion_energy_j` on the achieved propeller speeds, the
+    measure of a mission report and of the prediction)."""
+    from lotsen.planning.exchange import path_from_message
+    from lotsen.planning.io import route_from_dict
+    from lotsen.planning.survey.keeping import line_keeping, line_spans, track_on_path
+    from lotsen.sim import propulsion_energy_j
+
+    by: dict[str, list] = {t: [] for t in (Topic.ROUTE, Topic.TRUTH, Topic.ACTUATORS)}
+    for topic, msg in read_log(path, list(by)):
+        by[topic].append(msg)
+    routes = [r for r in by[Topic.ROUTE] if isinstance(r, PlannedRoute) and r.stamp_s <= t_from]
+    truth = sorted((s for s in by[Topic.TRUTH] if isinstance(s, VesselState) and t_from <= s.stamp_s <= t_to),
+                   key=lambda s: s.stamp_s)
+    if not routes or len(truth) < 2:
+        return {}
+    route, path = route_from_dict(routes[-1].route), path_from_message(routes[-1])
+    t = np.array([s.stamp_s for s in truth]) - t_from
+    s_m, cte = track_on_path(path, np.array([s.north_m for s in truth]), np.array([s.east_m for s in truth]))
+    summary = line_keeping(line_spans(route, path), t, s_m, cte, t_to - t_from).summary()
+    out: dict[str, Any] = {f"survey_{k}": v for k, v in summary.items() if k != "per_line"}
+    out["survey_per_line"] = summary.get("per_line", [])
+    act = sorted((a for a in by[Topic.ACTUATORS] if isinstance(a, ActuatorState) and t_from <= a.stamp_s <= t_to),
+                 key=lambda a: a.stamp_s)
+    if len(act) > 1:
+        out["energy_J"] = round(propulsion_energy_j(np.array([a.stamp_s for a in act]),
+                                                    np.array([(a.n1_rps, a.n2_rps, a.nt_rps) for a in act])), 1)
+    return out
 
 
 def telemetry_figures(frames: list[tuple[float, dict]], t_from: float, t_to: float) -> dict[str, float]:

@@ -121,6 +121,7 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
         "settings": "the defaults of lotsen.control (docs/control.md); the launch config has no section for them"})
     if run_blocking is not None:
         hub.handler.run_blocking = run_blocking
+    add_prediction(hub, config)
     server = WebServer(hub, options.host, options.port, ssl_certfile=cert.certfile if cert else None,
                        ssl_keyfile=cert.keyfile if cert else None, allowed_hosts=options.allowed_hosts)
     server.start()
@@ -138,6 +139,23 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
     if config.extra.mavlink.endpoints:
         add_mavlink(stack, hub, options.pilot_token)
     return server
+
+
+def add_prediction(hub: Any, config: StackConfig) -> None:
+    """The page's Predict: the run's model in use and controller, the estimator's current now."""
+    from lotsen.messages import Topic, VesselState
+    from lotsen.stack.page_prediction import PagePredictor
+    from lotsen.stack.stack import model_info, vessel_model
+
+    model = vessel_model(config)
+    hub.handler.predict = PagePredictor(model.params, model.geometry, model_info(config, model).source,
+                                        config.nodes.controller, config.extra.planner)
+
+    def estimated_current() -> tuple[float, float]:
+        state = hub.state.latest.get(Topic.STATE)
+        return tuple(state.current_ne_mps) if isinstance(state, VesselState) else (0.0, 0.0)
+
+    hub.handler.estimated_current = estimated_current
 
 
 def add_mavlink(stack: Stack, hub: Any, pilot_token: str) -> Any:

@@ -38,6 +38,10 @@ from lotsen.files import MAX_DATA_BYTES, atomic_output, read_text
 INPUT_COLUMNS = ("alpha1", "alpha2", "n1", "n2", "nt")
 OUTPUT_COLUMNS = ("north", "east", "psi", "r")
 OPTIONAL_OUTPUT_COLUMNS = ("u", "v")
+#: the IMU's means over each row interval (specific force, body x fwd, y stbd, z down, m/s^2; rates p, q, r,
+#: rad/s), optional: not outputs of the model; the sea state of the record is estimated from them
+#: (lotsen.fusion.seastate.record_sea_state; docs/sysid.md "Records in waves")
+IMU_COLUMNS = ("imu_ax", "imu_ay", "imu_az", "imu_p", "imu_q", "imu_r")
 REQUIRED_COLUMNS = ("t",) + INPUT_COLUMNS + OUTPUT_COLUMNS
 # index of each output in the model state x = [N, E, psi, u, v, r]
 OUTPUT_STATE_INDEX = {"north": 0, "east": 1, "psi": 2, "u": 3, "v": 4, "r": 5}
@@ -75,6 +79,8 @@ class IdRecord:
     output_names: tuple[str, ...] = OUTPUT_COLUMNS
     source: str = "<memory>"
     input_kind: str = "held"  # one of INPUT_KINDS
+    #: K x 6 (IMU_COLUMNS) or None: the IMU's mean over [t_k, t_k+1), NaN on rows without one
+    imu: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.input_kind not in (*INPUT_KINDS, MEAN_FORWARD):
@@ -82,6 +88,8 @@ class IdRecord:
         self.t = np.asarray(self.t, dtype=float)
         self.inputs = np.asarray(self.inputs, dtype=float).reshape(len(self.t), 5)
         self.outputs = np.asarray(self.outputs, dtype=float).reshape(len(self.t), len(self.output_names))
+        if self.imu is not None:
+            self.imu = np.asarray(self.imu, dtype=float).reshape(len(self.t), len(IMU_COLUMNS))
 
     @property
     def duration_s(self) -> float:
@@ -98,13 +106,19 @@ class IdRecord:
         if len(idx) and idx[0] > 0:
             held = _hold_inputs(self.inputs[: idx[0] + 1])[-1]
             U[0] = held
-        return IdRecord(self.t[m], U, self.outputs[m], self.output_names, self.source, self.input_kind)
+        return IdRecord(self.t[m], U, self.outputs[m], self.output_names, self.source, self.input_kind,
+                        None if self.imu is None else self.imu[m])
+
+    @property
+    def header(self) -> list[str]:
+        return ["t", *INPUT_COLUMNS, *self.output_names, *(IMU_COLUMNS if self.imu is not None else ())]
 
     def to_csv_rows(self) -> tuple[list[str], list[list[float]]]:
-        header = ["t", *INPUT_COLUMNS, *self.output_names]
-        rows = [[float(self.t[k]), *map(float, self.inputs[k]), *map(float, self.outputs[k])]
-                for k in range(len(self.t))]
-        return header, rows
+        return self.header, [list(map(float, row)) for row in self._columns()]
+
+    def _columns(self) -> np.ndarray:
+        parts = [self.t[:, None], self.inputs, self.outputs] + ([self.imu] if self.imu is not None else [])
+        return np.column_stack(parts)
 
 
 @dataclass
@@ -364,7 +378,8 @@ def load_csv(path: str | Path) -> IdRecord:
         if dup:
             raise DataError(f"{path}, row {first_line}: duplicate column(s) {', '.join(sorted(dup))}")
         out_names = OUTPUT_COLUMNS + tuple(c for c in OPTIONAL_OUTPUT_COLUMNS if c in header)
-        names = ("t",) + INPUT_COLUMNS + out_names
+        imu_names = IMU_COLUMNS if all(c in header for c in IMU_COLUMNS) else ()
+        names = ("t",) + INPUT_COLUMNS + out_names + imu_names
         cols = [header.index(c) for c in names]
         nan = math.nan
         rows: list[list[float]] = []
@@ -411,7 +426,8 @@ def load_csv(path: str | Path) -> IdRecord:
         raise DataError(f"{path}: fewer than 2 data rows")
     a = np.array(rows)
     del rows
-    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:], out_names, str(path), kind)
+    ny = 6 + len(out_names)
+    rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:ny], out_names, str(path), kind, a[:, ny:] if imu_names else None)
     check_record(rec)
     return rec
 
@@ -426,8 +442,8 @@ def save_csv(record: IdRecord, path: str | Path, inputs: tuple = ()) -> None:
     digits they became one row, and the record identified from the CSV was another than the log's
     (X_uu 0.3-1.2 ppm apart), and a POSIX stamp (1.8e9 s) kept whole seconds only. The values keep
     10 significant digits, far below any sensor's resolution (the estimate moves by ~3e-10 relative)."""
-    header = ["t", *INPUT_COLUMNS, *record.output_names]
-    data = np.column_stack([record.t, record.inputs, record.outputs])
+    header = record.header
+    data = record._columns()
     with atomic_output(path, inputs, DataError, "data file") as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         if record.input_kind != "held":  # the default needs no line (files stay plain CSV)

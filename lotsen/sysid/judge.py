@@ -26,6 +26,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from lotsen.messages import SeaState
 from lotsen.model import DEFAULT_PARAMETERS
 from lotsen.sysid.estimate import IdentificationResult
 from lotsen.sysid.estimators import Estimate
@@ -35,6 +36,7 @@ from lotsen.sysid.prediction import (
 )
 from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.sensitivity import ENV_NAMES
+from lotsen.sysid.waves import describe as describe_sea, in_waves, sea_advice, sea_to_json
 
 WEAK_RELATIVE_SIGMA = 0.07  # above this a coefficient is weakly determined
 # above this a core coefficient is not determined well enough for the controller: with honest
@@ -147,6 +149,7 @@ class Identification:
     #: coefficients the data do not determine, with why: written without a number for their interval
     undetermined: dict[str, str] = field(default_factory=dict)
     estimates: list[Estimate] = field(default_factory=list)  # every estimate the judge scored
+    sea: SeaState | None = None  # the record's sea state from its IMU (lotsen.sysid.waves)
 
     @property
     def result(self) -> IdentificationResult:
@@ -204,6 +207,8 @@ class Identification:
                 out["prediction"]["chosen_held_out"] = self.held_out_score.to_json_dict()
         if self.advice:
             v["advice"] = list(self.advice)
+        if self.sea is not None:
+            v["sea_state"] = sea_to_json(self.sea)
         sh = self.estimate.shooting
         env = sh.environment if sh is not None else None
         if env is None and self.estimate.environment is not None:
@@ -294,9 +299,16 @@ def judge(problem: IdentificationProblem, estimates: Sequence[Estimate]) -> Iden
     chosen = next((e for e in estimates if e.estimator == chosen_name), phys or estimates[0])
     ident = Identification(chosen, _verdict(problem, rule, chosen_name, held, baseline, physical), scores, held,
                            problem.validation_source, dict(problem.fixed), dict(problem.provenance),
-                           terms=tuple(problem.terms or ()), estimates=list(estimates))
+                           terms=tuple(problem.terms or ()), estimates=list(estimates), sea=problem.sea)
     ident.undetermined = undetermined_coefficients(chosen)
     ident.advice = advice(ident, problem.lake)
+    if in_waves(problem.sea) and ident.verdict.verdict in ("refused", "predictive") and not any(
+            "taken in waves" in r for r in ident.verdict.reasons):
+        ident.verdict.reasons.append(
+            f"the record was taken {describe_sea(problem.sea)}: its wave-frequency motion and the waves' drift "
+            "are not in the hull model and take part in the misfit above")
+    if in_waves(problem.sea):
+        ident.advice.append(f"the record was taken {describe_sea(problem.sea)}: " + sea_advice(problem.sea))
     return ident
 
 
@@ -385,6 +397,16 @@ def _verdict(problem: IdentificationProblem, rule: _Choice, chosen: str | None, 
             "--validate a second one)"], weak, ac)
     gain = improvement(held, baseline)
     lo, _ = improvement_interval(held, baseline, z=PREDICTIVE_Z, horizons="all")
+    if in_waves(problem.sea):
+        # effective coefficients fitted to wave motion and drift are the hull in that sea: on lotsen's simulator
+        # they predicted a calm record 2-8 x worse than the same boat's calm record's answer (lotsen.sysid.waves)
+        return Verdict("refused", reasons + [
+            f"the record was taken {describe_sea(problem.sea)}: the wave motion and the waves' drift are not in "
+            "the hull model, and effective coefficients from a record in waves describe the hull in that sea "
+            "(on lotsen's simulator they predicted calm water 2-4 x worse than a calm record's answer in Hs 3 cm, "
+            f"8 x in Hs 6 cm; these predict the record's own held-out waves {held.position_at_horizon_m:.2f} m "
+            f"against the model in use's {baseline.position_at_horizon_m:.2f} m after {held.horizon_s:g} s): "
+            "see the advice for how to record instead"], weak, ac)
     if gain >= PREDICTIVE_MIN_IMPROVEMENT and lo > 0:
         notes = [f"not the hull's physical coefficients: {r}" for r in reasons]
         notes.append(f"effective coefficients ({chosen}): their {held.horizon_s:g}-s prediction of the held-out data "

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Mapping, Sequence
 
+from lotsen.messages import SeaState
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters
 from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.sysid.data import IdRecord
@@ -50,6 +51,8 @@ class IdentificationProblem:
     validation_source: str = ""
     held_out: bool = True  # the validation records were not estimated from
     solver: SolverOptions = SolverOptions()
+    #: the records' sea state from their own IMU (lotsen.sysid.waves; None: not known, no IMU)
+    sea: SeaState | None = None
 
     @property
     def model_in_use(self) -> VesselParameters:

@@ -210,7 +210,10 @@ def _summary(rep: Report) -> str:
            f"{result.n_residuals} residuals; V = {result.cost:.4g}; noise factor s^2 = {result.noise_factor:.3g} "
            f"({'model error or noise larger than assumed' if result.noise_factor > 1.5 else 'consistent with the assumed noise'}); "
            f"{result.iterations} iterations, {'converged' if result.converged else 'NOT converged'}")
-    return (f"Verdict: {ident.verdict.verdict}. Data: {', '.join(rep.sources)}. The answer: the {ident.estimator} "
+    from lotsen.sysid.waves import describe
+
+    sea = f" Sea: {describe(ident.sea)}." if ident.sea is not None else ""
+    return (f"Verdict: {ident.verdict.verdict}. Data: {', '.join(rep.sources)}.{sea} The answer: the {ident.estimator} "
             f"estimate ({how}).{judged}")
 
 

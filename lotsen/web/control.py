@@ -100,6 +100,10 @@ class ControlHandler:
         self.settings = Settings(self.planner_config)  # the parameter sheet (lotsen.web.settings)
         self.broadcast = broadcast or (lambda m: None)  # a message to every page
         self.rerun = rerun  # the route over the holes of the held survey (lotsen.web.coverage)
+        # the mission's time and energy predicted (route, current north/east m/s) -> dict, run in the planner
+        # worker; set by the stack (lotsen.stack.page_prediction.PagePredictor), and the estimator's current
+        self.predict: Callable[[dict, tuple[float, float]], dict] | None = None
+        self.estimated_current: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0)
         self._instance = secrets.token_hex(4)  # request ids of this process never repeat an earlier one's
 
     # -- connection life cycle ---------------------------------------------------------------
@@ -139,7 +143,7 @@ class ControlHandler:
         return status
 
     # -- messages ----------------------------------------------------------------------------
-    SLOW = frozenset({"plan", "route", "export", "import", "rerun"})  # planner and conversions
+    SLOW = frozenset({"plan", "route", "export", "import", "rerun", "predict"})  # planner and conversions
 
     def receive(self, session: Session, raw: Any) -> tuple[list[dict], Awaitable[list[dict]] | None]:
         """Validate, authorise and rate-limit one frame. Fast messages are executed at once;
@@ -289,6 +293,14 @@ class ControlHandler:
     async def _on_import(self, session: Session, msg: Message) -> list[dict]:
         route = await self.run_blocking(import_route, msg.fields["text"], msg.fields["format"], self.origin)
         return [{"type": "import_result", "id": msg.id, "route": route}]
+
+    async def _on_predict(self, session: Session, msg: Message) -> list[dict]:
+        """The route's time and energy before the boat leaves: flown on the model in use in the current
+        the estimator knows now (lotsen.stack.prediction), in the planner worker."""
+        if self.predict is None:
+            raise LotsenError("predict: this server has no prediction (the boat's stack sets it)")
+        result = await self.run_blocking(self.predict, msg.fields["route"], self.estimated_current())
+        return [{"type": "predict_result", "id": msg.id, **result}]
 
     async def _on_rerun(self, session: Session, msg: Message) -> list[dict]:
         """The route over the holes of the survey the boat holds, for the editor (the pilot checks

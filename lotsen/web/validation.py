@@ -94,11 +94,12 @@ SCHEMAS: dict[str, dict[str, Field]] = {
     # the pairing QR code for another phone: the page's own origin (scheme://host:port)
     "pair_qr": {"origin": Field("str", max_len=200)},
     "rerun": {},  # the route over the held survey's holes
+    "predict": {"route": Field("route")},  # its time and energy on the model in use, in the estimated current
 }
 
 #: everything that plans, commands or downloads on the boat's behalf needs the pilot seat
 PILOT_ONLY = frozenset({"release", "command", "manual", "plan", "route", "tiles_preload", "tiles_cancel",
-                        "params", "pair_qr", "rerun"})
+                        "params", "pair_qr", "rerun", "predict"})
 #: what a viewer may send (docs/web.md, "Access rules")
 VIEWER_ALLOWED = frozenset(SCHEMAS) - PILOT_ONLY
 

@@ -435,6 +435,33 @@ def test_reversal_guard_holds_a_direction_and_prices_only_the_crossing():
     assert c._sigma[2] == 1.0 and c.reversals == 1
 
 
+def test_an_azimuth_left_astern_comes_back_ahead_and_shares_the_thrust():
+    """A start or a turn can leave an azimuth's direction astern; on a straight line at 0.8 m/s it must
+    come back ahead after `azimuth_astern_hold_s` and share the thrust (the same thrust from one
+    propeller draws ~40 % more power). With the hold off it stays astern or idle: the trap (found on
+    the survey, issue 48: azimuth 2 astern for a whole 240-s survey on the EKF)."""
+    from dataclasses import replace as dc_replace
+
+    from lotsen.sim import SimConfig, Simulator
+
+    path = straight_path(30.0, speed_mps=0.8)
+
+    def fly(hold_s: float) -> np.ndarray:
+        c = MPCController(config=dc_replace(NO_TIME_LIMIT, azimuth_astern_hold_s=hold_s))
+        c.reset(path)
+        c._direction[1] = -1.0          # as after a start that sent azimuth 2 astern
+        c._update_direction()
+        sim = Simulator(config=SimConfig(sensors=False), x0=[0.0, 0.0, 0.0, 0.8, 0.0, 0.0])
+        n = [sim.actuators.state[2:4] for _ in control_ticks(sim, c.update, until_s=25.0)]
+        return np.asarray(n)[-50:]      # the last 5 s
+
+    back = fly(10.0)
+    assert np.all(back[:, 1] > 5.0)                                    # azimuth 2 ahead again
+    assert np.mean(back[:, 1]) > 0.7 * np.mean(back[:, 0])             # and sharing
+    stuck = fly(math.inf)
+    assert np.mean(stuck[:, 1]) < 0.3 * np.mean(stuck[:, 0])          # the trap, without the hold
+
+
 def test_cross_track_weight_falls_from_near_to_far():
     from lotsen.control.mpc import cross_track_weight
 

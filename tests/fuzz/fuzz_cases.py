@@ -411,6 +411,8 @@ FLAG_KINDS: dict[tuple[tuple[str, ...], str], str] = {
     (("recover",), "log"): "in:mcap", (("recover",), "--out"): "out",
     (("run",), "--mavlink"): "text:mavlink", (("run",), "--physics"): "text:physics",
     (("plan",), "--export"): "out", (("plan",), "--origin"): "text:latlon",
+    (("plan",), "--current"): "text:speed_dir", (("plan",), "--wind"): "text:speed_dir",
+    (("plan",), "--params"): "in:params",
     (("mission",), "--physics"): "text:physics", (("mission",), "--config"): "in:config",
     (("experiment", "run"), "--physics"): "text:physics",
     (("pair",), "config"): "in:config", (("pair",), "--host"): "text:page_host",

@@ -61,7 +61,8 @@ def test_experiment_run_requires_sim_and_writes_csv(tmp_path, capsys):
     assert "--sim (simulated boat), --physics udp:HOST:PORT" in capsys.readouterr().err
     assert main_standalone(["experiment", "run", str(exp), "--sim", "--out", str(tmp_path / "x.csv")]) == 0
     head = (tmp_path / "x.csv").read_text().splitlines()[0]
-    assert head == "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r"
+    # the IMU's interval means after the outputs: the record's sea state is estimated from them
+    assert head == "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r,imu_ax,imu_ay,imu_az,imu_p,imu_q,imu_r"
 
 
 def test_simulated_measurements_match_truth(short_run):

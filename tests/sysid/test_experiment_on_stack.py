@@ -68,7 +68,8 @@ def test_run_log_to_asynchronous_record_export_and_identify(steps_run, tmp_path,
     assert main(["export", str(log), "--out", str(tmp_path / "x")]) == 0
     exported = tmp_path / "x" / "sysid.csv"
     # achieved values are readings at their stamps: the file says so before the header
-    assert exported.read_text().splitlines()[:2] == ["# inputs: sample", "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r"]
+    assert exported.read_text().splitlines()[:2] == [  # the IMU's samples too: the record's sea state
+        "# inputs: sample", "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r,imu_ax,imu_ay,imu_az,imu_p,imu_q,imu_r"]
     free = ("X_uu", "mu_az")
     fix = [a for n in DEFAULT_PARAMETERS.names() if n not in free
            for a in ("--fix", f"{n}={getattr(DEFAULT_PARAMETERS, n)}")]

@@ -1,6 +1,6 @@
 """The survey tool in headless Chromium: a survey polygon drawn on the map over a drawn area, its
 settings in the Plan tab, the preview (lines, their length and time, the share of the planned time
-on lines) from the boat's planner, the upload and read-back; then the live coverage layer from
+on lines) from the boat's planner, the predicted time and energy, the upload and read-back; then the live coverage layer from
 the boat's soundings, with the holes, and the re-run over them loaded into the editor."""
 
 from __future__ import annotations
@@ -71,6 +71,11 @@ def test_draw_a_survey_see_its_lines_length_and_time_and_upload_it(page, stack):
     page.press("#sv-spacing_m", "Enter")
     wait_js(page, "document.querySelector('#surveyinfo').textContent.includes('outside 0.1 to 100 m')")
     assert page.evaluate("() => window.lotsen.route.survey.spacing_m") == 3
+    # its time and energy, predicted by the boat's planner on the model in use
+    page.click("#btn-predict")
+    wait_js(page, "document.querySelector('#predictinfo').textContent.startsWith('predicted:')", timeout=60)
+    info = page.inner_text("#predictinfo")
+    assert "Wh at the motors" in info and "% on lines" in info and "default coefficients" in info, info
     shot(page, "survey-draft")
     n = len(stack.messages(Topic.ROUTE))
     page.click("#btn-use")

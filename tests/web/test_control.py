@@ -571,3 +571,26 @@ def test_the_pilot_may_lower_the_planner_speed_limit_and_the_next_plan_uses_it()
     res = send(h, s, {"type": "plan", "route": ROUTE})[0]
     assert not res["ok"] and res["errors"][0]["message"] == "node 1: speed 0.5 m/s exceeds the boat's 0.4 m/s"
     assert published == [] or all(t != Topic.ROUTE for t, _ in published)
+
+
+def test_predict_flies_the_drafted_route_on_the_model_in_use_in_the_estimated_current():
+    """The page's Predict: the pilot's drafted route planned and flown on the model in use (simulated
+    time) in the current the estimator reports now; a viewer may not ask (it is the planner's time)."""
+    from lotsen.model import VesselModel
+    from lotsen.planning import PlannerConfig
+    from lotsen.stack.page_prediction import PagePredictor
+
+    h, _, published, _ = make()
+    model = VesselModel()
+    h.predict = PagePredictor(model.params, model.geometry, "default coefficients", "mpc", PlannerConfig())
+    h.estimated_current = lambda: (0.0, 0.15)
+    s = pilot(h)
+    reply = send(h, s, {"type": "predict", "route": ROUTE})[0]
+    assert reply["type"] == "predict_result" and reply["ok"] and reply["reached_end"], reply
+    assert reply["current_ne_mps"] == [0.0, 0.15] and reply["model"] == "default coefficients"
+    assert 0.8 < reply["duration_s"] / reply["planned_duration_s"] < 1.2 and reply["energy_J"] > 0
+    assert published == []                                     # a prediction moves nothing
+    bad = send(h, s, {"type": "predict", "route": {**ROUTE, "nodes": ROUTE["nodes"][:1] + [{"north": 1e6}]}})[0]
+    assert bad["type"] in ("error", "predict_result") and not bad.get("ok", False)
+    viewer = h.open_session("10.0.0.9")
+    assert code(send(h, viewer, {"type": "predict", "route": ROUTE})) == "not_pilot"

@@ -750,6 +750,22 @@ $("#btn-survey-area").onclick = () => {
   route.nodes = []; route.changed();
 };
 $("#btn-survey-off").onclick = () => { route.survey = null; map.surveyLines = null; map.surveyPolygon = null; route.changed(); };
+// the drafted route's time and energy, predicted by the boat's planner on the model in use in the current
+// the estimator knows (lotsen.stack.page_prediction); the mission report compares it with what was flown
+$("#btn-predict").onclick = async () => {
+  if (!state.pilot) { toast("take the controls first (pilot token)", true); return; }
+  $("#btn-predict").disabled = true;
+  $("#predictinfo").textContent = "predicting: the route flown on the model in use (simulated time)…";
+  const res = await request({ type: "predict", route: route.toDict() });
+  $("#btn-predict").disabled = false;
+  if (res.type === "predict_result" && res.ok) {
+    const c = Math.hypot(res.current_ne_mps[0], res.current_ne_mps[1]);
+    $("#predictinfo").textContent = `predicted: ${fmtDuration(res.duration_s)}` +
+      (res.share_on_lines != null ? ` (${Math.round(100 * res.share_on_lines)} % on lines)` : "") +
+      `, ${res.energy_Wh.toFixed(1)} Wh at the motors (mean ${res.mean_power_W.toFixed(0)} W); ${res.controller} on the ${res.model},` +
+      ` in the estimated current ${c.toFixed(2)} m/s` + (res.reached_end ? "" : "; the model did NOT reach the end");
+  } else $("#predictinfo").textContent = `no prediction: ${res.error || (res.errors && res.errors[0].message) || "failed"}`;
+};
 $("#btn-rerun").onclick = async () => {
   const res = await request({ type: "rerun" });
   if (res.type === "rerun_result") { route.fromDict(res.route); map.fit(); toast(`re-run over the holes loaded: ${res.route.survey.lines.length} lines (check, then Upload)`); }
