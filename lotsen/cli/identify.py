@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from lotsen.cli.progress import progress_printer as _progress_printer
+from lotsen.cli.workers import add_jobs_flag, keep_freed_memory, worker_pool
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters, load_parameter_file
@@ -114,8 +115,19 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
 def _cmd_identify(args: argparse.Namespace) -> int:
     """`lotsen identify`: the problem from the flags and files, `identify(problem)`, the answer written."""
     problem, warnings = _problem(args)
-    ident = identify(problem, _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)"))
+    say = _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)")
+    keep_freed_memory()
+    with worker_pool(args.jobs, lambda: _warm_kernels(problem)) as parallel:
+        ident = identify(problem, say, parallel)
     return _answer(args, problem, ident, warnings)
+
+
+def _warm_kernels(problem: IdentificationProblem) -> None:
+    """The compiled kernels the estimators run, built before the workers are forked (they inherit them)."""
+    from lotsen.model import geometry_tuple
+    from lotsen.sysid.kernels import step_kernels
+
+    step_kernels(geometry_tuple(problem.geometry), lake=problem.lake)
 
 
 def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]]:
@@ -382,6 +394,7 @@ def register(subparsers: Any) -> None:
                         f"(default {DEFAULT_BUDGET_CPU_S:g} s); the time expected is printed first")
     p.add_argument("--no-default-scale", action="store_true",
                    help="refuse instead of fixing m11 when no scale parameter is fixed")
+    add_jobs_flag(p, "the shooting intervals and the equation-error searches")
     p.set_defaults(func=_cmd_identify)
 
 

@@ -434,7 +434,14 @@ def load_csv(path: str | Path) -> IdRecord:
 
 def save_csv(record: IdRecord, path: str | Path, inputs: tuple = ()) -> None:
     """Write the record (atomically, never over one of `inputs`: lotsen.files.atomic_output); a
-    cell without a value at its row's stamp is left empty (asynchronous form)."""
+    cell without a value at its row's stamp is left empty (asynchronous form).
+
+    The stamps are written exactly (the shortest text that reads back as the same float): in the
+    asynchronous form rows at one stamp are one instant (load_csv merges them), and two streams
+    stamped 1e-17 s apart (a clock's sums, 0.06 and 0.060000000000000005) are two; at 10 significant
+    digits they became one row, and the record identified from the CSV was another than the log's
+    (X_uu 0.3-1.2 ppm apart), and a POSIX stamp (1.8e9 s) kept whole seconds only. The values keep
+    10 significant digits, far below any sensor's resolution (the estimate moves by ~3e-10 relative)."""
     header = record.header
     data = record._columns()
     with atomic_output(path, inputs, DataError, "data file") as tmp, open(tmp, "w", newline="") as fh:
@@ -443,7 +450,7 @@ def save_csv(record: IdRecord, path: str | Path, inputs: tuple = ()) -> None:
             fh.write(f"# inputs: {record.input_kind}\n")
         w.writerow(header)
         for row in data.tolist():
-            w.writerow(["" if v != v else f"{v:.10g}" for v in row])
+            w.writerow([repr(row[0])] + ["" if v != v else f"{v:.10g}" for v in row[1:]])
 
 
 # suffix -> loader; the logs work adds ".mcap" here (register_loader)

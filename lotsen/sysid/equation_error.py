@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
@@ -41,6 +41,7 @@ from lotsen.model.dynamics import array_tau
 from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
 from lotsen.sysid.data import IdRecord, Segment, split_segments
 from lotsen.sysid.estimate import NAMES, IdentifiabilityError, SolverOptions, parameter_bounds, with_terms_off
+from lotsen.sysid.parallel import SERIAL, Held, Map, map_held
 
 FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard deviation)
 # the splines' smoothing: lambda = 1 / (dt (2 pi f_c)^4) passes motion below f_c and cuts above it (a
@@ -148,8 +149,17 @@ def motion_samples(segments: Sequence[Segment], gyro_bias: Sequence[float] | Non
 
 
 def _filtered(x: np.ndarray, seg: np.ndarray, dt: float) -> np.ndarray:
-    out = np.empty_like(x)
+    """The common low-pass of every column of `x` (FILTER_SIGMA_S), within each segment. The samples of a
+    segment are one run (motion_samples concatenates them in order): each run is filtered in place of
+    the output, no copy of it in and out (a 10-min lake record's regressors are ~10 MB, filtered ~2000
+    times; the copies cost a million page faults, 2 s of system CPU). The same numbers either way."""
+    out = np.empty(x.shape)
     sig = FILTER_SIGMA_S / dt
+    edges = np.flatnonzero(np.diff(seg)) + 1
+    if np.all(np.diff(seg[np.concatenate([[0], edges])]) > 0) if len(edges) else True:  # runs, in order
+        for a, b in zip(np.concatenate([[0], edges]), np.concatenate([edges, [len(seg)]])):
+            gaussian_filter1d(x[a:b], sig, axis=0, mode="nearest", output=out[a:b])
+        return out
     for q in np.unique(seg):
         m = seg == q
         out[m] = gaussian_filter1d(x[m], sig, axis=0, mode="nearest")
@@ -250,39 +260,28 @@ def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float
     return A, b, free, n
 
 
-def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, float],
-                            theta0: VesselParameters, options: SolverOptions = SolverOptions(),
-                            gyro_bias: Sequence[float] | None = None, env0: Sequence[float] | None = None,
-                            hold: "EquationErrorResult | None" = None) -> EquationErrorResult:
-    """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
-    bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
-    wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
-    coefficients' values where `fixed` does not and kappa's start. `hold`: on a lake, another fit of the
-    same records whose kappa, current and wind are kept (only the linear part is solved again: the
-    optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
-    and the optional `terms` to estimate."""
-    geometry, gap_s, lake, terms = options.geometry, options.gap_s, options.lake, options.terms
-    segs = [s for r in records for s in split_segments(r, gap_s)]
-    per_segment_bias = None
-    if gyro_bias is not None:
-        rec_of_seg = [q for q, r in enumerate(records) for _ in split_segments(r, gap_s)]
-        per_segment_bias = [gyro_bias[q] for q in rec_of_seg]
-    ms = motion_samples(segs, per_segment_bias)
-    dt = float(np.median(np.diff(ms.t))) if len(ms.t) > 1 else 0.125
-    lo, hi = parameter_bounds()
-    fixed = with_terms_off(fixed, theta0, terms)  # the optional model terms off unless in `terms`
-    theta_fixed = {NAMES.index(n): float(v) for n, v in fixed.items()}
-    kappa_fixed = "kappa" in fixed
-    last: tuple = ()
+@dataclass(frozen=True)
+class _Regression:
+    """The linear part of the fit on the record's motion samples: for given kappa, current and air
+    velocity, the bounded linear least squares of every other coefficient. What a worker keeps
+    (lotsen.sysid.parallel.Held): the searches around it send kappa, current and wind only."""
 
-    def solve(kappa: float, current: Any, wind: tuple[float, float] | None,
+    ms: MotionSamples
+    theta_fixed: Mapping[int, float]
+    geometry: VesselGeometry
+    dt: float
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def solve(self, kappa: float, current: Any, wind: tuple[float, float] | None,
               weights: np.ndarray, rows: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
+              ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray, np.ndarray]:
         """The bounded linear least squares at (kappa, current, wind): (weighted residuals 3 x n,
-        coefficients, free indices, residual std per equation); `rows`: only these (contiguous) samples."""
-        nonlocal last
+        coefficients, free indices, residual std per equation, the filtered weighted regressors);
+        `rows`: only these (contiguous) samples."""
+        ms, lo, hi, dt = self.ms, self.lo, self.hi, self.dt
         mx = ms if rows is None else ms.subset(rows)
-        A, b, free, n = _regression(mx, kappa, theta_fixed, geometry, current, wind)
+        A, b, free, n = _regression(mx, kappa, self.theta_fixed, self.geometry, current, wind)
         Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), mx.segment, dt)
         bf = _filtered(b.reshape(3, n).T, mx.segment, dt)
         Af = Af.reshape(n, 3, -1).transpose(1, 0, 2) * weights[:, None, None]
@@ -315,8 +314,130 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         sol = lsq_linear(R, q, bounds=(lo_f * colscale, hi_f * colscale), method="bvls")
         x = sol.x / colscale
         res = (bm - Am @ x).reshape(3, n)
+        return res, x, free, np.sqrt(np.mean(res ** 2, axis=1)) / weights, Af
+
+
+
+@dataclass(frozen=True)
+class _LakeFit:
+    """The lake search's unknowns besides the linear coefficients, packed in one vector z: log kappa, the
+    air velocity (north, east) and the current's knots (north, then east), with the random walk between
+    knots and the air's prior as extra residual rows."""
+
+    knots: np.ndarray
+    kappa0: float
+    kappa_fixed: bool
+    walk_weight: float
+
+    def kappa_of(self, lk: float) -> float:
+        lo, hi = math.log(KAPPA_RANGE[0]), math.log(KAPPA_RANGE[1])
+        return self.kappa0 if self.kappa_fixed else math.exp(min(max(lk, lo), hi))
+
+    def unpack(self, z: np.ndarray) -> tuple[float, CurrentPath, tuple[float, float]]:
+        n_knots = len(self.knots)
+        cur = CurrentPath(self.knots, z[3:3 + n_knots], z[3 + n_knots:])
+        return self.kappa_of(z[0]), cur, (float(z[1]), float(z[2]))
+
+    def residual(self, reg: _Regression, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        k, cur, wind = self.unpack(z)
+        res = reg.solve(k, cur, wind, w)[0].ravel()
+        walk = np.concatenate([np.diff(cur.north), np.diff(cur.east)]) / CURRENT_WALK_MPS * self.walk_weight
+        # a weak prior on the air's velocity: in calm air its drag is hardly seen and the wind's
+        # speed would wander (23 m/s on a windless record); a lake wind is a few m/s
+        air = np.array(wind) / WIND_PRIOR_MPS * self.walk_weight
+        return np.concatenate([res, walk, air])
+
+    def unprojected(self, reg: _Regression, zz: np.ndarray, xx: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """The weighted, filtered residual at (zz, xx): the coefficients held."""
+        ms, dt = reg.ms, reg.dt
+        k, cur, wd = self.unpack(zz)
+        A, b, _, n = _regression(ms, k, reg.theta_fixed, reg.geometry, cur, wd)
+        Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
+        bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
+        return (bf.T - np.einsum("nep,p->en", Af.reshape(n, 3, -1), xx)) * weights[:, None]
+
+
+# -- the independent solves, as the workers run them (lotsen.sysid.parallel.map_held) ----------------
+def _lake_residual(reg: _Regression, task: tuple[_LakeFit, np.ndarray, np.ndarray]) -> np.ndarray:
+    fit, z, w = task
+    return fit.residual(reg, z, w)
+
+
+def _unprojected(reg: _Regression, task: tuple[_LakeFit, np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    fit, zz, xx, weights = task
+    return fit.unprojected(reg, zz, xx, weights)
+
+
+def _kappa_cost(reg: _Regression, task: tuple[float, np.ndarray]) -> float:
+    kappa, weights = task
+    return float(np.sum(reg.solve(kappa, (0.0, 0.0), None, weights)[0] ** 2))
+
+
+def _stretch(reg: _Regression, task: tuple) -> np.ndarray:
+    """A stretch of the record re-solved with kappa, current and wind held: its coefficients."""
+    kappa, current, wind, weights, blk = task
+    return reg.solve(kappa, current, wind, weights, blk)[1]
+
+
+def _lake_stretch(reg: _Regression, task: tuple) -> np.ndarray:
+    """A stretch of a lake record with its own current and wind, re-solved as offsets from the record's
+    (priors as the record's), so that their uncertainty enters the stretches' spread: its coefficients."""
+    kappa, current, wind, weights, blk, walk_weight = task
+
+    def res_b(dz: np.ndarray) -> np.ndarray:
+        cur = CurrentPath(current.t, current.north + dz[0], current.east + dz[1])
+        wd = (wind[0] + dz[2], wind[1] + dz[3])
+        r = reg.solve(kappa, cur, wd, weights, blk)[0].ravel()
+        return np.concatenate([r, dz[:2] / CURRENT_WALK_MPS * walk_weight, dz[2:] / WIND_PRIOR_MPS * walk_weight])
+
+    dz = least_squares(res_b, np.zeros(4), x_scale=np.array([0.02, 0.02, 1.0, 1.0]), diff_step=1e-3,
+                       xtol=1e-3, ftol=1e-4, max_nfev=12).x
+    cur = CurrentPath(current.t, current.north + dz[0], current.east + dz[1])
+    return reg.solve(kappa, cur, (wind[0] + dz[2], wind[1] + dz[3]), weights, blk)[1]
+
+
+def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, float],
+                            theta0: VesselParameters, options: SolverOptions = SolverOptions(),
+                            gyro_bias: Sequence[float] | None = None, env0: Sequence[float] | None = None,
+                            hold: "EquationErrorResult | None" = None, parallel: Map = SERIAL) -> EquationErrorResult:
+    """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
+    bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
+    wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
+    coefficients' values where `fixed` does not and kappa's start. `hold`: on a lake, another fit of the
+    same records whose kappa, current and wind are kept (only the linear part is solved again: the
+    optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
+    and the optional `terms` to estimate. `parallel`: the map its independent solves run on
+    (lotsen.sysid.parallel; the same answer with any number of workers)."""
+    geometry, gap_s, lake, terms = options.geometry, options.gap_s, options.lake, options.terms
+    segs = [s for r in records for s in split_segments(r, gap_s)]
+    per_segment_bias = None
+    if gyro_bias is not None:
+        rec_of_seg = [q for q, r in enumerate(records) for _ in split_segments(r, gap_s)]
+        per_segment_bias = [gyro_bias[q] for q in rec_of_seg]
+    ms = motion_samples(segs, per_segment_bias)
+    dt = float(np.median(np.diff(ms.t))) if len(ms.t) > 1 else 0.125
+    lo, hi = parameter_bounds()
+    fixed = with_terms_off(fixed, theta0, terms)  # the optional model terms off unless in `terms`
+    theta_fixed = {NAMES.index(n): float(v) for n, v in fixed.items()}
+    kappa_fixed = "kappa" in fixed
+    last: tuple = ()
+
+    reg = _Regression(ms, theta_fixed, geometry, dt, lo, hi)
+    shared = Held(reg)  # what the workers keep: the motion samples
+
+    def on_workers(task: Callable[[_Regression, Any], Any], arguments: Sequence[Any]) -> list:
+        """task(reg, a) for each a, on `parallel`'s workers (independent solves: the candidates, the
+        finite differences' columns, the stretches)."""
+        return map_held(parallel, task, [shared] * len(arguments), list(arguments))
+
+    def solve(kappa: float, current: Any, wind: tuple[float, float] | None,
+              weights: np.ndarray, rows: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, list[int], np.ndarray]:
+        """_Regression.solve; the last call's filtered regressors and residuals kept for the sandwich."""
+        nonlocal last
+        res, x, free, rstd, Af = reg.solve(kappa, current, wind, weights, rows)
         last = (Af, res)
-        return res, x, free, np.sqrt(np.mean(res ** 2, axis=1)) / weights
+        return res, x, free, rstd
 
     weights = np.array([1.0, 1.0, 10.0])  # N, N, N m: the moment's arm about 0.1 m
     kappa0 = float(fixed.get("kappa", theta0.kappa))
@@ -335,19 +456,14 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         # the random walk between knots, as rows beside the data's (which are correlated over ~2 s
         # by the common filter: as many independent rows as that leaves, per knot interval)
         walk_weight = _walk_rows(dt)
-
-        def unpack(z: np.ndarray) -> tuple[float, CurrentPath, tuple[float, float]]:
-            cur = CurrentPath(knots, z[3:3 + n_knots], z[3 + n_knots:])
-            return kappa_of(z[0]), cur, (float(z[1]), float(z[2]))
+        fit = _LakeFit(knots, kappa0, kappa_fixed, walk_weight)
+        unpack = fit.unpack
 
         def residual(z: np.ndarray, w: np.ndarray) -> np.ndarray:
-            k, cur, wind = unpack(z)
-            res = solve(k, cur, wind, w)[0].ravel()
-            walk = np.concatenate([np.diff(cur.north), np.diff(cur.east)]) / CURRENT_WALK_MPS * walk_weight
-            # a weak prior on the air's velocity: in calm air its drag is hardly seen and the wind's
-            # speed would wander (23 m/s on a windless record); a lake wind is a few m/s
-            air = np.array(wind) / WIND_PRIOR_MPS * walk_weight
-            return np.concatenate([res, walk, air])
+            return fit.residual(reg, z, w)
+
+        def residuals(zs: Sequence[np.ndarray], w: np.ndarray) -> list[np.ndarray]:
+            return on_workers(_lake_residual, [(fit, z, w) for z in zs])
 
         def start(wind: tuple[float, float]) -> np.ndarray:
             return np.concatenate([[lk0, wind[0], wind[1]], np.full(n_knots, env[0]), np.full(n_knots, env[1])])
@@ -364,35 +480,32 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
             # directions, two speeds) for the best start, then a bounded Gauss-Newton search over all of it
             cands = [start((env[2], env[3]))] + [start((w * math.cos(a), w * math.sin(a)))
                                                  for a in np.arange(8) * math.pi / 4 for w in (2.0, 4.5)]
-            z = min(cands, key=lambda zz: float(np.sum(residual(zz, weights) ** 2)))
+            z = cands[int(np.argmin([float(np.sum(r ** 2)) for r in residuals(cands, weights)]))]
         for _ in range(2):  # the second pass with each equation weighted by its own residual spread
             if not held:
+                # the finite differences' columns on the workers (scipy's own differences: it hands the
+                # map the points, `residuals` evaluates them as `residual` would)
                 sol = least_squares(residual, np.clip(z, zlo, zhi), bounds=(zlo, zhi), x_scale=scale,
-                                    args=(weights,), diff_step=1e-3, xtol=1e-4, ftol=1e-5, max_nfev=30)
+                                    args=(weights,), diff_step=1e-3, xtol=1e-4, ftol=1e-5, max_nfev=30,
+                                    workers=lambda _f, zs, w=weights: residuals(list(zs), w))
                 z = sol.x
             _, _, _, rstd = solve(*unpack(z), weights)
             weights = 1.0 / np.maximum(rstd, 1e-9)
         kappa, current, wind = unpack(z)
 
-        def unprojected(zz: np.ndarray, xx: np.ndarray) -> np.ndarray:
-            """The weighted, filtered residual at (zz, xx): the coefficients held."""
-            k, cur, wd = unpack(zz)
-            A, b, _, n = _regression(ms, k, theta_fixed, geometry, cur, wd)
-            Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
-            bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
-            return (bf.T - np.einsum("nep,p->en", Af.reshape(n, 3, -1), xx)) * weights[:, None]
-
         def nonlinear_sensitivity(xx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             """-d residual / d z by differences (the current's knots and the air's velocity; kappa's
             own interval comes from its profile), and those parameters' priors' information."""
             sel = np.arange(1, len(z)) if not kappa_fixed else np.arange(1, len(z))
-            r0 = unprojected(z, xx)
-            cols = []
+            steps, points = [], [z]
             for j in sel:
                 h = 1e-3 * scale[j] * 10
                 zp = z.copy()
                 zp[j] += h
-                cols.append(-(unprojected(zp, xx) - r0) / h)
+                steps.append(h)
+                points.append(zp)
+            r0, *rs = on_workers(_unprojected, [(fit, zz, xx, weights) for zz in points])
+            cols = [-(r - r0) / h for r, h in zip(rs, steps)]
             Dz = np.stack(cols, axis=-1)
             info = np.zeros((len(sel), len(sel)))
             info[:2, :2] = np.eye(2) * (walk_weight / WIND_PRIOR_MPS) ** 2
@@ -409,7 +522,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
                     return float(np.sum(solve(kappa_of(lk), current, wind, weights)[0] ** 2))
 
                 grid = np.linspace(lk_lo, lk_hi, 13)
-                g0 = grid[int(np.argmin([cost(g) for g in grid]))]
+                g0 = grid[int(np.argmin(on_workers(_kappa_cost, [(kappa_of(g), weights) for g in grid])))]
                 opt = minimize(lambda zz: cost(float(zz[0])), np.array([g0]), method="Nelder-Mead",
                                options={"xatol": 1e-3, "maxiter": 100})
                 kappa = kappa_of(float(opt.x[0]))
@@ -428,21 +541,10 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         if lake:
             # on a lake each stretch has its own current and wind too: re-solved as offsets from the
             # record's (priors as the record's), so their uncertainty enters the stretches' spread
-            def stretch(blk: np.ndarray) -> np.ndarray:
-                def res_b(dz: np.ndarray) -> np.ndarray:
-                    cur = CurrentPath(current.t, current.north + dz[0], current.east + dz[1])  # type: ignore[union-attr]
-                    wd = (wind[0] + dz[2], wind[1] + dz[3])  # type: ignore[index]
-                    r = solve(kappa, cur, wd, weights, blk)[0].ravel()
-                    return np.concatenate([r, dz[:2] / CURRENT_WALK_MPS * walk_weight,
-                                           dz[2:] / WIND_PRIOR_MPS * walk_weight])
-                dz = least_squares(res_b, np.zeros(4), x_scale=np.array([0.02, 0.02, 1.0, 1.0]), diff_step=1e-3,
-                                   xtol=1e-3, ftol=1e-4, max_nfev=12).x
-                cur = CurrentPath(current.t, current.north + dz[0], current.east + dz[1])  # type: ignore[union-attr]
-                return solve(kappa, cur, (wind[0] + dz[2], wind[1] + dz[3]), weights, blk)[1][:len(free)]  # type: ignore[index]
-
-            xs = np.array([stretch(blk) for blk in stretches])
+            xs = np.array(on_workers(_lake_stretch, [(kappa, current, wind, weights, blk, walk_weight)
+                                                     for blk in stretches]))[:, :len(free)]
         else:
-            xs = np.array([solve(kappa, current, wind, weights, blk)[1][:len(free)] for blk in stretches])
+            xs = np.array(on_workers(_stretch, [(kappa, current, wind, weights, blk) for blk in stretches]))[:, :len(free)]
         batch_var = np.var(xs, axis=0, ddof=1) / len(stretches)
         d = np.diag(cov)[:len(free)].copy()
         finite = np.isfinite(d)

@@ -11,8 +11,9 @@ judge (lotsen.sysid.judge) scores every estimate alike on the held-out data.
   steady-wind stage, then the gust factors free.
 - `SingleShooting`: Levenberg-Marquardt in independent windows (lotsen.sysid.estimate; --method single).
 
-The shooting intervals of `OutputError` are independent given the parameters: a parallel map over
-them is meant to be handed to its constructor by the command, so that the algorithm stays pure.
+The shooting intervals of `OutputError` are independent given the parameters: the command hands a
+parallel map (lotsen.sysid.parallel) to its constructor, and the algorithm stays pure; the answer is
+the same to the last digit with 1 and N workers.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from lotsen.sysid.estimate import (
 from lotsen.sysid.multiple import (
     MultipleShootingProblem, MultipleShootingResult, ShootingStart, estimate_multiple_shooting,
 )
+from lotsen.sysid.parallel import SERIAL, Map
 from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.sensitivity import ENV_NAMES
 
@@ -108,13 +110,15 @@ class Estimate:
 class EquationError:
     """The equations of motion fitted to the record (lotsen.sysid.equation_error); `terms`: the optional
     model terms estimated; `hold`: another equation-error estimate of the same records whose kappa,
-    current and wind are kept (the optional terms' trial solves only the linear part again)."""
+    current and wind are kept (the optional terms' trial solves only the linear part again); its
+    independent solves run on `parallel` (lotsen.sysid.parallel)."""
 
     name = "equation error"
 
-    def __init__(self, terms: Sequence[str] = (), hold: Estimate | None = None) -> None:
+    def __init__(self, terms: Sequence[str] = (), hold: Estimate | None = None, parallel: Map = SERIAL) -> None:
         self.terms = tuple(terms)
         self.hold = hold
+        self.parallel = parallel
 
     def estimate(self, problem: IdentificationProblem, start: Start) -> Estimate:
         bias0 = None
@@ -124,7 +128,8 @@ class EquationError:
         held = self.hold.diagnostics if self.hold is not None else None
         ee = estimate_equation_error(problem.records, problem.fixed, start.params,
                                      problem.solver_options(terms=self.terms), bias0,
-                                     hold=held if isinstance(held, EquationErrorResult) else None)
+                                     hold=held if isinstance(held, EquationErrorResult) else None,
+                                     parallel=self.parallel)
         return Estimate(self.name, equation_error_result(ee, problem.fixed), ee.environment, ee)
 
 
@@ -144,20 +149,23 @@ class OutputError:
     """Multiple shooting over the whole record from the start (lotsen.sysid.multiple); on a lake the
     coefficients, current and steady wind together (gust factors held) for a few iterations, then the
     gust factors free. Stopped early when the track's errors stay correlated (a model that cannot
-    explain the record: no physical answer will come of more iterations)."""
+    explain the record: no physical answer will come of more iterations). The shooting intervals run
+    on `parallel` (lotsen.sysid.parallel: the built-in map, or the command's pool)."""
 
     name = "output error"
 
-    def __init__(self, progress: Progress | None = None) -> None:
+    def __init__(self, progress: Progress | None = None, parallel: Map = SERIAL) -> None:
         self.progress = progress
+        self.parallel = parallel
 
     def estimate(self, problem: IdentificationProblem, start: Start) -> Estimate:
         terms = tuple(problem.terms or ())
         if not problem.lake:
             calm = problem.solver_options(test_fixed=problem.tested_fixed, misfit_check=CALM_MISFIT_CHECK_ITERATIONS,
                                           terms=terms)
-            res = estimate_multiple_shooting(problem.records, start.params, problem.fixed, calm, progress=self.progress)
-            res = reconstruction_spread(problem.records, res, calm)
+            res = estimate_multiple_shooting(problem.records, start.params, problem.fixed, calm, progress=self.progress,
+                                             parallel=self.parallel)
+            res = reconstruction_spread(problem.records, res, calm, self.parallel)
             return Estimate(self.name, res, None, res.details)
         # the steady-wind stages only bring coefficients, current and wind together before the gusts are
         # released: a few iterations each, the noise as assumed (its residuals carry the gusts by design)
@@ -170,10 +178,10 @@ class OutputError:
         # lower cost does not tell the basins apart); from no wind it reaches the boat's (core within
         # 0.6 %, converged in 35 iterations, 11 s)
         held = {**start.params.to_dict(), **problem.fixed}
-        zero = estimate_multiple_shooting(problem.records, start.params, held, steady)
+        zero = estimate_multiple_shooting(problem.records, start.params, held, steady, parallel=self.parallel)
         first = estimate_multiple_shooting(problem.records, start.params, problem.fixed, steady,
                                            ShootingStart(zero.details.nodes, _environment_of(zero),
-                                                         zero.details.gyro_bias), self.progress)
+                                                         zero.details.gyro_bias), self.progress, parallel=self.parallel)
         env = _environment_of(first)
         # the gusts free: a hard budget too (the gust factors can absorb the track's errors of a model that
         # does not explain the boat, so the track test alone let one record crawl 120 iterations, 58 s)
@@ -183,13 +191,13 @@ class OutputError:
                                        wind_coefficient_spread=LAKE_WIND_SPREAD, terms=terms)
         res = estimate_multiple_shooting(problem.records, first.params, problem.fixed, gusts,
                                          ShootingStart(first.details.nodes, env, first.details.gyro_bias),
-                                         self.progress)
-        res = reconstruction_spread(problem.records, res, gusts)
+                                         self.progress, parallel=self.parallel)
+        res = reconstruction_spread(problem.records, res, gusts, self.parallel)
         return Estimate(self.name, res, _environment_of(res), res.details)
 
 
 def reconstruction_spread(records: Sequence[IdRecord], res: IdentificationResult,
-                          options: SolverOptions) -> IdentificationResult:
+                          options: SolverOptions, parallel: Map = SERIAL) -> IdentificationResult:
     """`res` with the uncertainty of how the inputs moved within their logged intervals in its covariance.
 
     Achieved actuator values logged as interval means (input kind "mean") are reconstructed piecewise
@@ -210,7 +218,8 @@ def reconstruction_spread(records: Sequence[IdRecord], res: IdentificationResult
                   test_fixed=(), misfit_check=0)
     env = list(d.environment.values.values()) if d.environment is not None else None
     try:
-        moved = estimate_multiple_shooting(variant, res.params, res.fixed, one, ShootingStart(d.nodes, env, d.gyro_bias))
+        moved = estimate_multiple_shooting(variant, res.params, res.fixed, one, ShootingStart(d.nodes, env, d.gyro_bias),
+                                           parallel=parallel)
     except EstimationError:
         return res
     names = res.free_names

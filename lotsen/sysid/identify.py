@@ -19,6 +19,7 @@ from lotsen.sysid.data import IdRecord, check_excitation, check_record, split_se
 from lotsen.sysid.estimate import EstimationError
 from lotsen.sysid.estimators import EquationError, Estimate, OutputError, SingleShooting, Start
 from lotsen.sysid.judge import Identification, judge
+from lotsen.sysid.parallel import SERIAL, Map
 from lotsen.sysid.prediction import improvement, prediction_score
 from lotsen.sysid.problem import IdentificationProblem, held_out_split
 
@@ -27,10 +28,12 @@ TERM_MIN_IMPROVEMENT = 0.05  # an optional model term is turned on when it predi
 Say = Callable[[str], None]
 
 
-def identify(problem: IdentificationProblem, progress: Say | None = None) -> Identification:
+def identify(problem: IdentificationProblem, progress: Say | None = None, parallel: Map = SERIAL) -> Identification:
     """The identification of `problem` (module docstring; docs/sysid.md, "How `lotsen identify`
-    answers"). `progress` is told each stage and iteration in words. Raises DataError for a record no
-    estimator can use, IdentifiabilityError when the only estimate leaves a direction undetermined."""
+    answers"). `progress` is told each stage and iteration in words; `parallel` is the map the
+    estimators' independent pieces run on (lotsen.sysid.parallel: the same answer with any number of
+    workers). Raises DataError for a record no estimator can use, IdentifiabilityError when the only
+    estimate leaves a direction undetermined."""
     say = progress or (lambda _msg: None)
     # the data's own faults first, in their own words (no excitation, a motionless boat, ...)
     for r in problem.records:
@@ -47,15 +50,16 @@ def identify(problem: IdentificationProblem, progress: Say | None = None) -> Ide
         return judge(problem, [SingleShooting(iteration).estimate(problem, Start(problem.start))])
     say("equation-error start")
     try:
-        ee: Estimate | None = EquationError(tuple(problem.terms or ())).estimate(problem, Start(problem.start))
+        ee: Estimate | None = EquationError(tuple(problem.terms or ()), None, parallel).estimate(problem,
+                                                                                               Start(problem.start))
     except (ValueError, np.linalg.LinAlgError, EstimationError):
         ee = None  # too few fixes for the splines: the output-error estimate starts from the problem's start
     note = ""
     if problem.terms is None:
-        problem, ee, note = choose_terms(problem, ee, say)
+        problem, ee, note = choose_terms(problem, ee, say, parallel)
     start = Start(ee.params, ee.environment) if ee is not None else Start(problem.start)
     say("output-error estimate (multiple shooting)")
-    oe = OutputError(iteration).estimate(problem, start)
+    oe = OutputError(iteration, parallel).estimate(problem, start)
     say("open-loop prediction of the held-out data")
     ident = judge(problem, [oe] + ([ee] if ee is not None else []))
     if note:
@@ -63,8 +67,8 @@ def identify(problem: IdentificationProblem, progress: Say | None = None) -> Ide
     return ident
 
 
-def choose_terms(problem: IdentificationProblem, ee: Estimate | None,
-                 say: Say) -> tuple[IdentificationProblem, Estimate | None, str]:
+def choose_terms(problem: IdentificationProblem, ee: Estimate | None, say: Say,
+                 parallel: Map = SERIAL) -> tuple[IdentificationProblem, Estimate | None, str]:
     """The optional model terms (lotsen.model.parameters.OPTIONAL_TERMS) the record needs: each turned on
     where the equation-error fit with it predicts the estimation records measurably better
     (TERM_MIN_IMPROVEMENT). Chosen on the estimation data, so that the held-out records judge the answer
@@ -76,7 +80,7 @@ def choose_terms(problem: IdentificationProblem, ee: Estimate | None,
         return off, ee, ""
     say("optional model terms: " + ", ".join(cand))
     try:
-        with_terms = EquationError(cand, hold=ee).estimate(replace(problem, terms=cand), Start(problem.start))
+        with_terms = EquationError(cand, ee, parallel).estimate(replace(problem, terms=cand), Start(problem.start))
     except (ValueError, np.linalg.LinAlgError, EstimationError):
         return off, ee, ""
     s0, s1 = (prediction_score(e.params, problem.records, gap_s=problem.gap_s, geometry=problem.geometry,

@@ -2,11 +2,15 @@
 
 The step is the one of lotsen.sysid.sensitivity (the model's own equations through
 `lotsen.model.symbolic_rhs`, classical RK4 with the input held, a reset flag that loads a node
-state and S = [I, 0]). Here CasADi's `mapaccum` over `CHUNK` steps is generated as C code and
-compiled once into a shared library (cached by a hash of the generated code, so a change of the
-model or geometry compiles anew), then called through CasADi's buffer interface on numpy arrays:
-no conversion of matrices per call. Measured on the 2-core development machine: 0.4 us per state
-step, 4 us per step with the 6 x 24 sensitivity; compiling takes 2-3 s once per machine.
+state and S = [I, 0]). Here CasADi's `mapaccum` over `CHUNK` steps (and over `TAIL_CHUNK` steps for
+what is left at the end of a run) is generated as C code and compiled once into a shared library
+(cached by a hash of the generated code, so a change of the model or geometry compiles anew), then
+called through CasADi's buffer interface on numpy arrays: no conversion of matrices per call.
+A call always computes its whole chunk, so the short one ends a run: with one chunk of 2048 a 60-s
+design record (960 steps) computed twice its steps, and a block of shooting intervals a fraction
+more. The steps are the same arithmetic whatever the chunks (the state is carried over exactly).
+Measured on the 2-core development machine: 0.4 us per state step, 3-4 us per step with the
+8 x 41 sensitivity of the lake model; compiling takes 5-10 s once per machine.
 
 Without a C compiler the same functions run in CasADi's virtual machine (about 10x slower).
 The cache directory is $LOTSEN_CACHE_DIR, else ~/.cache/lotsen, else the temp directory.
@@ -28,7 +32,8 @@ from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, geometry_tuple
 from lotsen.sysid.data import OUTPUT_STATE_INDEX, Segment
 from lotsen.sysid.sensitivity import NS, NTHETA, NTHETA_LAKE, NU, NX_LAKE, _build_step_functions, make_grid
 
-CHUNK = 2048  # steps per call: memory per call ~ CHUNK * 1.3 kB whatever the record length
+CHUNK = 512  # steps per call: memory per call ~ CHUNK * 2.6 kB whatever the record length
+TAIL_CHUNK = 64  # the last steps of a run, in calls this long (fewer wasted steps)
 _KERNELS: dict[tuple, "StepKernels"] = {}
 
 
@@ -88,18 +93,60 @@ class StepKernels:
     def __init__(self, geom: tuple[float, ...], chunk: int = CHUNK, lake: bool = False) -> None:
         import casadi as ca
 
-        self.chunk = L = chunk
+        self.chunk = chunk
         self.nx, nth = (NX_LAKE, NTHETA_LAKE) if lake else (6, NTHETA)
-        self.ns = ns = self.nx + nth
-        nx = self.nx
+        self.ns = self.nx + nth
+        self.nth = nth
         step, step_sens = _build_step_functions(geom, False, lake)
         tag = "lotsen_lake" if lake else "lotsen_ms"
-        acc_sim = step.mapaccum(f"{tag}_sim", L, [0], [0])
-        acc_sens = step_sens.mapaccum(f"{tag}_sens", L, [0, 1], [0, 1])
-        lib = _compile([acc_sim, acc_sens], tag)
+        lengths = (chunk, TAIL_CHUNK) if chunk > TAIL_CHUNK else (chunk,)
+        functions = [(step.mapaccum(f"{tag}_sim{L}", L, [0], [0]),
+                      step_sens.mapaccum(f"{tag}_sens{L}", L, [0, 1], [0, 1])) for L in lengths]
+        lib = _compile([f for pair in functions for f in pair], tag)
         self.compiled = lib is not None
         if lib is not None:
-            acc_sim, acc_sens = ca.external(f"{tag}_sim", lib), ca.external(f"{tag}_sens", lib)
+            functions = [(ca.external(f"{tag}_sim{L}", lib), ca.external(f"{tag}_sens{L}", lib)) for L in lengths]
+        self._calls = [_ChunkCall(sim, sens, L, self.nx, self.ns, nth) for L, (sim, sens) in zip(lengths, functions)]
+
+    def run_record(self, theta: Sequence[float], h: np.ndarray, U: np.ndarray, reset: np.ndarray,
+                   reset_step: np.ndarray, reset_states: np.ndarray, need: np.ndarray,
+                   sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """A whole grid of steps (h, U: n_steps x 10 input lines, reset) chunk by chunk: the state starts from
+        `reset_states[i]` at step `reset_step[i]` (sorted), and the states (and with `sens` the
+        sensitivities, len(need) x nx x ns) after the steps `need` (sorted) are returned."""
+        n_steps = len(h)
+        X = np.empty((len(need), self.nx))
+        S = np.empty((len(need), self.nx, self.ns)) if sens else None
+        x0, S0 = np.zeros(self.nx), np.zeros((self.ns, self.nx))
+        theta = np.asarray(theta, float)
+        long, short = self._calls[0], self._calls[-1]
+        a = 0
+        while a < n_steps:
+            call = long if n_steps - a > long.chunk - short.chunk or long is short else short
+            b = min(a + call.chunk, n_steps)
+            lo, hi = np.searchsorted(reset_step, [a, b])
+            call.load(theta, h[a:b], U[a:b], reset[a:b], x0, S0 if sens else None)
+            call.set_resets(reset_step[lo:hi] - a, reset_states[lo:hi])
+            i0, i1 = np.searchsorted(need, [a, b])
+            cols = need[i0:i1] - a
+            n = b - a
+            if sens:
+                call.run_sens()
+                S[i0:i1] = call.S[cols].transpose(0, 2, 1)
+                S0 = call.S[n - 1]
+            else:
+                call.run_sim()
+            X[i0:i1] = call.X[cols]
+            x0 = call.X[n - 1]
+            a = b
+        return X, S
+
+
+class _ChunkCall:
+    """One compiled chunk length: its functions and the numpy buffers they read and write."""
+
+    def __init__(self, acc_sim: Any, acc_sens: Any, L: int, nx: int, ns: int, nth: int) -> None:
+        self.chunk = L
         # inputs (column-major CasADi matrices = C-ordered numpy arrays with the dimensions reversed)
         self.x0 = np.zeros(nx)
         self.S0 = np.zeros((ns, nx))
@@ -110,6 +157,8 @@ class StepKernels:
         self.XR = np.zeros((L, nx))
         self.X = np.zeros((L, nx))
         self.S = np.zeros((L, ns, nx))  # S[k, j, i] = d x_i / d p_j after step k
+        self._theta: np.ndarray | None = None  # what TH holds (the same for a whole run)
+        self._reset_rows = np.zeros(0, int)  # the rows of XR the last chunk set
         self._fs = acc_sim  # keep the functions alive with their buffers
         self._fss = acc_sens
         self.buf_sim, self._ev_sim = acc_sim.buffer()
@@ -122,46 +171,35 @@ class StepKernels:
         self.buf_sens.set_res(0, memoryview(self.X))
         self.buf_sens.set_res(1, memoryview(self.S))
 
+    def load(self, theta: np.ndarray, h: np.ndarray, U: np.ndarray, reset: np.ndarray, x0: np.ndarray,
+             S0: np.ndarray | None) -> None:
+        """One chunk's inputs (the steps beyond len(h) do nothing: zero length, no reset); what stays the
+        same from chunk to chunk (the parameters) is not copied again."""
+        n = len(h)
+        self.x0[:] = x0
+        if S0 is not None:
+            self.S0[:] = S0
+        if self._theta is None or not np.array_equal(theta, self._theta):
+            self.TH[:] = theta[None, :]
+            self._theta = theta.copy()
+        self.H[:n] = h
+        self.U[:n] = U
+        self.RS[:n] = reset
+        if n < self.chunk:
+            self.H[n:] = 0.0
+            self.RS[n:] = 0.0
+
+    def set_resets(self, rows: np.ndarray, states: np.ndarray) -> None:
+        """The node states loaded at `rows` of this chunk (the other rows' reset flags are 0)."""
+        self.XR[self._reset_rows] = 0.0
+        self.XR[rows] = states
+        self._reset_rows = rows
+
     def run_sim(self) -> None:
         self._ev_sim()
 
     def run_sens(self) -> None:
         self._ev_sens()
-
-    def run_record(self, theta: Sequence[float], h: np.ndarray, U: np.ndarray, reset: np.ndarray,
-                   reset_step: np.ndarray, reset_states: np.ndarray, need: np.ndarray,
-                   sens: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """A whole grid of steps (h, U: n_steps x 10 input lines, reset) chunk by chunk: the state starts from
-        `reset_states[i]` at step `reset_step[i]` (sorted), and the states (and with `sens` the
-        sensitivities, len(need) x nx x ns) after the steps `need` (sorted) are returned."""
-        L, n_steps = self.chunk, len(h)
-        X = np.empty((len(need), self.nx))
-        S = np.empty((len(need), self.nx, self.ns)) if sens else None
-        self.x0[:] = 0.0
-        self.S0[:] = 0.0
-        self.TH[:] = np.asarray(theta, float)[None, :]
-        for a in range(0, n_steps, L):
-            b = min(a + L, n_steps)
-            n = b - a
-            self.H[:n] = h[a:b]
-            self.H[n:] = 0.0
-            self.U[:n] = U[a:b]
-            self.RS[:n] = reset[a:b]
-            self.RS[n:] = 0.0
-            self.XR[:] = 0.0
-            lo, hi = np.searchsorted(reset_step, [a, b])
-            self.XR[reset_step[lo:hi] - a] = reset_states[lo:hi]
-            i0, i1 = np.searchsorted(need, [a, b])
-            cols = need[i0:i1] - a
-            if sens:
-                self.run_sens()
-                S[i0:i1] = self.S[cols].transpose(0, 2, 1)
-                self.S0[:] = self.S[n - 1]
-            else:
-                self.run_sim()
-            X[i0:i1] = self.X[cols]
-            self.x0[:] = self.X[n - 1]
-        return X, S
 
 
 def step_kernels(geom: tuple[float, ...], chunk: int = CHUNK, lake: bool = False) -> StepKernels:

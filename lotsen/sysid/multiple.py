@@ -48,7 +48,6 @@ import scipy.sparse.linalg as spla
 
 from lotsen.errors import LotsenError
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselGeometry, VesselParameters, geometry_tuple
-from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import (
     OUTPUT_STATE_INDEX, IdRecord, Segment, check_excitation, check_record, split_segments, step_input_lines,
 )
@@ -58,7 +57,9 @@ from lotsen.sysid.estimate import (
 )
 from lotsen.model.environment import wind_drag_coefficients
 from lotsen.sysid.kernels import step_kernels
+from lotsen.sysid.parallel import SERIAL, Held, Map, map_held, ordered_sum
 from lotsen.sysid.sensitivity import ENV_NAMES, NTHETA, NTHETA_LAKE
+from lotsen.sysid.shooting_blocks import BlockCall, ShootingBlock, block_scores, cut_blocks, linearise_block
 
 # continuity defects below this (noise units) are negligible: the trajectory is one simulation
 CONTINUITY_TOL = 1e-3
@@ -255,8 +256,10 @@ class _Lin:
 
     e: np.ndarray  # weighted measurement residuals, n_meas x ny (0 where not measured)
     c: np.ndarray  # scaled continuity defects, n_con x 6
-    Jx: np.ndarray | None = None  # n_meas x ny x nz (nz = 6, or 7 with the gust factor)
-    Jp: np.ndarray | None = None  # n_meas x ny x nf
+    # the measurements' part of the normal equations (H_ss, H_sp, H_pp, g_s, g_p; the priors' are added
+    # by `normal_blocks`), summed over the blocks of intervals in their order
+    normal: tuple[np.ndarray, ...] | None = None
+    calls: list[BlockCall] | None = None  # where each block was linearised (the sandwich's scores)
     Gx: np.ndarray | None = None  # n_con x 6 x nz  d c_i / d sigma_i
     Gp: np.ndarray | None = None  # n_con x 6 x nf
     pg: np.ndarray | None = None  # prior residuals of the gust factors (n_nodes), lake model
@@ -281,9 +284,12 @@ class _Lin:
 
 
 class MultipleShootingProblem:
-    """Residuals, Jacobians and the structured KKT solves of one data set."""
+    """Residuals, Jacobians and the structured KKT solves of one data set. The shooting intervals are
+    linearised in blocks (lotsen.sysid.shooting_blocks) on `parallel`'s workers (lotsen.sysid.parallel;
+    the built-in map: here, one after another)."""
 
-    def __init__(self, records: Sequence[IdRecord], options: SolverOptions = SolverOptions()) -> None:
+    def __init__(self, records: Sequence[IdRecord], options: SolverOptions = SolverOptions(),
+                 parallel: Map = SERIAL) -> None:
         node_s, gap_s, noise_std, geometry = options.node_s, options.gap_s, options.noise_std, options.geometry
         h_max, lake, gust_std = options.h_max, options.lake, options.gust_std
         wind_coefficient_spread = options.wind_coefficient_spread
@@ -317,7 +323,7 @@ class MultipleShootingProblem:
         self.prior_std = np.concatenate([self.prior_std, np.full(self.n_bias, GYRO_BIAS_PRIOR_STD)])
         self.grid = build_grid(segs, node_s, h_max)
         self.seg_record = np.array(seg_record, int)
-        self.sim = ShootingSimulator(self.grid, geometry, lake)
+        self.geometry, self.parallel = geometry, parallel
         noise = dict(DEFAULT_NOISE_STD)
         noise.update(noise_std or {})
         self.noise = {n: float(noise[n]) for n in names}
@@ -334,6 +340,29 @@ class MultipleShootingProblem:
         self.meas_record = self.seg_record[g.node_seg[g.meas_node]]
         self.r_col = names.index("r") if "r" in names else None
         self._pattern_cache: dict = {}
+        self.blocks = [Held(self._block(n0, n1)) for n0, n1 in cut_blocks(g.node_step, g.n_steps)]
+
+    @property
+    def sim(self) -> ShootingSimulator:
+        """The whole grid in one simulator, in this process (the design's trajectory)."""
+        if "sim" not in self._pattern_cache:
+            self._pattern_cache["sim"] = ShootingSimulator(self.grid, self.geometry, self.lake)
+        return self._pattern_cache["sim"]
+
+    def _block(self, n0: int, n1: int) -> ShootingBlock:
+        """Nodes [n0, n1) with their steps and rows (lotsen.sysid.shooting_blocks.ShootingBlock)."""
+        g = self.grid
+        s0 = int(g.node_step[n0])
+        s1 = int(g.node_step[n1]) if n1 < g.n_nodes else g.n_steps
+        m0, m1 = int(self.meas_bounds[n0]), int(self.meas_bounds[n1])
+        with_next = np.flatnonzero(g.has_next[n0:n1]) + n0
+        meas, ends = g.meas_step[m0:m1] - s0, g.end_step[with_next] - s0
+        need = np.unique(np.concatenate([meas, ends]))
+        return ShootingBlock(geometry_tuple(self.geometry), self.lake, n0, n1, g.h[s0:s1], g.U[s0:s1],
+                             g.reset[s0:s1], g.node_step[n0:n1] - s0, need, np.searchsorted(need, meas),
+                             np.searchsorted(need, ends), self.Y[m0:m1], self.mask[m0:m1],
+                             self.meas_bounds[n0:n1 + 1] - m0, self.meas_record[m0:m1],
+                             tuple(self.out_idx), self.psi_col, self.r_col)
 
     def initial_gyro_bias(self) -> np.ndarray:
         """Per record, the yaw-rate offset from the data alone: (integral of the measured r - the
@@ -374,15 +403,13 @@ class MultipleShootingProblem:
     def linearise(self, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray, tscale: np.ndarray,
                   sens: bool) -> _Lin:
         nk = self.n_kernel
-        out = self.sim.run(theta[:nk], nodes, sens)
-        Xm, Xe = out[0], out[1]
-        sw = self.sqrt_w
-        e = self.Y - Xm[:, self.out_idx]
-        if self.n_bias:
-            e[:, self.r_col] -= theta[nk:nk + self.n_bias][self.meas_record]
-        if self.psi_col is not None:
-            e[:, self.psi_col] = wrap_angle(e[:, self.psi_col])
-        e = np.where(self.mask, e, 0.0) * sw
+        fk = free[free < nk]  # the kernel's parameters; the measurement parameters (gyro offsets) follow them
+        fb = free[free >= nk] - nk
+        calls = [BlockCall(theta[:nk], theta[nk:nk + self.n_bias], nodes[b.value.n0:b.value.n1], self.sqrt_w, sens,
+                           fk, fb, tscale[fk], tscale[nk + fb], self.xscale, X_SCALE) for b in self.blocks]
+        parts = map_held(self.parallel, linearise_block, self.blocks, calls)
+        e = np.concatenate([p.e for p in parts])
+        Xe = np.concatenate([p.X_end for p in parts])
         c = (Xe[:, :6] - nodes[self.con + 1, :6]) / X_SCALE
         lin = _Lin(e, c)
         if not (np.all(np.isfinite(e)) and np.all(np.isfinite(c))):
@@ -395,33 +422,21 @@ class MultipleShootingProblem:
         if self.lake:  # along: 1 +- gust_std; across: 0 +- gust_std (both relative to the mean wind)
             lin.pg = np.column_stack([nodes[:, 6] - 1.0, nodes[:, 7]]) / self.gust_std
         if sens:
-            nz, xs = self.nz, self.xscale
-            Sm, Se = out[2], out[3]
-            W = (sw[None, :] * self.mask)[:, :, None]
-            Sy = Sm[:, self.out_idx, :]
-            fk = free[free < nk]  # the kernel's parameters; the measurement parameters follow them
-            lin.Jx = -Sy[:, :, :nz] * xs[None, None, :] * W
-            lin.Jp = -Sy[:, :, nz + fk] * tscale[fk][None, None, :] * W
-            lin.Gx = Se[:, :6, :nz] * xs[None, None, :] / X_SCALE[None, :, None]
-            lin.Gp = Se[:, :6, nz + fk] * tscale[fk][None, None, :] / X_SCALE[None, :, None]
-            fb = free[free >= nk] - nk
-            if len(fb):  # d e_r / d b_q = -1 on record q's rows
-                Jb = np.zeros((len(e), len(sw), len(fb)))
-                Jb[:, self.r_col, :] = -(self.meas_record[:, None] == fb[None, :]).astype(float) * tscale[nk + fb][None, :]
-                lin.Jp = np.concatenate([lin.Jp, Jb * W], axis=2)
-                lin.Gp = np.concatenate([lin.Gp, np.zeros((len(lin.Gp), 6, len(fb)))], axis=2)
+            lin.Gx = np.concatenate([p.Gx for p in parts])
+            lin.Gp = np.concatenate([p.Gp for p in parts])
+            lin.normal = (np.concatenate([p.Hss for p in parts]), np.concatenate([p.Hsp for p in parts]),
+                          ordered_sum(p.Hpp for p in parts), np.concatenate([p.gs for p in parts]),
+                          ordered_sum(p.gp for p in parts))
+            lin.calls = calls
         return lin
 
     # -- the structured KKT system -------------------------------------------------------------
     def normal_blocks(self, lin: _Lin) -> tuple[np.ndarray, ...]:
-        """H_ss (n_nodes x 6 x 6), H_sp (n_nodes x 6 x nf), H_pp, g_s (n_nodes x 6), g_p."""
-        Jx, Jp, e = lin.Jx, lin.Jp, lin.e
-        b = self.meas_bounds[:-1]
-        Hss = np.add.reduceat(np.einsum("kji,kjl->kil", Jx, Jx), b, axis=0)
-        Hsp = np.add.reduceat(np.einsum("kji,kjl->kil", Jx, Jp), b, axis=0)
-        Hpp = np.einsum("kji,kjl->il", Jp, Jp)
-        gs = np.add.reduceat(np.einsum("kji,kj->ki", Jx, e), b, axis=0)
-        gp = np.einsum("kji,kj->i", Jp, e)
+        """H_ss (n_nodes x 6 x 6), H_sp (n_nodes x 6 x nf), H_pp, g_s (n_nodes x 6), g_p: the measurements'
+        (from the linearisation with sensitivities) and the priors'."""
+        if lin.normal is None:
+            raise ValueError("normal_blocks needs a linearisation with sensitivities")
+        Hss, Hsp, Hpp, gs, gp = (a.copy() for a in lin.normal)
         if lin.pg is not None:  # the gust factors' prior: independent per interval
             jg = self.xscale[6] / self.gust_std
             for q in (6, 7):
@@ -468,11 +483,16 @@ class MultipleShootingProblem:
         A = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
         return spla.splu(A, permc_spec="COLAMD", options={"SymmetricMode": False})
 
+    def coupling(self, Hsp: np.ndarray, Gp: np.ndarray) -> np.ndarray:
+        """B: the node states' and the continuity constraints' coupling to the parameters."""
+        nf = Hsp.shape[2]
+        return np.vstack([Hsp.reshape(self.n_nodes * self.nz, nf), Gp.reshape(self.n_con * 6, nf)])
+
     def reduced(self, lu, Hsp: np.ndarray, Gp: np.ndarray, Hpp: np.ndarray, rhs_w: np.ndarray | None,
                 rhs_p: np.ndarray | None) -> tuple[np.ndarray, ...]:
         """F = H_pp - B^T A^-1 B and, with right-hand sides, the eliminated rhs and A^-1 (B, r_w)."""
         nf = Hpp.shape[0]
-        B = np.vstack([Hsp.reshape(self.n_nodes * self.nz, nf), Gp.reshape(self.n_con * 6, nf)])
+        B = self.coupling(Hsp, Gp)
         R = B if rhs_w is None else np.column_stack([B, rhs_w])
         Z = lu.solve(R)
         AinvB = Z[:, :nf]
@@ -509,13 +529,34 @@ class MultipleShootingResult:
     reconstruction_shift: dict[str, float] | None = None
 
 
-def _solve_step(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
-                mu: float, active: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The damped Gauss-Newton step; `active` (per free parameter) holds those at a bound fixed."""
-    Hss, Hsp, Hpp, gs, gp = blocks
+@dataclass
+class _Factored:
+    """The damped KKT matrix of one linearisation and damping, factorised: A's LU, the coupling B, the
+    reduced matrix F = H_pp + mu D_p - B^T A^-1 B and A^-1 B. A step's trials at one damping (the bounds'
+    active set, the second-order correction) solve with it again instead of factorising anew."""
+
+    lu: object
+    B: np.ndarray
+    F: np.ndarray
+    AinvB: np.ndarray
+
+
+def _factor(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, Ds: np.ndarray, Dp: np.ndarray,
+            mu: float) -> _Factored:
+    Hss, Hsp, Hpp = blocks[:3]
     lu = prob.factor_A(Hss, lin.Gx, Ds, mu)
-    rhs_w = np.concatenate([-gs.ravel(), -lin.c.ravel()])
-    F, AinvB, Ainv_rw, r = prob.reduced(lu, Hsp, lin.Gp, Hpp + mu * np.diag(Dp), rhs_w, -gp)
+    F, AinvB = prob.reduced(lu, Hsp, lin.Gp, Hpp + mu * np.diag(Dp), None, None)
+    return _Factored(lu, prob.coupling(Hsp, lin.Gp), F, AinvB)
+
+
+def _solve_step(prob: MultipleShootingProblem, fac: _Factored, gs: np.ndarray, gp: np.ndarray, c: np.ndarray,
+                active: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The damped Gauss-Newton step for the gradients (gs, gp) and the defects c; `active` (per free
+    parameter) holds those at a bound fixed."""
+    rhs_w = np.concatenate([-gs.ravel(), -c.ravel()])
+    Ainv_rw = fac.lu.solve(rhs_w)  # type: ignore[attr-defined]
+    r = -gp - fac.B.T @ Ainv_rw
+    F, AinvB = fac.F, fac.AinvB
     nf = len(gp)
     if nf:
         keep = np.ones(nf, bool) if active is None else ~active
@@ -558,7 +599,8 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                fixed: Mapping[str, float] | None = None, options: SolverOptions = SolverOptions(),
                                start: ShootingStart = ShootingStart(),
                                progress: Callable[[int, float], None] | None = None,
-                               problem: MultipleShootingProblem | None = None) -> IdentificationResult:
+                               problem: MultipleShootingProblem | None = None,
+                               parallel: Map = SERIAL) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
@@ -575,6 +617,9 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     `gyro_bias` (default: with `lake`): estimate a constant offset of the yaw-rate output per record
     (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from the data
     (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
+
+    `parallel`: the map the shooting intervals' blocks run on (lotsen.sysid.parallel), unless `problem`
+    is given (then its own).
     """
     max_iterations, total_iterations, tol = options.max_iterations, options.total_iterations, options.tol
     estimate_noise, misfit_check = options.estimate_noise, options.misfit_check
@@ -586,7 +631,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     check_scale_fixed(fixed)
     prob = problem
     if prob is None:
-        prob = MultipleShootingProblem(records, options)
+        prob = MultipleShootingProblem(records, options, parallel)
         check_excitation(prob.segments)
     theta, free, free_names, tscale = starting_point(theta0, fixed)
     lo, hi = parameter_bounds()
@@ -731,9 +776,10 @@ def score_covariance(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple, F:
     _, AinvB = prob.reduced(lu, Hsp, lin.Gp, Hpp, None, None)
     g = prob.grid
     dsdp = -AinvB[: prob.nz * prob.n_nodes].reshape(prob.n_nodes, prob.nz, nf)
-    J = lin.Jp + np.einsum("kjz,kzf->kjf", lin.Jx, dsdp[g.meas_node])
-    S = np.einsum("kjf,kj->kf", J, lin.e)
-    F_data = np.einsum("kjf,kjg->fg", J, J)
+    parts = map_held(prob.parallel, block_scores, prob.blocks,
+                     [(call, dsdp[b.value.n0:b.value.n1]) for b, call in zip(prob.blocks, lin.calls or [])])
+    S = np.concatenate([p[0] for p in parts])
+    F_data = ordered_sum(p[1] for p in parts)
     seg = g.node_seg[g.meas_node]
     tau = float(np.max(residual_correlation_times(prob, lin)))
     L = int(max(1, min(round(2.0 * tau), len(S) // 10)))
@@ -1025,10 +1071,14 @@ def _gauss_newton(prob: MultipleShootingProblem, search: _Search, theta: np.ndar
         # X_u at its floor, the damping then grows until the estimate crawls and never converges)
         th_f = theta[free]
         at_lo, at_hi = th_f <= lo[free] + 1e-12 * np.abs(lo[free]), th_f >= hi[free] - 1e-12 * np.abs(hi[free])
+        factored: dict[float, _Factored] = {}  # per damping, for this linearisation
         for trial in range(14):
+            if mu not in factored:
+                factored[mu] = _factor(prob, lin, blocks, Ds, Dp, mu)
+            fac = factored[mu]
             active = np.zeros(len(free), bool)
             for _ in range(len(free) + 1):
-                ds, dp, lam = _solve_step(prob, lin, blocks, Ds, Dp, mu, active)
+                ds, dp, lam = _solve_step(prob, fac, gs, gp, lin.c, active)
                 out = ~active & ((at_lo & (dp < 0)) | (at_hi & (dp > 0)))
                 if not out.any():
                     break
@@ -1050,7 +1100,7 @@ def _gauss_newton(prob: MultipleShootingProblem, search: _Search, theta: np.ndar
                 # second-order correction (Maratos effect): the step met the linearised continuity, but
                 # the intervals' curvature left larger defects; one more solve with the same
                 # factorisation, no gradient and the new defects, pulls the trajectory back together
-                soc = _solve_step(prob, replace(lin, c=lin_new.c), (*blocks[:3], 0.0 * gs, 0.0 * gp), Ds, Dp, mu, active)
+                soc = _solve_step(prob, fac, 0.0 * gs, 0.0 * gp, lin_new.c, active)
                 th_soc = th_new.copy()
                 th_soc[free] = np.clip(th_new[free] + soc[1] * tscale[free], lo[free], hi[free])
                 nodes_soc = nodes_new + soc[0] * prob.xscale[None, :]

@@ -27,6 +27,21 @@ def test_round_trip_with_nan(tmp_path):
     assert np.allclose(back.outputs[4:], y[4:])
 
 
+def test_the_stamps_are_written_exactly(tmp_path):
+    """Rows at one stamp are one instant (merged on reading), rows 1e-17 s apart are two (two streams'
+    clocks): the CSV keeps every stamp to the last bit, so the file is the record it was written from;
+    a POSIX stamp keeps its sub-second part (at 10 significant digits it kept whole seconds)."""
+    t = np.array([0.0, 0.06, 0.060000000000000005, 0.1, 0.1, 1.8e9 + 0.123456789, 1.8e9 + 0.25])
+    u = np.full((len(t), 5), np.nan)
+    u[[0, 2, 4]] = 1.0
+    y = np.full((len(t), 4), np.nan)
+    y[[1, 3, 5, 6]] = 0.5
+    rec = IdRecord(t, u, y, ("north", "east", "psi", "r"), input_kind="sample")
+    save_csv(rec, tmp_path / "r.csv")
+    back = load_csv(tmp_path / "r.csv")
+    assert np.array_equal(back.t, np.unique(t))  # the two rows at 0.1 merged, nothing else
+
+
 def test_optional_uv_columns(tmp_path):
     p = _write(tmp_path, "t,alpha1,alpha2,n1,n2,nt,north,east,psi,r,u,v\n0,0,0,1,1,0,0,0,0,0,0.5,0\n"
                          "0.1,0,0,1,1,0,0.05,0,0,0,0.5,0\n")

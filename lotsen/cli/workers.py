@@ -1,0 +1,94 @@
+"""The worker processes of the numerical commands (`identify --jobs`; `experiment design` runs on one core).
+
+The algorithms never start a process (lotsen.sysid.parallel): the command makes the pool and hands its
+`map` in. Workers are forked from the command after it has read its files and built the compiled
+kernels, so each starts with numpy, scipy, CasADi and the kernels in place (a spawned worker imports
+them again: 0.8 s of CPU each here, 3-4 s on a Raspberry Pi 4, measured in bench/bench_identify.py) and
+with the one BLAS thread the command set before numpy's import (lotsen.cli.main.single_threaded_blas).
+Forking is safe there: these commands run no thread of their own, and numba (whose threading layers do
+not survive a fork) is not in use in them. Where fork is missing (macOS, Windows) they are spawned.
+Workers ignore Ctrl-C: the command stops them.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import sys
+from contextlib import contextmanager
+from typing import Callable, Iterator
+
+from lotsen.settings import Number
+from lotsen.sysid.parallel import SERIAL, Map
+
+#: `--jobs`: worker processes (1: none, the command computes alone)
+JOBS = Number(1, 64, "workers", integer=True)
+
+
+def default_jobs() -> int:
+    """The cores this process may run on: the default of --jobs."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def add_jobs_flag(parser: object, what: str) -> None:
+    """`--jobs N` on a command's parser (argparse), validated like every number (lotsen.settings)."""
+    parser.add_argument("--jobs", type=JOBS, default=None,  # type: ignore[attr-defined]
+                        help=f"worker processes for {what} (default: the number of cores, here {default_jobs()}; "
+                             "1: none). The answer is the same with any number")
+
+
+#: glibc's mallopt parameters (malloc.h)
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def keep_freed_memory() -> bool:
+    """Let this process (and the workers forked from it) keep the memory it frees for its next arrays.
+
+    The estimators allocate and free arrays of 1-30 MB thousands of times (the equation error's
+    regressors of a 10-min lake record: ~2000 solves). glibc hands such blocks back to the kernel (a
+    freed top of the heap above the trim threshold, or a block above the mmap threshold, which it moves
+    with each free) and takes them again page by page: measured on the lake record 2500, 1.0 million
+    page faults and 2.2 s of system CPU on 10.7 s of user CPU (main's code 50 thousand, 0.3 s: it kept
+    one more array alive, by chance). With blocks up to 32 MB from the heap and the heap kept: 20
+    thousand, 0.1 s. Numbers are unchanged; the process's resident memory stays at its peak until it
+    ends (a command, not the boat's long-running stack). Elsewhere than glibc: nothing (False)."""
+    import ctypes
+    import ctypes.util
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        return bool(libc.mallopt(_M_MMAP_THRESHOLD, 32 * 1024 * 1024)) and bool(
+            libc.mallopt(_M_TRIM_THRESHOLD, 1024 * 1024 * 1024))
+    except (OSError, AttributeError):  # musl and others: no mallopt
+        return False
+
+
+def _ignore_interrupt() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextmanager
+def worker_pool(jobs: int | None, warm: Callable[[], None] | None = None) -> Iterator[Map]:
+    """The map to hand the algorithms: the built-in one for a single job, else a pool of `jobs`
+    processes (None: `default_jobs()`); `warm` runs here first (e.g. building the kernels), so that the
+    workers inherit its result instead of each doing it again."""
+    jobs = default_jobs() if jobs is None else int(jobs)
+    if jobs <= 1:
+        yield SERIAL
+        return
+    if warm is not None:
+        warm()
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() and sys.platform != "darwin" else "spawn"
+    pool = multiprocessing.get_context(method).Pool(jobs, initializer=_ignore_interrupt)
+    try:
+        yield pool.map
+        pool.close()
+    finally:
+        pool.terminate()
+        pool.join()

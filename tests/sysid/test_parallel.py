@@ -1,0 +1,146 @@
+"""Identification on N worker processes gives the answer of one, to the last digit (issue 49 item 1).
+
+The shooting intervals are cut into blocks by the record alone (lotsen.sysid.shooting_blocks) and
+their parts summed in the blocks' order (lotsen.sysid.parallel); the equation-error searches map
+their independent solves. A short record is one block at the default block size, so these tests cut
+it finer (MIN_BLOCK_STEPS) to have as many blocks as a 10-min record.
+"""
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+
+from lotsen.cli.workers import JOBS, worker_pool
+from lotsen.sysid import multiple, parallel, shooting_blocks
+from lotsen.sysid.parallel import SERIAL, Held, map_held, ordered_sum
+
+
+@pytest.fixture()
+def small_blocks(monkeypatch):
+    """Blocks of 128 steps (the default 1024), and how many each problem was cut into."""
+    counts: list[int] = []
+    cut = shooting_blocks.cut_blocks
+
+    def counted(node_step, n_steps):  # type: ignore[no-untyped-def]
+        out = cut(node_step, n_steps)
+        counts.append(len(out))
+        return out
+
+    monkeypatch.setattr(shooting_blocks, "MIN_BLOCK_STEPS", 128)
+    monkeypatch.setattr(multiple, "cut_blocks", counted)
+    return counts
+
+
+@pytest.fixture(scope="module")
+def lake_minute():
+    from lotsen.harness.identification import lake_run
+
+    return lake_run(7, 60.0, 0.05, 3.0)
+
+
+def test_identify_on_a_lake_gives_the_same_answer_with_1_and_2_workers(lake_minute, small_blocks):
+    """Equation error (the lake's kappa, current and wind searches), both lake stages of multiple
+    shooting, the sandwich covariance and the judge: every number equal, not merely close."""
+    from lotsen.sysid.identify import identify, split_holdout
+    from lotsen.sysid.problem import IdentificationProblem
+
+    est, val = split_holdout([lake_minute.run.record], 0.2)
+    problem = IdentificationProblem(tuple(est), tuple(val), {"m11": lake_minute.boat.m11}, lake=True)
+    answers = []
+    for jobs in (1, 2):
+        with worker_pool(jobs) as par:
+            assert (par is SERIAL) == (jobs == 1)
+            answers.append(identify(problem, None, par))
+    assert small_blocks and min(small_blocks) >= 4, small_blocks  # the intervals were cut, and run apart
+    one, two = answers
+    assert json.dumps(one.to_json_dict(), sort_keys=True) == json.dumps(two.to_json_dict(), sort_keys=True)
+    for a, b in zip(one.estimates, two.estimates):
+        assert a.estimator == b.estimator
+        assert np.array_equal(a.result.params.to_vector(), b.result.params.to_vector())
+        assert np.array_equal(a.result.covariance, b.result.covariance, equal_nan=True)
+
+
+def test_identify_jobs_writes_the_same_file_as_one_job(short_run, small_blocks, tmp_path, capsys):
+    """`lotsen identify --jobs 2` and `--jobs 1`: the same parameter file, byte for byte."""
+    from lotsen.cli.identify import main_standalone
+    from lotsen.sysid.data import save_csv
+
+    data = tmp_path / "run.csv"
+    save_csv(short_run.record, data)
+    files = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"p{jobs}.json"
+        assert main_standalone(["identify", str(data), "--out", str(out), "--jobs", jobs,
+                                "--fix", "kappa=0.02", "--fix", "Y_rv=-2", "--fix", "N_vv=-1"]) == 0
+        files.append(out.read_bytes())
+    capsys.readouterr()
+    assert small_blocks and min(small_blocks) >= 4, small_blocks
+    assert files[0] == files[1]
+
+
+def test_jobs_is_a_count_of_workers():
+    assert JOBS("3") == 3
+    for bad in ("0", "-1", "1.5", "nan", "many"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            JOBS(bad)
+
+
+def _scaled(value, factor):  # type: ignore[no-untyped-def]
+    return value * factor
+
+
+def test_held_values_are_sent_once_and_summed_in_order():
+    """map_held: the value goes with the first call a worker gets for it (a second call only for the
+    workers that missed it), later calls send the argument alone; ordered_sum adds in the parts' order."""
+    held = [Held(np.arange(3.0) + k) for k in range(4)]
+    sent = []
+
+    def recording_map(function, items):  # type: ignore[no-untyped-def]
+        items = list(items)
+        sent.append([it[4] for it in items])
+        return [function(it) for it in items]  # one "worker": this process, with its own store
+
+    first = map_held(recording_map, _scaled, held, [1.0, 2.0, 3.0, 4.0])
+    again = map_held(recording_map, _scaled, held, [1.0, 1.0, 1.0, 1.0])
+    assert sent == [[False] * 4, [True] * 4, [False] * 4]  # missed once, then held
+    assert all(np.array_equal(a, h.value * f) for a, h, f in zip(first, held, (1, 2, 3, 4)))
+    assert all(np.array_equal(a, h.value) for a, h in zip(again, held))
+    assert map_held(SERIAL, _scaled, held, [2.0] * 4)[3].tolist() == [6.0, 8.0, 10.0]
+    parts = [np.array([1e16]), np.array([1.0]), np.array([-1e16])]
+    assert ordered_sum(parts)[0] == (1e16 + 1.0) - 1e16  # the parts' order, whatever ran them
+    assert ordered_sum(iter(parts)) is not parts[0]
+    parallel._held.clear()
+
+
+def test_the_filter_on_runs_of_segments_is_the_masked_filter_to_the_last_digit():
+    """equation_error._filtered filters each segment's run in place (no copies in and out): the numbers
+    of the per-segment masked filter, for a C-ordered and a transposed input."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from lotsen.sysid.equation_error import FILTER_SIGMA_S, _filtered
+
+    rng = np.random.default_rng(4)
+    seg = np.repeat([0, 1, 2], [300, 41, 500])
+    for x in (rng.normal(size=(len(seg), 7)), rng.normal(size=(3, len(seg))).T):
+        ref = np.empty(x.shape)
+        for q in np.unique(seg):
+            ref[seg == q] = gaussian_filter1d(x[seg == q], FILTER_SIGMA_S / 0.125, axis=0, mode="nearest")
+        assert np.array_equal(_filtered(x, seg, 0.125), ref)
+    scattered = np.array([0, 1, 0, 1] * 50)  # not runs: the masked filter itself
+    x = rng.normal(size=(len(scattered), 2))
+    ref = np.empty(x.shape)
+    for q in (0, 1):
+        ref[scattered == q] = gaussian_filter1d(x[scattered == q], 4.0, axis=0, mode="nearest")
+    assert np.array_equal(_filtered(x, scattered, 0.125), ref)
+
+
+def test_the_command_keeps_freed_memory_on_glibc():
+    import platform
+    import sys
+
+    from lotsen.cli.workers import keep_freed_memory
+
+    glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
+    assert keep_freed_memory() == glibc
