@@ -393,15 +393,14 @@ def design_criteria(path: Path, seed: int = 0) -> tuple[float, float]:
     """(A, D) of a designed experiment (module docstring, row 5), the mean over the design's parameter set."""
     import math
 
-    import yaml
-
+    from lotsen.files import read_yaml
     from lotsen.model import VesselModel, VesselParameters
     from lotsen.model.parameters import OPTIONAL_TERMS
     from lotsen.sysid.design import DEFAULT_KNOWN, InformationModel, parameter_samples
     from lotsen.sysid.estimate import DEFAULT_NOISE_STD, NAMES
     from lotsen.sysid.experiment import parse_experiment, predict_trajectory
 
-    exp = parse_experiment(yaml.safe_load(path.read_text()), path.stem)
+    exp = parse_experiment(read_yaml(path, what="experiment"), path.stem)
     free = tuple(n for n in NAMES if n not in DEFAULT_KNOWN and n not in OPTIONAL_TERMS)
     fidx = np.array([NAMES.index(n) for n in free])
     A, D = [], []

@@ -421,6 +421,7 @@ FLAG_KINDS: dict[tuple[tuple[str, ...], str], str] = {
     (("physics-server",), "--current"): "text:speed_dir", (("physics-server",), "--wind"): "text:speed_dir",
     (("physics-server",), "--waves"): "text:waves", (("mission",), "--waves"): "text:waves",
     (("run",), "--waves"): "text:waves", (("experiment", "run"), "--waves"): "text:waves",
+    (("experiment", "check"), "--sea"): "text:waves", (("experiment", "design"), "--sea"): "text:waves",
 }
 
 #: hostile text for the composite flags (kind -> values; True: certainly invalid)
