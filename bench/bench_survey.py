@@ -26,6 +26,7 @@ polygon (6 lines), and no live rows.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -94,6 +95,30 @@ def hull_model_identified(work: Path):
     return VesselModel(f.parameters), f"identified on the hull ({verdict})"
 
 
+def survey_weather():
+    """The current and wind of tables 1 and 1e: (the current north/east in m/s as the estimator would
+    give it, lotsen's Environment, the 6-DOF hull's HullEnvironment)."""
+    sys.path.insert(0, str(PHYSICS))
+    from hull6dof import HullEnvironment
+
+    from lotsen.model import Environment
+
+    a = math.radians(CURRENT[1])
+    current_ne = (CURRENT[0] * math.cos(a), CURRENT[0] * math.sin(a))
+    env = Environment(current_speed_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_speed_mps=WIND[0],
+                      wind_from_deg=WIND[1])
+    hull_env = HullEnvironment(current_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_mps=WIND[0],
+                               wind_from_deg=WIND[1])
+    return current_ne, env, hull_env
+
+
+@functools.cache
+def hull_model_once():
+    """`hull_model_identified` once per bench run: tables 1 and 1e fly the same identified model."""
+    with tempfile.TemporaryDirectory(prefix="bench-survey-") as work:
+        return hull_model_identified(Path(work))
+
+
 def keeping_row(hull: str, model_name: str, res, prediction, size: tuple[float, float], wall_s: float) -> dict:
     """One row of table 1: the report's survey section and the prediction against the flight."""
     from lotsen.stack.prediction import compare_with_flown
@@ -127,7 +152,6 @@ def keeping_row(hull: str, model_name: str, res, prediction, size: tuple[float, 
 
 def keeping_rows(quick: bool) -> list[dict]:
     sys.path.insert(0, str(PHYSICS))
-    from hull6dof import HullEnvironment
     from hull_plant import HullPlant
 
     from lotsen.control import ControlConfig, make_path_follower
@@ -141,14 +165,8 @@ def keeping_rows(quick: bool) -> list[dict]:
     route = route_from_dict(survey_dict(size))
     path = plan_route(route)
     spans = line_spans(route, path)
-    a = math.radians(CURRENT[1])
-    current_ne = (CURRENT[0] * math.cos(a), CURRENT[0] * math.sin(a))
-    env = Environment(current_speed_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_speed_mps=WIND[0],
-                      wind_from_deg=WIND[1])
-    hull_env = HullEnvironment(current_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_mps=WIND[0],
-                               wind_from_deg=WIND[1])
-    with tempfile.TemporaryDirectory(prefix="bench-survey-") as work:
-        hull_model, hull_name = hull_model_identified(Path(work))
+    current_ne, env, hull_env = survey_weather()
+    hull_model, hull_name = hull_model_once()
     # the last two: the MPC with an azimuth's astern direction dropped after 10 s (MPCConfig.azimuth_astern_hold_s,
     # not the default): what the energy and its prediction are without the stuck-astern azimuth
     hold = replace(ControlConfig(), mpc=replace(ControlConfig().mpc, azimuth_astern_hold_s=10.0))
@@ -190,7 +208,7 @@ def waves_rows(quick: bool) -> list[dict]:
     true track (the waves' own motion is in it: no controller should chase it, bench_waves)."""
     from lotsen.control import ControlConfig, make_path_follower
     from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
-    from lotsen.model import Environment, VesselModel
+    from lotsen.model import VesselModel
     from lotsen.model.environment import Waves
     from lotsen.planning.survey.keeping import line_spans
     from lotsen.sim import DEFAULT_BOAT, LAKE_BOAT_PARAMETERS
@@ -200,13 +218,12 @@ def waves_rows(quick: bool) -> list[dict]:
     route = route_from_dict(survey_dict(size))
     path = plan_route(route)
     spans = line_spans(route, path)
-    a = math.radians(CURRENT[1])
     waves = Waves(*WAVES)
-    env = Environment(current_speed_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_speed_mps=WIND[0],
-                      wind_from_deg=WIND[1], waves=waves)
+    current_ne, calm_env, _ = survey_weather()
+    env = replace(calm_env, waves=waves)
     model = VesselModel(LAKE_BOAT_PARAMETERS)
     t0 = time.perf_counter()
-    prediction = predict_mission(path, model, current_ne_mps=(CURRENT[0] * math.cos(a), CURRENT[0] * math.sin(a)),
+    prediction = predict_mission(path, model, current_ne_mps=current_ne,
                                  wind_mps=WIND[0], wind_from_deg=WIND[1], survey_lines=spans, waves=waves,
                                  model_name="the lake boat's coefficients")
     cfg = MissionConfig(environment=env, seed=0, sensors=True, hold_s=1.0)
@@ -226,7 +243,6 @@ def energy_gap_rows(quick: bool = True) -> list[dict]:
     estimator noise) and on the EKF, with the MPC's default and with azimuth_astern_hold_s = 10 s; mean |n|
     of each propeller (azimuth 1, azimuth 2, bow) on the achieved speeds."""
     sys.path.insert(0, str(PHYSICS))
-    from hull6dof import HullEnvironment
     from hull_plant import HullPlant
 
     from lotsen.control import ControlConfig, make_path_follower
@@ -236,14 +252,8 @@ def energy_gap_rows(quick: bool = True) -> list[dict]:
     from lotsen.stack.prediction import predict_mission
 
     path = plan_route(route_from_dict(survey_dict((16.0, 12.0))))
-    a = math.radians(CURRENT[1])
-    current_ne = (CURRENT[0] * math.cos(a), CURRENT[0] * math.sin(a))
-    env = Environment(current_speed_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_speed_mps=WIND[0],
-                      wind_from_deg=WIND[1])
-    hull_env = HullEnvironment(current_mps=CURRENT[0], current_to_deg=CURRENT[1], wind_mps=WIND[0],
-                               wind_from_deg=WIND[1])
-    with tempfile.TemporaryDirectory(prefix="bench-survey-") as work:
-        hull_model, hull_name = hull_model_identified(Path(work))
+    current_ne, env, hull_env = survey_weather()
+    hull_model, hull_name = hull_model_once()
     rows = []
     for hull, model_name, model in (("lake boat", "the lake boat's coefficients", VesselModel(LAKE_BOAT_PARAMETERS)),
                                     ("6-DOF hull", hull_name, hull_model)):
