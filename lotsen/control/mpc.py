@@ -639,19 +639,22 @@ class MPCController:
         S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
         self._R, self._S, self._S_calm = R, S, S.copy()
         p_in_vals: list[float] = []
-        self._p_in_rate: list[tuple[int, float]] = []  # (input entry, how many S it holds) for `_scale_rate`
+        rate_j: list[int] = []  # per input entry of P: its input, and how many S it holds (`_set_rate_scale`)
+        rate_count: list[float] = []
         for k in range(N):
             b = self._wi(k)
             for j in range(NW):
                 diag = R[j] + S[j] + (S[j] if k < N - 1 else 0.0)
                 p_entries.append((b + j, b + j))
                 p_in_vals.append(diag)
-                self._p_in_rate.append((j, 2.0 if k < N - 1 else 1.0))
+                rate_j.append(j)
+                rate_count.append(2.0 if k < N - 1 else 1.0)
             if k >= 1:
                 for j in range(NW):
                     p_entries.append((self._wi(k - 1) + j, b + j))
                     p_in_vals.append(-S[j])
-                    self._p_in_rate.append((j, -1.0))
+                    rate_j.append(j)
+                    rate_count.append(-1.0)
         for k in range(N):
             for j in range(NREV):
                 p_entries.append((self._ti(k) + j, self._ti(k) + j))
@@ -660,11 +663,10 @@ class MPCController:
         self._p_state_pos = self._p_pos[:n_state_p].reshape(N, len(iu[0]))
         self._Px = np.zeros(P.nnz)
         self._Px[self._p_pos[n_state_p:]] = p_in_vals
-        n_in = len(self._p_in_rate)
-        self._p_in_pos = self._p_pos[n_state_p:n_state_p + n_in]
-        self._p_in_R = np.array([R[j] for j, _ in self._p_in_rate]) * np.array([1.0 if c > 0 else 0.0 for _, c in self._p_in_rate])
-        self._p_in_j = np.array([j for j, _ in self._p_in_rate])
-        self._p_in_count = np.array([c for _, c in self._p_in_rate])
+        self._p_in_pos = self._p_pos[n_state_p:n_state_p + len(rate_j)]
+        self._p_in_j = np.array(rate_j)
+        self._p_in_count = np.array(rate_count)
+        self._p_in_R = np.where(self._p_in_count > 0, R[self._p_in_j], 0.0)  # R on the diagonal only
         self._Px[self._p_state_pos] = 1e-6  # replaced before the first solve
         # --- A: x0 = x_meas; dynamics; input bounds; rate bounds
         a_entries: list[tuple[int, int]] = []
