@@ -178,6 +178,16 @@ class EkfConfig:
     # 2-3 rad/s, where the waves drive the hull slowly and strongly and a tight model loses it (1 m/s, Hs
     # 10 cm: the GNSS 40 cm off in 0.75 s, declared inconsistent)
     wave_slack_frequency_radps: tuple[float, float] = (3.0, 5.0)
+    # The low-frequency model's own error, as the accelerometer measures it: the accelerometer's
+    # innovation averaged over `model_error_time_s` (the waves' accelerations, at 4-12 rad/s, average
+    # out; a force the model does not have stays) beyond `model_error_sigmas` of that average's noise
+    # becomes surge and sway process noise (its square x `model_error_time_s`), so GNSS velocity
+    # takes over while the model is wrong, instead of being rejected by a model it disagrees with
+    # (an independent hull heeled 22 deg and sliding 0.7 m/s sideways in a hard turn in Hs 6 cm: the
+    # accelerometer read 1.4 m/s^2 the model did not predict, GNSS velocity was gated out and the
+    # integrity monitor declared the GNSS inconsistent; covariance matching, Mehra 1972). 0: off.
+    model_error_time_s: float = 0.5
+    model_error_sigmas: float = 4.0
     wave_band: WaveBandConfig = field(default_factory=WaveBandConfig)
     # roll and pitch from the IMU, to take gravity out of the accelerometer's horizontal axes
     tilt_compensation: bool = True
@@ -272,6 +282,11 @@ class ModelAidedEKF:
         # differentiated (independent of the model, whose force errors would otherwise read as tilt),
         # the model's prediction while there is no GNSS velocity
         self._accel_pred = (0.0, 0.0)
+        # the accelerometer's innovation averaged over model_error_time_s (surge, sway), its noise's
+        # variance in that average, and the process noise it makes (EkfConfig.model_error_time_s)
+        self._accel_innovation_mean = np.zeros(2)
+        self._accel_innovation_t = -math.inf
+        self.model_error_q = np.zeros(2)
         self._gnss_accel: tuple[float, float, float] | None = None  # (stamp, a_N, a_E)
         self._gnss_vel_prev: tuple[float, float, float] | None = None  # (stamp, v_N, v_E)
         self._body_rates_pq = (0.0, 0.0)  # the last gyro's x and y rates, offsets removed (the mast's swing)
@@ -395,6 +410,8 @@ class ModelAidedEKF:
             P[:, :6] += GP.T
             P[:6, :6] += GP @ G.T
             P.flat[diag] += q * dt
+            P[3, 3] += self.model_error_q[0] * dt
+            P[4, 4] += self.model_error_q[1] * dt
             if self.config.sigma_thrust_rel > 0.0 or self.config.sigma_azimuth_rad > 0.0:
                 P[3:6, 3:6] += self._actuator_accel_cov(B, u, thrust_rel) * (self.config.thrust_error_correlation_s * dt)
             if self.i_wave is not None:
@@ -813,7 +830,26 @@ class ModelAidedEKF:
         R = np.eye(2) * self.config.sigma_accel_mps2 ** 2 + self._actuator_accel_cov(B, u_in)[:2, :2]
         if self.i_wave is not None:  # horizontal wave accelerations are about the heave's (circular orbits)
             R += np.eye(2) * self.wave_band.heave_accel_std_mps2 ** 2
-        self._update("accel", np.array(a) - h, H, R, reopen=reopen)
+        y = np.array(a) - h
+        S = H @ self.P @ H.T + R
+        if self._update("accel", y, H, R, reopen=reopen):  # a spike the gate rejects is no model error
+            self._track_model_error(y, S)
+
+    def _track_model_error(self, y: np.ndarray, S: np.ndarray) -> None:
+        """The low-frequency model's force error from the accelerometer (EkfConfig.model_error_time_s):
+        the innovation's running mean; beyond model_error_sigmas of the mean's own noise (for white
+        innovations of covariance S the mean's variance is S k / (2 - k)), its square is process noise."""
+        c = self.config
+        if not c.model_error_time_s > 0.0 or not np.all(np.isfinite(y)):
+            return
+        t = self.t if self.t is not None else 0.0
+        dt, self._accel_innovation_t = t - self._accel_innovation_t, t
+        k = min(1.0, max(0.0, dt) / c.model_error_time_s)
+        m = self._accel_innovation_mean
+        m += k * (y - m)
+        noise = np.sqrt(np.clip(np.diag(S), 0.0, None) * k / (2.0 - k))
+        excess = np.clip(np.abs(m) - c.model_error_sigmas * noise, 0.0, None)
+        self.model_error_q = excess * excess * c.model_error_time_s
 
     def on_mag(self, m: MagSample) -> None:
         mx, my = m.field_uT[0], m.field_uT[1]
