@@ -340,6 +340,8 @@ class SupervisorNode(Node):
         mode = self.modes[REQUESTED_MODE[action]]
         if mode.requires_armed and not self.armed:
             return "arm first"
+        if action == "auto" and self.route_checking:  # the operator means the route just sent
+            return f"route {self.route_checking} is still being checked"
         if action in PREARM_ACTIONS:  # every failing pre-arm check, listed
             why = describe(blocking(self.prearm_failures(action), self.config.failsafes))
             if why or action != "experiment":
@@ -352,8 +354,6 @@ class SupervisorNode(Node):
             return "no trustworthy heading estimate"
         if mode.requires_position and not self.position_ok():
             return "no usable position estimate"
-        if action == "auto" and self.route_checking:
-            return f"route {self.route_checking} is still being checked"
         if action == "auto" and self.path is None:
             return "no route loaded"
         return ""
