@@ -428,7 +428,8 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
         while True:
             frame = pilot.wait_for(_left("AUTO"), 0.2)
             now = clock.now()
-            if plan.reupload_after_auto_s is not None and not reuploaded and now - t_auto >= plan.reupload_after_auto_s:
+            if plan.route is not None and plan.reupload_after_auto_s is not None and not reuploaded \
+                    and now - t_auto >= plan.reupload_after_auto_s:
                 reuploaded = True
                 uploads.append(now)
                 reply = pilot.request({"type": "route", "route": plan.route}, timeout_s=60)
