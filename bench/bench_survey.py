@@ -357,7 +357,10 @@ def live_rows() -> list[dict]:
                      "line_max_cm": round(100 * f.get("survey_cross_track_max_m", math.nan), 2),
                      "settle_max_m": settle, "on_lines_pct": round(100 * f.get("survey_share_on_lines", math.nan), 1),
                      "energy_Wh": round(f.get("energy_J", math.nan) / 3600, 2),
-                     "ship_command_hz": f.get("ship_command_hz"), "failures": "; ".join(r.failures)[:200] or "none",
+                     "ship_command_hz": f.get("ship_command_hz"),
+                     # the largest gap in AUTO, and within 10 s of the route's upload (before arming)
+                     "max_gap_ms": f.get("ship_command_max_gap_ms"), "route_gap_ms": f.get("route_arrival_max_gap_ms"),
+                     "failures": "; ".join(r.failures)[:200] or "none",
                      "wall_s": round(time.perf_counter() - t0, 1),
                      "target": "the survey flown to its end without a failsafe; line keeping as table 1",
                      "pass": bool(r.ok and f.get("survey_cross_track_rms_m", 1) <= 0.02

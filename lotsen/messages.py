@@ -428,20 +428,28 @@ class RouteMessage:
     route_id: str = ""
 
 
+#: field metadata: a long tuple of floats whose JSON form is the base64 of its float64 values
+#: (little endian), not a list of numbers (lotsen.transport.codec; docs/logs.md). A survey's path
+#: is ~78 000 points: as lists of numbers its 6.5 MB of JSON took the core's Zenoh thread 0.2 s of
+#: json.loads, one C call holding the interpreter lock the control loop needs; packed it is 0.01 s
+PACKED_FLOATS = {"packed": "float64le"}
+
+
 @dataclass(slots=True, kw_only=True)
 class PlannedRoute:
     """A route and the path planned from it, planned once (by the planner worker) and sent as is:
-    the supervisor checks and follows it without planning again. Arrays at the planner's spacing."""
+    the supervisor checks and follows it without planning again. Arrays at the planner's spacing
+    (packed on the wire: `PACKED_FLOATS`)."""
 
     stamp_s: float
     route_id: str  # lotsen.planning.io.route_id(route): the page compares it with the read-back
     route: dict
-    s_m: tuple[float, ...]
-    north_m: tuple[float, ...]
-    east_m: tuple[float, ...]
-    heading_rad: tuple[float, ...]
-    curvature_1pm: tuple[float, ...]
-    speed_mps: tuple[float, ...]
+    s_m: tuple[float, ...] = field(metadata=PACKED_FLOATS)
+    north_m: tuple[float, ...] = field(metadata=PACKED_FLOATS)
+    east_m: tuple[float, ...] = field(metadata=PACKED_FLOATS)
+    heading_rad: tuple[float, ...] = field(metadata=PACKED_FLOATS)
+    curvature_1pm: tuple[float, ...] = field(metadata=PACKED_FLOATS)
+    speed_mps: tuple[float, ...] = field(metadata=PACKED_FLOATS)
     node_s_m: tuple[float, ...] = ()  # arc length at each route node (harbour first)
     source: str = "operator"
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+import os
 import queue
 import threading
 from dataclasses import dataclass
@@ -60,6 +61,12 @@ class NodeContext:
         self.bus.publish("log", LogEvent(stamp_s=self.clock.now(), level=level, source=self.node_name,
                                          text=text, data=data))
 
+    def run_in_background(self, work: Callable[[], Any], done: Callable[[Any, BaseException | None], None]) -> None:
+        """`work()` away from the node's timers, then `done(result, error)` back on the node's thread
+        (error: what `work` raised, else None). For work too long for one control period (checking a
+        survey's 78 000-point path); `work` must touch nothing the node changes meanwhile."""
+        self.executor.run_in_background(work, done)
+
 
 class Node:
     """Base class of runtime nodes: override `start` (subscribe, add timers) and maybe `stop`."""
@@ -104,6 +111,15 @@ class Executor:
         except Exception as exc:  # a failing node must not stop the others; it is reported
             self.timer_errors += 1
             self._report(f"timer {timer.name or getattr(timer.callback, '__qualname__', '?')}", exc, timer.name)
+
+    def run_in_background(self, work: Callable[[], Any], done: Callable[[Any, BaseException | None], None]) -> None:
+        """Here (simulated time, and any executor without a thread of its own): at once, on this
+        thread, so a simulated run stays deterministic and takes no simulated time for it."""
+        try:
+            result, error = work(), None
+        except Exception as exc:  # noqa: BLE001 - handed to `done`, which decides
+            result, error = None, exc
+        done(result, error)
 
     def _report(self, where: str, exc: Exception, source: str) -> None:
         text = self.errors.record(where, "", exc)
@@ -162,6 +178,60 @@ class SimExecutor(Executor):
         self.run_until(self.clock.now() + duration_s, stop)
 
 
+class BackgroundThread:
+    """One thread for a real-time loop's long jobs, one below the loop in the scheduler.
+
+    A new thread inherits its creator's policy: made from a loop at real-time priority (the core:
+    SCHED_FIFO) it would have the loop's priority, and a FIFO peer on the loop's CPU is not
+    preempted: the loop would wait for every job to block. It takes SCHED_RR one level below
+    instead (as the core's other threads, `apply_core_priority`): the loop preempts it whenever it
+    does not hold the interpreter lock, and nothing outside the core preempts it while it does."""
+
+    def __init__(self, post: Callable[[Callable[[], None]], None], name: str = "loop-background") -> None:
+        self._post = post
+        self._jobs: queue.SimpleQueue[tuple[Callable[[], Any], Callable[[Any, BaseException | None], None]] | None] = \
+            queue.SimpleQueue()
+        self._policy = _scheduling_of_this_thread()
+        self._thread = threading.Thread(target=self._serve, name=name, daemon=True)
+        self._thread.start()
+
+    def submit(self, work: Callable[[], Any], done: Callable[[Any, BaseException | None], None]) -> None:
+        self._jobs.put((work, done))
+
+    def close(self) -> None:
+        self._jobs.put(None)
+
+    def _serve(self) -> None:
+        _below(self._policy)
+        while (job := self._jobs.get()) is not None:
+            work, done = job
+            try:
+                result, error = work(), None
+            except Exception as exc:  # noqa: BLE001 - handed to `done` on the loop's thread
+                result, error = None, exc
+            self._post(lambda done=done, result=result, error=error: done(result, error))
+
+
+def _scheduling_of_this_thread() -> tuple[int, int] | None:
+    try:
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    except (AttributeError, OSError):
+        return None
+
+
+def _below(policy: tuple[int, int] | None) -> None:
+    """This thread one real-time level below `policy` (its creator's), or as it is when that was not real-time."""
+    if policy is None or policy[0] not in (getattr(os, "SCHED_FIFO", -1), getattr(os, "SCHED_RR", -1)):
+        return
+    try:
+        if policy[1] > 1:
+            os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(policy[1] - 1))
+        else:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (AttributeError, PermissionError, OSError):
+        pass
+
+
 #: the longest the real-time loop sleeps when no timer is due sooner (it wakes at once for calls)
 IDLE_WAIT_S = 1.0
 
@@ -175,13 +245,23 @@ class RealtimeExecutor(Executor):
         self._stop = threading.Event()
         #: when the loop last finished a timer (clock seconds): a watchdog's proof of life
         self.beat_s = -math.inf
+        self._background: BackgroundThread | None = None
 
     def call_soon_threadsafe(self, fn: Callable[[], None]) -> None:
         self._calls.put(fn)
 
+    def run_in_background(self, work: Callable[[], Any], done: Callable[[Any, BaseException | None], None]) -> None:
+        """`work()` on this executor's background thread (one, started on first use; jobs in
+        order), `done(result, error)` then on the loop's thread, between timers."""
+        if self._background is None:
+            self._background = BackgroundThread(self.call_soon_threadsafe)
+        self._background.submit(work, done)
+
     def stop(self) -> None:
         self._stop.set()
         self._calls.put(lambda: None)
+        if self._background is not None:
+            self._background.close()
 
     def _call(self, fn: Callable[[], None]) -> None:
         try:

@@ -27,6 +27,7 @@ from lotsen.stack.stack import Stack, model_info
 from lotsen.stack.web import add_web as _add_web
 from lotsen.stack.zenoh import add_bridge
 from lotsen.supervisor.node import SupervisorConfig, SupervisorNode
+from lotsen.supervisor.prearm import route_corridor_m
 
 
 def twin_factory_calibration(stack: Stack) -> MagCalibration:
@@ -138,7 +139,9 @@ def add_supervisor(stack: Stack, follower: Any = None, station_keeper: Any = Non
     if cfg.route:
         route = load_route(cfg.route)
         msg = planned_route_message(route, plan_route(route, cfg.extra.planner), source="config")
-        sup.set_route(route, path_from_message(msg), msg.route_id, msg.node_s_m)
+        path = path_from_message(msg)
+        # the corridor now, at start-up: on the loop a survey's took 0.17 s (pre-arm checks)
+        sup.set_route(route, path, msg.route_id, msg.node_s_m, route_corridor_m(route, path))
         if route.area is not None:  # the configured area is the boat's own: no upload may leave it
             sup.fence = route
     stack.add(sup)

@@ -65,9 +65,14 @@ class LivePlan:
     return_home: bool = True
     route_timeout_s: float = 600.0
     # the pilot arms this long after the boat reported holding the route (reads the read-back first). A
-    # survey's route (the 40 x 30 m one: 86 000 path points) stalls the core's loop 0.15-0.2 s when it
-    # arrives (2026-11-28): an AUTO asked for then is refused (the estimator's health blinks)
+    # survey's route (the 40 x 30 m one: 78 000 path points) stalled the core's loop 0.15-0.2 s when it
+    # arrived (2026-11-28, before it was packed and checked off the loop): an AUTO asked for then was
+    # refused (the estimator's health blinked)
     arm_after_route_s: float = 0.0
+    # the pilot uploads the route again this long into AUTO: the boat flies the route it holds while the
+    # new one is checked, then holds (a new route while moving); the run ends there. Each upload's
+    # neighbourhood is judged for the control loop's gaps (`route_arrival_max_gap_ms`)
+    reupload_after_auto_s: float | None = None
     seed: int = 0
     environment: dict | None = None  # overrides sim.environment (current, wind)
     flood_viewers: int = 0  # strangers sending maximal valid `plan` requests while the boat is in AUTO
@@ -366,6 +371,7 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
     pilot: PilotSocket | None = None
     t_auto = t_route_end = math.nan
     flood_counts: dict = {}
+    uploads: list[float] = []  # when the pilot sent the route (runtime s)
     try:
         pids = live.wait_ready(plan.startup_timeout_s)
         note(f"started: {pids}")
@@ -380,10 +386,12 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
         if pilot.wait_for(lambda f: "link_lost" not in (f.get("sup") or {}).get("failsafes", ["link_lost"]), 10) is None:
             raise RuntimeError("the boat never reported the pilot's link")
         if plan.route is not None:
+            t_upload = clock.now()
             reply = pilot.request({"type": "route", "route": plan.route}, timeout_s=60)
             if reply.get("type") != "route_ok":
                 raise RuntimeError(f"route refused: {reply}")
             rid = reply["route_id"]
+            uploads.append(t_upload)
             if pilot.wait_for(lambda f: (f.get("sup") or {}).get("route_id") == rid, 10) is None:
                 raise RuntimeError("the boat never reported holding the uploaded route")
             note(f"route {rid} held by the boat")
@@ -415,10 +423,21 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
             note(f"flood: {plan.flood_viewers} strangers start")
         t_flood_end = clock.now() + plan.flood_s
         killed = False
+        reuploaded = False
         deadline = clock.now() + plan.route_timeout_s
         while True:
             frame = pilot.wait_for(_left("AUTO"), 0.2)
             now = clock.now()
+            if plan.route is not None and plan.reupload_after_auto_s is not None and not reuploaded \
+                    and now - t_auto >= plan.reupload_after_auto_s:
+                reuploaded = True
+                uploads.append(now)
+                reply = pilot.request({"type": "route", "route": plan.route}, timeout_s=60)
+                note(f"route uploaded again in AUTO: {reply.get('type')}")
+                if reply.get("type") != "route_ok":
+                    failures.append(f"route refused when uploaded again: {reply}")
+                    break
+                continue
             if flooders and now >= t_flood_end and not stop_flood.is_set():
                 stop_flood.set()
                 note("flood ends")
@@ -434,6 +453,8 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
                 mode, reason = _mode(frame)
                 t_route_end = clock.now()
                 note(f"{mode}: {reason}")
+                if reuploaded and mode == "HOLD" and "new route" in reason:
+                    break  # what the second upload asks for
                 if not (mode == "HOLD" and "finished" in reason):
                     failures.append(f"left AUTO before the route's end: {mode} ({reason})")
                 break
@@ -476,7 +497,10 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
     else:
         figures.update(analyse_log(log_path, t_auto, t_route_end if math.isfinite(t_route_end) else t_stop, t_stop,
                                    failures, plan.allowed_failsafes))
-        if plan.route is not None and plan.route.get("survey") is not None and math.isfinite(t_route_end):
+        if uploads:
+            figures.update(arrival_gaps(log_path, uploads, failures))
+        if plan.route is not None and plan.route.get("survey") is not None and math.isfinite(t_route_end) \
+                and plan.reupload_after_auto_s is None:
             figures.update(survey_figures(log_path, t_auto, t_route_end))
     figures.update(telemetry_figures(frames, t_auto, t_route_end if math.isfinite(t_route_end) else t_stop))
     if flood_counts:
@@ -586,6 +610,28 @@ def analyse_log(path: str, t_from: float, t_to: float, t_stop: float, failures: 
     else:
         failures.append("no ship_command in the AUTO window")
     fig["auto_s"] = round(t_to - t_from, 1)
+    return fig
+
+
+#: a route upload's neighbourhood judged for the control loop's gaps: from the request to this long after
+#: it (the planner worker plans it first: the 40 x 30 m survey in 0.3-2 s on this machine)
+ARRIVAL_WINDOW_S = 10.0
+
+
+def arrival_gaps(path: str, uploads: list[float], failures: list[str]) -> dict[str, float]:
+    """The largest gap between ship_commands within ARRIVAL_WINDOW_S after each route upload (the
+    route's arrival in the core, its check, the switch), against the live-stack bar of 150 ms."""
+    cmds = np.array(sorted(c.stamp_s for _, c in read_log(path, [Topic.SHIP_COMMAND]) if isinstance(c, ThrustCommand)))
+    fig: dict[str, float] = {}
+    worst = 0.0
+    for k, t in enumerate(uploads):
+        inside = cmds[(cmds >= t) & (cmds <= t + ARRIVAL_WINDOW_S)]
+        gap = float(np.max(np.diff(inside))) * 1000 if len(inside) > 2 else math.inf
+        fig[f"route_arrival_{k + 1}_max_gap_ms"] = round(gap, 1)
+        worst = max(worst, gap)
+    fig["route_arrival_max_gap_ms"] = round(worst, 1)
+    if worst > 150:
+        failures.append(f"ship_command gap {worst:.1f} ms when a route arrived (bar: <= 150 ms)")
     return fig
 
 

@@ -142,18 +142,20 @@ def add_web(stack: Stack, run_blocking: Any = None, tls: bool = False) -> WebSer
 
 
 def add_prediction(hub: Any, config: StackConfig) -> None:
-    """The page's Predict: the run's model in use and controller, the estimator's current now."""
-    from lotsen.messages import Topic, VesselState
-    from lotsen.stack.page_prediction import PagePredictor
+    """The page's Predict: the run's model in use and controller, the current and the sea the
+    estimator knows now (the latest state/estimate and fusion/sea_state the page receives)."""
+    from lotsen.messages import SeaState, Topic, VesselState
+    from lotsen.stack.page_prediction import EstimatedConditions, PagePredictor, estimated_conditions
     from lotsen.stack.stack import model_info, vessel_model
 
     model = vessel_model(config)
     hub.handler.predict = PagePredictor(model.params, model.geometry, model_info(config, model).source,
                                         config.nodes.controller, config.extra.planner)
 
-    def estimated_current() -> tuple[float, float]:
-        state = hub.state.latest.get(Topic.STATE)
-        return tuple(state.current_ne_mps) if isinstance(state, VesselState) else (0.0, 0.0)
+    def estimated_current() -> EstimatedConditions:  # the handler's name for it: what Predict is given
+        state, sea = hub.state.latest.get(Topic.STATE), hub.state.latest.get(Topic.SEA_STATE)
+        return estimated_conditions(state.current_ne_mps if isinstance(state, VesselState) else None,
+                                    sea if isinstance(sea, SeaState) else None)
 
     hub.handler.estimated_current = estimated_current
 

@@ -96,6 +96,8 @@ class SupervisorNode(Node):
         self.path: Any = None
         self.route_id = ""
         self.node_s: tuple[float, ...] = ()
+        self.route_checking = ""  # the id of a received route being checked (off the loop), "" = none
+        self._route_seq = 0  # received routes, counted: only the last one's check result counts
         self.active_path: Any = None  # the path AUTO/RETURN is following
         self._time_to_end: np.ndarray | None = None  # planned seconds from each path point to the end
         # modes
@@ -255,40 +257,38 @@ class SupervisorNode(Node):
 
     # ------------------------------------------------------------------ routes
     def _on_route(self, msg: Any) -> None:
+        """A received route is checked away from the control loop (`check_planned_route`: a
+        survey's 78 000-point path took 0.2 s, two control periods) and switched to as a whole when
+        its check is done: until then the boat keeps the route it held, and flies it in AUTO."""
         if not isinstance(msg, PlannedRoute):
             self._refuse("route", "the boat takes planned routes (PlannedRoute) only; plan it first")
             return
-        try:
-            route = route_from_dict(msg.route)
-            path = path_from_message(msg)
-            self._check_path_inside(route, path)
-            self._check_path_inside(self.fence, path, "of the boat (its launch config)")
-        except LotsenError as exc:
+        self._route_seq += 1
+        seq, fence, tolerance = self._route_seq, self.fence, self.config.route_fence_tolerance_m
+        self.route_checking = msg.route_id or "(no id)"
+        self.ctx.run_in_background(lambda: check_planned_route(msg, fence, tolerance),
+                                   lambda checked, error: self._route_checked(seq, msg, checked, error))
+
+    def _route_checked(self, seq: int, msg: PlannedRoute, checked: CheckedRoute | None,
+                       error: BaseException | None) -> None:
+        """On the loop's thread: the route, its path, id and corridor switched together, or refused."""
+        if seq != self._route_seq:
+            return  # a newer route arrived while this one was checked: the newer one counts
+        self.route_checking = ""
+        if error is not None or checked is None:
             self.counters["routes_refused"] += 1
-            self._refuse("route", str(exc))
+            why = str(error) if isinstance(error, LotsenError) else f"route {msg.route_id}: not checkable ({error!r})"
+            self._refuse("route", why)
+            self._publish_status()
             return
         t = self.ctx.now()
         if self.mode.moving:
             self.enter_hold(t, "new route received while moving")
-        self.set_route(route, path, msg.route_id, msg.node_s_m)
-        self.ctx.log("info", f"route {msg.route_id} accepted: {len(route.nodes)} nodes, {path.length_m:.1f} m")
+        self.set_route(checked.route, checked.path, msg.route_id, msg.node_s_m, checked.corridor_m)
+        self.ctx.log("info", f"route {msg.route_id} accepted: {len(checked.route.nodes)} nodes, "
+                             f"{checked.path.length_m:.1f} m")
         self._publish_route()
         self._publish_status()
-
-    def _check_path_inside(self, route: Any, path: Any, whose: str = "of the route") -> None:
-        """A received path must lie in the route's navigable water (the planner's promise, checked)
-        and in the boat's own (`fence`), whatever area the route itself declares: a page that
-        cleared or widened the area cannot send the boat beyond the configured one."""
-        if route is None or (route.area is None and not route.obstacles):
-            return
-        free = route.free_region().buffer(self.config.route_fence_tolerance_m)
-        step = max(1, len(path) // 2000)
-        inside = contains_xy(free, path.north_m[::step], path.east_m[::step])
-        if not np.all(inside):
-            i = int(np.argmin(inside)) * step
-            d = free.distance(Point(path.north_m[i], path.east_m[i]))
-            raise LotsenError(f"route: the path leaves the navigable area {whose} at ({path.north_m[i]:.1f}, {path.east_m[i]:.1f}) m "
-                              f"({d:.1f} m outside); the boat keeps the route it held")
 
     def return_route(self) -> Any:
         """The route the return to the harbour is planned in: the route in use, inside the boat's
@@ -298,9 +298,13 @@ class SupervisorNode(Node):
             return r
         return replace(r, area=f.area, obstacles=tuple(r.obstacles) + tuple(f.obstacles))
 
-    def set_route(self, route: Any, path: Any, route_id: str = "", node_s: tuple[float, ...] = ()) -> None:
-        """Hold `route` and its planned `path` (the launch config's route, or one received)."""
+    def set_route(self, route: Any, path: Any, route_id: str = "", node_s: tuple[float, ...] = (),
+                  corridor_m: float | None = None) -> None:
+        """Hold `route` and its planned `path` (the launch config's route, or one received); with
+        its corridor when known (else the first pre-arm check computes it, on the loop)."""
         self.route, self.path, self.route_id, self.node_s = route, path, route_id, tuple(node_s)
+        if corridor_m is not None:
+            self._corridor = (route, path, corridor_m)
 
     def _publish_route(self) -> None:
         t = self.ctx.now()
@@ -336,6 +340,8 @@ class SupervisorNode(Node):
         mode = self.modes[REQUESTED_MODE[action]]
         if mode.requires_armed and not self.armed:
             return "arm first"
+        if action == "auto" and self.route_checking:  # the operator means the route just sent
+            return f"route {self.route_checking} is still being checked"
         if action in PREARM_ACTIONS:  # every failing pre-arm check, listed
             why = describe(blocking(self.prearm_failures(action), self.config.failsafes))
             if why or action != "experiment":
@@ -661,6 +667,41 @@ class SupervisorNode(Node):
             remaining_m=round(path.length_m - s, 3), eta_s=round(eta, 1), next_node=next_node,
             distance_to_next_node_m=round(dist, 3) if math.isfinite(dist) else math.nan,
             route_id=self.route_id if path is self.path else ""))
+
+
+@dataclass(frozen=True)
+class CheckedRoute:
+    """A received route made ready to fly: parsed, its path built and inside the navigable water."""
+
+    route: Any  # lotsen.planning.Route
+    path: Any  # lotsen.planning.Path
+    corridor_m: float  # prearm.route_corridor_m: the smallest distance from the path to the shore
+
+
+def check_planned_route(msg: PlannedRoute, fence: Any, tolerance_m: float) -> CheckedRoute:
+    """The supervisor's check of a received route (pure; LotsenError says why it is refused): it
+    parses, its arrays are a path, and the path lies in the route's navigable water (the planner's
+    promise, checked) and in the boat's own (`fence`), whatever area the route itself declares: a
+    page that cleared or widened the area cannot send the boat beyond the configured one."""
+    route = route_from_dict(msg.route)
+    path = path_from_message(msg)
+    check_path_inside(route, path, tolerance_m)
+    check_path_inside(fence, path, tolerance_m, "of the boat (its launch config)")
+    return CheckedRoute(route, path, route_corridor_m(route, path))
+
+
+def check_path_inside(route: Any, path: Any, tolerance_m: float, whose: str = "of the route") -> None:
+    """LotsenError when `path` leaves `route`'s navigable water by more than `tolerance_m`."""
+    if route is None or (route.area is None and not route.obstacles):
+        return
+    free = route.free_region().buffer(tolerance_m)
+    step = max(1, len(path) // 2000)
+    inside = contains_xy(free, path.north_m[::step], path.east_m[::step])
+    if not np.all(inside):
+        i = int(np.argmin(inside)) * step
+        d = free.distance(Point(path.north_m[i], path.east_m[i]))
+        raise LotsenError(f"route: the path leaves the navigable area {whose} at ({path.north_m[i]:.1f}, "
+                          f"{path.east_m[i]:.1f}) m ({d:.1f} m outside); the boat keeps the route it held")
 
 
 def _with_controller(config: Any, name: str) -> Any:

@@ -7,7 +7,9 @@ Two layers:
   become `null` (NaN) or the strings "inf" / "-inf", so the JSON is strict (Foxglove and browsers
   reject bare `NaN`). `from_jsonable` rebuilds the dataclass from the field type hints, so tuples,
   enums, bytes, NaN and nested messages come back as they were. `json_schema(cls)` generates the
-  JSON schema that the MCAP channels carry.
+  JSON schema that the MCAP channels carry. A field marked `PACKED_FLOATS` (the arrays of a
+  `PlannedRoute`) is one base64 text of its float64 values, little endian, and reads back from
+  that or from a list of numbers (logs written before).
 
 * **Wire envelope** (format version 1), used on Zenoh, documented in docs/logs.md::
 
@@ -145,15 +147,44 @@ def _str_field(v: Any) -> Any:
     return v if type(v) is str else _value_out(v)
 
 
+def _packed(cls: type) -> frozenset[str]:
+    """The fields of `cls` whose JSON form is packed (`lotsen.messages.PACKED_FLOATS`)."""
+    return frozenset(f.name for f in dataclasses.fields(cls) if f.metadata.get("packed") == "float64le")
+
+
+def _packed_out(v: Any) -> str:
+    """A tuple of floats as the base64 of its float64 values, little endian (NaN and inf as they are)."""
+    import numpy as np
+
+    return base64.b64encode(np.asarray(v, dtype="<f8").tobytes()).decode("ascii")
+
+
+def _packed_in(v: Any) -> tuple:
+    """A packed field back: base64 text, or a list of numbers (what older writers and logs have)."""
+    if isinstance(v, str):
+        import numpy as np
+
+        raw = base64.b64decode(v, validate=True)
+        if len(raw) % 8:
+            raise ValueError(f"packed floats: {len(raw)} bytes is not a whole number of float64")
+        return tuple(np.frombuffer(raw, dtype="<f8").tolist())
+    if not isinstance(v, (list, tuple)):
+        raise ValueError(f"expected base64 text or a list of numbers, got {type(v).__name__}")
+    return tuple(_float_in(x) for x in v)
+
+
 @functools.lru_cache(maxsize=None)
 def _field_encoders(cls: type) -> tuple[tuple[str, Any], ...]:
     """Per field, a function giving the JSON form of its value: `_value_out`, with a shortcut for
     the value the type hint names (floats, tuples of floats, text); any other value takes the
     general path, so the JSON is the same whatever a publisher put in the field."""
     out = []
+    packed = _packed(cls)
     for name, tp in _fields(cls):
         args = typing.get_args(tp)
-        if tp is float:
+        if name in packed:
+            enc = _packed_out
+        elif tp is float:
             enc = _float_field
         elif tp is str:
             enc = _str_field
@@ -241,7 +272,8 @@ def _decoder(tp: Any) -> Any:
 
 @functools.lru_cache(maxsize=None)
 def _field_decoders(cls: type) -> tuple[tuple[str, Any], ...]:
-    return tuple((name, _decoder(tp)) for name, tp in _fields(cls))
+    packed = _packed(cls)
+    return tuple((name, _packed_in if name in packed else _decoder(tp)) for name, tp in _fields(cls))
 
 
 def from_jsonable(cls: type | str, data: dict) -> Any:
@@ -282,6 +314,8 @@ def decode_json(cls: type | str, data: bytes | str) -> Any:
 
 # ---------------------------------------------------------------------------- JSON schema
 _NUMBER = {"type": ["number", "null", "string"]}  # null = NaN, "inf"/"-inf"
+_PACKED_SCHEMA = {"type": "string", "contentEncoding": "base64",
+                  "description": "float64 values, little endian (older writers: an array of numbers)"}
 
 
 def _schema_of(tp: Any) -> dict:
@@ -318,7 +352,8 @@ def _schema_of(tp: Any) -> dict:
 
 @functools.lru_cache(maxsize=None)
 def _json_schema_cached(cls: type) -> str:
-    props = {name: _schema_of(tp) for name, tp in _fields(cls)}
+    packed = _packed(cls)
+    props = {name: _PACKED_SCHEMA if name in packed else _schema_of(tp) for name, tp in _fields(cls)}
     required = [f.name for f in dataclasses.fields(cls) if f.init and f.default is dataclasses.MISSING
                 and f.default_factory is dataclasses.MISSING]
     doc = (cls.__doc__ or "").strip().splitlines()

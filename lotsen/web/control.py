@@ -100,10 +100,11 @@ class ControlHandler:
         self.settings = Settings(self.planner_config)  # the parameter sheet (lotsen.web.settings)
         self.broadcast = broadcast or (lambda m: None)  # a message to every page
         self.rerun = rerun  # the route over the holes of the held survey (lotsen.web.coverage)
-        # the mission's time and energy predicted (route, current north/east m/s) -> dict, run in the planner
-        # worker; set by the stack (lotsen.stack.page_prediction.PagePredictor), and the estimator's current
-        self.predict: Callable[[dict, tuple[float, float]], dict] | None = None
-        self.estimated_current: Callable[[], tuple[float, float]] = lambda: (0.0, 0.0)
+        # the mission's time and energy predicted (route, conditions) -> dict, run in the planner worker; set
+        # by the stack (lotsen.stack.page_prediction.PagePredictor), with what the estimator knows now: its
+        # current north/east m/s, or an EstimatedConditions (the current and the sea)
+        self.predict: Callable[[dict, Any], dict] | None = None
+        self.estimated_current: Callable[[], Any] = lambda: (0.0, 0.0)
         self._instance = secrets.token_hex(4)  # request ids of this process never repeat an earlier one's
 
     # -- connection life cycle ---------------------------------------------------------------
@@ -296,7 +297,7 @@ class ControlHandler:
 
     async def _on_predict(self, session: Session, msg: Message) -> list[dict]:
         """The route's time and energy before the boat leaves: flown on the model in use in the current
-        the estimator knows now (lotsen.stack.prediction), in the planner worker."""
+        and the sea the estimator knows now (lotsen.stack.prediction), in the planner worker."""
         if self.predict is None:
             raise LotsenError("predict: this server has no prediction (the boat's stack sets it)")
         result = await self.run_blocking(self.predict, msg.fields["route"], self.estimated_current())

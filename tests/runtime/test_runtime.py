@@ -187,3 +187,39 @@ def test_the_realtime_loop_sleeps_until_its_next_timer_and_wakes_for_a_call_at_o
     assert 0.95 <= wall < 1.3 and len(ticks) in (4, 5)  # at 0, 0.25, ... s
     assert calls and calls[0] - t0 < 0.2  # the call ran when it came, not at the next timer
     assert cpu < 0.05  # ~6 wake-ups, no polling between them (a 20 Hz poll alone took ~1.5 ms / s)
+
+
+def test_background_work_runs_off_the_loop_and_its_result_comes_back_on_the_loops_thread():
+    """`run_in_background`: on a real-time executor the work runs on another thread while the loop keeps
+    its timers, and `done` runs on the loop's thread with the result or the error; on simulated time it
+    runs at once, inline (deterministic, no simulated time taken)."""
+    import threading
+    import time
+
+    from lotsen.runtime import RealtimeExecutor
+
+    ex = RealtimeExecutor()
+    loop = threading.get_ident()
+    ticks: list[float] = []
+    ex.add_timer(0.02, lambda: ticks.append(time.monotonic()))
+    seen: list = []
+
+    def slow() -> int:
+        time.sleep(0.3)  # a long job (no interpreter lock held): the loop's timers go on
+        return threading.get_ident()
+
+    def fail() -> None:
+        raise ValueError("bad route")
+
+    ex.call_soon_threadsafe(lambda: ex.run_in_background(slow, lambda r, e: seen.append((r, e, threading.get_ident()))))
+    ex.call_soon_threadsafe(lambda: ex.run_in_background(fail, lambda r, e: seen.append((r, e, threading.get_ident()))))
+    ex.run(duration_s=0.6)
+    (worker, err, where), (none, error, where2) = seen
+    assert worker != loop and err is None and where == where2 == loop
+    assert none is None and isinstance(error, ValueError) and str(error) == "bad route"
+    assert max(b - a for a, b in zip(ticks, ticks[1:])) < 0.1  # the loop kept its period meanwhile
+
+    sim = SimExecutor()
+    out: list = []
+    sim.run_in_background(lambda: 7, lambda r, e: out.append((r, e)))
+    assert out == [(7, None)] and sim.clock.now() == 0.0

@@ -167,3 +167,65 @@ def test_each_request_is_answered_once_and_a_resent_one_is_not_done_twice():
     assert request("estop", "p-4").accepted and len([x for x in seen[Topic.ALERT] if x.code == "estop"]) == n
     op(stack, "manual")  # no request id: no answer (harnesses, older pages)
     assert acks[-1].request_id == "p-4"
+
+
+def deferred_checks(stack):
+    """The route checks held back as on the boat, where they run on a thread beside the loop: `finish(i)`
+    completes the i-th waiting one (its result reaches the supervisor as the loop would hand it over)."""
+    jobs = []
+    stack.executor.run_in_background = lambda work, done: jobs.append((work, done))
+
+    def finish(i: int = 0) -> None:
+        work, done = jobs.pop(i)
+        try:
+            result, error = work(), None
+        except Exception as exc:  # noqa: BLE001 - as the executor does
+            result, error = None, exc
+        done(result, error)
+    return jobs, finish
+
+
+def test_a_route_arriving_in_auto_is_checked_while_the_boat_flies_the_one_it_holds_then_switched_whole():
+    """The check of a received route (a survey's: 0.2 s) runs beside the control loop: meanwhile the boat
+    keeps the route it held (AUTO goes on, every tick commands), AUTO is refused with the reason, and
+    when the check is done route, path, id and corridor change together (then HOLD: a new route while
+    moving). Of two uploads only the later counts, whichever check ends first; a bad one is refused
+    with its reason and the boat keeps its route."""
+    stack, sup, seen = make(example_route("figure_eight"))
+    jobs, finish = deferred_checks(stack)
+    stack.executor.run_until(1.5)
+    op(stack, "arm")
+    op(stack, "auto")
+    stack.executor.run_for(2.0)
+    held, path = sup.route_id, sup.path
+    assert sup.mode.name == "AUTO" and held
+
+    base = {"harbour": {"north": 4.0, "east": 20.0, "heading_deg": 0.0}}
+    first = route_from_dict({**base, "nodes": [{"north": 30.0, "east": 20.0, "heading_deg": 0.0, "speed_mps": 0.5}]})
+    second = route_from_dict({**base, "nodes": [{"north": 20.0, "east": 30.0, "heading_deg": 90.0, "speed_mps": 0.5}]})
+    m1, m2 = (planned_route_message(r, plan_route(r), stamp_s=3.5, source="web") for r in (first, second))
+    stack.bus.publish(Topic.ROUTE, m1)
+    stack.bus.publish(Topic.ROUTE, m2)
+    commands = []
+    stack.bus.subscribe(Topic.SHIP_COMMAND, commands.append)
+    stack.executor.run_for(1.0)
+    assert len(jobs) == 2 and sup.mode.name == "AUTO" and sup.route_id == held and sup.path is path
+    assert len(commands) >= 9  # the loop went on flying the route it holds
+    assert "auto: route " + m2.route_id + " is still being checked" in status(stack).blocked_actions
+    finish(1)  # the later upload's check ends first: switched to it, whole
+    assert sup.route_id == m2.route_id and sup.route.nodes == second.nodes and len(sup.path) == len(m2.s_m)
+    assert sup._corridor[:2] == (sup.route, sup.path)  # its corridor came with it, computed off the loop
+    assert sup.mode.name == "HOLD" and sup.reason == "new route received while moving"
+    assert seen[Topic.ACTIVE_ROUTE][-1].route_id == m2.route_id
+    finish(0)  # the earlier one, done later: superseded, changes nothing
+    assert sup.route_id == m2.route_id and not sup.route_checking
+
+    bad = replace(m1, east_m=tuple(e + 25.0 for e in m1.east_m))  # leaves the area
+    stack.bus.publish(Topic.ROUTE, bad)
+    op(stack, "auto")
+    assert seen[Topic.ALERT][-1].code == "refused:auto" and "still being checked" in seen[Topic.ALERT][-1].text
+    finish()
+    assert seen[Topic.ALERT][-1].code == "refused:route" and "leaves the navigable area" in seen[Topic.ALERT][-1].text
+    assert sup.route_id == m2.route_id and not sup.route_checking
+    op(stack, "auto")
+    assert sup.mode.name == "AUTO" and sup.active_path is sup.path
