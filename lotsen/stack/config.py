@@ -45,7 +45,7 @@ class ProcessOptions:
     """`extra.processes`: the processes of `lotsen run` (docs/architecture.md)."""
 
     zenoh_port: int = field(default=0, metadata=_r(0, 65535))  # 0: a free port on 127.0.0.1
-    core_cpu: int | None = field(default=None, metadata=_r(0, 1023))  # pin the core here; None: the last CPU when there are 2 or more
+    core_cpu: int | None = field(default=None, metadata=_r(0, 1023))  # pin the core here; None: the last CPU no other run's real-time core holds (2 or more CPUs)
     core_nice: int = field(default=-10, metadata=_r(-20, 19))  # applied when permitted
     # SCHED_FIFO for the core when permitted (0: off). Needed, not a luxury: with the kernel's
     # autogroups a nice value only counts inside one terminal session, so any busy program

@@ -16,7 +16,7 @@ import multiprocessing as mp
 import os
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 from lotsen.drivers.actuators import pigpio_opener
@@ -29,7 +29,7 @@ from lotsen.runtime.lifetime import RunLock
 from lotsen.stack.identity import run_identities  # noqa: F401 - part of the launcher's interface
 from lotsen.stack.logs import recorder_config
 from lotsen.stack.roles import (  # noqa: F401 - apply_core_priority ... free_port: of `lotsen run`
-    ROLES, apply_core_priority, child_main, free_port, freeze_heap,
+    ROLES, apply_core_priority, child_main, free_port, freeze_heap, resolve_core_cpu,
 )
 from lotsen.stack.stack import load_parameters, resolve_origin, simulated_boat
 from lotsen.stack.web import check_web_host, tls_certificate
@@ -82,7 +82,9 @@ class Launcher:
         unknown = set(roles) - set(ROLES)
         if unknown or "core" not in roles:
             raise ConfigError(f"processes: roles must include 'core' and be among {ROLES}, got {roles}")
-        self.config = stack_config(config)
+        config = stack_config(config)
+        # the core's CPU chosen once, here: every process of the run splits the CPUs the same way
+        self.config = replace(config, extra=replace(config.extra, processes=resolve_core_cpu(config.extra.processes)))
         self.opts = self.config.extra.processes
         self.port = self.opts.zenoh_port or free_port()
         self.endpoint = f"tcp/127.0.0.1:{self.port}"

@@ -90,6 +90,59 @@ def _pin(cpus: set[int]) -> str:
         return "CPU not pinned"
 
 
+PF_KTHREAD = 0x00200000  # a kernel thread (include/linux/sched.h), in /proc/PID/stat's flags
+
+
+def realtime_cpus_taken() -> set[int]:
+    """The CPUs on which a thread of any program runs alone at a real-time priority (SCHED_FIFO or
+    SCHED_RR, pinned to that one CPU): another run's core, as /proc shows it."""
+    taken: set[int] = set()
+    try:
+        pids = [p for p in os.listdir("/proc") if p.isdigit()]
+    except OSError:
+        return taken
+    for pid in pids:
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()  # from field 3 of proc(5)
+                policy, flags = int(fields[38]), int(fields[6])
+                # SCHED_FIFO or SCHED_RR, not a kernel thread (each CPU has its own: migration/N, irq/N)
+                if policy in (1, 2) and not flags & PF_KTHREAD:
+                    cpus = os.sched_getaffinity(int(tid))
+                    if len(cpus) == 1:
+                        taken |= cpus
+            except (OSError, ValueError, IndexError):
+                continue
+    return taken
+
+
+def choose_core_cpu(cpus: list[int], taken: set[int]) -> int:
+    """The core's CPU: the last one no other real-time core holds (the last, if all are held). Two
+    runs' cores pinned to one CPU at the same real-time priority hold each other up: on a shared
+    2-core machine, 150-340 ms control-loop gaps when another run started (bench survey)."""
+    free = [c for c in cpus if c not in taken]
+    return (free or cpus)[-1]
+
+
+def resolve_core_cpu(opts: ProcessOptions) -> ProcessOptions:
+    """`opts` with `core_cpu` chosen once for the whole run (choose_core_cpu) when the config leaves it
+    open, so the core and the edge processes split the CPUs the same way."""
+    if opts.core_cpu is not None:
+        return opts
+    try:
+        cpus = sorted(os.sched_getaffinity(0))
+    except AttributeError:
+        return opts
+    if len(cpus) < 2:
+        return opts
+    return replace(opts, core_cpu=choose_core_cpu(cpus, realtime_cpus_taken()))
+
+
 def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:
     try:
         cpus = sorted(os.sched_getaffinity(0))
