@@ -84,7 +84,8 @@ class Launcher:
             raise ConfigError(f"processes: roles must include 'core' and be among {ROLES}, got {roles}")
         config = stack_config(config)
         # the core's CPU chosen once, here: every process of the run splits the CPUs the same way
-        self.config = replace(config, extra=replace(config.extra, processes=resolve_core_cpu(config.extra.processes)))
+        processes, self._core_cpu_claim = resolve_core_cpu(config.extra.processes)
+        self.config = replace(config, extra=replace(config.extra, processes=processes))
         self.opts = self.config.extra.processes
         self.port = self.opts.zenoh_port or free_port()
         self.endpoint = f"tcp/127.0.0.1:{self.port}"

@@ -129,18 +129,47 @@ def choose_core_cpu(cpus: list[int], taken: set[int]) -> int:
     return (free or cpus)[-1]
 
 
-def resolve_core_cpu(opts: ProcessOptions) -> ProcessOptions:
-    """`opts` with `core_cpu` chosen once for the whole run (choose_core_cpu) when the config leaves it
-    open, so the core and the edge processes split the CPUs the same way."""
+def _claim_cpu(cpu: int) -> int | None:
+    """A machine-wide claim on `cpu` for this process's lifetime (an flock on a file in the temporary
+    directory, released by the kernel however the process ends): the open descriptor, or None if held."""
+    import fcntl
+    import tempfile
+
+    try:
+        fd = os.open(os.path.join(tempfile.gettempdir(), f"lotsen-core-cpu{cpu}.lock"), os.O_RDONLY | os.O_CREAT, 0o644)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return fd
+    except OSError:
+        os.close(fd)
+        return None
+
+
+def resolve_core_cpu(opts: ProcessOptions) -> tuple[ProcessOptions, int | None]:
+    """`opts` with `core_cpu` chosen once for the whole run when the config leaves it open, so the core
+    and the edge processes split the CPUs the same way, and the claim to keep open for the run (None
+    without one). Chosen as choose_core_cpu says, from the CPUs a real-time thread holds (/proc) and
+    those another launcher has claimed: two runs started together see no pinned core yet (a core
+    pins itself once warm)."""
     if opts.core_cpu is not None:
-        return opts
+        return opts, None
     try:
         cpus = sorted(os.sched_getaffinity(0))
     except AttributeError:
-        return opts
+        return opts, None
     if len(cpus) < 2:
-        return opts
-    return replace(opts, core_cpu=choose_core_cpu(cpus, realtime_cpus_taken()))
+        return opts, None
+    taken = realtime_cpus_taken()
+    while True:
+        cpu = choose_core_cpu(cpus, taken)
+        if cpu in taken:  # every CPU held: the last, unclaimed
+            return replace(opts, core_cpu=cpu), None
+        fd = _claim_cpu(cpu)
+        if fd is not None:
+            return replace(opts, core_cpu=cpu), fd
+        taken.add(cpu)
 
 
 def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:

@@ -21,7 +21,27 @@ def test_the_core_takes_the_last_cpu_no_other_real_time_core_holds() -> None:
 
 
 def test_a_core_cpu_in_the_config_is_kept() -> None:
-    assert resolve_core_cpu(ProcessOptions(core_cpu=0)).core_cpu == 0
+    assert resolve_core_cpu(ProcessOptions(core_cpu=0)) == (ProcessOptions(core_cpu=0), None)
+
+
+def test_two_runs_started_together_claim_different_cpus() -> None:
+    """Neither core has pinned itself yet (a core pins once warm): the launchers' claims keep them apart,
+    and a claim ends with its holder."""
+    free = sorted(os.sched_getaffinity(0) - realtime_cpus_taken())
+    if len(free) < 2:
+        pytest.skip(f"fewer than two CPUs without another program's real-time core: {free}")
+    first, claim1 = resolve_core_cpu(ProcessOptions())
+    second, claim2 = resolve_core_cpu(ProcessOptions())
+    try:
+        assert claim1 is not None and claim2 is not None
+        assert first.core_cpu != second.core_cpu
+    finally:
+        for fd in (claim1, claim2):
+            if fd is not None:
+                os.close(fd)
+    again, claim3 = resolve_core_cpu(ProcessOptions())
+    os.close(claim3)
+    assert again.core_cpu == first.core_cpu
 
 
 def test_another_programs_real_time_thread_moves_the_core_to_another_cpu() -> None:
@@ -40,7 +60,10 @@ def test_another_programs_real_time_thread_moves_the_core_to_another_cpu() -> No
         if other.stdout.readline().strip() != "ok":
             pytest.skip("real-time priority not permitted here (root or CAP_SYS_NICE)")
         assert last in realtime_cpus_taken()
-        assert resolve_core_cpu(ProcessOptions()).core_cpu == cpus[-2]
+        options, claim = resolve_core_cpu(ProcessOptions())
+        if claim is not None:
+            os.close(claim)
+        assert options.core_cpu == cpus[-2]
     finally:
         other.kill()
         other.wait()
