@@ -69,6 +69,10 @@ class BridgeConfig:
     # drain_period_s: no thread switch per sample, for a process that receives the core's
     # whole stream, e.g. the recorder)
     receive: Literal["callback", "poll"] = "callback"
+    # Zenoh's shared-memory transport: off, lotsen's payloads are small byte strings and never
+    # use it, while its watchdog threads and the 20 Hz timer it adds to every connected session
+    # woke each process of a run ~70 times a second for nothing
+    shared_memory: bool = False
 
     def __post_init__(self) -> None:
         # names become Zenoh key expressions: refused here with the setting, not as a ZError
@@ -116,6 +120,8 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     if getattr(cfg, "wait_for_router", False):  # BridgeConfig; the ROS 2 bridge shares this function
         c.insert_json5("connect/timeout_ms", "-1")
         c.insert_json5("connect/exit_on_failure", "false")
+    if not getattr(cfg, "shared_memory", True):  # BridgeConfig; the ROS 2 bridge keeps Zenoh's default
+        c.insert_json5("transport/shared_memory/enabled", "false")
     # the latched topics' cache orders its samples by timestamp
     c.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return c

@@ -118,6 +118,18 @@ def test_config_never_scouts_and_binds_only_given_endpoints():
         zenoh_config(BridgeConfig(mode="client"))
 
 
+def test_a_bridge_session_has_no_shared_memory_transport():
+    """lotsen's payloads never use Zenoh's shared memory, whose threads and 20 Hz timer woke
+    every process of a run for nothing; the ROS 2 bridge's config keeps Zenoh's default."""
+    from lotsen.transport.ros2_bridge import Ros2BridgeConfig
+
+    assert json.loads(zenoh_config(BridgeConfig()).get_json("transport/shared_memory/enabled")) is False
+    assert zenoh_config(BridgeConfig(shared_memory=True)).get_json("transport/shared_memory/enabled") != "false"
+    ros2 = zenoh_config(Ros2BridgeConfig(mode="peer"))
+    assert ros2.get_json("transport/shared_memory/enabled") == \
+        __import__("zenoh").Config().get_json("transport/shared_memory/enabled")
+
+
 def _pump(ex: SimExecutor, until, timeout_s: float = 10.0) -> bool:
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
