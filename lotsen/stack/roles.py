@@ -160,8 +160,19 @@ def freeze_heap() -> None:
 
 
 def apply_edge_priority(opts: ProcessOptions, nice: int) -> list[str]:
+    """Nice and the edge CPUs for every thread of this process (Linux sets both per thread: the
+    web process calls this once its server threads run)."""
     done = [_set_nice(nice)]
     _, edge_cpus = _cpu_split(opts)
+    me = threading.get_native_id()
+    for tid in _threads_of_this_process():
+        if tid != me:
+            try:
+                os.setpriority(os.PRIO_PROCESS, tid, os.nice(0))
+                if edge_cpus:
+                    os.sched_setaffinity(tid, edge_cpus)
+            except OSError:  # a thread that ended meanwhile, or a lower nice not permitted
+                pass
     if edge_cpus:
         done.append(_pin(edge_cpus))
     return done
@@ -362,13 +373,15 @@ def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) 
     from lotsen.web.telemetry import TOPICS as PAGE_TOPICS
 
     opts = config.extra.processes
-    done = apply_edge_priority(opts, opts.web_nice)
+    # the launcher's priority until the page answers, web_nice after: at nice 5 from the start, the
+    # page waited behind any ordinary busy program on a loaded machine (6-9 s with one core busy)
     stack = _edge_stack(config)
     worker = PlannerWorker(config.extra.planning)
     stack.on_shutdown(worker.close)
     # the page first: it answers while the core is still starting (what the page publishes waits
     # in the executor's queue until the loop below runs)
     add_web(stack, run_blocking=worker.run, tls=tls)
+    done = apply_edge_priority(opts, opts.web_nice)
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
     _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
