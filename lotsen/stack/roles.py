@@ -370,7 +370,7 @@ def recorder_main(config: StackConfig, endpoint: str, ready: Any) -> None:
 def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
     from lotsen.stack.planner_worker import PlannerWorker
     from lotsen.stack.web import add_web
-    from lotsen.web.telemetry import TOPICS as PAGE_TOPICS
+    from lotsen.web.telemetry import LIVE_ONLY, TOPICS as PAGE_TOPICS
 
     opts = config.extra.processes
     # the launcher's priority until the page answers, web_nice after: at nice 5 from the start, the
@@ -384,10 +384,16 @@ def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) 
     done = apply_edge_priority(opts, opts.web_nice)
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
-    _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
-            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", f"recorder/{Topic.RECORDER}",
-                       "launcher/log"),
-            wait_for_router=True, receive="poll", drain_period_s=0.05)
+    bridge = _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+                     subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log",
+                                f"recorder/{Topic.RECORDER}", "launcher/log"),
+                     wait_for_router=True, receive="poll", drain_period_s=0.05)
+    server = stack.services.get("web")
+    if server is not None and not config.extra.mavlink.endpoints:
+        # the live view's ~90 messages a second decoded only while a page is connected (a MAVLink
+        # ground station reads them too: then always)
+        hub = server.hub
+        bridge.hold_latest(LIVE_ONLY, lambda: bool(hub.clients))
     # the worker once the core is up (it would compete with the core's start for the CPU); after
     # the server: a web process that cannot serve ends with its one error
     threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()
