@@ -1,7 +1,8 @@
 # lotsen: two commands set everything up.
 #   make run   - virtual environment + the on-board dependencies, then the full stack on the simulated boat
 #   make test  - virtual environment + test dependencies (and Debian's Chromium for browser tests), then all tests
-#   make bench - benchmarks, results in bench/results/ (table .md + .json)
+#   make bench - benchmarks, results in bench/results/ (table .md + .json); BASELINE=../main-worktree
+#                pairs the footprint bench with that checkout (idle CPU, page, helm under a flood)
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
@@ -44,7 +45,7 @@ test-under-load: venv-dev browser
 	$(PY) tools/test_under_load.py --runs $(RUNS) --burners $(BURNERS)
 
 bench: venv-dev
-	$(PY) bench/run.py
+	$(PY) bench/run.py $(if $(BASELINE),--baseline $(BASELINE))
 
 bench-quick: venv-dev
 	$(PY) bench/run.py --quick

@@ -20,6 +20,14 @@ control loop and 2 s of running; every start must come up with no watchdog event
 Targets (issue: what a Raspberry Pi carries): total PSS <= 400 MB, core <= 200 MB, locked
 <= 256 MB, idle CPU <= 12 %, AUTO CPU <= 15 %, warm start page <= 3 s and control <= 5 s, no
 watchdog event.
+Paired with one core busy (issue 49): this checkout and a baseline checkout (`bench/run.py
+--baseline PATH`, `make bench BASELINE=PATH`, e.g. a worktree of main; without one, this checkout
+alone) alternate in the same minutes beside one `while True: pass`: warm starts (page time, then
+idle CPU per process over 15 s from 5 s after all processes are up; medians of 4 starts each) and
+viewer floods (tests/stack/test_live.py's: 20 strangers flooding `plan` requests for 20 s while the
+pilot flies the short route's first turn; the largest ship_command gap of 2 runs each, from the
+run's log). Ratio = this / baseline. Bars: idle CPU <= 12 % of one core, page <= 3 s, gap <= 150 ms.
+On a machine shared with other work the absolute figures move with that work; the ratios hold.
 """
 
 from __future__ import annotations
@@ -103,13 +111,16 @@ def _tree(root: int, roles: dict[int, str]) -> dict[int, str]:
 
 
 class Run:
-    """One `lotsen run --sim` with its console collected and its start-up timed."""
+    """One `lotsen run --sim` with its console collected and its start-up timed; `code`: the
+    checkout whose lotsen runs (its directory on PYTHONPATH), this one by default."""
 
-    def __init__(self, work: Path, numba_cache: Path) -> None:
+    def __init__(self, work: Path, numba_cache: Path, code: Path | None = None) -> None:
         self.port = free_port()
         self.token = secrets.token_urlsafe(16)
         config = derive_run_config(CONFIG, work, self.port, self.token)
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "NUMBA_CACHE_DIR": str(numba_cache)}
+        if code is not None:
+            env["PYTHONPATH"] = str(code)
         self.output: list[str] = []
         self.t0 = time.monotonic()
         self.proc = subprocess.Popen([sys.executable, "-m", "lotsen", "run", str(config), "--sim"], cwd=work,
@@ -249,9 +260,146 @@ def arm64_check_rows() -> list[dict]:
              "target": "make pi-check passes", "pass": bool(run_line and run_line.group(2) == "pass")}]
 
 
+#: the checkout to pair this one with (`bench/run.py --baseline PATH`, e.g. a worktree of main)
+BASELINE_ENV = "LOTSEN_BENCH_BASELINE"
+#: one viewer flood (tests/stack/test_live.py's case): 20 strangers flooding `plan` requests for
+#: 20 s while the pilot's page arms and flies the short route's first turn; the helm's figures
+#: from the run's log, printed as JSON by the checkout under test
+FLOOD = """
+import json, sys, tempfile
+from pathlib import Path
+from lotsen.stack.soak import FIRST_TURN_ROUTE, LivePlan, run_live
+with tempfile.TemporaryDirectory(prefix="lotsen-bench-flood-") as work:
+    r = run_live(LivePlan(config=Path(sys.argv[1]), idle_s=5.0, route=FIRST_TURN_ROUTE, flood_viewers=20,
+                          flood_s=20.0), work)
+print("FLOOD " + json.dumps({"ok": r.ok, "figures": r.figures, "failures": r.failures}, default=str))
+"""
+
+
+def _flood(code: Path, cache: Path) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(code), "NUMBA_CACHE_DIR": str(cache)}
+    out = subprocess.run([sys.executable, "-c", FLOOD, str(CONFIG)], env=env, capture_output=True, text=True,
+                         timeout=600, cwd=code)
+    line = next((ln for ln in out.stdout.splitlines() if ln.startswith("FLOOD ")), None)
+    if line is None:
+        return {"ok": False, "figures": {}, "failures": [(out.stdout + out.stderr)[-300:]]}
+    import json
+
+    return json.loads(line[len("FLOOD "):])
+
+
+def _ratio(after: float | None, before: float | None) -> float | None:
+    if after is None or before is None or before != before or after != after or before == 0:
+        return None
+    return round(after / before, 2)
+
+
+def paired_rows(work: Path, baseline: Path | None, reps: int, idle_s: float, floods: int) -> list[dict]:
+    """This checkout against `baseline` (None: this one alone) with one core kept busy the whole
+    time (a `while True: pass` beside the run), alternating the two in the same minutes so both
+    see the same machine: `reps` warm starts each (page time, then idle CPU per process over
+    `idle_s`), and `floods` viewer floods each (the helm's largest ship_command gap). Figures:
+    median over the starts for CPU and page, the largest gap over the floods."""
+    codes = {"this": ROOT} if baseline is None else {"baseline": baseline, "this": ROOT}
+    caches = {name: work / f"numba-{name}" for name in codes}
+    for name, code in codes.items():  # the kernel caches: every measured start is warm
+        d = work / f"paired-cold-{name}"
+        d.mkdir()
+        run = Run(d, caches[name], code)
+        try:
+            run.wait_page()
+            run.wait_up()
+        finally:
+            run.stop()
+    hog = _burners(1)
+    cpu: dict[str, dict[str, list[float]]] = {n: {} for n in codes}
+    page: dict[str, list[float]] = {n: [] for n in codes}
+    gaps: dict[str, list[float]] = {n: [] for n in codes}
+    hz: dict[str, list[float]] = {n: [] for n in codes}
+    failures: dict[str, list[str]] = {n: [] for n in codes}
+    try:
+        order = list(codes)
+        for i in range(reps):
+            for name in (order if i % 2 == 0 else order[::-1]):
+                d = work / f"paired-{name}-{i}"
+                d.mkdir()
+                run = Run(d, caches[name], codes[name])
+                try:
+                    page[name].append(run.wait_page())
+                    run.wait_up()
+                    time.sleep(5.0)  # past the planner worker's start, slow on a loaded machine
+                    procs = _tree(run.proc.pid, run.roles)
+                    used = _cpu_window(procs, idle_s)
+                finally:
+                    run.stop()
+                per: dict[str, float] = {}
+                for pid, role in procs.items():
+                    per[role] = per.get(role, 0.0) + used[pid]  # the two multiprocessing helpers: one row
+                per["whole run"] = sum(used.values())
+                for role, value in per.items():
+                    cpu[name].setdefault(role, []).append(value)
+        for i in range(floods):
+            for name in (order if i % 2 == 0 else order[::-1]):
+                r = _flood(codes[name], caches[name])
+                f = r.get("figures", {})
+                if f.get("ship_command_max_gap_ms") is not None:
+                    gaps[name].append(float(f["ship_command_max_gap_ms"]))
+                    hz[name].append(float(f.get("ship_command_hz", float("nan"))))
+                if not r.get("ok"):
+                    failures[name].append("; ".join(map(str, r.get("failures", [])))[:150])
+    finally:
+        for h in hog:
+            h.kill()
+            h.wait()
+
+    def med(xs: list[float]) -> float | None:
+        return round(statistics.median(xs), 1) if xs else None
+
+    rows: list[dict] = []
+    base = "baseline" if baseline is not None else None
+    table = "paired with one core busy: idle CPU per process, page, helm under a viewer flood"
+    roles = [r for r in cpu["this"] if r != "whole run"] + ["whole run"]
+    for role in roles:
+        row = {"table": table, "figure": f"idle CPU % of one core: {role}"}
+        if base:
+            row["baseline"] = med(cpu[base].get(role, []))
+        row["this"] = med(cpu["this"].get(role, []))
+        if base:
+            row["ratio"] = _ratio(row["this"], row["baseline"])
+        if role == "whole run":
+            row["target"] = "<= 12"
+            row["pass"] = bool(row["this"] is not None and row["this"] <= 12.0)
+        rows.append(row)
+    for label, values, target, ok, digits in (
+            ("page answers after start, s (median)", page, "<= 3", lambda v: v <= 3.0, 2),
+            ("page answers after start, s (slowest)", page, "", None, 2),
+            ("helm: largest ship_command gap under 20 flooding viewers, ms (worst run)", gaps, "<= 150",
+             lambda v: v <= 150.0, 0),
+            ("helm: ship_command rate under the flood, Hz (lowest run)", hz, ">= 9.5", lambda v: v >= 9.5, 2)):
+        pick = max if "slowest" in label or "worst" in label else (min if "lowest" in label else statistics.median)
+        row = {"table": table, "figure": label}
+        for name in codes:
+            row[name] = round(pick(values[name]), digits) if values[name] else None
+        if base:
+            row = {k: row[k] for k in ("table", "figure", "baseline", "this")}
+            row["ratio"] = _ratio(row["this"], row["baseline"])
+        if target:
+            row["target"] = target
+            row["pass"] = bool(row["this"] is not None and ok(row["this"]))
+        rows.append(row)
+    rows.append({"table": table, "figure": "runs", "baseline": f"{reps} starts, {floods} floods; {baseline}"
+                 if base else None, "this": f"{reps} starts, {floods} floods; {ROOT}",
+                 "failures": "; ".join(f"{n}: {x}" for n in codes for x in failures[n])[:300]})
+    return rows
+
+
 def run(quick: bool = False) -> list[dict]:
     idle_s = 10.0 if quick else 20.0
     rows: list[dict] = []
+    baseline = os.environ.get(BASELINE_ENV)
+    with tempfile.TemporaryDirectory(prefix="lotsen-bench-paired-") as tmp:
+        rows += paired_rows(Path(tmp), Path(baseline).resolve() if baseline else None, 2 if quick else 4,
+                            10.0 if quick else 15.0, 1 if quick else 2)
     with tempfile.TemporaryDirectory(prefix="lotsen-bench-footprint-") as tmp:
         cache = Path(tmp) / "numba-cache"
         cold, cold_row = _start(Path(tmp), cache, "cold (empty kernel cache)")

@@ -96,10 +96,16 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="shorter runs (smoke test of the benchmarks)")
     ap.add_argument("--render", action="store_true", help="only rewrite the .md tables from the stored .json")
+    ap.add_argument("--baseline", metavar="PATH", help="a checkout to pair with where a benchmark compares "
+                    "(bench_footprint: e.g. a worktree of main, `git worktree add ../base main`)")
     ap.add_argument("names", nargs="*", help="benchmark names (e.g. sim control); default all")
     args = ap.parse_args()
     if args.render:
         return render_only()
+    if args.baseline:
+        import os
+
+        os.environ["LOTSEN_BENCH_BASELINE"] = str(Path(args.baseline).resolve())
     sys.path.insert(0, str(HERE.parent))
     RESULTS.mkdir(parents=True, exist_ok=True)
     files = sorted(HERE.glob("bench_*.py"))

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.messages import ThrustCommand, Topic
 from lotsen.stack.config import ProcessOptions, StackConfig
-from lotsen.runtime.executor import RealtimeExecutor
+from lotsen.runtime.executor import TIMER_GRID_S, RealtimeExecutor
 from lotsen.runtime.lifetime import die_with_parent
 from lotsen.transport.ros2_bridge import Ros2BridgeConfig
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
@@ -242,8 +242,19 @@ def freeze_heap() -> None:
 
 
 def apply_edge_priority(opts: ProcessOptions, nice: int) -> list[str]:
+    """Nice and the edge CPUs for every thread of this process (Linux sets both per thread: the
+    web process calls this once its server threads run)."""
     done = [_set_nice(nice)]
     _, edge_cpus = _cpu_split(opts)
+    me = threading.get_native_id()
+    for tid in _threads_of_this_process():
+        if tid != me:
+            try:
+                os.setpriority(os.PRIO_PROCESS, tid, os.nice(0))
+                if edge_cpus:
+                    os.sched_setaffinity(tid, edge_cpus)
+            except OSError:  # a thread that ended meanwhile, or a lower nice not permitted
+                pass
     if edge_cpus:
         done.append(_pin(edge_cpus))
     return done
@@ -273,7 +284,9 @@ class CoreWatchdog:
         # boat or drivers, 20 Hz fusion, 10 Hz supervisor); this timer only makes sure there is
         # one at least every stall_s / 4 (a 50 Hz timer of its own woke the loop 50 times a
         # second more than its work does)
-        stack.executor.add_timer(stall_s / 4, self._beat, "watchdog")
+        # (its period on the real-time loop's 10 ms grid: it runs in a wake-up the boat's timer has anyway)
+        period_s = max(TIMER_GRID_S, math.floor(stall_s / 4 / TIMER_GRID_S + 1e-9) * TIMER_GRID_S)
+        stack.executor.add_timer(period_s, self._beat, "watchdog")
         self._thread = threading.Thread(target=self._watch, name="core-watchdog", daemon=True)
 
     def start(self) -> None:
@@ -439,22 +452,30 @@ def recorder_main(config: StackConfig, endpoint: str, ready: Any) -> None:
 def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) -> None:
     from lotsen.stack.planner_worker import PlannerWorker
     from lotsen.stack.web import add_web
-    from lotsen.web.telemetry import TOPICS as PAGE_TOPICS
+    from lotsen.web.telemetry import LIVE_ONLY, TOPICS as PAGE_TOPICS
 
     opts = config.extra.processes
-    done = apply_edge_priority(opts, opts.web_nice)
+    # the launcher's priority until the page answers, web_nice after: at nice 5 from the start, the
+    # page waited behind any ordinary busy program on a loaded machine (6-9 s with one core busy)
     stack = _edge_stack(config)
     worker = PlannerWorker(config.extra.planning)
     stack.on_shutdown(worker.close)
     # the page first: it answers while the core is still starting (what the page publishes waits
     # in the executor's queue until the loop below runs)
     add_web(stack, run_blocking=worker.run, tls=tls)
+    done = apply_edge_priority(opts, opts.web_nice)
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
-    _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
-            subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log", f"recorder/{Topic.RECORDER}",
-                       "launcher/log"),
-            wait_for_router=True, receive="poll", drain_period_s=0.05)
+    bridge = _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+                     subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log",
+                                f"recorder/{Topic.RECORDER}", "launcher/log"),
+                     wait_for_router=True, receive="poll", drain_period_s=0.05)
+    server = stack.services.get("web")
+    if server is not None and not config.extra.mavlink.endpoints:
+        # the live view's ~90 messages a second decoded only while a page is connected (a MAVLink
+        # ground station reads them too: then always)
+        hub = server.hub
+        bridge.hold_latest(LIVE_ONLY, lambda: bool(hub.clients))
     # the worker once the core is up (it would compete with the core's start for the CPU); after
     # the server: a web process that cannot serve ends with its one error
     threading.Thread(target=worker.warm, name="planner-warm-up", daemon=True).start()

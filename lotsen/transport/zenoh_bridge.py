@@ -69,6 +69,10 @@ class BridgeConfig:
     # drain_period_s: no thread switch per sample, for a process that receives the core's
     # whole stream, e.g. the recorder)
     receive: Literal["callback", "poll"] = "callback"
+    # Zenoh's shared-memory transport: off, lotsen's payloads are small byte strings and never
+    # use it, while its watchdog threads and the 20 Hz timer it adds to every connected session
+    # woke each process of a run ~70 times a second for nothing
+    shared_memory: bool = False
 
     def __post_init__(self) -> None:
         # names become Zenoh key expressions: refused here with the setting, not as a ZError
@@ -116,6 +120,8 @@ def zenoh_config(cfg: BridgeConfig) -> Any:
     if getattr(cfg, "wait_for_router", False):  # BridgeConfig; the ROS 2 bridge shares this function
         c.insert_json5("connect/timeout_ms", "-1")
         c.insert_json5("connect/exit_on_failure", "false")
+    if not getattr(cfg, "shared_memory", True):  # BridgeConfig; the ROS 2 bridge keeps Zenoh's default
+        c.insert_json5("transport/shared_memory/enabled", "false")
     # the latched topics' cache orders its samples by timestamp
     c.insert_json5("timestamping/enabled", json.dumps({"router": True, "peer": True, "client": True}))
     return c
@@ -173,6 +179,9 @@ class ZenohBridge(Node):
         self._drain_pending = threading.Event()
         self._encoded_sink: Callable[[list[tuple[str, codec.Envelope]]], None] | None = None
         self._decoded_topics: frozenset[str] = frozenset()
+        self._held_topics: frozenset[str] = frozenset()
+        self._wanted: Callable[[], bool] = lambda: True
+        self._held: dict[str, tuple[str, codec.Envelope]] = {}  # topic -> (key, newest envelope)
         self.session = open_session(config)
         self._subs = []
         from zenoh import ext
@@ -199,6 +208,17 @@ class ZenohBridge(Node):
         per drain with what it took (`receive="poll"`), or on Zenoh's thread per sample."""
         self._decoded_topics = frozenset(decoded)
         self._encoded_sink = sink
+
+    def hold_latest(self, topics: Iterable[str], wanted: Callable[[], bool]) -> None:
+        """Samples of `topics` are decoded only while `wanted()` (the web process: while a page is
+        connected); meanwhile the newest envelope of each is kept as it came, and reaches the bus
+        at the first drain once they are wanted again, so a page that connects has the current
+        values within one drain. For topics whose newest value is all a reader needs (the page's
+        live view); with `receive="poll"` only (the held samples live on the executor thread)."""
+        if self.config.receive != "poll":
+            raise ValueError("hold_latest needs receive='poll'")
+        self._held_topics = frozenset(topics)
+        self._wanted = wanted
 
     # ---------------------------------------------------------------- node side (executor thread)
     def start(self, ctx: NodeContext) -> None:
@@ -229,6 +249,10 @@ class ZenohBridge(Node):
     def drain(self) -> int:
         """Publish received messages on the local bus (executor thread)."""
         self._drain_pending.clear()  # before taking: a message arriving now asks for another drain
+        if self._held and self._wanted():  # wanted again: the newest held values first
+            held, self._held = self._held, {}
+            for topic, (key, env) in held.items():
+                self._decode_in(topic, key, env)
         if self.config.receive == "poll":
             forwarded: list[tuple[str, codec.Envelope]] = []
             for sub in self._subs:
@@ -331,6 +355,12 @@ class ZenohBridge(Node):
             else:
                 sink([(topic, env)])
             return
+        if topic in self._held_topics and not self._wanted():
+            self._held[topic] = (key, env)  # nobody reads it now: kept, not decoded
+            return
+        self._decode_in(topic, key, env)
+
+    def _decode_in(self, topic: str, key: str, env: codec.Envelope) -> None:
         try:
             msg = codec.decode_envelope(env)
         except Exception as exc:  # noqa: BLE001

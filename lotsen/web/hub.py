@@ -214,7 +214,9 @@ class Hub:
         last_frame = -1e9
         last_coverage = -1e9
         while not self._stop.is_set():
-            item = q.get(timeout=self.period_s / 2)
+            # with a page connected: up in time for its next frame; without: only what arrives
+            # (logs, alerts, routes) wakes it, or the coverage period (a 40 Hz poll for nobody)
+            item = q.get(timeout=self.period_s / 2 if self.clients else COVERAGE_PERIOD_S)
             items = ([item] if item is not None else []) + q.get_all()
             for topic, msg in items:
                 self.state.update(topic, msg)

@@ -21,6 +21,12 @@ TOPICS = (Topic.STATE, Topic.TRUTH, Topic.CONTROL_STATUS, Topic.SUPERVISOR, Topi
           Topic.MAG_CALIBRATION, Topic.ALERT, Topic.PROGRESS, Topic.MODEL, Topic.OPERATOR_ACK, Topic.RECORDER,
           Topic.SEA_STATE, Topic.SOUNDING)
 
+#: the page's live view: of these only the newest value counts (TelemetryState.latest, the next
+#: frame), and only a connected page reads them; the web process decodes them only while a page
+#: is connected (ZenohBridge.hold_latest). The rest (routes, paths, logs, alerts, the battery's
+#: history, soundings) is taken in always
+LIVE_ONLY = (Topic.STATE, Topic.TRUTH, Topic.CONTROL_STATUS, Topic.SUPERVISOR, Topic.GNSS, Topic.SHIP_COMMAND,
+             Topic.ACTUATORS)
 #: the estimate is shown when it is this fresh; otherwise the simulator's truth (simulation only)
 STATE_FRESH_S = 1.0
 MAX_LOG_TEXT = 500

@@ -118,6 +118,18 @@ def test_config_never_scouts_and_binds_only_given_endpoints():
         zenoh_config(BridgeConfig(mode="client"))
 
 
+def test_a_bridge_session_has_no_shared_memory_transport():
+    """lotsen's payloads never use Zenoh's shared memory, whose threads and 20 Hz timer woke
+    every process of a run for nothing; the ROS 2 bridge's config keeps Zenoh's default."""
+    from lotsen.transport.ros2_bridge import Ros2BridgeConfig
+
+    assert json.loads(zenoh_config(BridgeConfig()).get_json("transport/shared_memory/enabled")) is False
+    assert zenoh_config(BridgeConfig(shared_memory=True)).get_json("transport/shared_memory/enabled") != "false"
+    ros2 = zenoh_config(Ros2BridgeConfig(mode="peer"))
+    assert ros2.get_json("transport/shared_memory/enabled") == \
+        __import__("zenoh").Config().get_json("transport/shared_memory/enabled")
+
+
 def _pump(ex: SimExecutor, until, timeout_s: float = 10.0) -> bool:
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
@@ -351,6 +363,48 @@ def test_a_polling_bridge_takes_what_arrived_at_its_drain():
             ex_b.run_for(0.06)
         assert got and got[0] == SAMPLES[4]
         assert b.stats.received >= 1 and b.stats.published_locally == len(got)
+
+
+
+def test_a_polling_bridge_holds_the_newest_of_unread_topics_until_they_are_wanted():
+    """The web process's live view: while no page is connected the estimate is not decoded, only
+    its newest envelope kept; once wanted, that newest one (not the backlog) reaches the bus at the
+    next drain, and then every sample again. Other topics are taken in all the time."""
+    import dataclasses
+
+    with _polling_pair() as (ex_a, ex_b, b):
+        wanted = [False]
+        b.hold_latest([M.Topic.STATE], lambda: wanted[0])
+        states: list = []
+        paths: list = []
+        ex_b.bus.subscribe(M.Topic.STATE, states.append)
+        ex_b.bus.subscribe(M.Topic.PATH, paths.append)
+        newest = None
+        deadline = time.monotonic() + 10
+        while not (paths and b._held) and time.monotonic() < deadline:
+            for k in range(3):
+                newest = dataclasses.replace(SAMPLES[4], stamp_s=SAMPLES[4].stamp_s + k + 1)
+                ex_a.bus.publish(M.Topic.STATE, newest)
+            ex_a.bus.publish(M.Topic.PATH, next(m for m in SAMPLES if isinstance(m, M.PathMessage)))
+            time.sleep(0.1)
+            ex_b.run_for(0.06)
+        assert paths, "the unheld topic did not arrive"
+        assert not states  # held: not decoded, not on the bus
+        time.sleep(0.2)
+        ex_b.run_for(0.06)
+        decoded_before = b.stats.published_locally
+        wanted[0] = True
+        ex_b.run_for(0.06)
+        assert states == [newest]  # the newest held value, once
+        assert b.stats.published_locally == decoded_before + 1
+        deadline = time.monotonic() + 10
+        while len(states) < 2 and time.monotonic() < deadline:
+            ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])
+            time.sleep(0.1)
+            ex_b.run_for(0.06)
+        assert states[-1] == SAMPLES[4]  # wanted: every sample again
+        with pytest.raises(ValueError, match="poll"):
+            ZenohBridge.hold_latest(type("B", (), {"config": BridgeConfig()})(), [M.Topic.STATE], lambda: True)
 
 
 def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_what_is_subscribed(same):

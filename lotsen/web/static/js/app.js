@@ -200,6 +200,7 @@ function onTelemetry(f) {
   if (state.lastT != null && f.t != null && f.t + 1 < state.lastT) resetLive();   // the clock went back: a restart
   state.lastT = f.t; state.lastFrameMs = performance.now();
   state.telemetry = f; state.framesRx++;
+  if (state.stale) checkStale();   // live again with this frame, not up to 250 ms later
   const p = f.pose, c = f.ctrl, cmd = f.cmd || f.act;
   if (p) map.setBoat(p, f.truth);
   map.predicted = c && c.pred_n && c.pred_n.length ? { n: c.pred_n, e: c.pred_e } : null;
