@@ -30,12 +30,17 @@ browser:
 run: venv
 	$(PY) -m lotsen run config/sim.yaml --sim $(RUN_ARGS)
 
-# Two steps: everything that runs on simulated time (deterministic, two workers), then the `live`
-# tests (lotsen run and the emulated devices at wall-clock pace) one at a time, so they do not
-# compete with the first step for the two cores; a live test that fails is run once more, on its own.
+# Three steps: everything that runs on simulated time (deterministic, two workers); then the `live`
+# tests (lotsen run and the emulated devices at wall-clock pace) two at a time, after the first step
+# so they do not compete with it for the two cores (a live run mostly waits for its clock: two use
+# about a third of one core; each core takes a CPU the other's does not hold); then the `alone` ones
+# (timing under a load they make themselves: the viewer flood, a survey's route arriving) on their
+# own. The 25 slowest simulated-time tests are listed (what the suite's time goes to). A live test
+# that fails is run once more, on its own.
 test: venv-dev browser
-	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live"
-	$(PY) -m pytest -q -m live || $(PY) -m pytest -q -m live --last-failed
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live" --durations=25
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "live and not alone" || $(PY) -m pytest -q -m "live and not alone" --last-failed
+	$(PY) -m pytest -q -m "live and alone" || $(PY) -m pytest -q -m "live and alone" --last-failed
 
 # The default suite 10 times in a row with two CPU burners running (RUNS=, BURNERS=); writes
 # bench/results/under_load.md. About 15-19 min a run on a 2-core machine with the burners: 2.5-3 h.

@@ -10,6 +10,14 @@ import pytest
 os.environ.setdefault("LOTSEN_CONFIG_DIR", tempfile.mkdtemp(prefix="lotsen-test-config-"))
 
 
+@pytest.fixture(autouse=True)
+def _own_run_locks(tmp_path_factory, monkeypatch):
+    """Every test's `lotsen run` takes its one-run-per-boat lock (lotsen.runtime.lifetime) in a
+    directory of its own: the live tests run two at a time, and an operator's run of the same boat
+    on this machine must neither refuse a test's run nor be refused by it."""
+    monkeypatch.setenv("LOTSEN_RUNTIME_DIR", str(tmp_path_factory.mktemp("run-locks")))
+
+
 def _same(a, b) -> bool:
     if dataclasses.is_dataclass(a):
         if type(a) is not type(b):

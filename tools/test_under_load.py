@@ -4,8 +4,8 @@ one per core of a 2-core machine) run for the whole time. Writes bench/results/u
     .venv/bin/python tools/test_under_load.py [--runs 10] [--burners 2] [--live]
 
 Each run is the first step of `make test` (everything on simulated time: `pytest -n 2 --dist
-loadfile -m "not live"`); with --live also its second step (the wall-clock tests, with the one
-retry `make test` allows). A run counts as green only when pytest exits 0. The suite is meant to
+loadfile -m "not live"`); with --live also its wall-clock steps (the live tests two at a time, then
+the `alone` ones on their own, each with the one retry `make test` allows). A run counts as green only when pytest exits 0. The suite is meant to
 be deterministic: a red run under load is a bug to fix, not noise.
 """
 
@@ -58,6 +58,11 @@ def write_results(rows: list[dict], meta: dict) -> None:
     (RESULTS / "under_load.md").write_text("\n".join(md) + "\n")
 
 
+# the wall-clock steps of `make test` (Makefile): two at a time, then the `alone` ones on their own
+LIVE_STEPS = [("live, two at a time (wall clock, one retry)", ["-n", "2", "--dist", "loadfile"], "live and not alone"),
+              ("live, alone (wall clock, one retry)", [], "live and alone")]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10)
@@ -67,7 +72,7 @@ def main() -> int:
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     meta = {"date": datetime.now().strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {os.cpu_count()} CPUs",
             "python": platform.python_version(), "commit": commit or "?", "burners": args.burners, "runs": args.runs,
-            "steps": 2 if args.live else 1}
+            "steps": 1 + len(LIVE_STEPS) if args.live else 1}
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.burners)]
     rows: list[dict] = []
     try:
@@ -79,15 +84,16 @@ def main() -> int:
             print(json.dumps(row), flush=True)
             write_results(rows, meta)
             if args.live:
-                rc, counts, wall, failed = _pytest(["-m", "live"], cache=True)
-                if rc != 0:  # make test's one retry of the live step
-                    rc, counts, wall2, failed = _pytest(["-m", "live", "--last-failed"], cache=True)
-                    wall += wall2
-                row = {"run": k, "step": "live (wall clock, one retry)", "exit": rc, **counts,
-                       "wall_s": round(wall, 1), "failed_tests": failed, "pass": rc == 0}
-                rows.append(row)
-                print(json.dumps(row), flush=True)
-                write_results(rows, meta)
+                for step, workers, marker in LIVE_STEPS:
+                    rc, counts, wall, failed = _pytest([*workers, "-m", marker], cache=True)
+                    if rc != 0:  # make test's one retry of a live step, on its own
+                        rc, counts, wall2, failed = _pytest(["-m", marker, "--last-failed"], cache=True)
+                        wall += wall2
+                    row = {"run": k, "step": step, "exit": rc, **counts,
+                           "wall_s": round(wall, 1), "failed_tests": failed, "pass": rc == 0}
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
+                    write_results(rows, meta)
     finally:
         for b in burners:
             b.kill()

@@ -19,6 +19,7 @@ CONFIG = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
 pytestmark = pytest.mark.live
 
 
+@pytest.mark.alone
 def test_idle_then_route_auto_return_under_a_flood_of_strangers(tmp_path):
     """Idle, upload a route, arm, AUTO while 20 strangers send maximal valid `plan` requests at
     the rate limit for 20 s, RETURN: no failsafe, the estimator uses its samples and is honest

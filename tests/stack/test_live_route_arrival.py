@@ -36,6 +36,7 @@ def survey_config(work: Path) -> Path:
     return config
 
 
+@pytest.mark.alone  # the loop's timing under the load the route makes is the point: not beside another run
 def test_a_survey_route_arriving_before_and_in_auto_leaves_no_gap_in_the_control_loop(tmp_path):
     report = run_live(LivePlan(config=survey_config(tmp_path), idle_s=5.0, route=SURVEY, return_home=False,
                                arm_after_route_s=2.0, reupload_after_auto_s=10.0,
