@@ -153,13 +153,8 @@ def resolve_core_cpu(opts: ProcessOptions) -> tuple[ProcessOptions, int | None]:
     without one). Chosen as choose_core_cpu says, from the CPUs a real-time thread holds (/proc) and
     those another launcher has claimed: two runs started together see no pinned core yet (a core
     pins itself once warm)."""
-    if opts.core_cpu is not None:
-        return opts, None
-    try:
-        cpus = sorted(os.sched_getaffinity(0))
-    except AttributeError:
-        return opts, None
-    if len(cpus) < 2:
+    cpus = _cpus_to_split()
+    if opts.core_cpu is not None or not cpus:
         return opts, None
     taken = realtime_cpus_taken()
     while True:
@@ -172,12 +167,19 @@ def resolve_core_cpu(opts: ProcessOptions) -> tuple[ProcessOptions, int | None]:
         taken.add(cpu)
 
 
-def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:
+def _cpus_to_split() -> list[int]:
+    """The CPUs this process may run on, when there are two or more to split between the core and
+    the edge processes (else none)."""
     try:
         cpus = sorted(os.sched_getaffinity(0))
     except AttributeError:
-        return None, None
-    if len(cpus) < 2:
+        return []
+    return cpus if len(cpus) >= 2 else []
+
+
+def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:
+    cpus = _cpus_to_split()
+    if not cpus:
         return None, None
     core = opts.core_cpu if opts.core_cpu is not None and opts.core_cpu in cpus else cpus[-1]
     return {core}, set(cpus) - {core}
