@@ -34,8 +34,8 @@ run: venv
 # tests (lotsen run and the emulated devices at wall-clock pace) two at a time, after the first step
 # so they do not compete with it for the two cores (a live run mostly waits for its clock: two use
 # about a third of one core; each core takes a CPU the other's does not hold); then the `alone` ones
-# (timing under a load they make themselves: the viewer flood, a survey's route arriving) on their
-# own. The 25 slowest simulated-time tests are listed (what the suite's time goes to). A live test
+# (timing under a load they make themselves: the viewer flood, a survey's route arriving; an external
+# physics that must keep step with the core) on their own. The 25 slowest simulated-time tests are listed (what the suite's time goes to). A live test
 # that fails is run once more, on its own.
 test: venv-dev browser
 	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live" --durations=25

@@ -32,6 +32,9 @@ def _keep_up() -> None:
         pass
 
 
+# alone: the physics at wall-clock pace keeps step with the core only with the CPU it needs; beside
+# another live run (two real-time cores on two CPUs) the estimate left its 3 sigma 4.2 % of the time
+@pytest.mark.alone
 def test_lotsen_run_flies_the_6dof_hull_through_the_protocol(tmp_path):
     server = subprocess.Popen([sys.executable, str(HERE / "hull_server.py"), "--port", "0"], stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, preexec_fn=_keep_up)
