@@ -457,7 +457,7 @@ def test_an_identification_experiment_in_a_wind_sea_runs_on_a_hull_that_is_not_t
     estimate"): in a hard turn the hull heeled 22 deg and slid 0.7 m/s sideways, the accelerometer read the
     1.4 m/s^2 the 3-DOF model did not predict, but the EKF kept to its model, gated GNSS velocity out and
     then the fixes. The accelerometer's sustained innovation now loosens the model (EkfConfig.model_error_
-    time_s): the first 85 s run with no failsafe (the whole 600 s: to 466 s, where the hull rolls +-25 deg
+    time_s): the first 85 s run with no failsafe (the whole 600 s: to 538 s, where the hull rolls +-25 deg
     at wave frequency; bench identify_waves)."""
     from hull6dof import HullEnvironment
 
