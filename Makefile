@@ -39,8 +39,9 @@ run: venv
 # that fails is run once more, on its own.
 test: venv-dev browser
 	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live" --durations=25
-	$(PY) -m pytest -q -n 2 --dist loadfile -m "live and not alone" || $(PY) -m pytest -q -m "live and not alone" --last-failed
-	$(PY) -m pytest -q -m "live and alone" || $(PY) -m pytest -q -m "live and alone" --last-failed
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "live and not alone and not timing_bar" || \
+		$(PY) -m pytest -q -m "live and not alone and not timing_bar" --last-failed
+	$(PY) -m pytest -q -m "live and alone and not timing_bar" || $(PY) -m pytest -q -m "live and alone and not timing_bar" --last-failed
 
 # The default suite 10 times in a row with two CPU burners running (RUNS=, BURNERS=); writes
 # bench/results/under_load.md. About 15-19 min a run on a 2-core machine with the burners: 2.5-3 h.
