@@ -61,6 +61,11 @@ class SeaStateConfig:
     max_gap_s: float = 1.0  # a longer gap in the IMU starts the window again
     hull_m: tuple[float, float, float] = (0.99, 0.30, 0.08)  # waterline length, beam, draft (the lake boat's)
     min_transfer: float = 0.15  # |H|^2 floor: waves much shorter than the hull are not read back from nothing
+    # the speed along the waves' travel that turns encounter frequencies into true ones: averaged over
+    # the window (a whole record, manoeuvring: its last heading alone misread it) or the boat's now (the
+    # running boat: the EKF is given the encounter frequency from it; the window's mean on a figure eight
+    # at 1 m/s in Hs 10 cm lost the 6-DOF hull's GNSS, bench waves seed 2)
+    along_speed_over_window: bool = False
 
 
 class SeaStateEstimator:
@@ -150,10 +155,11 @@ class SeaStateEstimator:
         q_ae = float(np.sum(S[0, 4][band].imag))
         travel = math.atan2(q_ae, q_an)
         # the true frequencies of the band (the encounter ones under way: the boat's speed along the waves'
-        # travel averaged over the window, so that a boat that turned is not corrected by its last heading
-        # alone; on a 10-min manoeuvring record that read Hs 4.8-9.7 cm, Tp 0.71-1.22 s in 2-min windows of
-        # Hs 6 cm, Tp 1.0 s) and the hull's heave transfer
-        along = float(np.mean(data[:, 7] * np.cos(travel - data[:, 6])))
+        # travel, for a record averaged over the window so that a boat that turned is not corrected by its
+        # last heading alone; on a 10-min manoeuvring record that read Hs 4.8-9.7 cm, Tp 0.71-1.22 s in
+        # 2-min windows of Hs 6 cm, Tp 1.0 s) and the hull's heave transfer
+        along = (float(np.mean(data[:, 7] * np.cos(travel - data[:, 6]))) if c.along_speed_over_window
+                 else self._speed * math.cos(travel - self._heading))
         w_true = np.array([true_frequency(float(x), along) for x in w])
         k = w_true ** 2 / GRAVITY_MPS2
         L, B, T = c.hull_m
@@ -178,7 +184,8 @@ RECORD_BAND_HZ = (0.4, 3.0)
 
 
 def record_sea_state(t: np.ndarray, imu: np.ndarray, heading_rad: np.ndarray, speed_mps: np.ndarray,
-                     config: SeaStateConfig = SeaStateConfig(band_hz=RECORD_BAND_HZ)) -> SeaState:
+                     config: SeaStateConfig = SeaStateConfig(band_hz=RECORD_BAND_HZ,
+                                                             along_speed_over_window=True)) -> SeaState:
     """The sea state of a whole record, from its own IMU: the same `SeaStateEstimator` the running boat
     uses, fed the record's IMU rows in time order (`imu`: K x 6, specific force x, y, z and rates p, q, r,
     each the mean over its row interval or a sample; NaN rows skipped) with the horizontal axes levelled
