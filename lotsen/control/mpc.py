@@ -172,6 +172,23 @@ class MPCConfig:
     wave_rate_ref_m: float = 0.005
     wave_rate_time_constant_s: float = 5.0
     wave_reversal_scaled: bool = True  # the reversal guard's crossing price scaled alike
+    # In a sea, uneven azimuth thrust and the bow thruster get dearer (issue 46, docs/control.md
+    # "Waves"). The quadratic input cost is no power model (P ~ |n|^3 ~ |T|^1.5): at the calm weights
+    # the MPC bought millimetres of tracking in a sea with yaw couples (one azimuth astern against the
+    # other) and the bow thruster near its limit, 1.5-5.8x calm energy where the sea's mean drift alone
+    # asks 1.04-1.26x. With the sea level f (wave_rate_*): the azimuths' thrust cost is
+    # r_thrust_azimuth_per_N2 (1 + (wave_azimuth_split_scale - 1) f) about a reference that moves by f
+    # from the trim thrust to the nominal plan's mean of the two azimuths, so it prices their
+    # difference (the couple, an uneven split) and not the thrust the sea's added resistance needs
+    # (about the trim, a dear thrust cost slowed the boat down, in Hs 10 cm to a time-out); the bow
+    # thruster's cost grows alike to wave_bow_cost_scale. 1: off.
+    wave_azimuth_split_scale: float = 10.0
+    wave_bow_cost_scale: float = 10.0
+    # In a sea (sea level > 0) an azimuth astern longer than this gets ahead as its direction again,
+    # as `azimuth_astern_hold_s` does (which stays off in calm water): the crossing price scaled with
+    # the sea made an azimuth sent astern at the start stay astern for 40-60 % of a mission while the
+    # other carried the thrust (issue 46). inf: off.
+    wave_azimuth_astern_hold_s: float = 60.0
     min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
     min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
     # where stage k's reference lies on the path: "predicted" = the projection of the nominal (shifted
@@ -271,7 +288,7 @@ class MPCConfig:
         for name in ("r_thrust_azimuth_per_N2", "r_thrust_bow_per_N2", "reversal_cost_azimuth_per_N",
                      "reversal_cost_bow_per_N", "reversal_band_rps", "reversal_dwell_s", "reversal_dwell_factor",
                      "reversal_quadratic", "reversal_hysteresis_rps", "q_cross_track", "q_cross_track_far",
-                     "cross_track_far_m"):
+                     "cross_track_far_m", "wave_azimuth_split_scale", "wave_bow_cost_scale"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
@@ -404,6 +421,10 @@ class QpWeights(NamedTuple):
     dw_max: np.ndarray  # largest input change in one step
     min_speed_course_mps: float
     row_rate: int  # first row of the rate bounds in A
+    # the azimuths' thrust reference per stage: trim + split[0] (q_common[k] - trim), q_common the
+    # nominal plan's mean of the two azimuths (split[0] = 0 in flat water: the trim alone)
+    q_common: np.ndarray
+    split: np.ndarray
 
 
 class QpData(NamedTuple):
@@ -435,6 +456,7 @@ def _assemble_py(x, xb, wb, s_pred, path, scale, mq, dt, dist, cur, n_floor, w_p
     length, cos_end, sin_end = path.end[0], path.end[1], path.end[2]
     Qy, stage_w, R, S_rate = weights.q_y, weights.stage, weights.r_input, weights.s_rate
     q_trim_gain, dw_max = weights.q_trim_gain, weights.dw_max
+    q_common, split = weights.q_common, weights.split[0]
     min_speed_course, row_rate = weights.min_speed_course_mps, weights.row_rate
     ad_i, ad_j, bd_i, bd_j = pattern.ad_i, pattern.ad_j, pattern.bd_i, pattern.bd_j
     a_dyn_pos, p_state_pos, iu_i, iu_j = pattern.a_dyn_pos, pattern.p_state_pos, pattern.p_i, pattern.p_j
@@ -533,6 +555,7 @@ def _assemble_py(x, xb, wb, s_pred, path, scale, mq, dt, dist, cur, n_floor, w_p
     for k in range(N):
         v = ref[k, 4]
         qt = q_trim_gain[0] * v + q_trim_gain[1] * abs(v) * v + q_trim_gain[2] * v * v * v  # trim thrust (scaled)
+        qt = qt + split * (q_common[k] - qt)  # in a sea: about the plan's common mode (MPCConfig.wave_*)
         q[base + nw * k + 0] = 0.0
         q[base + nw * k + 1] = 0.0
         q[base + nw * k + 2] = -R[2] * qt
@@ -637,7 +660,7 @@ class MPCController:
         R = np.array([cfg.r_alpha, cfg.r_alpha, cfg.r_thrust_azimuth_per_N2 * tq[0] ** 2,
                       cfg.r_thrust_azimuth_per_N2 * tq[1] ** 2, cfg.r_thrust_bow_per_N2 * tq[2] ** 2])
         S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
-        self._R, self._S, self._S_calm = R, S, S.copy()
+        self._R, self._S, self._S_calm, self._R_calm = R, S, S.copy(), R.copy()
         p_in_vals: list[float] = []
         rate_j: list[int] = []  # per input entry of P: its input, and how many S it holds (`_set_rate_scale`)
         rate_count: list[float] = []
@@ -792,8 +815,10 @@ class MPCController:
         # the compiled assembly's view of the above (the same arrays, grouped)
         self._pattern = QpPattern(self._ad_idx[0], self._ad_idx[1], self._bd_idx[0], self._bd_idx[1],
                                   self._a_dyn_pos, self._p_state_pos, self._iu[0], self._iu[1])
+        self._q_common = np.zeros(N)
+        self._split = np.zeros(1)
         self._weights = QpWeights(self._Qy, self._ones_stage, self._R, self._S, self._q_trim_gain, self._dw_max,
-                                  float(cfg.min_speed_course_mps), int(self._row_rate))
+                                  float(cfg.min_speed_course_mps), int(self._row_rate), self._q_common, self._split)
         self._qp = QpData(self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q, self._l, self._u, self._ref)
 
     def _dynamics_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -842,29 +867,43 @@ class MPCController:
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
         self._wave_ms = 0.0  # mean square of the estimate's wave displacement (north, east)
+        self.sea_level = 0.0  # 0 (flat water) .. 1 (wave_rate_ref_m beyond the dead band)
         self.rate_scale = 1.0
-        self._set_rate_scale(1.0)
+        self._split[0] = 0.0
+        self._set_rate_scale(1.0, 0.0)
 
-    def _set_rate_scale(self, scale: float) -> None:
-        """The input-rate penalties times `scale`: S in the first stage's linear term (the kernel's
-        s_rate) and in P's input entries (R + count S on the diagonal, -S off it)."""
+    def _set_rate_scale(self, scale: float, sea_level: float | None = None) -> None:
+        """The input-rate penalties times `scale`, and (unless None) the thrust costs at `sea_level`
+        (MPCConfig.wave_azimuth_split_scale, wave_bow_cost_scale): S in the first stage's linear term
+        (the kernel's s_rate), R in the trim term (the kernel's r_input) and both in P's input entries
+        (R + count S on the diagonal, -S off it)."""
+        cfg = self.config
         self.rate_scale = scale
+        if sea_level is not None:
+            self._split[0] = sea_level
+            self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
+            self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
+            self._p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)
         self._S[:] = self._S_calm * scale
         self._Px[self._p_in_pos] = self._p_in_R + self._p_in_count * self._S[self._p_in_j]
 
     def _schedule_rate(self, state: VesselState) -> None:
-        """In a sea, dearer input changes (MPCConfig.wave_rate_*): the RMS of the wave displacement the
-        estimator separated out, beyond its dead band, scales the rate penalties up to wave_rate_scale."""
+        """In a sea, dearer input changes, uneven azimuth thrust and bow thrust (MPCConfig.wave_*): the
+        RMS of the wave displacement the estimator separated out, beyond its dead band, is the sea level
+        f (0..1) that scales the rate penalties up to wave_rate_scale and the thrust costs up to
+        wave_azimuth_split_scale and wave_bow_cost_scale."""
         cfg = self.config
         w = getattr(state, "wave_motion", (0.0, 0.0, 0.0))
-        if not (cfg.wave_rate_scale > 1.0 and math.isfinite(w[0]) and math.isfinite(w[1])):
+        if not ((cfg.wave_rate_scale > 1.0 or cfg.wave_azimuth_split_scale > 1.0 or cfg.wave_bow_cost_scale > 1.0
+                 or math.isfinite(cfg.wave_azimuth_astern_hold_s)) and math.isfinite(w[0]) and math.isfinite(w[1])):
             return
         self._wave_ms += min(1.0, cfg.dt_s / cfg.wave_rate_time_constant_s) * (w[0] * w[0] + w[1] * w[1] - self._wave_ms)
         rms = math.sqrt(0.5 * self._wave_ms)
         f = min(1.0, max(0.0, (rms - cfg.wave_rate_deadband_m) / cfg.wave_rate_ref_m))
-        scale = 1.0 + (cfg.wave_rate_scale - 1.0) * f
-        if abs(scale - self.rate_scale) > 0.01 * self.rate_scale:
-            self._set_rate_scale(scale)
+        self.sea_level = f
+        scale = 1.0 + (max(cfg.wave_rate_scale, 1.0) - 1.0) * f
+        if abs(scale - self.rate_scale) > 0.01 * self.rate_scale or abs(f - self._split[0]) > 0.01:
+            self._set_rate_scale(scale, f)
 
     def _q_achieved(self) -> np.ndarray:
         n = self._n_achieved
@@ -916,7 +955,9 @@ class MPCController:
         sigma = np.where(self._direction != 0.0, self._direction, self._sigma)
         if cfg.azimuth_ahead_only:
             sigma[:2] = 1.0
-        sigma[:2] = np.where(self._astern_s[:2] > cfg.azimuth_astern_hold_s, 1.0, sigma[:2])
+        hold = min(cfg.azimuth_astern_hold_s, cfg.wave_azimuth_astern_hold_s) if self.sea_level > 0.0 \
+            else cfg.azimuth_astern_hold_s
+        sigma[:2] = np.where(self._astern_s[:2] > hold, 1.0, sigma[:2])
         if np.any(sigma != self._sigma):
             self._sigma = sigma
             self._Ax[self._a_sigma_pos] = np.tile(sigma, self.N)
@@ -1074,6 +1115,8 @@ class MPCController:
             prev = np.concatenate([w_before[None, :], wb[:-1]])
             self._lag_weights(wb, prev, self._beta)
             ub = self._beta * wb + (1.0 - self._beta) * prev
+            if self._split[0] > 0.0:  # in a sea the azimuths' thrust is priced about the plan's common mode
+                np.multiply(0.5, wb[:, 2] + wb[:, 3], out=self._q_common)
             _assemble(x, xb, ub, s_pred, self._path_table, self.scale, self.model.arrays.packed, cfg.dt_s, self._dist,
                       self._current, cfg.n_floor_rps, self._w_prev, self._weights, self._pattern, self._qp, newton)
             _input_lag_block(self._Bd, self._bd_idx[0], self._bd_idx[1], self._beta, w_before, self._Ax,
