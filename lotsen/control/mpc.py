@@ -662,7 +662,7 @@ class MPCController:
         S = np.array([cfg.s_alpha, cfg.s_alpha, cfg.s_thrust, cfg.s_thrust, cfg.s_thrust])
         self._R, self._S, self._S_calm, self._R_calm = R, S, S.copy(), R.copy()
         p_in_vals: list[float] = []
-        rate_j: list[int] = []  # per input entry of P: its input, and how many S it holds (`_set_rate_scale`)
+        rate_j: list[int] = []  # per input entry of P: its input, and how many S it holds (`_set_sea_weights`)
         rate_count: list[float] = []
         for k in range(N):
             b = self._wi(k)
@@ -868,22 +868,19 @@ class MPCController:
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
         self._wave_ms = 0.0  # mean square of the estimate's wave displacement (north, east)
         self.sea_level = 0.0  # 0 (flat water) .. 1 (wave_rate_ref_m beyond the dead band)
-        self.rate_scale = 1.0
-        self._split[0] = 0.0
-        self._set_rate_scale(1.0, 0.0)
+        self._set_sea_weights(1.0, 0.0)
 
-    def _set_rate_scale(self, scale: float, sea_level: float | None = None) -> None:
-        """The input-rate penalties times `scale`, and (unless None) the thrust costs at `sea_level`
+    def _set_sea_weights(self, scale: float, sea_level: float) -> None:
+        """The input-rate penalties times `scale` and the thrust costs at `sea_level`
         (MPCConfig.wave_azimuth_split_scale, wave_bow_cost_scale): S in the first stage's linear term
         (the kernel's s_rate), R in the trim term (the kernel's r_input) and both in P's input entries
         (R + count S on the diagonal, -S off it)."""
         cfg = self.config
         self.rate_scale = scale
-        if sea_level is not None:
-            self._split[0] = sea_level
-            self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
-            self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
-            self._p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)
+        self._split[0] = sea_level
+        self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
+        self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
+        self._p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)
         self._S[:] = self._S_calm * scale
         self._Px[self._p_in_pos] = self._p_in_R + self._p_in_count * self._S[self._p_in_j]
 
@@ -903,7 +900,7 @@ class MPCController:
         self.sea_level = f
         scale = 1.0 + (max(cfg.wave_rate_scale, 1.0) - 1.0) * f
         if abs(scale - self.rate_scale) > 0.01 * self.rate_scale or abs(f - self._split[0]) > 0.01:
-            self._set_rate_scale(scale, f)
+            self._set_sea_weights(scale, f)
 
     def _q_achieved(self) -> np.ndarray:
         n = self._n_achieved
