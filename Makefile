@@ -37,11 +37,13 @@ run: venv
 # (timing under a load they make themselves: the viewer flood, a survey's route arriving; an external
 # physics that must keep step with the core) on their own. The 25 slowest simulated-time tests are listed (what the suite's time goes to). A live test
 # that fails is run once more, on its own.
+# (tools/test_under_load.py's LIVE_STEPS repeats these two selections: keep them in step)
+LIVE_PAIRED := live and not alone and not timing_bar
+LIVE_ALONE := live and alone and not timing_bar
 test: venv-dev browser
 	$(PY) -m pytest -q -n 2 --dist loadfile -m "not live" --durations=25
-	$(PY) -m pytest -q -n 2 --dist loadfile -m "live and not alone and not timing_bar" || \
-		$(PY) -m pytest -q -m "live and not alone and not timing_bar" --last-failed
-	$(PY) -m pytest -q -m "live and alone and not timing_bar" || $(PY) -m pytest -q -m "live and alone and not timing_bar" --last-failed
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "$(LIVE_PAIRED)" || $(PY) -m pytest -q -m "$(LIVE_PAIRED)" --last-failed
+	$(PY) -m pytest -q -m "$(LIVE_ALONE)" || $(PY) -m pytest -q -m "$(LIVE_ALONE)" --last-failed
 
 # The default suite 10 times in a row with two CPU burners running (RUNS=, BURNERS=); writes
 # bench/results/under_load.md. About 15-19 min a run on a 2-core machine with the burners: 2.5-3 h.

@@ -58,7 +58,7 @@ def write_results(rows: list[dict], meta: dict) -> None:
     (RESULTS / "under_load.md").write_text("\n".join(md) + "\n")
 
 
-# the wall-clock steps of `make test` (Makefile): two at a time, then the `alone` ones on their own
+# the wall-clock steps of `make test` (the Makefile's LIVE_PAIRED, LIVE_ALONE): two at a time, then the `alone` ones on their own
 LIVE_STEPS = [("live, two at a time (wall clock, one retry)", ["-n", "2", "--dist", "loadfile"],
                "live and not alone and not timing_bar"),
               ("live, alone (wall clock, one retry)", [], "live and alone and not timing_bar")]
