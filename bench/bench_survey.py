@@ -336,7 +336,9 @@ def live_rows() -> list[dict]:
                                        "--current", f"{CURRENT[0]},{CURRENT[1]}", "--wind", f"{WIND[0]},{WIND[1]}"],
                                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_keep_up)
             m = re.search(r"listening on (udp:\S+)", server.stdout.readline() if server.stdout else "")
-            extra["physics"] = {"address": m.group(1) if m else "udp:127.0.0.1:1", "gnss_antenna_m": [0.05, 0.0]}
+            # the receiver where config/sim.yaml's vessel has it (lotsen run warns when they differ)
+            extra["physics"] = {"address": m.group(1) if m else "udp:127.0.0.1:1", "gnss_antenna_m": [0.05, 0.0],
+                                "gnss_antenna_height_m": 0.25}
         t0 = time.perf_counter()
         try:
             with tempfile.TemporaryDirectory(prefix="bench-survey-live-") as work:

@@ -167,7 +167,7 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     config, pairing = launch_config(args, lock)
     from lotsen.stack import processes
     from lotsen.stack.logs import recover_unclosed_logs
-    from lotsen.stack.stack import boat_description, describe_parameters
+    from lotsen.stack.stack import boat_description, describe_parameters, physics_antenna_mismatch
 
     for line in recover_unclosed_logs(config):
         print(line, flush=True)
@@ -190,6 +190,9 @@ def _run(args: argparse.Namespace, lock: RunLock) -> int:
     if config.mode == "sim":
         print(f"simulated boat: {boat_description(config)}; model: "
               f"{describe_parameters(config.vessel.parameters_file)}", flush=True)
+        mismatch = physics_antenna_mismatch(config)
+        if mismatch:
+            print(f"warning: {mismatch}", flush=True)
     print(f"lotsen: {config.mode} run, processes: {', '.join(roles)} (Zenoh on {launcher.endpoint})", flush=True)
     try:
         launcher.start()

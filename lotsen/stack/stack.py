@@ -178,6 +178,26 @@ def boat_description(config: LaunchConfig, model: VesselModel | None = None) -> 
     return simulated_boat(config, model).describe(model.params)
 
 
+def physics_antenna_mismatch(config: LaunchConfig) -> str:
+    """'' or a warning: the external physics's receiver (extra.physics.gnss_antenna_*, where lotsen's
+    receiver model places the fixes on that hull) is not where vessel.gnss_antenna_* tells the
+    estimator it is. The estimator then corrects the fixes for a lever arm they do not have: with a
+    25 cm antenna height it is 4 mm a degree of roll, sideways, and on the 6-DOF hull that error fed
+    the helm, the helm rolled the hull, and the estimate left its 3 sigma (docs/physics.md)."""
+    stack = stack_config(config)
+    physics, vessel = stack.extra.physics, stack.vessel
+    if physics.address is None:
+        return ""
+    there = (*physics.gnss_antenna_m, physics.gnss_antenna_height_m)
+    believed = (*vessel.gnss_antenna_m, vessel.gnss_antenna_height_m)
+    if max(abs(a - b) for a, b in zip(there, believed)) <= 1e-3:
+        return ""
+    return (f"the physics's GNSS antenna (extra.physics.gnss_antenna_m {list(physics.gnss_antenna_m)}, "
+            f"gnss_antenna_height_m {physics.gnss_antenna_height_m:g}) is not where the estimator places it "
+            f"(vessel.gnss_antenna_m {list(vessel.gnss_antenna_m)}, gnss_antenna_height_m "
+            f"{vessel.gnss_antenna_height_m:g}): the fixes will be corrected for a lever arm they do not have")
+
+
 def resolve_origin(config: StackConfig) -> GeoOrigin | None:
     """The geodetic origin of the local frame, resolved once for every part of a stack: the
     config's `origin`, else the simulated receiver's origin in simulation, else None (the

@@ -140,6 +140,24 @@ def test_bad_physics_sections_are_clear_errors(tmp_path, physics, message):
         load_stack_config(tmp_path / "c.yaml")
 
 
+def test_a_physics_receiver_elsewhere_than_the_estimator_believes_is_said_at_the_start(tmp_path):
+    """The estimator corrects the fixes for the antenna's lever arm and mast swing from vessel.*; a
+    physics whose receiver sits elsewhere gets a warning naming both (lotsen run prints it)."""
+    from lotsen.stack.config import load_stack_config
+    from lotsen.stack.stack import physics_antenna_mismatch
+
+    vessel = {"gnss_antenna_m": [0.05, 0.0], "gnss_antenna_height_m": 0.25}
+    physics = {"address": "udp:127.0.0.1:9002", "gnss_antenna_m": [0.05, 0.0]}
+    (tmp_path / "c.yaml").write_text(json.dumps({"vessel": vessel, "extra": {"physics": physics}}))
+    warning = physics_antenna_mismatch(load_stack_config(tmp_path / "c.yaml"))
+    assert "gnss_antenna_height_m 0)" in warning and "gnss_antenna_height_m 0.25)" in warning, warning
+    (tmp_path / "c.yaml").write_text(json.dumps(
+        {"vessel": vessel, "extra": {"physics": {**physics, "gnss_antenna_height_m": 0.25}}}))
+    assert physics_antenna_mismatch(load_stack_config(tmp_path / "c.yaml")) == ""
+    (tmp_path / "c.yaml").write_text(json.dumps({"vessel": vessel}))  # lotsen's own boat: not asked
+    assert physics_antenna_mismatch(load_stack_config(tmp_path / "c.yaml")) == ""
+
+
 # ------------------------------------------------------------------------------------------------
 # the plant interface
 
