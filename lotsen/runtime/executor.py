@@ -101,9 +101,13 @@ class Executor:
     def add_timer(self, period_s: float, callback: Callable[[], None], name: str = "", phase_s: float = 0.0) -> Timer:
         if not period_s > 0:
             raise ValueError(f"timer {name}: period must be > 0, got {period_s}")
-        timer = Timer(period_s, callback, name, self.clock.now() + phase_s)
+        timer = Timer(period_s, callback, name, self._first_due(self.clock.now() + phase_s))
         heapq.heappush(self._heap, (timer.next_t, next(self._seq), timer))
         return timer
+
+    def _first_due(self, t: float) -> float:
+        """When a timer asked for at `t` first runs (the real-time loop puts it on its grid)."""
+        return t
 
     def _run_timer(self, timer: Timer) -> None:
         try:
@@ -234,6 +238,16 @@ def _below(policy: tuple[int, int] | None) -> None:
 
 #: the longest the real-time loop sleeps when no timer is due sooner (it wakes at once for calls)
 IDLE_WAIT_S = 1.0
+#: the real-time loop's timer grid (s): a timer's first run is put on the next grid point, so
+#: timers whose periods are multiples of it fall due together and run in one wake-up (the core's
+#: 100 Hz boat, 20 Hz fusion, 10 Hz supervisor and bridge: 100 wake-ups a second, not 150)
+TIMER_GRID_S = 0.01
+
+
+def on_grid(t: float, grid_s: float) -> float:
+    """The first point of the grid k * grid_s at or after `t` (a hair of rounding allowed)."""
+    k = math.ceil(t / grid_s - 1e-9)
+    return k * grid_s
 
 
 class RealtimeExecutor(Executor):
@@ -243,6 +257,7 @@ class RealtimeExecutor(Executor):
         super().__init__(bus, clock or WallClock())
         self._calls: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._stop = threading.Event()
+        self.grid_s = TIMER_GRID_S
         #: when the loop last finished a timer (clock seconds): a watchdog's proof of life
         self.beat_s = -math.inf
         self._background: BackgroundThread | None = None
@@ -256,6 +271,9 @@ class RealtimeExecutor(Executor):
         if self._background is None:
             self._background = BackgroundThread(self.call_soon_threadsafe)
         self._background.submit(work, done)
+
+    def _first_due(self, t: float) -> float:
+        return on_grid(t, self.grid_s)
 
     def stop(self) -> None:
         self._stop.set()

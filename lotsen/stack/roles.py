@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any, Callable
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.messages import ThrustCommand, Topic
 from lotsen.stack.config import ProcessOptions, StackConfig
-from lotsen.runtime.executor import RealtimeExecutor
+from lotsen.runtime.executor import TIMER_GRID_S, RealtimeExecutor
 from lotsen.runtime.lifetime import die_with_parent
 from lotsen.transport.ros2_bridge import Ros2BridgeConfig
 from lotsen.transport.zenoh_bridge import BridgeConfig, ZenohBridge
@@ -286,7 +286,9 @@ class CoreWatchdog:
         # boat or drivers, 20 Hz fusion, 10 Hz supervisor); this timer only makes sure there is
         # one at least every stall_s / 4 (a 50 Hz timer of its own woke the loop 50 times a
         # second more than its work does)
-        stack.executor.add_timer(stall_s / 4, self._beat, "watchdog")
+        # (its period on the real-time loop's 10 ms grid: it runs in a wake-up the boat's timer has anyway)
+        period_s = max(TIMER_GRID_S, math.floor(stall_s / 4 / TIMER_GRID_S + 1e-9) * TIMER_GRID_S)
+        stack.executor.add_timer(period_s, self._beat, "watchdog")
         self._thread = threading.Thread(target=self._watch, name="core-watchdog", daemon=True)
 
     def start(self) -> None:
