@@ -689,7 +689,6 @@ class MPCController:
         self._p_in_pos = self._p_pos[n_state_p:n_state_p + len(rate_j)]
         self._p_in_j = np.array(rate_j)
         self._p_in_count = np.array(rate_count)
-        self._p_in_R = np.where(self._p_in_count > 0, R[self._p_in_j], 0.0)  # R on the diagonal only
         self._Px[self._p_state_pos] = 1e-6  # replaced before the first solve
         # --- A: x0 = x_meas; dynamics; input bounds; rate bounds
         a_entries: list[tuple[int, int]] = []
@@ -880,9 +879,9 @@ class MPCController:
         self._split[0] = sea_level
         self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
         self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
-        self._p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)
+        p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)  # R on the diagonal only
         self._S[:] = self._S_calm * scale
-        self._Px[self._p_in_pos] = self._p_in_R + self._p_in_count * self._S[self._p_in_j]
+        self._Px[self._p_in_pos] = p_in_R + self._p_in_count * self._S[self._p_in_j]
 
     def _schedule_rate(self, state: VesselState) -> None:
         """In a sea, dearer input changes, uneven azimuth thrust and bow thrust (MPCConfig.wave_*): the
