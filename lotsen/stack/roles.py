@@ -185,9 +185,11 @@ def _cpu_split(opts: ProcessOptions) -> tuple[set[int] | None, set[int] | None]:
     return {core}, set(cpus) - {core}
 
 
-def _threads_of_this_process() -> list[int]:
+def _other_threads() -> list[int]:
+    """The ids of this process's threads but the calling one (Linux sets priority and CPUs per thread)."""
+    me = threading.get_native_id()
     try:
-        return [int(t) for t in os.listdir("/proc/self/task")]
+        return [int(t) for t in os.listdir("/proc/self/task") if int(t) != me]
     except OSError:
         return []
 
@@ -203,21 +205,21 @@ def apply_core_priority(opts: ProcessOptions) -> list[str]:
     autogroups, nice values alone count only within one terminal session."""
     done = [_set_nice(opts.core_nice)]
     core_cpus, _ = _cpu_split(opts)
-    me = threading.get_native_id()
-    tids = _threads_of_this_process()
+    others = _other_threads()
     if core_cpus:
-        for tid in tids:
-            if tid != me:
-                try:
-                    os.sched_setaffinity(tid, core_cpus)
-                except OSError:
-                    pass
+        for tid in others:
+            try:
+                os.sched_setaffinity(tid, core_cpus)
+            except OSError:
+                pass
         done.append(_pin(core_cpus))  # this thread, and what it got
     if opts.realtime_priority > 0:
         try:
-            for tid in tids:
-                if tid != me:
+            for tid in others:
+                try:
                     os.sched_setscheduler(tid, os.SCHED_RR, os.sched_param(opts.realtime_priority))
+                except ProcessLookupError:  # a thread that ended meanwhile: not a refusal
+                    pass
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(opts.realtime_priority + 1))
             done.append(f"real-time priority {opts.realtime_priority + 1} (SCHED_FIFO; other threads SCHED_RR)")
         except (AttributeError, PermissionError, OSError):
@@ -248,15 +250,13 @@ def apply_edge_priority(opts: ProcessOptions, nice: int) -> list[str]:
     web process calls this once its server threads run)."""
     done = [_set_nice(nice)]
     _, edge_cpus = _cpu_split(opts)
-    me = threading.get_native_id()
-    for tid in _threads_of_this_process():
-        if tid != me:
-            try:
-                os.setpriority(os.PRIO_PROCESS, tid, os.nice(0))
-                if edge_cpus:
-                    os.sched_setaffinity(tid, edge_cpus)
-            except OSError:  # a thread that ended meanwhile, or a lower nice not permitted
-                pass
+    for tid in _other_threads():
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, os.nice(0))
+            if edge_cpus:
+                os.sched_setaffinity(tid, edge_cpus)
+        except OSError:  # a thread that ended meanwhile, or a lower nice not permitted
+            pass
     if edge_cpus:
         done.append(_pin(edge_cpus))
     return done
