@@ -153,8 +153,11 @@ def lan_address() -> str:
         return socket.gethostname()
 
 
-def page_base_url(host: str, port: int, tls: bool = False) -> str:
-    """The page's address a phone can open: the bind address, or for 0.0.0.0 / :: the LAN one."""
+def page_base_url(host: str, port: int, tls: bool = False) -> str | None:
+    """The page's address a phone can open: the bind address, or for 0.0.0.0 / :: the LAN one; None
+    for port 0 (the web server picks its port at start: no address is known yet)."""
+    if port == 0:
+        return None
     if host in ("", "0.0.0.0", "::"):
         host = lan_address()
     shown = f"[{host}]" if ":" in host else host
@@ -200,10 +203,13 @@ def qr_svg(data: str) -> str:
             f'<rect width="{n}" height="{n}" fill="#fff"/><path d="{path}" fill="#000"/></svg>')
 
 
-def console_lines(credential: str, path: Path, base_url: str, created: bool) -> list[str]:
+def console_lines(credential: str, path: Path, base_url: str | None, created: bool) -> list[str]:
     """What `lotsen run` and `lotsen pair` print: the credential, where it is kept, the pairing
-    address and its QR code."""
-    url = pairing_url(base_url, credential)
+    address and its QR code (without an address, port 0: how to make it from the one printed later)."""
     head = "new pilot credential of this boat" if created else "pilot credential of this boat"
-    return [f"{head}: {credential} (kept in {path}; `lotsen pair --new` replaces it)",
-            f"pair a phone: open {url} or scan:", qr_text(url)]
+    lines = [f"{head}: {credential} (kept in {path}; `lotsen pair --new` replaces it)"]
+    if base_url is None:
+        return lines + [f"pair a phone: the web port is chosen at start (web.port 0); open the operator "
+                        f"interface's address `lotsen run` prints, with #pair={credential} after it"]
+    url = pairing_url(base_url, credential)
+    return lines + [f"pair a phone: open {url} or scan:", qr_text(url)]

@@ -60,6 +60,15 @@ def test_the_pairing_address_carries_the_credential_in_its_fragment_and_its_qr_c
     assert 'viewBox="0 0 %d %d"' % (len(m), len(m)) in qr_svg(url)
 
 
+def test_with_the_port_chosen_at_start_no_address_with_port_0_is_printed(tmp_path):
+    """web.port 0: the server picks its port at start, so `lotsen run` cannot know the pairing address
+    when it prints the credential; it said http://HOST:0/#pair=... (an address that opens nothing)."""
+    assert pairing.page_base_url("127.0.0.1", 0) is None
+    assert pairing.page_base_url("127.0.0.1", 8080) == "http://127.0.0.1:8080/"
+    lines = pairing.console_lines("Tq7-vLx2", tmp_path / "c", None, created=False)
+    assert len(lines) == 2 and ":0/" not in "".join(lines) and "#pair=Tq7-vLx2" in lines[1], lines
+
+
 def _pair(tmp_path, *args):
     env = {**os.environ, pairing.CONFIG_DIR_ENV: str(tmp_path / "cfg")}
     return subprocess.run([sys.executable, "-m", "lotsen", "pair", str(CONFIG), *args], capture_output=True,
