@@ -287,7 +287,7 @@ class ModelAidedEKF:
         self._accel_innovation_mean = np.zeros(2)
         self._accel_innovation_t = -math.inf
         self.model_error_q = np.zeros(2)
-        self.innovation_cov = np.zeros((0, 0))  # S of the last update (`_update`)
+        self._innovation_cov = np.zeros((0, 0))  # S of the last update (`_update`)
         self._gnss_accel: tuple[float, float, float] | None = None  # (stamp, a_N, a_E)
         self._gnss_vel_prev: tuple[float, float, float] | None = None  # (stamp, v_N, v_E)
         self._body_rates_pq = (0.0, 0.0)  # the last gyro's x and y rates, offsets removed (the mast's swing)
@@ -563,7 +563,7 @@ class ModelAidedEKF:
         P = self.P
         PHt = P @ H.T
         S = H @ PHt + R
-        self.innovation_cov = S  # the last update's, for what a caller derives from its innovation
+        self._innovation_cov = S  # the last update's, for what a caller derives from its innovation
         m = len(y)
         if m == 1:
             s00 = float(S[0, 0])
@@ -834,7 +834,7 @@ class ModelAidedEKF:
             R += np.eye(2) * self.wave_band.heave_accel_std_mps2 ** 2
         y = np.array(a) - h
         if self._update("accel", y, H, R, reopen=reopen):  # a spike the gate rejects is no model error
-            self._track_model_error(y, self.innovation_cov)
+            self._track_model_error(y, self._innovation_cov)
 
     def _track_model_error(self, y: np.ndarray, S: np.ndarray) -> None:
         """The low-frequency model's force error from the accelerometer (EkfConfig.model_error_time_s):
