@@ -37,7 +37,7 @@ run: venv
 # (timing under a load they make themselves: the viewer flood, a survey's route arriving; an external
 # physics that must keep step with the core) on their own. The 25 slowest simulated-time tests are listed (what the suite's time goes to). A live test
 # that fails is run once more, on its own.
-# (tools/test_under_load.py's LIVE_STEPS repeats these two selections: keep them in step)
+# (tools/test_under_load.py reads these two selections from here)
 LIVE_PAIRED := live and not alone and not timing_bar
 LIVE_ALONE := live and alone and not timing_bar
 test: venv-dev browser

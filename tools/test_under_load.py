@@ -58,10 +58,20 @@ def write_results(rows: list[dict], meta: dict) -> None:
     (RESULTS / "under_load.md").write_text("\n".join(md) + "\n")
 
 
-# the wall-clock steps of `make test` (the Makefile's LIVE_PAIRED, LIVE_ALONE): two at a time, then the `alone` ones on their own
+def makefile_selection(name: str) -> str:
+    """The Makefile's `NAME := <pytest -m expression>`: the selections `make test` runs, read where they
+    are written so that this tool cannot drift from them."""
+    for line in (ROOT / "Makefile").read_text().splitlines():
+        m = re.fullmatch(rf"{name}\s*:=\s*(.+?)\s*", line)
+        if m:
+            return m.group(1)
+    raise SystemExit(f"test_under_load: the Makefile defines no {name}")
+
+
+# the wall-clock steps of `make test`: two at a time, then the `alone` ones on their own
 LIVE_STEPS = [("live, two at a time (wall clock, one retry)", ["-n", "2", "--dist", "loadfile"],
-               "live and not alone and not timing_bar"),
-              ("live, alone (wall clock, one retry)", [], "live and alone and not timing_bar")]
+               makefile_selection("LIVE_PAIRED")),
+              ("live, alone (wall clock, one retry)", [], makefile_selection("LIVE_ALONE"))]
 
 
 def main() -> int:
