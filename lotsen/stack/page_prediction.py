@@ -48,9 +48,9 @@ def estimated_conditions(current_ne_mps: Any, sea_state: Any) -> EstimatedCondit
 @dataclass(frozen=True)
 class PagePredictor:
     """Plans the route as the planner worker does and predicts it on the run's model in use with its
-    controller, in the current and the sea the estimator knows now (`EstimatedConditions`; a bare
-    (north, east) current from an older caller: flat water). Runs under the budget's `predict_time_s`
-    (PlannerWorker reads `budget_key`)."""
+    controller, in the current and the sea the estimator knows now (`EstimatedConditions`; None:
+    nothing known, still water). Runs under the budget's `predict_time_s` (PlannerWorker reads
+    `budget_key`)."""
 
     parameters: Any  # lotsen.model.VesselParameters of the model in use
     geometry: Any    # lotsen.model.VesselGeometry
@@ -59,7 +59,7 @@ class PagePredictor:
     planner: Any     # the run's PlannerConfig
     budget_key = "predict_time_s"
 
-    def __call__(self, route_data: dict, conditions: EstimatedConditions | tuple[float, float]) -> dict[str, Any]:
+    def __call__(self, route_data: dict, conditions: EstimatedConditions | None) -> dict[str, Any]:
         from lotsen.control import ControlConfig
         from lotsen.errors import LotsenError
         from lotsen.model import VesselModel
@@ -68,8 +68,7 @@ class PagePredictor:
         from lotsen.planning.survey.keeping import line_spans
         from lotsen.stack.prediction import predict_mission
 
-        if not isinstance(conditions, EstimatedConditions):
-            conditions = estimated_conditions(conditions, None)
+        conditions = conditions if conditions is not None else EstimatedConditions()
         try:
             route = route_from_dict(route_data)
             path = plan_route(route, self.planner)

@@ -101,10 +101,10 @@ class ControlHandler:
         self.broadcast = broadcast or (lambda m: None)  # a message to every page
         self.rerun = rerun  # the route over the holes of the held survey (lotsen.web.coverage)
         # the mission's time and energy predicted (route, conditions) -> dict, run in the planner worker; set
-        # by the stack (lotsen.stack.page_prediction.PagePredictor), with what the estimator knows now: its
-        # current north/east m/s, or an EstimatedConditions (the current and the sea)
+        # by the stack (lotsen.stack.page_prediction.PagePredictor), with what the estimator knows now (the
+        # stack's EstimatedConditions: the current and the sea; None: nothing known, still water)
         self.predict: Callable[[dict, Any], dict] | None = None
-        self.estimated_current: Callable[[], Any] = lambda: (0.0, 0.0)
+        self.estimated_current: Callable[[], Any] = lambda: None
         self._instance = secrets.token_hex(4)  # request ids of this process never repeat an earlier one's
 
     # -- connection life cycle ---------------------------------------------------------------

@@ -50,7 +50,7 @@ def test_predict_flies_in_the_estimated_sea_and_reports_it():
     in flat water, and the answer says what sea it was flown in; an older caller's bare current still works."""
     model = VesselModel()
     predict = PagePredictor(model.params, model.geometry, "default coefficients", "mpc", PlannerConfig())
-    flat = predict(ROUTE, (0.0, 0.1))
+    flat = predict(ROUTE, EstimatedConditions((0.0, 0.1)))
     rough = predict(ROUTE, EstimatedConditions((0.0, 0.1), (0.06, 1.0, 45.0)))
     assert flat["ok"] and rough["ok"] and rough["reached_end"], rough
     assert flat["waves"] is None and rough["waves"] == {"hs_m": 0.06, "tp_s": 1.0, "from_deg": 45.0}

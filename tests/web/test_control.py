@@ -578,12 +578,12 @@ def test_predict_flies_the_drafted_route_on_the_model_in_use_in_the_estimated_cu
     time) in the current the estimator reports now; a viewer may not ask (it is the planner's time)."""
     from lotsen.model import VesselModel
     from lotsen.planning import PlannerConfig
-    from lotsen.stack.page_prediction import PagePredictor
+    from lotsen.stack.page_prediction import EstimatedConditions, PagePredictor
 
     h, _, published, _ = make()
     model = VesselModel()
     h.predict = PagePredictor(model.params, model.geometry, "default coefficients", "mpc", PlannerConfig())
-    h.estimated_current = lambda: (0.0, 0.15)
+    h.estimated_current = lambda: EstimatedConditions((0.0, 0.15))
     s = pilot(h)
     reply = send(h, s, {"type": "predict", "route": ROUTE})[0]
     assert reply["type"] == "predict_result" and reply["ok"] and reply["reached_end"], reply
