@@ -48,6 +48,23 @@ def test_the_best_predictor_is_the_answer_even_when_its_search_did_not_converge(
     assert _Choice([phys, ee], physical=phys).choose(scores) == "equation error"
 
 
+def test_a_physical_answer_better_in_most_windows_is_not_outvoted_by_two_poor_starts():
+    """Seed 129's case (PHYSICAL_WINDOW_SHARE): the boat's own coefficients miss by more than an
+    effective fit in two windows whose start state was poor, and by less in most others: the RMS alone
+    prefers the effective fit by more than PHYSICAL_PREDICTION_SLACK; window by window the physical
+    answer is the better predictor."""
+    phys, ee = _estimate("output error", converged=True), _estimate("equation error", converged=True)
+    mine = np.r_[np.full(18, 0.20), [3.2, 2.0]]
+    theirs = np.r_[np.full(18, 0.25), [1.0, 0.8]]
+    scores = {"output error": _score(mine), "equation error": _score(theirs)}
+    assert scores["output error"].position_at_horizon_m > 1.25 * scores["equation error"].position_at_horizon_m
+    assert _Choice([phys, ee], physical=phys).choose(scores) == "output error"
+    # better in fewer than half of the windows: the better predictor by the RMS wins
+    mine = np.r_[np.full(9, 0.20), np.full(9, 0.30), [3.2, 2.0]]
+    scores["output error"] = _score(mine)
+    assert _Choice([phys, ee], physical=phys).choose(scores) == "equation error"
+
+
 def test_a_choice_made_on_held_out_windows_is_scored_on_the_other_half():
     """A better in the first half, B in the second: the choice earns, for each half, the errors of the
     estimate chosen on the other half, so its score is worse than either estimate's own best half."""
