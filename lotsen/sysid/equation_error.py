@@ -211,6 +211,10 @@ class EquationErrorResult:
     std: dict[str, float]  # 1-sigma of the estimated coefficients (inf: at a bound)
     free_names: tuple[str, ...]
     current_path: CurrentPath | None = None  # lake: the current over the record
+    # the motion samples it was fitted on and the gyro offsets they were taken with (another fit of the
+    # same records takes them as they are: the splines are the data's alone)
+    motion: MotionSamples | None = field(default=None, repr=False)
+    motion_gyro_bias: list[float] | None = field(default=None, repr=False)
 
 
 #: a regressor column's rows in the three equations (X, Y, N); None where the column is zero there
@@ -529,9 +533,9 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
     bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
     wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
-    coefficients' values where `fixed` does not and kappa's start. `hold`: on a lake, another fit of the
-    same records whose kappa, current and wind are kept (only the linear part is solved again: the
-    optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
+    coefficients' values where `fixed` does not and kappa's start. `hold`: another fit of the same
+    records, whose motion samples are taken and, on a lake, whose kappa, current and wind are kept (only
+    the linear part is solved again: the optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
     and the optional `terms` to estimate. `parallel`: the map its independent solves run on
     (lotsen.sysid.parallel; the same answer with any number of workers)."""
     geometry, gap_s, lake, terms = options.geometry, options.gap_s, options.lake, options.terms
@@ -540,7 +544,10 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     if gyro_bias is not None:
         rec_of_seg = [q for q, r in enumerate(records) for _ in split_segments(r, gap_s)]
         per_segment_bias = [gyro_bias[q] for q in rec_of_seg]
-    ms = motion_samples(segs, per_segment_bias)
+    if hold is not None and hold.motion is not None and hold.motion_gyro_bias == per_segment_bias:
+        ms = hold.motion  # the same records and offsets: the same splines
+    else:
+        ms = motion_samples(segs, per_segment_bias)
     dt = float(np.median(np.diff(ms.t))) if len(ms.t) > 1 else 0.125
     lo, hi = parameter_bounds()
     fixed = with_terms_off(fixed, theta0, terms)  # the optional model terms off unless in `terms`
@@ -707,7 +714,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         env_out = np.array([cm[0], cm[1], wind[0], wind[1], *x[len(free):]])  # type: ignore[index]
     return EquationErrorResult(VesselParameters.from_vector(theta), env_out, rstd, total, std,
                                tuple(NAMES[i] for i in free) + (() if kappa_fixed else ("kappa",)),
-                               current if lake else None)
+                               current if lake else None, ms, per_segment_bias)
 
 
 def _naive_var(Af: np.ndarray) -> np.ndarray:
