@@ -217,7 +217,8 @@ class EquationErrorResult:
     motion_gyro_bias: list[float] | None = field(default=None, repr=False)
 
 
-#: a regressor column's rows in the three equations (X, Y, N); None where the column is zero there
+#: a parameter's regressor column: its rows in the three equations (X, Y, N) such that
+#: sum_j theta_j col_j = 0 (+ thrust on the right); None where the column is zero in that equation
 Column = tuple["np.ndarray | None", "np.ndarray | None", "np.ndarray | None"]
 WIND_COLUMNS = tuple(ENV_NAMES[4:4 + N_WIND])  # the wind's drag coefficients, the last columns
 
@@ -237,7 +238,7 @@ def _record_columns(ms: MotionSamples, geometry: VesselGeometry) -> dict[str, Co
     water's velocity)."""
     r = ms.r
     ar = np.abs(r)
-    nu = (ms.u, ms.v, r)
+    nu = (ms.u, ms.v, r)  # with C_N = 0 neither the velocity nor kappa enters the thrust
     return {"m33": (None, None, ms.r_dot), "Y_r": (None, r, None), "N_r": (None, None, r),
             "N_rr": (None, None, -ar * r), "mu_az": _unit_thrust(ms, nu, 0.0, geometry, mu_az=1.0),
             "mu_t": _unit_thrust(ms, nu, 0.0, geometry, mu_t=1.0)}
