@@ -178,3 +178,27 @@ def test_the_kept_filtered_regressors_are_the_filtered_regression_to_the_last_di
                                             0.125).reshape(m, 3, -1))
         assert np.array_equal(bf, _filtered(b.reshape(3, m).T, mx.segment, 0.125))
     assert pickle.loads(pickle.dumps(reg)).memo == {}  # a worker's copy fills its own
+
+
+def test_a_linearisation_is_made_again_only_where_it_differs(lake_minute):
+    """MultipleShootingProblem.linearise keeps its last linearisation with sensitivities: asked again at the
+    same point, free parameters and noise it is the one made; with another noise (the noise re-estimate
+    between passes) it is made anew, equal to a fresh problem's to the last digit."""
+    from lotsen.model import DEFAULT_PARAMETERS
+    from lotsen.sysid.estimate import SolverOptions, starting_point
+    from lotsen.sysid.multiple import MultipleShootingProblem, initial_nodes
+
+    records = [lake_minute.run.record]
+    prob = MultipleShootingProblem(records, SolverOptions())
+    theta, free, _, tscale = starting_point(DEFAULT_PARAMETERS, {"m11": lake_minute.boat.m11})
+    nodes = initial_nodes(prob.grid, prob.segments)
+    first = prob.linearise(theta, nodes, free, tscale, True)
+    assert prob.linearise(theta.copy(), nodes.copy(), free, tscale, True) is first
+    assert prob.linearise(theta, nodes, free, tscale, False) is first  # its residuals serve as well
+    prob.noise["r"] *= 2.0
+    again = prob.linearise(theta, nodes, free, tscale, True)
+    fresh = MultipleShootingProblem(records, SolverOptions(noise_std=dict(prob.noise)))
+    ref = fresh.linearise(theta, nodes, free, tscale, True)
+    assert again is not first
+    for a, b in zip((again.e, again.c, again.Gx, again.Gp, *again.normal), (ref.e, ref.c, ref.Gx, ref.Gp, *ref.normal)):
+        assert np.array_equal(a, b)
