@@ -28,7 +28,8 @@ the output-error estimate takes it from here (and keeps the better of it and the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from collections import OrderedDict
+from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -42,6 +43,7 @@ from lotsen.model.environment import apparent_wind_force, wind_drag_coefficients
 from lotsen.sysid.data import IdRecord, Segment, split_segments
 from lotsen.sysid.estimate import NAMES, IdentifiabilityError, SolverOptions, parameter_bounds, with_terms_off
 from lotsen.sysid.parallel import SERIAL, Held, Map, map_held
+from lotsen.sysid.sensitivity import ENV_NAMES
 
 FILTER_SIGMA_S = 0.5  # the common low-pass of every column (Gaussian, standard deviation)
 # the splines' smoothing: lambda = 1 / (dt (2 pi f_c)^4) passes motion below f_c and cuts above it (a
@@ -97,9 +99,19 @@ def _spline(t: np.ndarray, y: np.ndarray):  # type: ignore[no-untyped-def]
     return make_smoothing_spline(t, y, lam=1.0 / (dt * (2.0 * math.pi * SMOOTHING_CUTOFF_HZ) ** 4))
 
 
-def motion_samples(segments: Sequence[Segment], gyro_bias: Sequence[float] | None = None) -> MotionSamples:
-    """The motion at every fix of every segment (module docstring); `gyro_bias` per segment."""
-    parts: list[tuple[np.ndarray, ...]] = []
+def _spline_through(series: tuple[np.ndarray, np.ndarray]):  # type: ignore[no-untyped-def]
+    """_spline(t, y) as a task of the parallel map."""
+    return _spline(*series)
+
+
+def motion_samples(segments: Sequence[Segment], gyro_bias: Sequence[float] | None = None,
+                   parallel: Map = SERIAL) -> MotionSamples:
+    """The motion at every fix of every segment (module docstring); `gyro_bias` per segment. The splines
+    (north, east, heading, gyro per segment: independent fits, each ~35 ms on a 10-min record) are
+    fitted on `parallel`'s workers."""
+    # first what each segment's splines go through, then all of them fitted at once
+    series: list[tuple[np.ndarray, np.ndarray]] = []
+    plan: list[tuple[int, Segment, np.ndarray, dict[str, int]]] = []
     for q, seg in enumerate(segments):
         names = seg.output_names
         iN, iE = names.index("north"), names.index("east")
@@ -110,26 +122,37 @@ def motion_samples(segments: Sequence[Segment], gyro_bias: Sequence[float] | Non
         keep = np.concatenate([[True], np.diff(tf) > 1e-6])  # splines need increasing abscissae
         rows = np.flatnonzero(fix)[keep]
         tf = seg.t[rows]
-        sN, sE = _spline(tf, seg.outputs[rows, iN]), _spline(tf, seg.outputs[rows, iE])
-        dN, dE, aN, aE = sN.derivative(1)(tf), sE.derivative(1)(tf), sN.derivative(2)(tf), sE.derivative(2)(tf)
+        through = {"north": (tf, seg.outputs[rows, iN]), "east": (tf, seg.outputs[rows, iE])}
         if "psi" in names:
             ip = names.index("psi")
             okp = np.isfinite(seg.outputs[:, ip])
             tp = seg.t[okp]
             kp = np.concatenate([[True], np.diff(tp) > 1e-6])
-            sp = _spline(tp[kp], np.unwrap(seg.outputs[okp, ip])[kp])
-            psi = sp(tf)
-            r_psi = sp.derivative(1)(tf)
-        else:  # course over ground as the heading
-            psi = np.unwrap(np.arctan2(dE, dN))
-            r_psi = np.gradient(psi, tf)
+            through["psi"] = (tp[kp], np.unwrap(seg.outputs[okp, ip])[kp])
         if "r" in names:
             ir = names.index("r")
             okr = np.isfinite(seg.outputs[:, ir])
             tr = seg.t[okr]
             kr = np.concatenate([[True], np.diff(tr) > 1e-6])
             b = 0.0 if gyro_bias is None else float(gyro_bias[q])
-            sr = _spline(tr[kr], seg.outputs[okr, ir][kr] - b)
+            through["r"] = (tr[kr], seg.outputs[okr, ir][kr] - b)
+        plan.append((q, seg, rows, {name: len(series) + k for k, name in enumerate(through)}))
+        series.extend(through.values())
+    splines = list(parallel(_spline_through, series))
+    parts: list[tuple[np.ndarray, ...]] = []
+    for q, seg, rows, at in plan:
+        tf = seg.t[rows]
+        sN, sE = splines[at["north"]], splines[at["east"]]
+        dN, dE, aN, aE = sN.derivative(1)(tf), sE.derivative(1)(tf), sN.derivative(2)(tf), sE.derivative(2)(tf)
+        if "psi" in at:
+            sp = splines[at["psi"]]
+            psi = sp(tf)
+            r_psi = sp.derivative(1)(tf)
+        else:  # course over ground as the heading
+            psi = np.unwrap(np.arctan2(dE, dN))
+            r_psi = np.gradient(psi, tf)
+        if "r" in at:
+            sr = splines[at["r"]]
             r, r_dot = sr(tf), sr.derivative(1)(tf)
         else:
             r, r_dot = r_psi, np.gradient(r_psi, tf)
@@ -171,6 +194,10 @@ def _filtered(x: np.ndarray, seg: np.ndarray, dt: float) -> np.ndarray:
 CURRENT_KNOT_S = 90.0
 CURRENT_WALK_MPS = 0.02
 WIND_PRIOR_MPS = 6.0  # the air's velocity: 0 +- this, per earth axis
+# filtered regressor groups a _Regression keeps: per kind of what they depend on, and of the record's own
+# columns one per stretch (the record and BATCHES stretches)
+REGRESSOR_MEMO = 4
+REGRESSOR_MEMO_RECORD = 16
 
 
 @dataclass
@@ -205,13 +232,43 @@ class EquationErrorResult:
     std: dict[str, float]  # 1-sigma of the estimated coefficients (inf: at a bound)
     free_names: tuple[str, ...]
     current_path: CurrentPath | None = None  # lake: the current over the record
+    # the motion samples it was fitted on and the gyro offsets they were taken with (another fit of the
+    # same records takes them as they are: the splines are the data's alone)
+    motion: MotionSamples | None = field(default=None, repr=False)
+    motion_gyro_bias: list[float] | None = field(default=None, repr=False)
 
 
-def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float], geometry: VesselGeometry,
-                current: "tuple[float, float] | CurrentPath", wind: tuple[float, float] | None
-                ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
-    """Rows (3 n) of A theta_free = b and the free parameters' indices; wind coefficients last.
-    `current`: constant (north, east), or a CurrentPath (piecewise linear in time)."""
+#: a parameter's regressor column: its rows in the three equations (X, Y, N) such that
+#: sum_j theta_j col_j = 0 (+ thrust on the right); None where the column is zero in that equation
+Column = tuple["np.ndarray | None", "np.ndarray | None", "np.ndarray | None"]
+WIND_COLUMNS = tuple(ENV_NAMES[4:4 + N_WIND])  # the wind's drag coefficients, the last columns
+
+
+def _unit_thrust(ms: MotionSamples, nu: tuple[np.ndarray, ...], kappa: float, geometry: VesselGeometry,
+                 **unit: float) -> Column:
+    """The thrusters' forces per unit of one thrust coefficient (the model's own code), moved to the left."""
+    th = dict.fromkeys(NAMES, 0.0)
+    th.update(m11=1.0, m22=1.0, m33=1.0, kappa=kappa, **unit)
+    tau = array_tau(nu, tuple(ms.inputs[:, i] for i in range(5)), [th[n] for n in NAMES], geometry)
+    return tuple(-t for t in tau)  # type: ignore[return-value]
+
+
+def _record_columns(ms: MotionSamples, geometry: VesselGeometry) -> dict[str, Column]:
+    """The columns that depend on the record alone, whatever kappa, current and wind: the yaw rate's and
+    the thrust's (with the housing force off, C_N = 0, the thrust depends on neither kappa nor the
+    water's velocity)."""
+    r = ms.r
+    ar = np.abs(r)
+    nu = (ms.u, ms.v, r)  # with C_N = 0 neither the velocity nor kappa enters the thrust
+    return {"m33": (None, None, ms.r_dot), "Y_r": (None, r, None), "N_r": (None, None, r),
+            "N_rr": (None, None, -ar * r), "mu_az": _unit_thrust(ms, nu, 0.0, geometry, mu_az=1.0),
+            "mu_t": _unit_thrust(ms, nu, 0.0, geometry, mu_t=1.0)}
+
+
+def _relative_motion(ms: MotionSamples, current: "tuple[float, float] | CurrentPath"
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The velocity relative to the water nu_r = nu - R(psi)^T c and its rate (u_r, v_r, u_r', v_r'); the
+    current: constant (north, east) or a CurrentPath (piecewise linear in time)."""
     u, v, r = ms.u, ms.v, ms.r
     c, s = np.cos(ms.psi), np.sin(ms.psi)
     if isinstance(current, CurrentPath):
@@ -219,45 +276,94 @@ def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float
     else:
         cN, cE, dN, dE = current[0], current[1], 0.0, 0.0
     uc, vc = cN * c + cE * s, -cN * s + cE * c
-    ur, vr = u - uc, v - vc
     # nu_r' = nu' - r [v_c, -u_c] - R^T c' (the current turns with the body frame and drifts in time)
-    urd = ms.u_dot - r * vc - (dN * c + dE * s)
-    vrd = ms.v_dot + r * uc - (-dN * s + dE * c)
+    return u - uc, v - vc, ms.u_dot - r * vc - (dN * c + dE * s), ms.v_dot + r * uc - (-dN * s + dE * c)
+
+
+def _water_columns(ms: MotionSamples, current: "tuple[float, float] | CurrentPath") -> dict[str, Column]:
+    """The columns of the velocity relative to the water (seed eq. 22 on nu_r, the module docstring)."""
+    ur, vr, urd, vrd = _relative_motion(ms, current)
+    r = ms.r
     au, av, ar = np.abs(ur), np.abs(vr), np.abs(r)
-    inp = tuple(ms.inputs[:, i] for i in range(5))
-    nu = (ur, vr, r)
-
-    def tau_of(**unit: float) -> tuple[np.ndarray, ...]:
-        th = dict.fromkeys(NAMES, 0.0)
-        th.update(m11=1.0, m22=1.0, m33=1.0, kappa=kappa, **unit)
-        return array_tau(nu, inp, [th[n] for n in NAMES], geometry)
-
-    A_az, B_cn, C_t = tau_of(mu_az=1.0), tau_of(C_N=1.0), tau_of(mu_t=1.0)
-    z = np.zeros_like(u)
-    # columns per parameter: (X row, Y row, N row) such that sum_j theta_j col_j = 0 (+ thrust on the right)
-    cols = {
-        "m11": (urd, ur * r, -ur * vr), "m22": (-vr * r, vrd, ur * vr), "m33": (z, z, ms.r_dot),
-        "X_u": (ur, z, z), "X_uu": (-au * ur, z, z), "X_uuu": (-ur * ur * ur, z, z),
-        "Y_v": (z, vr, z), "Y_r": (z, r, z), "Y_uv": (z, -au * vr, z), "Y_vv": (z, -av * vr, z),
-        "Y_rv": (z, -ar * vr, z),
-        "N_v": (z, z, vr), "N_r": (z, z, r), "N_vv": (z, z, -av * vr), "N_rr": (z, z, -ar * r),
-        "kappa": (z, z, z),
-        "C_N": tuple(-b for b in B_cn), "mu_az": tuple(-a for a in A_az), "mu_t": tuple(-t for t in C_t),
+    return {
+        "m11": (urd, ur * r, -ur * vr), "m22": (-vr * r, vrd, ur * vr),
+        "X_u": (ur, None, None), "X_uu": (-au * ur, None, None), "X_uuu": (-ur * ur * ur, None, None),
+        "Y_v": (None, vr, None), "Y_uv": (None, -au * vr, None), "Y_vv": (None, -av * vr, None),
+        "Y_rv": (None, -ar * vr, None), "N_v": (None, None, vr), "N_vv": (None, None, -av * vr),
     }
+
+
+def _housing_column(ms: MotionSamples, current: "tuple[float, float] | CurrentPath", kappa: float,
+                    geometry: VesselGeometry) -> dict[str, Column]:
+    """C_N's column: the housing force per unit C_N (on the inflow kappa n and the water's velocity)."""
+    ur, vr, _, _ = _relative_motion(ms, current)
+    return {"C_N": _unit_thrust(ms, (ur, vr, ms.r), kappa, geometry, C_N=1.0)}
+
+
+def _wind_columns(ms: MotionSamples, wind: tuple[float, float]) -> dict[str, Column]:
+    """tau_wind = sum_k k_j basis_j: the unit coefficients' forces at the air velocity `wind`, moved to
+    the left."""
+    cols: dict[str, Column] = {}
+    for name, unit in zip(WIND_COLUMNS, np.eye(N_WIND)):
+        f = apparent_wind_force(ms.psi, ms.u, ms.v, wind[0], wind[1], *unit, cos=np.cos, sin=np.sin, sqrt=np.sqrt)
+        cols[name] = tuple(-np.broadcast_to(x, ms.u.shape) for x in f)  # type: ignore[assignment]
+    return cols
+
+
+def _free_names(theta_fixed: Mapping[int, float], wind: tuple[float, float] | None) -> tuple[list[int], list[str]]:
+    """The free parameters' indices and the names of the regression's columns (wind coefficients last)."""
     free = [i for i, n in enumerate(NAMES) if i not in theta_fixed and n != "kappa"]
-    n = len(u)
-    A = np.zeros((3 * n, len(free) + (N_WIND if wind is not None else 0)))
-    b = np.zeros(3 * n)
-    for j, i in enumerate(free):
-        A[:, j] = np.concatenate(cols[NAMES[i]])
+    return free, [NAMES[i] for i in free] + (list(WIND_COLUMNS) if wind is not None else [])
+
+
+def _right_side(cols: Mapping[str, Column], theta_fixed: Mapping[int, float], n: int) -> np.ndarray:
+    """b (3 x n): the fixed parameters' columns moved to the right."""
+    b = np.zeros((3, n))
     for i, val in theta_fixed.items():
         if NAMES[i] != "kappa":
-            b -= val * np.concatenate(cols[NAMES[i]])
-    if wind is not None:  # tau_wind = sum_k k_j basis_j: the unit coefficients' forces, moved to the left
-        for j, unit in enumerate(np.eye(N_WIND)):
-            f = apparent_wind_force(ms.psi, u, v, wind[0], wind[1], *unit, cos=np.cos, sin=np.sin, sqrt=np.sqrt)
-            A[:, len(free) + j] = -np.concatenate([np.broadcast_to(x, u.shape) for x in f])
-    return A, b, free, n
+            for e, x in enumerate(cols[NAMES[i]]):
+                if x is not None:
+                    b[e] -= val * x
+    return b
+
+
+def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float], geometry: VesselGeometry,
+                current: "tuple[float, float] | CurrentPath", wind: tuple[float, float] | None
+                ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
+    """Rows (3 n) of A theta_free = b and the free parameters' indices; wind coefficients last.
+    `current`: constant (north, east), or a CurrentPath (piecewise linear in time)."""
+    cols = {**_record_columns(ms, geometry), **_water_columns(ms, current), **_housing_column(ms, current, kappa, geometry),
+            **(_wind_columns(ms, wind) if wind is not None else {})}
+    free, names = _free_names(theta_fixed, wind)
+    n = len(ms.u)
+    A = np.zeros((3, n, len(names)))
+    for j, name in enumerate(names):
+        for e, x in enumerate(cols[name]):
+            if x is not None:
+                A[e, :, j] = x
+    return A.reshape(3 * n, -1), _right_side(cols, theta_fixed, n).ravel(), free, n
+
+
+@dataclass
+class _Filtered:
+    """A group of regressor columns computed for one value of what they depend on: as computed (for the
+    right-hand side) and filtered (the free parameters' columns, where not zero)."""
+
+    raw: dict[str, Column]
+    filtered: dict[str, Column]
+
+
+def _filter_group(cols: dict[str, Column], wanted: set[str], seg: np.ndarray, dt: float) -> _Filtered:
+    """`cols` with the wanted columns' rows filtered, all in one pass (each column is filtered alone, so
+    the numbers are those of filtering the whole regressor matrix); a row that is zero stays zero."""
+    pieces = [(name, e) for name in cols if name in wanted for e, x in enumerate(cols[name])
+              if x is not None and np.any(x)]
+    out = {name: [None, None, None] for name in cols if name in wanted}
+    if pieces:
+        f = _filtered(np.column_stack([cols[name][e] for name, e in pieces]), seg, dt)
+        for k, (name, e) in enumerate(pieces):
+            out[name][e] = f[:, k]
+    return _Filtered(cols, {name: tuple(x) for name, x in out.items()})  # type: ignore[misc]
 
 
 @dataclass(frozen=True)
@@ -272,6 +378,58 @@ class _Regression:
     dt: float
     lo: np.ndarray
     hi: np.ndarray
+    # the column groups already filtered, by what they depend on (`regressors`); each process fills its
+    # own (a worker's Held copy starts empty: __getstate__)
+    memo: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "memo": {}}
+
+    def _kept(self, key: tuple, make: Callable[[], Any]) -> Any:
+        """make() for `key` (its kind first), computed once: the newest few per kind are kept."""
+        kept = self.memo.setdefault(key[0], OrderedDict())
+        if key in kept:
+            kept.move_to_end(key)
+            return kept[key]
+        value = kept[key] = make()
+        while len(kept) > (REGRESSOR_MEMO_RECORD if key[0] in ("rows", "record") else REGRESSOR_MEMO):
+            kept.popitem(last=False)
+        return value
+
+    def regressors(self, kappa: float, current: Any, wind: tuple[float, float] | None,
+                   rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list[int], MotionSamples]:
+        """The filtered regression at (kappa, current, wind), n x 3 x p and n x 3, and the samples: to the
+        last digit the common low-pass of _regression's A and b (the filter acts on each column alone),
+        each column group filtered once per value of what it depends on (the record alone; the current;
+        kappa and the current; the air's velocity): the searches vary kappa, current and wind one at a
+        time, the stretches re-solve with the record's, kappa's search keeps the current.
+        `rows`: only these (contiguous) samples."""
+        rk = None if rows is None else rows.tobytes()
+        mx = self._kept(("rows", rk), lambda: self.ms if rows is None else self.ms.subset(rows))
+        free, names = _free_names(self.theta_fixed, wind)
+        wanted, seg, dt, geometry = set(names), mx.segment, self.dt, self.geometry
+        ck = np.asarray([current.t, current.north, current.east] if isinstance(current, CurrentPath)
+                        else current, float).tobytes()
+        keyed = [(("record", rk), lambda: _record_columns(mx, geometry)),
+                 (("water", rk, ck), lambda: _water_columns(mx, current)),
+                 (("housing", rk, ck, kappa), lambda: _housing_column(mx, current, kappa, geometry))]
+        if wind is not None:
+            keyed.append((("air", rk, np.asarray(wind, float).tobytes()), lambda: _wind_columns(mx, wind)))
+        groups = [(key, self._kept(key, lambda make=make: _filter_group(make(), wanted, seg, dt)))  # type: ignore[misc]
+                  for key, make in keyed]
+        Af = np.zeros((len(mx.u), 3, len(names)))
+        for _, g in groups:
+            for j, name in enumerate(names):
+                for e, x in enumerate(g.filtered.get(name, ())):
+                    if x is not None:
+                        Af[:, e, j] = x
+        # b from the groups that hold a fixed parameter's column, as _regression sums it
+        fixed = {NAMES[i] for i in self.theta_fixed}
+        holders = [(key, g) for key, g in groups if fixed & g.raw.keys()]
+        raw = {name: col for _, g in holders for name, col in g.raw.items()}
+        bf = self._kept(("b", rk, *(key for key, _ in holders)),
+                        lambda: _filtered(_right_side(raw, self.theta_fixed, len(mx.u)).T, seg, dt))
+        return Af, bf, free, mx
 
     def solve(self, kappa: float, current: Any, wind: tuple[float, float] | None,
               weights: np.ndarray, rows: np.ndarray | None = None
@@ -279,14 +437,12 @@ class _Regression:
         """The bounded linear least squares at (kappa, current, wind): (weighted residuals 3 x n,
         coefficients, free indices, residual std per equation, the filtered weighted regressors);
         `rows`: only these (contiguous) samples."""
-        ms, lo, hi, dt = self.ms, self.lo, self.hi, self.dt
-        mx = ms if rows is None else ms.subset(rows)
-        A, b, free, n = _regression(mx, kappa, self.theta_fixed, self.geometry, current, wind)
-        Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), mx.segment, dt)
-        bf = _filtered(b.reshape(3, n).T, mx.segment, dt)
-        Af = Af.reshape(n, 3, -1).transpose(1, 0, 2) * weights[:, None, None]
+        lo, hi, dt = self.lo, self.hi, self.dt
+        Af, bf, free, mx = self.regressors(kappa, current, wind, rows)
+        n = len(mx.u)
+        Af = Af.transpose(1, 0, 2) * weights[:, None, None]
         bf = bf.T * weights[:, None]
-        nw = A.shape[1] - len(free)
+        nw = Af.shape[2] - len(free)
         lo_f = np.concatenate([lo[free], K_WIND_MIN[:nw]])
         hi_f = np.concatenate([hi[free], K_WIND_MAX[:nw]])
         Am, bm = Af.reshape(3 * n, -1), bf.ravel()
@@ -349,12 +505,8 @@ class _LakeFit:
 
     def unprojected(self, reg: _Regression, zz: np.ndarray, xx: np.ndarray, weights: np.ndarray) -> np.ndarray:
         """The weighted, filtered residual at (zz, xx): the coefficients held."""
-        ms, dt = reg.ms, reg.dt
-        k, cur, wd = self.unpack(zz)
-        A, b, _, n = _regression(ms, k, reg.theta_fixed, reg.geometry, cur, wd)
-        Af = _filtered(A.reshape(3, n, -1).transpose(1, 0, 2).reshape(n, -1), ms.segment, dt)
-        bf = _filtered(b.reshape(3, n).T, ms.segment, dt)
-        return (bf.T - np.einsum("nep,p->en", Af.reshape(n, 3, -1), xx)) * weights[:, None]
+        Af, bf, _, _ = reg.regressors(*self.unpack(zz))
+        return (bf.T - np.einsum("nep,p->en", Af, xx)) * weights[:, None]
 
 
 # -- the independent solves, as the workers run them (lotsen.sysid.parallel.map_held) ----------------
@@ -403,9 +555,9 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     """The equation-error estimate (module docstring) of every parameter not in `fixed` (kappa by a
     bounded search); `lake`: with a current that varies slowly (CurrentPath), an air velocity and the
     wind's drag coefficients (started from `env0`, ENV_NAMES order). `theta0` supplies the fixed
-    coefficients' values where `fixed` does not and kappa's start. `hold`: on a lake, another fit of the
-    same records whose kappa, current and wind are kept (only the linear part is solved again: the
-    optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
+    coefficients' values where `fixed` does not and kappa's start. `hold`: another fit of the same
+    records, whose motion samples are taken and, on a lake, whose kappa, current and wind are kept (only
+    the linear part is solved again: the optional terms' trial). Of `options` it takes the geometry, the gap that splits a record, `lake`
     and the optional `terms` to estimate. `parallel`: the map its independent solves run on
     (lotsen.sysid.parallel; the same answer with any number of workers)."""
     geometry, gap_s, lake, terms = options.geometry, options.gap_s, options.lake, options.terms
@@ -414,7 +566,10 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     if gyro_bias is not None:
         rec_of_seg = [q for q, r in enumerate(records) for _ in split_segments(r, gap_s)]
         per_segment_bias = [gyro_bias[q] for q in rec_of_seg]
-    ms = motion_samples(segs, per_segment_bias)
+    if hold is not None and hold.motion is not None and hold.motion_gyro_bias == per_segment_bias:
+        ms = hold.motion  # the same records and offsets: the same splines
+    else:
+        ms = motion_samples(segs, per_segment_bias, parallel)
     dt = float(np.median(np.diff(ms.t))) if len(ms.t) > 1 else 0.125
     lo, hi = parameter_bounds()
     fixed = with_terms_off(fixed, theta0, terms)  # the optional model terms off unless in `terms`
@@ -581,7 +736,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
         env_out = np.array([cm[0], cm[1], wind[0], wind[1], *x[len(free):]])  # type: ignore[index]
     return EquationErrorResult(VesselParameters.from_vector(theta), env_out, rstd, total, std,
                                tuple(NAMES[i] for i in free) + (() if kappa_fixed else ("kappa",)),
-                               current if lake else None)
+                               current if lake else None, ms, per_segment_bias)
 
 
 def _naive_var(Af: np.ndarray) -> np.ndarray:

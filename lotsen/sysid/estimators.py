@@ -109,8 +109,9 @@ class Estimate:
 
 class EquationError:
     """The equations of motion fitted to the record (lotsen.sysid.equation_error); `terms`: the optional
-    model terms estimated; `hold`: another equation-error estimate of the same records whose kappa,
-    current and wind are kept (the optional terms' trial solves only the linear part again); its
+    model terms estimated; `hold`: another equation-error estimate of the same records whose motion
+    samples are taken and whose kappa, current and wind are kept (the optional terms' trial solves only
+    the linear part again); its
     independent solves run on `parallel` (lotsen.sysid.parallel)."""
 
     name = "equation error"

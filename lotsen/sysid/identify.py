@@ -20,7 +20,7 @@ from lotsen.sysid.estimate import EstimationError
 from lotsen.sysid.estimators import EquationError, Estimate, OutputError, SingleShooting, Start
 from lotsen.sysid.judge import Identification, judge
 from lotsen.sysid.parallel import SERIAL, Map
-from lotsen.sysid.prediction import improvement, prediction_score
+from lotsen.sysid.prediction import improvement, prediction_windows, score_windows
 from lotsen.sysid.problem import IdentificationProblem, held_out_split
 
 TERM_MIN_IMPROVEMENT = 0.05  # an optional model term is turned on when it predicts this much better
@@ -83,8 +83,8 @@ def choose_terms(problem: IdentificationProblem, ee: Estimate | None, say: Say,
         with_terms = EquationError(cand, ee, parallel).estimate(replace(problem, terms=cand), Start(problem.start))
     except (ValueError, np.linalg.LinAlgError, EstimationError):
         return off, ee, ""
-    s0, s1 = (prediction_score(e.params, problem.records, gap_s=problem.gap_s, geometry=problem.geometry,
-                               environment=e.environment) for e in (ee, with_terms))
+    windows = prediction_windows(problem.records, gap_s=problem.gap_s)  # the same windows for both
+    s0, s1 = (score_windows(e.params, windows, problem.geometry, e.environment) for e in (ee, with_terms))
     gain = improvement(s1, s0) if s0.n_windows and s1.stable else 0.0
     many = len(cand) > 1
     if gain >= TERM_MIN_IMPROVEMENT:

@@ -32,7 +32,7 @@ from lotsen.sysid.estimate import IdentificationResult
 from lotsen.sysid.estimators import Estimate
 from lotsen.sysid.multiple import FixedValueTest, check_identifiable
 from lotsen.sysid.prediction import (
-    PredictionScore, improvement, improvement_interval, prediction_score, stacked, windows_of,
+    PredictionScore, improvement, improvement_interval, prediction_windows, score_windows, stacked, windows_of,
 )
 from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.sensitivity import ENV_NAMES
@@ -287,17 +287,15 @@ def judge(problem: IdentificationProblem, estimates: Sequence[Estimate]) -> Iden
     if phys is not None and len(estimates) == 1 and phys.result.identifiability.unidentifiable:
         check_identifiable(phys.result)  # nothing else to answer with: refused with the error (exit 2)
     physical = physical_checks(phys) if phys is not None else None
-    scores = {e.estimator: prediction_score(e.params, problem.validation, gap_s=problem.gap_s,
-                                            geometry=problem.geometry, environment=e.environment) for e in estimates}
+    windows = prediction_windows(problem.validation, gap_s=problem.gap_s)  # every model on the same windows
+    scores = {e.estimator: score_windows(e.params, windows, problem.geometry, e.environment) for e in estimates}
     # the defaults and the model in use predict in the lake the best-predicting estimate found (an
     # estimate gone wrong would otherwise lend them its wrong wind and flatter the comparison)
     env_ref = min(estimates, key=lambda e: scores[e.estimator].position_at_horizon_m
                   if scores[e.estimator].stable else math.inf).environment
-    scores["defaults"] = prediction_score(DEFAULT_PARAMETERS, problem.validation, gap_s=problem.gap_s,
-                                          geometry=problem.geometry, environment=env_ref)
+    scores["defaults"] = score_windows(DEFAULT_PARAMETERS, windows, problem.geometry, env_ref)
     if problem.model_in_use != DEFAULT_PARAMETERS:
-        scores["in use"] = prediction_score(problem.model_in_use, problem.validation, gap_s=problem.gap_s,
-                                            geometry=problem.geometry, environment=env_ref)
+        scores["in use"] = score_windows(problem.model_in_use, windows, problem.geometry, env_ref)
     baseline = scores.get("in use", scores["defaults"])
     rule = _Choice(estimates, phys if physical is not None and not physical.reasons else None)
     n = baseline.n_windows

@@ -341,6 +341,10 @@ class MultipleShootingProblem:
         self.r_col = names.index("r") if "r" in names else None
         self._pattern_cache: dict = {}
         self.blocks = [Held(self._block(n0, n1)) for n0, n1 in cut_blocks(g.node_step, g.n_steps)]
+        # the last linearisation with sensitivities and where it was made (point, free parameters, noise):
+        # a search that ends where the next one starts (the misfit check, the final covariance) asks for
+        # it again
+        self._last_sens: tuple[tuple, _Lin] | None = None
 
     @property
     def sim(self) -> ShootingSimulator:
@@ -402,6 +406,13 @@ class MultipleShootingProblem:
 
     def linearise(self, theta: np.ndarray, nodes: np.ndarray, free: np.ndarray, tscale: np.ndarray,
                   sens: bool) -> _Lin:
+        """The problem linearised at (theta, nodes) for the `free` parameters (scaled by `tscale`), with the
+        Jacobians and normal equations when `sens`. Not to be changed by the caller: the last one with
+        sensitivities is kept and handed out again for the same point and noise."""
+        at = (theta.tobytes(), nodes.shape, nodes.tobytes(), free.tobytes(), tscale.tobytes(),
+              tuple(self.noise.items()))
+        if self._last_sens is not None and self._last_sens[0] == at:
+            return self._last_sens[1]
         nk = self.n_kernel
         fk = free[free < nk]  # the kernel's parameters; the measurement parameters (gyro offsets) follow them
         fb = free[free >= nk] - nk
@@ -428,6 +439,7 @@ class MultipleShootingProblem:
                           ordered_sum(p.Hpp for p in parts), np.concatenate([p.gs for p in parts]),
                           ordered_sum(p.gp for p in parts))
             lin.calls = calls
+            self._last_sens = (at, lin)
         return lin
 
     # -- the structured KKT system -------------------------------------------------------------

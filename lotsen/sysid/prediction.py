@@ -30,7 +30,7 @@ from lotsen.model import DEFAULT_GEOMETRY, VesselGeometry, VesselParameters, geo
 from lotsen.model.angles import wrap_angle
 from lotsen.sysid.data import IdRecord, Segment, split_segments
 from lotsen.sysid.kernels import step_kernels
-from lotsen.sysid.sensitivity import make_grid
+from lotsen.sysid.sensitivity import StepGrid, make_grid
 
 HORIZONS_S = (2.0, 5.0, 10.0)
 FIT_HALF_WINDOW_S = 1.0  # the initial state's cubic fit: +-1 s of fixes (17 at 8 Hz)
@@ -270,44 +270,77 @@ def _heading_at(seg: Segment, col: int, t: float) -> float:
     return float(np.interp(t, tt, psi))
 
 
-def prediction_score(params: VesselParameters, records: Sequence[IdRecord],
-                     horizons_s: Sequence[float] = HORIZONS_S, every_s: float = 2.0, gap_s: float = 1.0,
-                     geometry: VesselGeometry = DEFAULT_GEOMETRY,
-                     environment: Sequence[float] | None = None) -> PredictionScore:
-    """Open-loop prediction errors of `params` on `records` (module docstring). `environment`: the
-    lake model's ENV_NAMES values (current, wind, drag coefficients) to predict with; None: calm water."""
+@dataclass(frozen=True)
+class PredictionWindows:
+    """The windows of some records and what depends on their data alone (the steps, the start states, the
+    measured outputs at the horizons): made once for all the models scored on them (`score_windows`)."""
+
+    horizons_s: tuple[float, ...]
+    windows: list[_Window]
+    grid: StepGrid | None = None
+    x0: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    need: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # the steps at the horizons, sorted
+    order: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # their windows' order
+    Y: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))  # the outputs at the horizons
+    H: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # the heading at each horizon's fix
+
+
+def prediction_windows(records: Sequence[IdRecord], horizons_s: Sequence[float] = HORIZONS_S,
+                       every_s: float = 2.0, gap_s: float = 1.0) -> PredictionWindows:
+    """The windows of `records` at `horizons_s` (module docstring), ready to score models on."""
     horizons = tuple(float(h) for h in sorted(horizons_s))
     # a short held-out record: the horizons that fit in it (a 12-s record holds out 2.4 s)
     longest = max((s.duration_s for r in records for s in split_segments(r, gap_s)), default=0.0)
     fits = tuple(h for h in horizons if h <= longest - 2.0 * FIT_HALF_WINDOW_S)
     horizons = fits or horizons
     wins = _windows(records, horizons, every_s, gap_s)
-    nh = len(horizons)
     if not wins:
-        nan = {h: math.nan for h in horizons}
-        return PredictionScore(horizons, 0, nan, dict(nan), np.zeros((0, nh)), np.zeros((0, nh)), True)
-    lake = environment is not None
+        return PredictionWindows(horizons, wins)
     grid = make_grid([w.seg for w in wins], 0.0625)
-    k = step_kernels(geometry_tuple(geometry), lake=lake)
-    theta = np.array(params.to_vector(), float)
-    x0 = np.array([w.x0 for w in wins])
-    if lake:
-        theta = np.concatenate([theta, np.asarray(environment, float)])
-        x0 = np.column_stack([x0, np.ones(len(x0)), np.zeros(len(x0))])  # steady wind: gust factors 1, 0
     # the sample steps of the rows at the horizons (the grid numbers every row of every window)
     row_base = np.concatenate([[0], np.cumsum([len(w.seg.t) for w in wins])[:-1]])
     need_rows = (row_base[:, None] + np.array([w.meas_rows for w in wins])).ravel()
     need = grid.sample_step[need_rows]
     order = np.argsort(need, kind="stable")
-    X_sorted, _ = k.run_record(theta, grid.h, grid.U.T, grid.reset, grid.window_start_step, x0, need[order], False)
-    X = np.empty_like(X_sorted)
-    X[order] = X_sorted
-    X = X.reshape(len(wins), nh, -1)
-    names = wins[0].seg.output_names
-    iN, iE, ip = names.index("north"), names.index("east"), names.index("psi")
+    ip = wins[0].seg.output_names.index("psi")
     Y = np.array([[w.seg.outputs[r] for r in w.meas_rows] for w in wins])
     # the heading at each horizon's fix: its own rows, interpolated (asynchronous outputs)
     H = np.array([[_heading_at(w.seg, ip, w.seg.t[r]) for r in w.meas_rows] for w in wins])
+    return PredictionWindows(horizons, wins, grid, np.array([w.x0 for w in wins]), need[order], order, Y, H)
+
+
+def prediction_score(params: VesselParameters, records: Sequence[IdRecord],
+                     horizons_s: Sequence[float] = HORIZONS_S, every_s: float = 2.0, gap_s: float = 1.0,
+                     geometry: VesselGeometry = DEFAULT_GEOMETRY,
+                     environment: Sequence[float] | None = None) -> PredictionScore:
+    """Open-loop prediction errors of `params` on `records` (module docstring). `environment`: the
+    lake model's ENV_NAMES values (current, wind, drag coefficients) to predict with; None: calm water."""
+    return score_windows(params, prediction_windows(records, horizons_s, every_s, gap_s), geometry, environment)
+
+
+def score_windows(params: VesselParameters, pw: PredictionWindows, geometry: VesselGeometry = DEFAULT_GEOMETRY,
+                  environment: Sequence[float] | None = None) -> PredictionScore:
+    """`prediction_score` on windows already made (`prediction_windows`)."""
+    horizons, wins = pw.horizons_s, pw.windows
+    nh = len(horizons)
+    if not wins or pw.grid is None:
+        nan = {h: math.nan for h in horizons}
+        return PredictionScore(horizons, 0, nan, dict(nan), np.zeros((0, nh)), np.zeros((0, nh)), True)
+    lake = environment is not None
+    grid = pw.grid
+    k = step_kernels(geometry_tuple(geometry), lake=lake)
+    theta = np.array(params.to_vector(), float)
+    x0 = pw.x0
+    if lake:
+        theta = np.concatenate([theta, np.asarray(environment, float)])
+        x0 = np.column_stack([x0, np.ones(len(x0)), np.zeros(len(x0))])  # steady wind: gust factors 1, 0
+    X_sorted, _ = k.run_record(theta, grid.h, grid.U.T, grid.reset, grid.window_start_step, x0, pw.need, False)
+    X = np.empty_like(X_sorted)
+    X[pw.order] = X_sorted
+    X = X.reshape(len(wins), nh, -1)
+    names = wins[0].seg.output_names
+    iN, iE = names.index("north"), names.index("east")
+    Y, H = pw.Y, pw.H
     dpos = np.hypot(X[:, :, 0] - Y[:, :, iN], X[:, :, 1] - Y[:, :, iE])
     dpsi = np.degrees(np.abs(wrap_angle(X[:, :, 2] - H)))
     stable = bool(np.all(np.isfinite(dpos)) and np.all(np.isfinite(dpsi)))

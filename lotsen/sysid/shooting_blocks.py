@@ -150,9 +150,14 @@ def linearise_block(block: ShootingBlock, call: BlockCall) -> BlockLinearisation
     out.Gp = np.concatenate([Gp, np.zeros((len(Gp), 6, nb))], axis=2) if nb else Gp
     Jx, Jp = _jacobians(block, call, Sm)
     b = block.meas_bounds[:-1]
-    out.Hss = np.add.reduceat(np.einsum("kji,kjl->kil", Jx, Jx), b, axis=0)
-    out.Hsp = np.add.reduceat(np.einsum("kji,kjl->kil", Jx, Jp), b, axis=0)
-    out.Hpp = np.einsum("kji,kjl->il", Jp, Jp)
+    # J^T J by matmul (per row for the node states, one BLAS product over all rows for the parameters): a
+    # sixth less time per block than einsum's loops; the sums are grouped otherwise, so the estimate moves
+    # by round-off only (lake record 2500: its file's numbers within 5e-12 relative)
+    JxT = Jx.transpose(0, 2, 1)
+    out.Hss = np.add.reduceat(JxT @ Jx, b, axis=0)
+    out.Hsp = np.add.reduceat(JxT @ Jp, b, axis=0)
+    Jp_rows = Jp.reshape(Jp.shape[0] * Jp.shape[1], Jp.shape[2])
+    out.Hpp = Jp_rows.T @ Jp_rows
     out.gs = np.add.reduceat(np.einsum("kji,kj->ki", Jx, e), b, axis=0)
     out.gp = np.einsum("kji,kj->i", Jp, e)
     return out

@@ -8,6 +8,7 @@ it finer (MIN_BLOCK_STEPS) to have as many blocks as a 10-min record.
 
 import argparse
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -144,3 +145,60 @@ def test_the_command_keeps_freed_memory_on_glibc():
 
     glibc = sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc"
     assert keep_freed_memory() == glibc
+
+
+def test_the_kept_filtered_regressors_are_the_filtered_regression_to_the_last_digit():
+    """_Regression.regressors filters each column group once per value of what it depends on (the record,
+    the current, kappa, the air's velocity) and keeps it: whatever was kept before, the numbers are those of
+    filtering _regression's whole A and b, on the record and on a stretch of it."""
+    from lotsen.model import DEFAULT_GEOMETRY
+    from lotsen.sysid.equation_error import (
+        CurrentPath, MotionSamples, _filtered, _regression, _Regression,
+    )
+    from lotsen.sysid.estimate import NAMES, parameter_bounds
+
+    rng = np.random.default_rng(5)
+    n = 400
+    seg = np.repeat([0, 1], [250, 150])
+    ms = MotionSamples(np.arange(n) * 0.125, *rng.normal(size=(7, n)),
+                       np.column_stack([rng.normal(size=(n, 2)), rng.normal(size=(n, 3)) * 20]), seg)
+    ms.inputs[::7, 2] = 0.0  # some samples with a unit stopped (zero thrust)
+    fixed = {NAMES.index("m11"): 14.0, NAMES.index("X_uuu"): 0.0}
+    reg = _Regression(ms, fixed, DEFAULT_GEOMETRY, 0.125, *parameter_bounds())
+    path = CurrentPath(np.array([0.0, 25.0, 50.0]), np.array([0.05, 0.1, 0.0]), np.array([-0.1, 0.0, 0.02]))
+    calls = [(0.02, (0.0, 0.0), None, None), (0.05, (0.0, 0.0), None, None), (0.02, (0.0, 0.0), None, None),
+             (0.02, path, (3.0, -1.0), None), (0.03, path, (3.0, -1.0), None), (0.03, path, (2.0, -1.0), None),
+             (0.02, path, (3.0, -1.0), np.arange(100, 300)), (0.02, (0.1, 0.0), (3.0, -1.0), np.arange(100, 300))]
+    for kappa, current, wind, rows in calls * 2:
+        mx = ms if rows is None else ms.subset(rows)
+        A, b, free, m = _regression(mx, kappa, fixed, DEFAULT_GEOMETRY, current, wind)
+        Af, bf, free_kept, _ = reg.regressors(kappa, current, wind, rows)
+        assert free_kept == free
+        assert np.array_equal(Af, _filtered(A.reshape(3, m, -1).transpose(1, 0, 2).reshape(m, -1), mx.segment,
+                                            0.125).reshape(m, 3, -1))
+        assert np.array_equal(bf, _filtered(b.reshape(3, m).T, mx.segment, 0.125))
+    assert pickle.loads(pickle.dumps(reg)).memo == {}  # a worker's copy fills its own
+
+
+def test_a_linearisation_is_made_again_only_where_it_differs(lake_minute):
+    """MultipleShootingProblem.linearise keeps its last linearisation with sensitivities: asked again at the
+    same point, free parameters and noise it is the one made; with another noise (the noise re-estimate
+    between passes) it is made anew, equal to a fresh problem's to the last digit."""
+    from lotsen.model import DEFAULT_PARAMETERS
+    from lotsen.sysid.estimate import SolverOptions, starting_point
+    from lotsen.sysid.multiple import MultipleShootingProblem, initial_nodes
+
+    records = [lake_minute.run.record]
+    prob = MultipleShootingProblem(records, SolverOptions())
+    theta, free, _, tscale = starting_point(DEFAULT_PARAMETERS, {"m11": lake_minute.boat.m11})
+    nodes = initial_nodes(prob.grid, prob.segments)
+    first = prob.linearise(theta, nodes, free, tscale, True)
+    assert prob.linearise(theta.copy(), nodes.copy(), free, tscale, True) is first
+    assert prob.linearise(theta, nodes, free, tscale, False) is first  # its residuals serve as well
+    prob.noise["r"] *= 2.0
+    again = prob.linearise(theta, nodes, free, tscale, True)
+    fresh = MultipleShootingProblem(records, SolverOptions(noise_std=dict(prob.noise)))
+    ref = fresh.linearise(theta, nodes, free, tscale, True)
+    assert again is not first
+    for a, b in zip((again.e, again.c, again.Gx, again.Gp, *again.normal), (ref.e, ref.c, ref.Gx, ref.Gp, *ref.normal)):
+        assert np.array_equal(a, b)
