@@ -21,7 +21,8 @@ Rows:
      `--fix m11=14.2 --reverse-thrust-ratio 0.75`, as bench hull): the command's wall time,
      identify()'s wall time inside it, the CPU of the process and its workers, the speed-up over one
      job, and whether the file written is the one of one job byte for byte. The peer: main's code
-     (`git archive main`, one process, no --jobs) on the same record in the same run. Targets (issue
+     (`git archive main`, or the revision in LOTSEN_BENCH_PEER for a change measured after it landed; one
+     process, no --jobs) on the same record in the same run. Targets (issue
      49): lake <= 6 s wall with 2 workers, calm <= 3 s, the same file with any --jobs. A control before
      and after: two 2-s busy loops one after the other and in a pool of two (the speed-up two
      processes can get on the machine at that moment).
@@ -268,19 +269,20 @@ def _lotsen(code: Path, args: list[str], cwd: Path, script: str | None = None) -
 
 
 def main_code(work: Path) -> tuple[Path, str]:
-    """main's code, exported (`git archive main`: no worktree, nothing in the shared checkout touched)."""
+    """The peer's code, exported (`git archive`: no worktree, nothing in the shared checkout touched):
+    main's, or the revision in LOTSEN_BENCH_PEER (a change measured after it landed on main)."""
     import subprocess
     import tarfile
 
-    rev = subprocess.run(["git", "rev-parse", "--short", "main"], cwd=ROOT, capture_output=True, text=True,
-                         check=True).stdout.strip()
-    dest = work / f"main-{rev}"
+    rev = subprocess.run(["git", "rev-parse", "--short", os.environ.get("LOTSEN_BENCH_PEER", "main")], cwd=ROOT,
+                         capture_output=True, text=True, check=True).stdout.strip()
+    dest = work / f"peer-{rev}"
     if not dest.exists():
         tar = work / "main.tar"
-        subprocess.run(["git", "archive", "--format=tar", "-o", str(tar), "main", "lotsen"], cwd=ROOT, check=True)
+        subprocess.run(["git", "archive", "--format=tar", "-o", str(tar), rev, "lotsen"], cwd=ROOT, check=True)
         with tarfile.open(tar) as t:
             t.extractall(dest)
-    return dest, rev
+    return dest, (rev if "LOTSEN_BENCH_PEER" not in os.environ else f"{rev}, before the change")
 
 
 def _records(work: Path, quick: bool) -> list[tuple[str, Path, list[str], float]]:
