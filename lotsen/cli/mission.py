@@ -191,6 +191,11 @@ def run(args: argparse.Namespace) -> int:
              if "reversals_per_s" in m else "")
           + (f"; solve median {m['solve_time_median_ms']:.2f} ms, max "
                                                   f"{m['solve_time_max_ms']:.1f} ms" if m['solve_time_median_ms'] else ""))
+    if "energy_J_by_propeller" in m:  # where the energy went: a couple or a steady bow push shows here
+        e1, e2, eb = (e / 3600.0 for e in m["energy_J_by_propeller"])
+        a1, a2 = (100.0 * x for x in m["azimuth_astern_share"])
+        print(f"energy {m['energy_J'] / 3600.0:.2f} Wh at the motors: azimuth 1 {e1:.2f}, azimuth 2 {e2:.2f}, bow "
+              f"{eb:.2f} Wh; azimuths astern {a1:.0f} % and {a2:.0f} % of the time")
     if "survey" in m:
         sv = m["survey"]
         settle = sv.get("settle_distance_max_m")

@@ -4,6 +4,7 @@ import argparse
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from lotsen.cli import mission as mission_cli
@@ -140,3 +141,20 @@ def test_issue_19_done_when_figure_eight_on_the_ekf_in_current_and_wind(tmp_path
     assert r["estimator"] == "ekf" and r["completed"]
     assert r["cross_track_rms_m"] <= 0.015, r
     assert r["hold_position_error_final_m"] <= 0.05, r
+
+
+def test_actuator_activity_splits_the_energy_by_propeller_and_counts_an_azimuth_astern():
+    """The report's per-propeller energy adds up to its total (each motor draws its own power), and
+    an azimuth held astern against the other (the couple that wastes a mission's energy) shows in the
+    azimuths' astern share."""
+    from lotsen.harness.mission import actuator_activity
+
+    t = np.arange(0.0, 10.0, 0.1)
+    a = np.zeros((len(t), 5))
+    a[:, 2] = 60.0                      # azimuth 1 ahead the whole time
+    a[:, 3] = np.where(t < 4.0, -50.0, 30.0)  # azimuth 2 astern for the first 4 s (rows t < 4.0)
+    a[:, 4] = 20.0 * np.sin(t)          # the bow thruster both ways
+    m = actuator_activity(t, a)
+    assert np.isclose(sum(m["energy_J_by_propeller"]), m["energy_J"], rtol=1e-3)
+    assert m["energy_J_by_propeller"][0] > m["energy_J_by_propeller"][1] > 0.0
+    assert m["azimuth_astern_share"] == [0.0, 0.4]
