@@ -102,9 +102,9 @@ Equations (Fossen 2021, ch. 2-3, 6, 10), eta = [N, E, D, phi, theta, psi], nu = 
 - Waves: NOT modelled. `CatamaranEnvironment` has wave_hs_m for the same call pattern, and only 0 is
   accepted (a ValueError otherwise).
 
-Integration: Kutta's third-order Runge-Kutta at a fixed internal step of 4 ms (250 Hz) over the
+Integration: Kutta's third-order Runge-Kutta at a fixed internal step of 5 ms (200 Hz) over the
 17-state vector (12 rigid-body states, two servo angles, three motor speeds), commands held over a
-step; deterministic. `step(u, dt)` sets u (if given) and advances dt.
+step; deterministic. `step(u, dt)` sets u (if given) and advances dt (a whole number of steps).
 
 How it differs from hull6dof: form (catamaran vs monohull: roll stiffness ~9x, sway added mass and
 yaw damping from two spaced hulls, full added-mass matrix vs diagonal), resistance (Hughes + table vs
@@ -114,7 +114,7 @@ with thrust deduction, torque loading the motor vs linear K_T), pods (Helmbold f
 slipstream), motors (DC motor with back-EMF and current limit vs first-order lag), servos (P loop +
 rate limit), bow thruster fade (dip and recovery with the jet-speed ratio vs 1 / (1 + (u/u0)^2)),
 wind (angle coefficients vs per-axis drag), gusts (Harris sum of sinusoids vs OU), integrator (RK3
-at 4 ms vs RK4 at 5 ms), no waves.
+vs RK4), no waves.
 
 `record(...)` writes an identification record like hull6dof's (lotsen.sysid.data.IdRecord format
 only): achieved actuators at 50 Hz as interval means (`# inputs: mean`), GNSS N/E at 8 Hz with 1 cm
@@ -296,7 +296,7 @@ class CatamaranHull:
     (alpha1, alpha2, n1, n2, nt) with n in rev/s; `measure()` NED velocity and specific force."""
 
     def __init__(self, params: CatamaranParameters = CatamaranParameters(),
-                 environment: CatamaranEnvironment = CatamaranEnvironment(), step_s: float = 0.004,
+                 environment: CatamaranEnvironment = CatamaranEnvironment(), step_s: float = 0.005,
                  pose: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         if environment.wave_hs_m != 0.0:
             raise ValueError("hull_b models no waves: wave_hs_m must be 0")
@@ -665,8 +665,10 @@ class CatamaranHull:
             raise FloatingPointError(f"hull_b diverged at t = {self.t:.3f} s")
 
     def advance(self, duration_s: float) -> tuple[float, ...]:
-        """Internal steps for `duration_s` (rounded to whole steps); returns the actuators' mean."""
-        n = max(1, int(round(duration_s / self.h)))
+        """Internal steps for `duration_s` (a whole number of them); returns the actuators' mean."""
+        n = int(round(duration_s / self.h))
+        if n < 1 or abs(n * self.h - duration_s) > 1e-9 * max(1.0, duration_s):
+            raise ValueError(f"advance({duration_s!r}): not a whole number of {self.h} s steps")
         acc = np.zeros(5)
         for _ in range(n):
             self._one()
