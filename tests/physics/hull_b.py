@@ -610,8 +610,8 @@ class CatamaranHull:
         Qt = RHO * nt * abs(nt) * p.tunnel_diameter_m ** 5 * p.bow_kq
         if Tt != 0.0:
             vj = math.sqrt(abs(Tt) / (RHO * self._tunnel_area))
-            xr = abs(ur) / vj / p.bow_fade_ratio
-            Tt *= 1.0 - 2.0 * p.bow_fade_depth * xr * xr / (1.0 + xr ** 4)
+            y = min(abs(ur) / (vj * p.bow_fade_ratio), 1.0e6) ** 2  # x^2, bounded (tiny jets)
+            Tt *= 1.0 - 2.0 * p.bow_fade_depth * y / (1.0 + y * y)
             bx, by, bz = p.bow_position_m
             tau[1] += Tt
             tau[3] += -bz * Tt

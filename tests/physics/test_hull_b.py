@@ -142,6 +142,21 @@ def test_bow_thruster_fades_then_recovers_with_speed():
     assert s0 > 0
 
 
+def test_a_bow_thruster_just_spinning_up_at_speed_stays_finite():
+    """The fade law at a jet speed near zero (the motor's first steps while the boat is moving):
+    the jet-speed ratio is huge, the law must give ~1 and no overflow (found by a 600-s record)."""
+    h = CatamaranHull()
+    h.set_velocity(1.0, 0.0, 0.0)
+    h.x[16] = 1e-150
+    tau = h._loads(h.x, (0, 0, 0, 0, 0.0))[0]
+    assert np.all(np.isfinite(tau))
+    h.command(0.0, 0.0, 40.0, 40.0, 0.0)
+    for nt in (1e-3, -20.0, 0.0, 30.0):
+        h.command(0.0, 0.0, 40.0, 40.0, nt)
+        h.advance(0.5)
+    assert np.all(np.isfinite(h.x))
+
+
 def test_dc_motor_droops_under_load_and_spins_up_at_a_current_limited_rate():
     h = CatamaranHull()
     h.command(0.0, 0.0, 90.0, 90.0, 0.0)
