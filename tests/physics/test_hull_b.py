@@ -60,6 +60,26 @@ def test_potential_energy_is_the_restoring_forces_potential():
     assert 20.0 < k < 80.0  # N m/rad: a catamaran's roll stiffness (hull6dof's ~4.5)
 
 
+def test_mass_matrix_and_the_figures_the_docstring_states():
+    h = CatamaranHull()
+    assert np.allclose(h.M, h.M.T) and np.allclose(h.M_A, h.M_A.T)
+    assert np.linalg.eigvalsh(h.M_A).min() > 0.0 and np.linalg.eigvalsh(h.M).min() > 0.0
+    np.testing.assert_allclose(np.diag(h.M)[[0, 1, 2, 5]], [14.33, 31.5, 23.4, 2.56], rtol=0.01)
+    assert h.draft_m == pytest.approx(0.078, abs=0.001)
+    assert h.gm_transverse_m == pytest.approx(0.37, abs=0.01)
+    # the catamaran's roll: stiff, and large roll added mass from the demi-hulls' heave (a33 y^2)
+    assert h.M_A[3, 3] > 0.3 * h.M_RB[3, 3]
+
+
+def test_differential_thrust_yaws_away_from_the_faster_propeller():
+    """Starboard propeller faster: the bow turns to port (r < 0); the demi-hulls' spacing gives the
+    pods a 0.16 m arm (hull6dof's: 0.07 m)."""
+    h = CatamaranHull()
+    h.command(0.0, 0.0, 60.0, 30.0, 0.0)
+    h.advance(8.0)
+    assert h.nu[5] < -0.05
+
+
 def test_symmetric_input_gives_no_yaw_or_sway():
     h = CatamaranHull()
     h.command(0.0, 0.0, 60.0, 60.0, 0.0)  # equal speeds, zero angles, no bow thrust
