@@ -298,9 +298,11 @@ def test_record_is_a_lake_record():
 
 
 def test_record_is_accepted_by_lotsen_identify(tmp_path):
-    """`lotsen identify` on a calm record of hull B with m11 = mass + surge added mass: an answer
-    (exit 0) or a documented refusal (exit 1: verdict refused; exit 2: clear error), never a traceback."""
-    rec = record(duration_s=120.0, seed=0)
+    """`lotsen identify` on a 300-s calm record of hull B with m11 = mass + surge added mass answers
+    (exit 0; today "predictive": effective coefficients, not the catamaran's physical ones, which
+    lotsen's monohull grey box cannot hold) or refuses with a clear error (exit 2); never a
+    traceback. (120 s gives exit 1, a refused verdict: too few held-out windows.)"""
+    rec = record(duration_s=300.0, seed=0)
     csv = tmp_path / "hull_b.csv"
     rec.save_csv(csv)
     m11 = CatamaranHull().M[0, 0]
@@ -308,6 +310,9 @@ def test_record_is_accepted_by_lotsen_identify(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "lotsen", "identify", str(csv), "--fix", f"m11={m11:.3f}",
                            "--out", str(out)], capture_output=True, text=True, cwd=REPO, timeout=900)
     assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
-    assert proc.returncode in (0, 1, 2), (proc.returncode, proc.stderr[-2000:])
-    if proc.returncode in (0, 1):
-        assert out.exists()
+    assert proc.returncode in (0, 2), (proc.returncode, proc.stderr[-2000:])
+    if proc.returncode == 0:
+        import json
+
+        assert json.loads(out.read_text())["verdict"] != "refused"
+        assert "verdict:" in proc.stderr
