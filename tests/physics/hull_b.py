@@ -845,6 +845,32 @@ def steady_speed(n_rps: float = 50.0, duration_s: float = 40.0,
     return hull.nu[0]
 
 
+def turning_circle(n_rps: float = 50.0, alpha_deg: float = 20.0, duration_s: float = 60.0,
+                   params: CatamaranParameters = CatamaranParameters(),
+                   environment: CatamaranEnvironment = CatamaranEnvironment()) -> dict[str, float]:
+    """Both azimuths at `alpha_deg` and `n_rps` from rest: the steady turn's track extent over the
+    last 20 s (a full circle at these speeds), speed, yaw rate and kinematic diameter 2 U / |r|."""
+    hull = CatamaranHull(params, environment)
+    a = math.radians(alpha_deg)
+    hull.command(a, a, n_rps, n_rps, 0.0)
+    hull.advance(duration_s - 20.0)
+    pts = []
+    for _ in range(200):
+        hull.advance(0.1)
+        pts.append(hull.x3[:2])
+    P = np.array(pts)
+    u, v, r = hull.nu[0], hull.nu[1], hull.nu[5]
+    U = math.hypot(u, v)
+    return {"diameter_m": float(max(np.ptp(P[:, 0]), np.ptp(P[:, 1]))), "speed_mps": U, "u_mps": u,
+            "yaw_rate_radps": r, "kinematic_diameter_m": 2.0 * U / abs(r) if r else math.inf}
+
+
+# hull6dof's names, so code written against hull6dof's surface can take this module instead
+HullParameters = CatamaranParameters
+HullEnvironment = CatamaranEnvironment
+Hull6DOF = CatamaranHull
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """`python tests/physics/hull_b.py --out REC.csv [--duration 600] [--seed 0] [--current 0.08,30]
     [--wind 4,250] [--gusts 0.2]`: a record for `lotsen identify REC.csv --fix m11=...`."""

@@ -15,7 +15,7 @@ REPO = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 
 from hull_b import (  # noqa: E402
-    CatamaranEnvironment, CatamaranHull, CatamaranParameters, random_steps, record, steady_speed,
+    CatamaranEnvironment, CatamaranHull, CatamaranParameters, random_steps, record, steady_speed, turning_circle,
 )
 
 DEG = math.pi / 180
@@ -131,6 +131,16 @@ def test_positive_alpha_yaws_the_bow_to_port():
     m.command(-20 * DEG, -20 * DEG, 50.0, 50.0, 0.0)
     m.advance(10.0)
     assert m.nu[5] > 0.2
+
+
+def test_turning_circle_is_wider_than_hull6dofs():
+    """n = 50, alpha = 20 deg: a steady circle of ~4.5 m (hull6dof: 2.1 m, lotsen's defaults 2.2 m):
+    the spaced demi-hulls damp yaw (each sees u -+ y_h r) and resist sway with two keels."""
+    c = turning_circle(50.0, 20.0, 60.0)
+    assert c["yaw_rate_radps"] < 0.0
+    assert 3.5 < c["diameter_m"] < 6.0
+    assert c["kinematic_diameter_m"] == pytest.approx(c["diameter_m"], rel=0.05)
+    assert 0.6 < c["speed_mps"] < 1.0
 
 
 def test_bow_thruster_yaws_as_hull6dofs_does():
