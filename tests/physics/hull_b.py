@@ -51,8 +51,9 @@ Equations (Fossen 2021, ch. 2-3, 6, 10), eta = [N, E, D, phi, theta, psi], nu = 
   (1983) linear derivatives from the demi-hull's L, B, T, C_B (Fossen 2021 sec. 7.1, eq. 7.13-7.16),
       Y'v = -pi (T/L)^2 (1 + 0.40 C_B B/T),        Y'r = -pi (T/L)^2 (-1/2 + 2.2 B/L - 0.080 B/T)
       N'v = -pi (T/L)^2 (1/2 + 2.4 T/L),           N'r = -pi (T/L)^2 (1/4 + 0.039 B/T - 0.56 B/L)
-  made dimensional with the demi-hull's forward speed |u_h| (u_h = u_r - y_h r: the two hulls see
-  different speeds in a turn), minus the linearised C_A terms of the demi-hull's own added mass
+  made dimensional with the demi-hull's speed u_h = u_r - y_h r (the two hulls see different speeds
+  in a turn; Y_v, N_r with |u_h|, the couplings Y_r, N_v with u_h, so going astern swaps the hull's
+  ends as slender-body theory has it), minus the linearised C_A terms of the demi-hull's own added mass
   (the Munk moment (A22 - A11) U v and A11 U r, A26 U r): the measured totals are Clarke's. The
   remaining 2x2 matrix is checked to be dissipative at set-up (its symmetric part positive).
   Plus cross-flow drag (Hoerner's 2-D C_D ~ 0.95 for b / 2T ~ 0.8) integrated along each demi-hull
@@ -103,6 +104,16 @@ Equations (Fossen 2021, ch. 2-3, 6, 10), eta = [N, E, D, phi, theta, psi], nu = 
 - Current: constant in the earth frame (no slow variation, unlike hull6dof).
 - Waves: NOT modelled. `CatamaranEnvironment` has wave_hs_m for the same call pattern, and only 0 is
   accepted (a ValueError otherwise).
+
+Assumptions and what is left out: fresh water at 15 C (rho 1000, nu 1.14e-6); added mass constant
+(the high-frequency strip values: no frequency dependence, no radiation memory); no interaction of
+the demi-hulls in added mass or sway (no shielding of the lee hull, no tunnel flow between them);
+resistance the same astern as ahead; the residuary table, the propeller curves, the motor numbers,
+the pod foil and the wind coefficients are assumed values of the cited forms, not measurements;
+the columns stay vertical in the body frame (small heel and trim); no propeller side force in
+oblique flow other than the pod foil's, no ventilation, no thrust dead band (hull6dof has one),
+no propeller-hull interaction besides w and t, constant battery voltage, the motor's inductance
+neglected; no air drag in still air; the wind acts on the whole hull at one centre of effort.
 
 Integration: Kutta's third-order Runge-Kutta at a fixed internal step of 5 ms (200 Hz) over the
 17-state vector (12 rigid-body states, two servo angles, three motor speeds), commands held over a
@@ -539,8 +550,9 @@ class CatamaranHull:
             fn = au / math.sqrt(G * L)
             cr = 1e-3 * float(np.interp(fn, _CR_FN, _CR_1000))
             X = -self._k_res * (p.form_factor * cf + cr) * au * uh - p.creep_damping_kg_s * uh
-            Y = -au * (Dh[0, 0] * vs + Dh[0, 1] * r)
-            N = -au * (Dh[1, 0] * vs + Dh[1, 1] * r)
+            # diagonal terms go with |u|, the couplings with u (astern the hull's ends swap roles)
+            Y = -(au * Dh[0, 0] * vs + uh * Dh[0, 1] * r)
+            N = -(uh * Dh[1, 0] * vs + au * Dh[1, 1] * r)
             iy, ix = _crossflow_integral(vs, r, 0.5 * L)
             Y -= self._k_cf * iy
             N -= self._k_cf * ix

@@ -119,6 +119,16 @@ def test_steady_speed_at_fixed_propeller_speed():
     assert steady_speed(50.0, 40.0) == pytest.approx(figures[50.0], rel=1e-9)
 
 
+def test_astern_is_weaker_and_runs_straight():
+    ahead, astern = CatamaranHull(), CatamaranHull()
+    ahead.command(0.0, 0.0, 50.0, 50.0, 0.0)
+    astern.command(0.0, 0.0, -50.0, -50.0, 0.0)
+    ahead.advance(20.0)
+    astern.advance(20.0)
+    assert astern.nu[0] < 0.0 and abs(astern.nu[0]) < 0.9 * ahead.nu[0]
+    assert abs(astern.nu[5]) < 1e-9 and abs(astern.x3[1]) < 1e-9
+
+
 def test_positive_alpha_yaws_the_bow_to_port():
     """lotsen's convention (docs/model.md "Thruster forces"): alpha > 0 turns the azimuths' thrust to
     starboard; aft of the centre that pushes the stern to starboard, so the bow turns to PORT (r < 0)
