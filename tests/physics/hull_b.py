@@ -17,15 +17,16 @@ Two slender demi-hulls, 0.96 m on the waterline (1.00 m overall), demi-hull wate
 centre-to-centre spacing 0.32 m (beam overall 0.45 m), mass 13.0 kg. Waterline of a demi-hull: a
 transom stern (breadth 0.85 b at the transom, full breadth at 0.25 L), parallel middle body, an
 elliptic entrance over the forward 45 % of the length; section coefficient 0.75, so the draft follows
-from the mass (0.078 m; `CatamaranHull.draft_m`; block coefficient 0.66). Centre of gravity 5 cm above the waterline,
-longitudinally over the centre of flotation (so the hull floats level); radii of gyration about it
-0.19 m (roll), 0.26 m (pitch), 0.29 m (yaw). One azimuth pod under each demi-hull at x = -0.44 m,
+from the mass (0.078 m; `CatamaranHull.draft_m`; block coefficient 0.66). Centre of gravity 5 cm
+above the waterline, longitudinally over the centre of flotation (so the hull floats level); radii
+of gyration about it 0.19 m (roll), 0.26 m (pitch), 0.29 m (yaw). One azimuth pod under each demi-hull at x = -0.44 m,
 y = +-0.16 m, 0.11 m below the waterline, propeller diameter 42 mm; a bow tunnel thruster (30 mm
 tunnel) in a centreline nacelle under the forward cross-beam at x = +0.40 m, 0.05 m deep.
 Numbers that follow: GM_T 0.37 m, roll stiffness rho g V GM_T 47 N m/rad (hull6dof: 4.5), roll
-period ~0.9 s; heave stiffness 2170 N/m; mass + added mass (diagonal of M) 14.33 kg surge (the m11
-for `lotsen identify --fix`), 31.5 kg sway, 23.4 kg heave, 2.56 kg m^2 yaw; steady speed ~0.5 m/s at
-25 rev/s (0.45), 1.0 m/s at 50 rev/s, 2.2 m/s at 100 rev/s (test_hull_b.py checks the first two).
+period ~0.85 s; heave stiffness 2170 N/m; mass + added mass (diagonal of M) 14.33 kg surge (the m11
+for `lotsen identify --fix`), 31.5 kg sway, 23.4 kg heave, 2.56 kg m^2 yaw; steady speed 0.45 m/s at
+25 rev/s, 1.0 m/s at 50 rev/s, 2.2 m/s at 100 rev/s (tests check the first two); a 4.5 m turning
+circle at 50 rev/s and 20 deg (hull6dof: 2.1 m).
 
 Equations (Fossen 2021, ch. 2-3, 6, 10), eta = [N, E, D, phi, theta, psi], nu = [u, v, w, p, q, r]:
 
@@ -119,7 +120,7 @@ Integration: Kutta's third-order Runge-Kutta at a fixed internal step of 5 ms (2
 17-state vector (12 rigid-body states, two servo angles, three motor speeds), commands held over a
 step; deterministic. `step(u, dt)` sets u (if given) and advances dt (a whole number of steps).
 
-How it differs from hull6dof: form (catamaran vs monohull: roll stiffness ~9x, sway added mass and
+How it differs from hull6dof: form (catamaran vs monohull: roll stiffness ~10x, turning circle ~2x, sway added mass and
 yaw damping from two spaced hulls, full added-mass matrix vs diagonal), resistance (Hughes + table vs
 ITTC-57 + Froude formula), sway/yaw (Clarke derivatives per demi-hull vs slender-wing lift + strip
 cross-flow), hydrostatics (nonlinear columns vs linear stiffness), propellers (quadratic K_T and K_Q
