@@ -317,6 +317,7 @@ def test_record_is_a_lake_record():
     assert random_steps(2, 20.0)(5.0) == random_steps(2, 20.0)(5.0)
 
 
+@pytest.mark.slow
 def test_record_is_accepted_by_lotsen_identify(tmp_path):
     """`lotsen identify` on a 300-s calm record of hull B with m11 = mass + surge added mass answers
     (exit 0; today "predictive": effective coefficients, not the catamaran's physical ones, which
