@@ -1,0 +1,146 @@
+"""Hull B (hull_b.py, the catamaran) behind lotsen's plant interface, in-process: missions on it at
+simulation speed, as hull_plant.py does for hull6dof (same pattern; hull_plant.py is unchanged).
+
+    from hull_b_plant import HullBPlant, fly_path
+    result = fly_path(path, environment=CatamaranEnvironment(current_mps=0.08, wind_mps=4.0))
+
+This adapter uses lotsen (the plant interface, the actuator guard's limits, the mission harness);
+the hull itself (hull_b.py) does not.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Sequence
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from hull_b import CatamaranEnvironment, CatamaranHull, CatamaranParameters  # noqa: E402
+
+from lotsen.model import DEFAULT_LIMITS, ActuatorLimits  # noqa: E402
+from lotsen.sim.actuators import ActuatorDynamics  # noqa: E402
+from lotsen.sim.plant import Plant, PlantSample, planar_state  # noqa: E402
+from lotsen.sim.waves import BodyMotion  # noqa: E402
+
+
+def hull_b_limits(hull: CatamaranHull) -> ActuatorLimits:
+    """What the catamaran's actuators can do, as lotsen's guard clips set-points (the DC motors'
+    equivalent first-order time constant and their no-load current-limited ramp)."""
+    p = hull.p
+    return replace(DEFAULT_LIMITS, alpha_max_rad=p.alpha_max_rad, alpha_rate_max_radps=p.alpha_rate_radps,
+                   n_az_max_rps=p.n_max_rps, n_bow_max_rps=p.n_bow_max_rps,
+                   motor_time_constant_s=hull.motor_time_constant_s, n_rate_max_rps2=hull.motor_ramp_rps2)
+
+
+class HullBPlant(Plant):
+    """CatamaranHull as a lotsen `Plant`: one lotsen step = `dt_s` of the hull (its own 5 ms steps)."""
+
+    def __init__(self, params: CatamaranParameters = CatamaranParameters(),
+                 environment: CatamaranEnvironment = CatamaranEnvironment(), dt_s: float = 0.01,
+                 gnss_antenna_m: tuple[float, float] = (0.0, 0.0), gnss_antenna_height_m: float = 0.0) -> None:
+        self.hull = CatamaranHull(params, environment)
+        self.params, self.env = params, environment
+        self.name = "6-DOF catamaran (tests/physics/hull_b.py)"
+        self.dt_s = dt_s
+        self.limits = hull_b_limits(self.hull)
+        self.gnss_antenna_m = gnss_antenna_m
+        self.gnss_antenna_height_m = gnss_antenna_height_m
+        self.actuators = ActuatorDynamics(self.limits, dt_s)  # set-points and faults; state: the hull's
+        self._step_input: tuple[float, ...] = (0.0,) * 5
+        self._read()
+
+    def _read(self) -> None:
+        h = self.hull
+        vel, f = h.measure()
+        n, e, psi, _, _, r = h.x3
+        eta, nu = h.eta, h.nu
+        self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2], eta[3], eta[4], q=nu[4])
+        self._motion = BodyMotion(eta[3], eta[4], eta[2], nu[3], nu[4], tuple(f), r)
+        self.actuators.state = tuple(h.actuators)
+
+    @property
+    def wind_now(self) -> tuple[float, float]:
+        return self.hull.wind_now
+
+    def command(self, u: Sequence[float]) -> None:
+        a = self.actuators
+        a.set_command(*u)
+        c = list(a.command)
+        for i in a.faults.stuck_servos:
+            c[i] = a.state[i]
+        for i in a.faults.failed_units:
+            c[2 + i] = 0.0
+        self.hull.command(*c)
+
+    def place(self, x: Sequence[float]) -> None:
+        self.hull.reset((x[0], x[1], x[2]), t_s=self.hull.t)
+        self.hull.set_velocity(x[3], x[4], x[5])
+        self._read()
+
+    def step(self) -> PlantSample:
+        sample = PlantSample(self._x, self._x_dot, tuple(self.actuators.state), self._motion)
+        self._step_input = self.hull.advance(self.dt_s)
+        self._read()
+        return sample
+
+    def describe(self, reference: Any = None) -> str:
+        return self.name
+
+
+def fly_path(path: Any, model: Any = None, *, environment: CatamaranEnvironment = CatamaranEnvironment(),
+             params: CatamaranParameters = CatamaranParameters(), seed: int = 0, controller: str = "mpc",
+             estimator: str = "ekf", hold_s: float = 5.0, gnss_antenna_m: tuple[float, float] = (0.0, 0.0),
+             gnss_antenna_height_m: float = 0.0) -> Any:
+    """A planned path flown on the catamaran by lotsen's stack (`lotsen.harness.mission.run_mission`):
+    lotsen's sensors on `seed`, its EKF (or the truth) and controller on `model` (default model)."""
+    from lotsen.control import ControlConfig, make_path_follower
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.model import VesselModel
+
+    model = model or VesselModel()
+    control = ControlConfig(controller=controller)
+    cfg = MissionConfig(control_rate_hz=1.0 / control.dt_s, seed=seed, hold_s=hold_s, sensors=estimator != "truth")
+    plant = HullBPlant(params, environment, cfg.sim_dt_s, gnss_antenna_m, gnss_antenna_height_m)
+    ekf = make_sim_ekf(cfg, path, model, boat=plant) if estimator == "ekf" else None
+    try:
+        return run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=ekf, plant=plant)
+    finally:
+        plant.close()
+
+
+def figure_eight(speed_mps: float = 0.5) -> Any:
+    """examples/routes/figure_eight.yaml planned at `speed_mps` on every node (as bench_waves.py does)."""
+    from lotsen.files import read_yaml
+    from lotsen.planning import plan_route
+    from lotsen.planning.io import route_from_dict
+
+    route = read_yaml(Path(__file__).resolve().parents[2] / "examples" / "routes" / "figure_eight.yaml")
+    route["nodes"] = [dict(n, speed_mps=speed_mps) for n in route["nodes"]]
+    return plan_route(route_from_dict(route))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`python tests/physics/hull_b_plant.py [--speed 0.5] [--seed 0]`: the figure eight flown on the
+    catamaran by lotsen's stack in simulated time, in bench_waves.py's calm conditions (0.08 m/s current
+    to 30 deg, 4 m/s wind from 250 deg with 20 % gusts and 15 deg wander, no waves; GNSS antenna 0.1 m
+    ahead, 0.2 m up); prints completed and the mission's metrics."""
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description=main.__doc__)
+    ap.add_argument("--speed", type=float, default=0.5)
+    ap.add_argument("--seed", type=int, default=0)
+    a = ap.parse_args(argv)
+    env = CatamaranEnvironment(current_mps=0.08, current_to_deg=30.0, wind_mps=4.0, wind_from_deg=250.0,
+                               gust_fraction=0.2, wind_wander_deg=15.0, seed=a.seed)
+    res = fly_path(figure_eight(a.speed), environment=env, seed=a.seed, gnss_antenna_m=(0.1, 0.0),
+                   gnss_antenna_height_m=0.2)
+    m = {k: v for k, v in res.metrics.items() if isinstance(v, (int, float, str, bool, list))}
+    print(json.dumps({"completed": bool(res.completed), **m}, indent=1))
+    return 0 if res.completed else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
