@@ -1,5 +1,5 @@
 """Hull B (hull_b.py, the catamaran) behind lotsen's plant interface, in-process: missions on it at
-simulation speed, as hull_plant.py does for hull6dof (same pattern; hull_plant.py is unchanged).
+simulation speed, with hull_plant.py's adapter (HullPlant) around the catamaran.
 
     from hull_b_plant import HullBPlant, fly_path
     result = fly_path(path, environment=CatamaranEnvironment(current_mps=0.08, wind_mps=4.0))
@@ -18,11 +18,9 @@ from typing import Any, Sequence
 sys.path.insert(0, str(Path(__file__).parent))
 
 from hull_b import CatamaranEnvironment, CatamaranHull, CatamaranParameters  # noqa: E402
+from hull_plant import HullPlant  # noqa: E402
 
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits  # noqa: E402
-from lotsen.sim.actuators import ActuatorDynamics  # noqa: E402
-from lotsen.sim.plant import Plant, PlantSample, planar_state  # noqa: E402
-from lotsen.sim.waves import BodyMotion  # noqa: E402
 
 
 def hull_b_limits(hull: CatamaranHull) -> ActuatorLimits:
@@ -34,59 +32,21 @@ def hull_b_limits(hull: CatamaranHull) -> ActuatorLimits:
                    motor_time_constant_s=hull.motor_time_constant_s, n_rate_max_rps2=hull.motor_ramp_rps2)
 
 
-class HullBPlant(Plant):
-    """CatamaranHull as a lotsen `Plant`: one lotsen step = `dt_s` of the hull (its own 5 ms steps)."""
+class HullBPlant(HullPlant):
+    """CatamaranHull as a lotsen `Plant` (hull_plant.HullPlant's adapter around the catamaran): one lotsen
+    step = `dt_s` of the hull (its own 5 ms steps)."""
 
     def __init__(self, params: CatamaranParameters = CatamaranParameters(),
                  environment: CatamaranEnvironment = CatamaranEnvironment(), dt_s: float = 0.01,
                  gnss_antenna_m: tuple[float, float] = (0.0, 0.0), gnss_antenna_height_m: float = 0.0) -> None:
-        self.hull = CatamaranHull(params, environment)
-        self.params, self.env = params, environment
-        self.name = "6-DOF catamaran (tests/physics/hull_b.py)"
-        self.dt_s = dt_s
-        self.limits = hull_b_limits(self.hull)
-        self.gnss_antenna_m = gnss_antenna_m
-        self.gnss_antenna_height_m = gnss_antenna_height_m
-        self.actuators = ActuatorDynamics(self.limits, dt_s)  # set-points and faults; state: the hull's
-        self._step_input: tuple[float, ...] = (0.0,) * 5
-        self._read()
-
-    def _read(self) -> None:
-        h = self.hull
-        vel, f = h.measure()
-        n, e, psi, _, _, r = h.x3
-        eta, nu = h.eta, h.nu
-        self._x, self._x_dot = planar_state(n, e, psi, vel, r, f[:2], eta[3], eta[4], q=nu[4])
-        self._motion = BodyMotion(eta[3], eta[4], eta[2], nu[3], nu[4], tuple(f), r)
-        self.actuators.state = tuple(h.actuators)
-
-    @property
-    def wind_now(self) -> tuple[float, float]:
-        return self.hull.wind_now
-
-    def command(self, u: Sequence[float]) -> None:
-        a = self.actuators
-        a.set_command(*u)
-        c = list(a.command)
-        for i in a.faults.stuck_servos:
-            c[i] = a.state[i]
-        for i in a.faults.failed_units:
-            c[2 + i] = 0.0
-        self.hull.command(*c)
+        hull = CatamaranHull(params, environment)
+        self._attach(hull, hull_b_limits(hull), "6-DOF catamaran (tests/physics/hull_b.py)", (params, environment),
+                     dt_s, gnss_antenna_m, gnss_antenna_height_m)
 
     def place(self, x: Sequence[float]) -> None:
         self.hull.reset((x[0], x[1], x[2]), t_s=self.hull.t)
         self.hull.set_velocity(x[3], x[4], x[5])
         self._read()
-
-    def step(self) -> PlantSample:
-        sample = PlantSample(self._x, self._x_dot, tuple(self.actuators.state), self._motion)
-        self._step_input = self.hull.advance(self.dt_s)
-        self._read()
-        return sample
-
-    def describe(self, reference: Any = None) -> str:
-        return self.name
 
 
 def fly_path(path: Any, model: Any = None, *, environment: CatamaranEnvironment = CatamaranEnvironment(),

@@ -44,11 +44,18 @@ class HullPlant(Plant):
     def __init__(self, params: HullParameters = HullParameters(), environment: HullEnvironment = HullEnvironment(),
                  dt_s: float = 0.01, gnss_antenna_m: tuple[float, float] = (0.0, 0.0),
                  gnss_antenna_height_m: float = 0.0) -> None:
-        self.hull = Hull6DOF(params, environment)
-        self.params, self.env = params, environment
-        self.name = "6-DOF hull (tests/physics/hull6dof.py)"
+        self._attach(Hull6DOF(params, environment), hull_limits(params), "6-DOF hull (tests/physics/hull6dof.py)",
+                     (params, environment), dt_s, gnss_antenna_m, gnss_antenna_height_m)
+
+    def _attach(self, hull: Any, limits: ActuatorLimits, name: str, setup: tuple[Any, Any], dt_s: float,
+                gnss_antenna_m: tuple[float, float], gnss_antenna_height_m: float) -> None:
+        """The adapter around `hull`, any hull with this one's surface (hull_b_plant.HullBPlant attaches
+        the catamaran); `setup`: its parameters and environment."""
+        self.hull = hull
+        self.params, self.env = setup
+        self.name = name
         self.dt_s = dt_s
-        self.limits = hull_limits(params)
+        self.limits = limits
         self.gnss_antenna_m = gnss_antenna_m
         self.gnss_antenna_height_m = gnss_antenna_height_m  # above the hull's roll and pitch centre
         self.actuators = ActuatorDynamics(self.limits, dt_s)  # set-points and faults; state: the hull's
