@@ -14,7 +14,8 @@ Figures per case and sea: missions completed without any failsafe; cross-track R
 true track, and its low-frequency part (a 3-s moving average: the motion a controller should act on;
 the rest is the waves' own motion, which no controller should chase); the settled hold's RMS distance;
 the actuators' activity (`lotsen.harness.mission.actuator_activity`): azimuth travel, propeller speed
-change, reversals per second, electrical energy; each as the ratio to calm water from the same seeds.
+change, reversals per second, electrical energy (and where it goes: per propeller, and the share of
+the time each azimuth runs astern); each as the ratio to calm water from the same seeds.
 
 Targets (issue 46 "done when"): every mission completes with no failsafe; cross-track RMS <= 2x calm;
 station keeping <= 5 cm; reversals and azimuth travel per second <= 2x calm, energy <= 1.3x calm.
@@ -135,6 +136,13 @@ def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) ->
     row["azimuth travel deg/s"] = round(avg("azimuth_travel_deg_per_s", sub=sub) or math.nan, 1)
     row["reversals /s"] = round(avg("reversals_per_s", sub=sub) or 0.0, 3)
     row["energy J"] = round(avg("energy_J", sub=sub) or math.nan)
+    # where the energy goes (lotsen.harness.mission.actuator_activity): an azimuth pushing astern against
+    # the other or a steady bow push shows here
+    src = [(m.get(sub) or {}) if sub else m for m in ms]
+    by_prop = [_mean([(x.get("energy_J_by_propeller") or [None] * 3)[i] for x in src]) for i in range(3)]
+    row["energy J az 1 / az 2 / bow"] = " / ".join("-" if e is None else f"{e:.0f}" for e in by_prop)
+    astern = [_mean([(x.get("azimuth_astern_share") or [None] * 2)[i] for x in src]) for i in range(2)]
+    row["azimuths astern %"] = " / ".join("-" if a is None else f"{100 * a:.0f}" for a in astern)
     if sea != "calm":
         key = "hold_position_error_rms_m" if station else "cross_track_rms_m"
         if not station:
