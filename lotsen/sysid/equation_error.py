@@ -327,23 +327,6 @@ def _right_side(cols: Mapping[str, Column], theta_fixed: Mapping[int, float], n:
     return b
 
 
-def _regression(ms: MotionSamples, kappa: float, theta_fixed: Mapping[int, float], geometry: VesselGeometry,
-                current: "tuple[float, float] | CurrentPath", wind: tuple[float, float] | None
-                ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
-    """Rows (3 n) of A theta_free = b and the free parameters' indices; wind coefficients last.
-    `current`: constant (north, east), or a CurrentPath (piecewise linear in time)."""
-    cols = {**_record_columns(ms, geometry), **_water_columns(ms, current), **_housing_column(ms, current, kappa, geometry),
-            **(_wind_columns(ms, wind) if wind is not None else {})}
-    free, names = _free_names(theta_fixed, wind)
-    n = len(ms.u)
-    A = np.zeros((3, n, len(names)))
-    for j, name in enumerate(names):
-        for e, x in enumerate(cols[name]):
-            if x is not None:
-                A[e, :, j] = x
-    return A.reshape(3 * n, -1), _right_side(cols, theta_fixed, n).ravel(), free, n
-
-
 @dataclass
 class _Filtered:
     """A group of regressor columns computed for one value of what they depend on: as computed (for the
@@ -399,7 +382,8 @@ class _Regression:
     def regressors(self, kappa: float, current: Any, wind: tuple[float, float] | None,
                    rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list[int], MotionSamples]:
         """The filtered regression at (kappa, current, wind), n x 3 x p and n x 3, and the samples: to the
-        last digit the common low-pass of _regression's A and b (the filter acts on each column alone),
+        last digit the common low-pass of the whole regression's A and b, the columns side by side (the
+        filter acts on each column alone; tests/sysid/test_parallel.py builds that A and b to check it),
         each column group filtered once per value of what it depends on (the record alone; the current;
         kappa and the current; the air's velocity): the searches vary kappa, current and wind one at a
         time, the stretches re-solve with the record's, kappa's search keeps the current.
@@ -423,7 +407,7 @@ class _Regression:
                 for e, x in enumerate(g.filtered.get(name, ())):
                     if x is not None:
                         Af[:, e, j] = x
-        # b from the groups that hold a fixed parameter's column, as _regression sums it
+        # b from the groups that hold a fixed parameter's column (_right_side over them)
         fixed = {NAMES[i] for i in self.theta_fixed}
         holders = [(key, g) for key, g in groups if fixed & g.raw.keys()]
         raw = {name: col for _, g in holders for name, col in g.raw.items()}

@@ -147,13 +147,32 @@ def test_the_command_keeps_freed_memory_on_glibc():
     assert keep_freed_memory() == glibc
 
 
+def _whole_regression(ms, kappa, theta_fixed, geometry, current, wind):  # type: ignore[no-untyped-def]
+    """The reference: rows (3 n) of A theta_free = b with every column group side by side, built at once
+    (what _Regression.regressors assembles group by group), the free parameters' indices and n."""
+    from lotsen.sysid.equation_error import (
+        _free_names, _housing_column, _record_columns, _right_side, _water_columns, _wind_columns,
+    )
+
+    cols = {**_record_columns(ms, geometry), **_water_columns(ms, current), **_housing_column(ms, current, kappa, geometry),
+            **(_wind_columns(ms, wind) if wind is not None else {})}
+    free, names = _free_names(theta_fixed, wind)
+    n = len(ms.u)
+    A = np.zeros((3, n, len(names)))
+    for j, name in enumerate(names):
+        for e, x in enumerate(cols[name]):
+            if x is not None:
+                A[e, :, j] = x
+    return A.reshape(3 * n, -1), _right_side(cols, theta_fixed, n).ravel(), free, n
+
+
 def test_the_kept_filtered_regressors_are_the_filtered_regression_to_the_last_digit():
     """_Regression.regressors filters each column group once per value of what it depends on (the record,
     the current, kappa, the air's velocity) and keeps it: whatever was kept before, the numbers are those of
-    filtering _regression's whole A and b, on the record and on a stretch of it."""
+    filtering the whole A and b (_whole_regression), on the record and on a stretch of it."""
     from lotsen.model import DEFAULT_GEOMETRY
     from lotsen.sysid.equation_error import (
-        CurrentPath, MotionSamples, _filtered, _regression, _Regression,
+        CurrentPath, MotionSamples, _filtered, _Regression,
     )
     from lotsen.sysid.estimate import NAMES, parameter_bounds
 
@@ -171,7 +190,7 @@ def test_the_kept_filtered_regressors_are_the_filtered_regression_to_the_last_di
              (0.02, path, (3.0, -1.0), np.arange(100, 300)), (0.02, (0.1, 0.0), (3.0, -1.0), np.arange(100, 300))]
     for kappa, current, wind, rows in calls * 2:
         mx = ms if rows is None else ms.subset(rows)
-        A, b, free, m = _regression(mx, kappa, fixed, DEFAULT_GEOMETRY, current, wind)
+        A, b, free, m = _whole_regression(mx, kappa, fixed, DEFAULT_GEOMETRY, current, wind)
         Af, bf, free_kept, _ = reg.regressors(kappa, current, wind, rows)
         assert free_kept == free
         assert np.array_equal(Af, _filtered(A.reshape(3, m, -1).transpose(1, 0, 2).reshape(m, -1), mx.segment,
