@@ -236,74 +236,99 @@ def _reasons(out: dict) -> str:
     return "; ".join(out_)
 
 
-def lab_loop_rows(work: Path, quick: bool) -> tuple[list[dict], Any]:
-    """The lab loop through the commands (module docstring, 1). Returns its rows and the identified
-    parameters (None when identify refused)."""
+def step_row(table: str, name: str, command: str, rc: int, cpu: float, wall: float, **extra: Any) -> dict:
+    """One command of a lab loop as a row of `table`."""
+    return {"table": table, "step": name, "command": command, "exit": rc, "cpu_s": round(cpu, 1),
+            "wall_s": round(wall, 1), **extra}
+
+
+def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust_ratio: float,
+                 server: tuple[str, ...] = ()) -> tuple[list[dict], dict | None, Any]:
+    """The lab loop up to the model, through the commands (module docstring, 1): design, the design and the
+    validation experiment run on the hull over the seam (hull_server.py `server` flags, calm, seed 0),
+    identify with the lab's m11 and bollard-pull ratio. Returns the rows of `table`, the parameter file
+    written ({} without one; None when a step before identify failed) and its parameters (None when
+    identify refused or did not run)."""
     from lotsen.stack.stack import load_parameters
 
-    table = "1. the lab loop on the 6-DOF hull, command by command (design -> run over the seam -> identify -> fly)"
     rows: list[dict] = []
-
-    def step(name: str, command: str, rc: int, cpu: float, wall: float, **extra: Any) -> None:
-        rows.append({"table": table, "step": name, "command": command, "exit": rc, "cpu_s": round(cpu, 1),
-                     "wall_s": round(wall, 1), **extra})
-
     design = ["experiment", "design", "--duration", "60", "--area", "30x30", "--out", "designed.yaml"]
     if quick:
         design += ["--iterations", "6", "--robust-samples", "1"]
     rc, err, cpu, wall = lotsen(*design, cwd=work)
     summary = err.strip().splitlines()[-1] if err.strip() else ""
-    step("design", "lotsen " + " ".join(design), rc, cpu, wall, result=summary.split(": ", 1)[-1][:160])
+    rows.append(step_row(table, "design", "lotsen " + " ".join(design), rc, cpu, wall,
+                         result=summary.split(": ", 1)[-1][:160]))
     if rc != 0:
-        return rows, None
+        return rows, None, None
     validation = str(REPO / "examples" / "experiments" / "prbs_multisine.yaml")
-    with hull_server("--seed", "0") as address:
+    with hull_server(*server, "--seed", "0") as address:
         for name, exp, extra in (("run (estimation)", "designed.yaml", []),
                                  ("run (validation)", validation, ["--seed", "1"])):
             out = "designed.mcap" if "estimation" in name else "validation.mcap"
             args = ["experiment", "run", exp, "--physics", address, "--out", out, *extra]
             rc, err, cpu, wall = lotsen(*args, cwd=work)
-            step(name, "lotsen " + " ".join(args).replace(str(REPO) + "/", ""), rc, cpu, wall,
-                 result=(err.strip().splitlines() or [""])[-1][:160])
+            rows.append(step_row(table, name, "lotsen " + " ".join(args).replace(str(REPO) + "/", ""), rc, cpu, wall,
+                                 result=(err.strip().splitlines() or [""])[-1][:160]))
             if rc != 0:
-                return rows, None
-    m11 = hull_m11()
+                return rows, None, None
     ident = ["designed.mcap", "--validate", "validation.mcap", "--fix", f"m11={m11:g}",
-             "--reverse-thrust-ratio", str(REVERSE_THRUST_RATIO), "--out", "identified.json", "--report", "report.html"]
+             "--reverse-thrust-ratio", f"{reverse_thrust_ratio:g}", "--out", "identified.json", "--report", "report.html"]
     t0 = time.perf_counter()
     rc, err, cpu = timed_identify(*ident, cwd=work)
     wall = time.perf_counter() - t0
     out = json.loads((work / "identified.json").read_text()) if (work / "identified.json").is_file() else {}
     chosen, p10, d10 = _prediction(out)
-    step("identify", "lotsen identify " + " ".join(ident), rc, cpu.get("command_s", math.nan), wall,
-         verdict=out.get("verdict"), written=chosen, pred_10s_m=p10, defaults_10s_m=d10,
-         better_than_defaults_pct=round(100 * (1 - p10 / d10)) if p10 and d10 else None,
-         identify_cpu_s=round(cpu["identify_s"], 1) if cpu.get("identify_s") is not None else None,
-         result=_reasons(out)[:300])
-    params = None
-    if rc == 0:
-        params = load_parameters(str(work / "identified.json"))
-    # fly: the figure eight at 1.0 m/s in current and wind over the seam, the defaults and the identified model
-    case = CASES[1]
-    route = work / "figure_eight_1mps.yaml"
+    rows.append(step_row(table, "identify", "lotsen identify " + " ".join(ident), rc, cpu.get("command_s", math.nan),
+                         wall, verdict=out.get("verdict"), written=chosen, pred_10s_m=p10, defaults_10s_m=d10,
+                         better_than_defaults_pct=round(100 * (1 - p10 / d10)) if p10 and d10 else None,
+                         identify_cpu_s=round(cpu["identify_s"], 1) if cpu.get("identify_s") is not None else None,
+                         result=_reasons(out)[:300]))
+    return rows, out, load_parameters(str(work / "identified.json")) if rc == 0 else None
+
+
+def write_route(work: Path, name: str, speed_mps: float, scale: float = 1.0) -> str:
+    """The figure eight at `speed_mps` as a route file in `work`; its name there."""
     import yaml
 
-    route.write_text(yaml.safe_dump(figure_eight(case[2], case[1]), sort_keys=False))
+    (work / name).write_text(yaml.safe_dump(figure_eight(speed_mps, scale), sort_keys=False))
+    return name
+
+
+def mission_over_seam(work: Path, route: str, address: str, report: str, *extra: str
+                      ) -> tuple[str, int, dict, float, float]:
+    """`lotsen mission ROUTE --physics ADDRESS EXTRA --report REPORT` in `work`: (the command, exit code,
+    the report ({} without one), CPU s, wall s)."""
+    args = ["mission", route, "--physics", address, *extra, "--report", report]
+    rc, _, cpu, wall = lotsen(*args, cwd=work)
+    rep = json.loads((work / report).read_text()) if (work / report).is_file() else {}
+    return "lotsen " + " ".join(args), rc, rep, cpu, wall
+
+
+def lab_loop_rows(work: Path, quick: bool) -> tuple[list[dict], Any]:
+    """The lab loop through the commands (module docstring, 1). Returns its rows and the identified
+    parameters (None when identify refused)."""
+    table = "1. the lab loop on the 6-DOF hull, command by command (design -> run over the seam -> identify -> fly)"
+    rows, out, params = lab_identify(work, quick, table, hull_m11(), REVERSE_THRUST_RATIO)
+    if out is None:
+        return rows, None
+    # fly: the figure eight at 1.0 m/s in current and wind over the seam, the defaults and the identified model
+    case = CASES[1]
+    route = write_route(work, "figure_eight_1mps.yaml", case[2], case[1])
     flown: dict[str, dict] = {}
     with hull_server(*lake_server_args(0)) as address:
         for name, extra in (("defaults", []), ("identified", ["--params", "identified.json"])):
             if name == "identified" and params is None:
                 continue
-            args = ["mission", route.name, "--physics", address, *extra, "--report", f"mission_{name}.json"]
-            rc, err, cpu, wall = lotsen(*args, cwd=work)
-            rep = json.loads((work / f"mission_{name}.json").read_text()) if (work / f"mission_{name}.json").is_file() else {}
+            command, rc, rep, cpu, wall = mission_over_seam(work, route, address, f"mission_{name}.json", *extra)
             flown[name] = rep
             inproc = fly(case, "lab loop" if name == "identified" else "defaults", params if name == "identified" else None, 0)
-            step(f"fly ({name})", "lotsen " + " ".join(args), rc, cpu, wall,
-                 cross_track_rms_cm=_cm(rep.get("cross_track_rms_m")), cross_track_max_cm=_cm(rep.get("cross_track_max_m")),
-                 failsafes=", ".join(rep.get("failsafes_triggered", [])) or "none",
-                 in_process_rms_cm=_cm(inproc["cross_track_rms_m"]),
-                 model=rep.get("model"), boat=rep.get("boat"))
+            rows.append(step_row(table, f"fly ({name})", command, rc, cpu, wall,
+                                 cross_track_rms_cm=_cm(rep.get("cross_track_rms_m")),
+                                 cross_track_max_cm=_cm(rep.get("cross_track_max_m")),
+                                 failsafes=", ".join(rep.get("failsafes_triggered", [])) or "none",
+                                 in_process_rms_cm=_cm(inproc["cross_track_rms_m"]),
+                                 model=rep.get("model"), boat=rep.get("boat")))
     if "identified" in flown and "defaults" in flown:
         a, b = flown["defaults"].get("cross_track_rms_m"), flown["identified"].get("cross_track_rms_m")
         ratio = b / a if a and b else None

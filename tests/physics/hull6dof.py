@@ -588,6 +588,11 @@ class Hull6DOF:
         self._nu_dot = [0.0] * 6
         self._update_forcing()
 
+    def set_velocity(self, u: float, v: float, r: float) -> None:
+        """Surge, sway and yaw rate (body axes) of a placed hull; as hull_b.CatamaranHull's, so a server or
+        adapter places either hull alike."""
+        self.state[6], self.state[7], self.state[11] = u, v, r
+
     # -- inputs --------------------------------------------------------------------------------
     def command(self, alpha1: float, alpha2: float, n1: float, n2: float, nt: float) -> None:
         """Set-points; non-finite values mean neutral; applied after the latency."""

@@ -858,6 +858,27 @@ def steady_speed(n_rps: float = 50.0, duration_s: float = 40.0,
     return hull.nu[0]
 
 
+def bollard_pull(n_rps: float, duration_s: float = 3.0,
+                 params: CatamaranParameters = CatamaranParameters()) -> tuple[float, float]:
+    """A bollard pull test as a lab runs it: the hull held at rest on a line to a load cell, both pods
+    straight, both propellers commanded to `n_rps` (negative: astern). After `duration_s`: (the thrust the
+    line holds, N, positive ahead; the propellers' speed a tachometer reads, rev/s)."""
+    hull = CatamaranHull(params)
+    hull.command(0.0, 0.0, n_rps, n_rps, 0.0)
+    for _ in range(int(round(duration_s / hull.h))):
+        hull.advance(hull.h)
+        hull.x[:12] = 0.0  # the line and the dock hold it: at rest, level
+    return float(hull._loads(hull.x, hull.cmd)[0][0]), hull.actuators[2]
+
+
+def reverse_thrust_ratio(n_rps: float = 50.0, params: CatamaranParameters = CatamaranParameters()) -> float:
+    """Astern over ahead bollard pull at equal measured propeller speed (what `lotsen identify
+    --reverse-thrust-ratio` asks for): the motors turn faster astern, where the propeller loads them less,
+    so each pull is taken per n^2 of the speed the tachometer read."""
+    ahead, n_ahead = bollard_pull(n_rps, params=params)
+    astern, n_astern = bollard_pull(-n_rps, params=params)
+    return (-astern / n_astern ** 2) / (ahead / n_ahead ** 2)
+
 def turning_circle(n_rps: float = 50.0, alpha_deg: float = 20.0, duration_s: float = 60.0,
                    params: CatamaranParameters = CatamaranParameters(),
                    environment: CatamaranEnvironment = CatamaranEnvironment()) -> dict[str, float]:

@@ -43,11 +43,6 @@ class HullBPlant(HullPlant):
         self._attach(hull, hull_b_limits(hull), "6-DOF catamaran (tests/physics/hull_b.py)", (params, environment),
                      dt_s, gnss_antenna_m, gnss_antenna_height_m)
 
-    def place(self, x: Sequence[float]) -> None:
-        self.hull.reset((x[0], x[1], x[2]), t_s=self.hull.t)
-        self.hull.set_velocity(x[3], x[4], x[5])
-        self._read()
-
 
 def fly_path(path: Any, model: Any = None, *, environment: CatamaranEnvironment = CatamaranEnvironment(),
              params: CatamaranParameters = CatamaranParameters(), seed: int = 0, controller: str = "mpc",

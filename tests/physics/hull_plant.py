@@ -87,7 +87,7 @@ class HullPlant(Plant):
 
     def place(self, x: Sequence[float]) -> None:
         self.hull.reset((x[0], x[1], x[2]), t_s=self.hull.t)
-        self.hull.state[6], self.hull.state[7], self.hull.state[11] = x[3], x[4], x[5]
+        self.hull.set_velocity(x[3], x[4], x[5])
         self._read()
 
     def step(self) -> PlantSample:

@@ -1,12 +1,16 @@
-"""The independent 6-DOF hull (hull6dof.py) as an ArduPilot SITL JSON physics server.
+"""The independent 6-DOF hulls as an ArduPilot SITL JSON physics server: hull6dof.py (the monohull,
+default) or, with `--hull b`, hull_b.py (the catamaran, issue 47).
 
 Written from the protocol as ArduPilot documents it (libraries/SITL/examples/JSON/readme.md and
 SIM_JSON.cpp: a binary servo packet in, one JSON state line out), not from lotsen's client: it
 imports nothing of lotsen. Any flight controller that speaks the protocol can fly it, lotsen's
 `--physics udp:HOST:PORT` among them:
 
-    python tests/physics/hull_server.py --port 9002 [--wind 4,250 --gusts 0.2 --wander 15]
+    python tests/physics/hull_server.py --port 9002 [--hull 6dof|b] [--wind 4,250 --gusts 0.2 --wander 15]
         [--current 0.08,30] [--waves 0.03,0.8,250 --wave-spreading 2] [--seed 0]
+
+Hull B models no waves and a constant current: `--hull b` with `--waves` or `--current-variation` is
+refused, not dropped.
 
 Servo channels (lotsen's default channel map, docs/physics.md): SERVO1 azimuth 1 (starboard) angle,
 SERVO2 azimuth 2 angle, SERVO3 / SERVO4 their propellers, SERVO5 the bow thruster; 1000-1500-2000
@@ -28,13 +32,41 @@ import socket
 import struct
 import sys
 import threading
+from dataclasses import fields
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 sys.path.insert(0, str(Path(__file__).parent))
 
 from hull6dof import (Hull6DOF, HullEnvironment, HullParameters, add_environment_arguments,  # noqa: E402
                      environment_arguments)
+from hull_b import CatamaranEnvironment, CatamaranHull, CatamaranParameters  # noqa: E402
+
+
+class HullKind(NamedTuple):
+    """A hull the server can serve: its class, parameters and environment types, its name."""
+
+    hull: type
+    parameters: type
+    environment: type
+    name: str
+
+
+HULLS = {"6dof": HullKind(Hull6DOF, HullParameters, HullEnvironment, "6-DOF hull"),
+         "b": HullKind(CatamaranHull, CatamaranParameters, CatamaranEnvironment, "hull B (catamaran)")}
+
+
+def environment_for(hull: str, values: dict[str, Any]) -> Any:
+    """The water and air flags (`environment_arguments`) as `hull`'s environment. A flag the hull does
+    not model (hull B: waves, a varying current) is refused with a ValueError rather than dropped: a
+    run would otherwise be calmer than asked."""
+    kind = HULLS[hull]
+    known = {f.name for f in fields(kind.environment)}
+    unset = HullEnvironment()
+    dropped = sorted(k for k, v in values.items() if k not in known and v != getattr(unset, k))
+    if dropped:
+        raise ValueError(f"{kind.name} does not model {', '.join(dropped)}")
+    return kind.environment(**{k: v for k, v in values.items() if k in known})
 
 PACKET_16 = struct.Struct("<HHI16H")
 PACKET_32 = struct.Struct("<HHI32H")
@@ -57,11 +89,16 @@ def pwm_to_setpoints(pwm: tuple[int, ...]) -> tuple[float, ...]:
 
 
 class HullServer:
-    def __init__(self, params: HullParameters = HullParameters(), environment: HullEnvironment = HullEnvironment(),
-                 host: str = "127.0.0.1", port: int = 9002, pose: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
-        self.params, self.environment = params, environment
+    """`hull` (a key of HULLS) on a UDP socket; `params` and `environment` of that hull's types (default:
+    its defaults, calm)."""
+
+    def __init__(self, params: Any = None, environment: Any = None, host: str = "127.0.0.1", port: int = 9002,
+                 pose: tuple[float, float, float] = (0.0, 0.0, 0.0), hull: str = "6dof") -> None:
+        self.kind = HULLS[hull]
+        self.params = self.kind.parameters() if params is None else params
+        self.environment = self.kind.environment() if environment is None else environment
         self.pose = pose
-        self.hull = Hull6DOF(params, environment, pose=pose)
+        self.hull = self.kind.hull(self.params, self.environment, pose=pose)
         self.mean = self.hull.actuators
         self.last_frame: int | None = None
         self.reply: bytes | None = None
@@ -92,7 +129,7 @@ class HullServer:
                 return None
             self.pose = (n, e, psi)
             self.hull.reset((n, e, psi), t_s=self.hull.t)
-            self.hull.state[6], self.hull.state[7], self.hull.state[11] = u, v, r
+            self.hull.set_velocity(u, v, r)
             self.mean = self.hull.actuators
             self.last_frame = None
             self.reply = self.state_line()
@@ -111,7 +148,7 @@ class HullServer:
         if frame_rate == 0:
             return None
         if self.last_frame is not None and frame_count < self.last_frame:  # the controller restarted
-            self.hull = Hull6DOF(self.params, self.environment, pose=self.pose)
+            self.hull = self.kind.hull(self.params, self.environment, pose=self.pose)
             self.last_frame = None
         if frame_count != self.last_frame or self.reply is None:  # a repeated count: answer again, no step
             self.hull.command(*pwm_to_setpoints(pwm))
@@ -145,14 +182,19 @@ class HullServer:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="the 6-DOF hull as an ArduPilot SITL JSON physics")
+    ap = argparse.ArgumentParser(description="an independent 6-DOF hull as an ArduPilot SITL JSON physics")
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=9002)
+    ap.add_argument("--hull", choices=sorted(HULLS), default="6dof",
+                    help="6dof: hull6dof.py, the monohull (default); b: hull_b.py, the catamaran")
     add_environment_arguments(ap)
     a = ap.parse_args(argv)
-    env = HullEnvironment(**environment_arguments(a))
-    server = HullServer(environment=env, host=a.host, port=a.port)
-    print(f"6-DOF hull listening on udp:{server.address[0]}:{server.address[1]}", flush=True)
+    try:  # the hull refuses what it does not model (hull B: waves)
+        server = HullServer(environment=environment_for(a.hull, environment_arguments(a)), host=a.host, port=a.port,
+                            hull=a.hull)
+    except ValueError as e:
+        ap.error(str(e))
+    print(f"{server.kind.name} listening on udp:{server.address[0]}:{server.address[1]}", flush=True)
     try:
         server.serve()
     except KeyboardInterrupt:

@@ -14,7 +14,8 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
 
 from hull_b import (  # noqa: E402
-    CatamaranEnvironment, CatamaranHull, CatamaranParameters, random_steps, record, steady_speed, turning_circle,
+    CatamaranEnvironment, CatamaranHull, CatamaranParameters, bollard_pull, random_steps, record, reverse_thrust_ratio,
+    steady_speed, turning_circle,
 )
 
 DEG = math.pi / 180
@@ -127,6 +128,15 @@ def test_astern_is_weaker_and_runs_straight():
     assert astern.nu[0] < 0.0 and abs(astern.nu[0]) < 0.9 * ahead.nu[0]
     assert abs(astern.nu[5]) < 1e-9 and abs(astern.x3[1]) < 1e-9
 
+
+def test_a_bollard_pull_reads_the_astern_factor():
+    """At rest the propellers work at J = 0, where the astern curve is the ahead one times astern_factor:
+    the lab's measurement (`--reverse-thrust-ratio` of the lab loop, bench hull_b) finds it, though the
+    motors turn faster astern at the same command."""
+    ahead, n_ahead = bollard_pull(50.0)
+    astern, n_astern = bollard_pull(-50.0)
+    assert ahead > 0 > astern and abs(n_astern) > n_ahead
+    assert reverse_thrust_ratio() == pytest.approx(CatamaranParameters().astern_factor, rel=1e-6)
 
 def test_positive_alpha_yaws_the_bow_to_port():
     """lotsen's convention (docs/model.md "Thruster forces"): alpha > 0 turns the azimuths' thrust to

@@ -255,6 +255,39 @@ def test_the_6dof_hull_flies_through_the_protocol(tmp_path, short_route, capsys)
     assert p["placed"] and p["timeouts"] == 0 and p["corrupt"] == 0 and server.frames == p["frames"]
 
 
+def test_hull_b_flies_through_the_protocol(tmp_path, short_route, capsys):
+    """Hull B, the catamaran (issue 47), served by the same program: `hull_server.py --hull b` in a
+    current, `lotsen mission ROUTE --physics udp:...` (the lab loop and the figure eight over the seam
+    are bench/bench_hull_b.py's)."""
+    server = subprocess.Popen([sys.executable, str(HERE / "hull_server.py"), "--hull", "b", "--port", "0",
+                               "--current", "0.05,30"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        line = server.stdout.readline()
+        port = re.search(r"^hull B \(catamaran\) listening on udp:127.0.0.1:(\d+)", line)
+        assert port, line
+        rc = main(["mission", short_route, "--physics", f"udp:127.0.0.1:{port.group(1)}", "--hold", "2",
+                   "--report", str(tmp_path / "r.json")])
+    finally:
+        server.terminate()
+        server.wait(10)
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert rc == 0 and report["completed"], report
+    assert report["cross_track_rms_m"] < 0.1 and report["failsafes_triggered"] == []
+    p = report["physics"]
+    assert p["placed"] and p["timeouts"] == 0 and p["corrupt"] == 0 and p["frames"] > 2000
+
+
+@pytest.mark.parametrize("flags, refused", [(["--waves", "0.03,0.8,250"], "wave"),
+                                            (["--current-variation", "0.1"], "current_variation")])
+def test_hull_b_is_not_served_in_water_it_does_not_model(flags, refused, capsys):
+    """Hull B has no waves and a constant current: asking for either is an error, not a calm run."""
+    from hull_server import main as serve_main
+
+    with pytest.raises(SystemExit) as exit_:
+        serve_main(["--hull", "b", "--port", "0", *flags])
+    assert exit_.value.code == 2 and refused in capsys.readouterr().err
+
+
 class FailingServer(HullServer):
     """The hull, answering until frame `last`, then never again (the physics crashed)."""
 
