@@ -179,10 +179,12 @@ class OutputError:
         # lower cost does not tell the basins apart); from no wind it reaches the boat's (core within
         # 0.6 %, converged in 35 iterations, 11 s)
         held = {**start.params.to_dict(), **problem.fixed}
-        zero = estimate_multiple_shooting(problem.records, start.params, held, steady, parallel=self.parallel)
+        zero = estimate_multiple_shooting(problem.records, start.params, held, steady, parallel=self.parallel,
+                                          intervals=False)
         first = estimate_multiple_shooting(problem.records, start.params, problem.fixed, steady,
                                            ShootingStart(zero.details.nodes, _environment_of(zero),
-                                                         zero.details.gyro_bias), self.progress, parallel=self.parallel)
+                                                         zero.details.gyro_bias), self.progress, parallel=self.parallel,
+                                           intervals=False)
         env = _environment_of(first)
         # the gusts free: a hard budget too (the gust factors can absorb the track's errors of a model that
         # does not explain the boat, so the track test alone let one record crawl 120 iterations, 58 s)
@@ -220,7 +222,7 @@ def reconstruction_spread(records: Sequence[IdRecord], res: IdentificationResult
     env = list(d.environment.values.values()) if d.environment is not None else None
     try:
         moved = estimate_multiple_shooting(variant, res.params, res.fixed, one, ShootingStart(d.nodes, env, d.gyro_bias),
-                                           parallel=parallel)
+                                           parallel=parallel, intervals=False)
     except EstimationError:
         return res
     names = res.free_names

@@ -612,7 +612,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                                start: ShootingStart = ShootingStart(),
                                progress: Callable[[int, float], None] | None = None,
                                problem: MultipleShootingProblem | None = None,
-                               parallel: Map = SERIAL) -> IdentificationResult:
+                               parallel: Map = SERIAL, intervals: bool = True) -> IdentificationResult:
     """Multiple-shooting Gauss-Newton estimate of the free parameters (module docstring).
 
     `fixed` maps parameter names to known values (must include one of SCALE_GROUP). With
@@ -632,6 +632,10 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
 
     `parallel`: the map the shooting intervals' blocks run on (lotsen.sysid.parallel), unless `problem`
     is given (then its own).
+
+    `intervals=False`: the caller takes the point alone (a stage whose answer only starts the next one):
+    the sandwich covariance is not computed (a second simulation of every block and the residuals'
+    lagged sums: 0.2-0.3 s of a 10-min lake record per estimate), the covariance stays the least-squares one.
     """
     max_iterations, total_iterations, tol = options.max_iterations, options.total_iterations, options.tol
     estimate_noise, misfit_check = options.estimate_noise, options.misfit_check
@@ -726,7 +730,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     # expressed as the equivalent information. With white residuals (every output's correlation time
     # below WHITE_CORRELATION_TIME) s^2 F^-1 is exact and the sandwich only adds its own sampling noise
     # (0.87-1.21 of the bound on 60-s records of a boat equal to its model)
-    if prob.lake or float(np.max(residual_correlation_times(prob, lin))) > WHITE_CORRELATION_TIME:
+    if intervals and (prob.lake or float(np.max(residual_correlation_times(prob, lin))) > WHITE_CORRELATION_TIME):
         F_rel, factor = sandwich_information(prob, lin, blocks, F_rel), 1.0
     res = _result(prob, search, theta, nodes, _Fit(F_rel, factor, cost, s2, total_it, converged, passes, lin))
     if options.test_fixed:
