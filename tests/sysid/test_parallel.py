@@ -221,3 +221,25 @@ def test_a_linearisation_is_made_again_only_where_it_differs(lake_minute):
     assert again is not first
     for a, b in zip((again.e, again.c, again.Gx, again.Gp, *again.normal), (ref.e, ref.c, ref.Gx, ref.Gp, *ref.normal)):
         assert np.array_equal(a, b)
+
+
+def test_a_stage_point_is_the_estimates_point_without_its_intervals(lake_minute):
+    """shooting_point (the lake's steady-wind stages, the reconstruction spread's step) ends where
+    estimate_multiple_shooting ends, to the last digit: the coefficients, node states, environment and
+    gyro offsets the next search starts from. It skips the covariance and the sensitivities at the last
+    point, which the last iteration's trial (states without sensitivities) makes unnecessary: the
+    kernels' states are the same to the last bit with and without the sensitivities."""
+    from lotsen.model import DEFAULT_PARAMETERS
+    from lotsen.sysid.estimate import SolverOptions
+    from lotsen.sysid.multiple import ENV_NAMES, estimate_multiple_shooting, shooting_point
+
+    records = [lake_minute.run.record]
+    options = SolverOptions(lake=True, gust_std=1e-3, max_iterations=3, estimate_noise=False)
+    fixed = {"m11": lake_minute.boat.m11}
+    res = estimate_multiple_shooting(records, DEFAULT_PARAMETERS, fixed, options)
+    params, start = shooting_point(records, DEFAULT_PARAMETERS, fixed, options)
+    assert res.iterations == 3  # ended by the budget: the last iteration's trial is the end point
+    assert np.array_equal(params.to_vector(), res.params.to_vector())
+    assert np.array_equal(start.nodes, res.details.nodes)
+    assert np.array_equal(start.environment, [res.details.environment.values[n] for n in ENV_NAMES])
+    assert np.array_equal(start.gyro_bias, res.details.gyro_bias)
