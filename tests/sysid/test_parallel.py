@@ -81,7 +81,7 @@ def test_identify_jobs_writes_the_same_file_as_one_job(short_run, small_blocks, 
     assert files[0] == files[1]
 
 
-def test_jobs_is_a_count_of_workers():
+def test_jobs_is_a_count_of_processes():
     assert JOBS("3") == 3
     for bad in ("0", "-1", "1.5", "nan", "many"):
         with pytest.raises(argparse.ArgumentTypeError):
@@ -243,3 +243,23 @@ def test_a_stage_point_is_the_estimates_point_without_its_intervals(lake_minute)
     assert np.array_equal(start.nodes, res.details.nodes)
     assert np.array_equal(start.environment, [res.details.environment.values[n] for n in ENV_NAMES])
     assert np.array_equal(start.gyro_bias, res.details.gyro_bias)
+
+
+def _where(x: int) -> tuple[int, int]:
+    import os
+
+    return os.getpid(), 2 * x
+
+
+def test_jobs_counts_the_commands_own_process():
+    """--jobs N: N processes compute, the command's own (the first n // N pieces of a map, the same ones
+    every call) and N - 1 workers; the results in the pieces' order."""
+    import os
+
+    with worker_pool(3) as par:
+        out = list(par(_where, range(7)))
+        again = list(par(_where, range(7)))
+    assert [v for _, v in out] == [2 * k for k in range(7)]
+    assert [pid == os.getpid() for pid, _ in out] == [True] * 2 + [False] * 5
+    assert [pid == os.getpid() for pid, _ in again] == [True] * 2 + [False] * 5
+    assert len({pid for pid, _ in out + again} - {os.getpid()}) <= 2  # two workers
