@@ -1,13 +1,14 @@
 """The worker processes of the numerical commands (`identify --jobs`; `experiment design` runs on one core).
 
 The algorithms never start a process (lotsen.sysid.parallel): the command makes the pool and hands in a
-`map` that runs on the command's own process and the pool's `jobs` - 1 workers (`_SharedMap`). Workers are forked from the command after it has read its files and built the compiled
-kernels, so each starts with numpy, scipy, CasADi and the kernels in place (a spawned worker imports
-them again: 0.8 s of CPU each here, 3-4 s on a Raspberry Pi 4, measured in bench/bench_identify.py) and
-with the one BLAS thread the command set before numpy's import (lotsen.cli.main.single_threaded_blas).
-Forking is safe there: these commands run no thread of their own, and numba (whose threading layers do
-not survive a fork) is not in use in them. Where fork is missing (macOS, Windows) they are spawned.
-Workers ignore Ctrl-C: the command stops them.
+`map` that runs on the command's own process and the pool's `jobs` - 1 workers (`_SharedMap`). Workers
+are forked from the command after it has read its files and built the compiled kernels, so each starts
+with numpy, scipy, CasADi and the kernels in place (a spawned worker imports them again: 0.8 s of CPU
+each here, 3-4 s on a Raspberry Pi 4, measured in bench/bench_identify.py) and with the one BLAS thread
+the command set before numpy's import (lotsen.cli.main.single_threaded_blas). Forking is safe there:
+these commands run no thread of their own, and numba (whose threading layers do not survive a fork) is
+not in use in them. Where fork is missing (macOS, Windows) they are spawned. Workers ignore Ctrl-C: the
+command stops them.
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ def add_jobs_flag(parser: object, what: str) -> None:
     """`--jobs N` on a command's parser (argparse), validated like every number (lotsen.settings)."""
     parser.add_argument("--jobs", type=JOBS, default=None,  # type: ignore[attr-defined]
                         help=f"processes computing {what}: this one and N - 1 workers (default: the number of "
-                             f"cores, here {default_jobs()}; 1: this one alone). The answer is the same with any number")
+                             f"cores, here {default_jobs()}; 1: this one alone). The answer is the same with any "
+                             "number")
 
 
 #: glibc's mallopt parameters (malloc.h)
