@@ -134,12 +134,11 @@ def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]
     """The identification problem the flags and files describe, and the warnings to report; the files
     first (a bad file is reported before any warning about the estimate), the time it will take said
     before any work, and refused when over the budget (--max-cpu)."""
-    from lotsen.logs.export import sysid_record
     from lotsen.sysid.data import load_record, register_loader
 
     antenna = _parse_antenna(args.gnss_antenna) if args.gnss_antenna else (0.0, 0.0)
     # the project's own run logs (the same path as `lotsen export`), the fixes moved to the hull's origin
-    register_loader(".mcap", lambda path: sysid_record(path, gnss_antenna_m=antenna))
+    register_loader(".mcap", lambda path: _run_log_record(path, antenna))
     fixed = _parse_fix(args.fix or [])
     provenance = {n: "--fix" for n in fixed}
     noise = _parse_noise(args.noise or [])
@@ -310,14 +309,24 @@ def _write_report(args: argparse.Namespace, ident: Identification, problem: Iden
     print(f"{args.report}: written" + ("" if report.fit_val else " (no validation data)"), file=sys.stderr)
 
 
+def _run_log_record(path: Path, antenna: tuple[float, float]):  # type: ignore[no-untyped-def]
+    """A run log's identification record. The log reader (MCAP, the wire codec) is imported only for a
+    run log: a CSV record does not pay for it."""
+    from lotsen.logs.export import sysid_record
+
+    return sysid_record(path, gnss_antenna_m=antenna)
+
+
 def _recorded_on(paths: list[str]) -> dict[str, str]:
     """Run logs' boats as their recorder named them (lotsen.logs.export.recorded_on), printed: the
     report and the parameter file name the boat (its parameter file) the records are of."""
-    from lotsen.logs.export import recorded_on
-
     boats = {}
     for p in paths:
-        boat = recorded_on(p) if Path(p).suffix.lower() == ".mcap" else None
+        if Path(p).suffix.lower() != ".mcap":
+            continue
+        from lotsen.logs.export import recorded_on
+
+        boat = recorded_on(p)
         if boat:
             boats[str(p)] = boat
             print(f"{p}: recorded on {boat}", file=sys.stderr)

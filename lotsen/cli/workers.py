@@ -1,29 +1,31 @@
 """The worker processes of the numerical commands (`identify --jobs`; `experiment design` runs on one core).
 
-The algorithms never start a process (lotsen.sysid.parallel): the command makes the pool and hands its
-`map` in. Workers are forked from the command after it has read its files and built the compiled
-kernels, so each starts with numpy, scipy, CasADi and the kernels in place (a spawned worker imports
-them again: 0.8 s of CPU each here, 3-4 s on a Raspberry Pi 4, measured in bench/bench_identify.py) and
-with the one BLAS thread the command set before numpy's import (lotsen.cli.main.single_threaded_blas).
-Forking is safe there: these commands run no thread of their own, and numba (whose threading layers do
-not survive a fork) is not in use in them. Where fork is missing (macOS, Windows) they are spawned.
-Workers ignore Ctrl-C: the command stops them.
+The algorithms never start a process (lotsen.sysid.parallel): the command makes the pool and hands in a
+`map` that runs on the command's own process and the pool's `jobs` - 1 workers (`_SharedMap`). Workers
+are forked from the command after it has read its files and built the compiled kernels, so each starts
+with numpy, scipy, CasADi and the kernels in place (a spawned worker imports them again: 0.8 s of CPU
+each here, 3-4 s on a Raspberry Pi 4, measured in bench/bench_identify.py) and with the one BLAS thread
+the command set before numpy's import (lotsen.cli.main.single_threaded_blas). Forking is safe there:
+these commands run no thread of their own, and numba (whose threading layers do not survive a fork) is
+not in use in them. Where fork is missing (macOS, Windows) they are spawned. Workers ignore Ctrl-C: the
+command stops them.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.pool
 import os
 import signal
 import sys
 from contextlib import contextmanager
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 from lotsen.settings import Number
 from lotsen.sysid.parallel import SERIAL, Map
 
-#: `--jobs`: worker processes (1: none, the command computes alone)
-JOBS = Number(1, 64, "workers", integer=True)
+#: `--jobs`: processes that compute, the command's own and `jobs` - 1 workers (1: the command alone)
+JOBS = Number(1, 64, "processes", integer=True)
 
 
 def default_jobs() -> int:
@@ -37,8 +39,9 @@ def default_jobs() -> int:
 def add_jobs_flag(parser: object, what: str) -> None:
     """`--jobs N` on a command's parser (argparse), validated like every number (lotsen.settings)."""
     parser.add_argument("--jobs", type=JOBS, default=None,  # type: ignore[attr-defined]
-                        help=f"worker processes for {what} (default: the number of cores, here {default_jobs()}; "
-                             "1: none). The answer is the same with any number")
+                        help=f"processes computing {what}: this one and N - 1 workers (default: the number of "
+                             f"cores, here {default_jobs()}; 1: this one alone). The answer is the same with any "
+                             "number")
 
 
 #: glibc's mallopt parameters (malloc.h)
@@ -75,9 +78,10 @@ def _ignore_interrupt() -> None:
 
 @contextmanager
 def worker_pool(jobs: int | None, warm: Callable[[], None] | None = None) -> Iterator[Map]:
-    """The map to hand the algorithms: the built-in one for a single job, else a pool of `jobs`
-    processes (None: `default_jobs()`); `warm` runs here first (e.g. building the kernels), so that the
-    workers inherit its result instead of each doing it again."""
+    """The map to hand the algorithms: the built-in one for a single job, else `jobs` processes that
+    compute, this one and a pool of `jobs` - 1 workers (None: `default_jobs()`; `_SharedMap`); `warm`
+    runs here first (e.g. building the kernels), so that the workers inherit its result instead of each
+    doing it again."""
     jobs = default_jobs() if jobs is None else int(jobs)
     if jobs <= 1:
         yield SERIAL
@@ -85,10 +89,34 @@ def worker_pool(jobs: int | None, warm: Callable[[], None] | None = None) -> Ite
     if warm is not None:
         warm()
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() and sys.platform != "darwin" else "spawn"
-    pool = multiprocessing.get_context(method).Pool(jobs, initializer=_ignore_interrupt)
+    pool = multiprocessing.get_context(method).Pool(jobs - 1, initializer=_ignore_interrupt)
     try:
-        yield pool.map
+        yield _SharedMap(pool, jobs)
         pool.close()
     finally:
         pool.terminate()
         pool.join()
+
+
+class _SharedMap:
+    """`map(function, items)` on this process and the pool: the first len(items) // jobs items here, the
+    rest on the workers, sent before this process starts on its share. This process would only wait
+    while the workers compute: computing a share itself saves a worker (its memory, its copies of the
+    held values and caches: the equation error's filtered regressors are this process's own) and the
+    sending of that share's arguments and results. The split is by position, so a worker gets the same
+    items (the same held shooting blocks) call after call."""
+
+    def __init__(self, pool: multiprocessing.pool.Pool, jobs: int) -> None:
+        self.pool = pool
+        self.jobs = jobs
+
+    def __call__(self, function: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+        items = list(items)
+        mine = len(items) // self.jobs
+        theirs = self.pool.map_async(function, items[mine:]) if len(items) > mine else None
+        try:
+            here = [function(x) for x in items[:mine]]
+        finally:
+            if theirs is not None:
+                theirs.wait()  # no task of this call left running on a worker
+        return here + (theirs.get() if theirs is not None else [])

@@ -31,7 +31,7 @@ from lotsen.sysid.estimate import (
     NAMES, EstimationError, Identifiability, IdentificationResult, SolverOptions, estimate, parameter_bounds,
 )
 from lotsen.sysid.multiple import (
-    MultipleShootingProblem, MultipleShootingResult, ShootingStart, estimate_multiple_shooting,
+    MultipleShootingProblem, MultipleShootingResult, ShootingStart, estimate_multiple_shooting, shooting_point,
 )
 from lotsen.sysid.parallel import SERIAL, Map
 from lotsen.sysid.problem import IdentificationProblem
@@ -179,20 +179,17 @@ class OutputError:
         # lower cost does not tell the basins apart); from no wind it reaches the boat's (core within
         # 0.6 %, converged in 35 iterations, 11 s)
         held = {**start.params.to_dict(), **problem.fixed}
-        zero = estimate_multiple_shooting(problem.records, start.params, held, steady, parallel=self.parallel)
-        first = estimate_multiple_shooting(problem.records, start.params, problem.fixed, steady,
-                                           ShootingStart(zero.details.nodes, _environment_of(zero),
-                                                         zero.details.gyro_bias), self.progress, parallel=self.parallel)
-        env = _environment_of(first)
+        _, zero = shooting_point(problem.records, start.params, held, steady, parallel=self.parallel)
+        params, first = shooting_point(problem.records, start.params, problem.fixed, steady, zero, self.progress,
+                                       parallel=self.parallel)
         # the gusts free: a hard budget too (the gust factors can absorb the track's errors of a model that
         # does not explain the boat, so the track test alone let one record crawl 120 iterations, 58 s)
         gusts = problem.solver_options(max_iterations=min(problem.solver.max_iterations, GUST_ITERATIONS),
                                        test_fixed=problem.tested_fixed, misfit_check=MISFIT_CHECK_ITERATIONS,
                                        total_iterations=GUST_TOTAL_ITERATIONS,
                                        wind_coefficient_spread=LAKE_WIND_SPREAD, terms=terms)
-        res = estimate_multiple_shooting(problem.records, first.params, problem.fixed, gusts,
-                                         ShootingStart(first.details.nodes, env, first.details.gyro_bias),
-                                         self.progress, parallel=self.parallel)
+        res = estimate_multiple_shooting(problem.records, params, problem.fixed, gusts, first, self.progress,
+                                         parallel=self.parallel)
         res = reconstruction_spread(problem.records, res, gusts, self.parallel)
         return Estimate(self.name, res, _environment_of(res), res.details)
 
@@ -219,12 +216,12 @@ def reconstruction_spread(records: Sequence[IdRecord], res: IdentificationResult
                   test_fixed=(), misfit_check=0)
     env = list(d.environment.values.values()) if d.environment is not None else None
     try:
-        moved = estimate_multiple_shooting(variant, res.params, res.fixed, one, ShootingStart(d.nodes, env, d.gyro_bias),
-                                           parallel=parallel)
+        moved, _ = shooting_point(variant, res.params, res.fixed, one, ShootingStart(d.nodes, env, d.gyro_bias),
+                                  parallel=parallel)
     except EstimationError:
         return res
     names = res.free_names
-    h = np.array([getattr(moved.params, n) - getattr(res.params, n) for n in names])
+    h = np.array([getattr(moved, n) - getattr(res.params, n) for n in names])
     cov = np.asarray(res.covariance, float) + np.outer(h, h)
     std = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
     shift = {n: float(h[i] / res.std[n]) if res.std[n] > 0 else math.inf for i, n in enumerate(names)}

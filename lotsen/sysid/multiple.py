@@ -633,6 +633,54 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     `parallel`: the map the shooting intervals' blocks run on (lotsen.sysid.parallel), unless `problem`
     is given (then its own).
     """
+    prob, search, theta, nodes, total_it, converged, passes = _shooting_search(records, theta0, fixed, options, start,
+                                                                              progress, problem, parallel)
+    free, tscale, estimate_noise = search.free, search.tscale, options.estimate_noise
+    lin = prob.linearise(theta, nodes, free, tscale, True)
+    blocks = prob.normal_blocks(lin)
+    F_rel = _fisher_from(prob, lin, blocks)
+    cost = 2.0 * lin.measurement_cost  # V = sum of squared weighted residuals
+    m = prob.n_measurements
+    p_eff = len(free) + 6 * len(prob.segments) + (prob.n_nodes if prob.lake else 0)
+    # the noise factor on the effective number of independent residuals (sum_j m_j / tau_j)
+    s2 = float(np.sum(np.sum(lin.e ** 2, axis=0) * _weight_correlation_times(prob, lin))) / max(m - p_eff, 1)
+    factor = s2 if estimate_noise else max(1.0, s2)
+    # honest intervals for correlated residuals (gusts, a model that is not the hull's): the sandwich
+    # covariance F^-1 M F^-1, the score's covariance M estimated from the residuals (Newey-West),
+    # expressed as the equivalent information. With white residuals (every output's correlation time
+    # below WHITE_CORRELATION_TIME) s^2 F^-1 is exact and the sandwich only adds its own sampling noise
+    # (0.87-1.21 of the bound on 60-s records of a boat equal to its model)
+    if prob.lake or float(np.max(residual_correlation_times(prob, lin))) > WHITE_CORRELATION_TIME:
+        F_rel, factor = sandwich_information(prob, lin, blocks, F_rel), 1.0
+    res = _result(prob, search, theta, nodes, _Fit(F_rel, factor, cost, s2, total_it, converged, passes, lin))
+    if options.test_fixed:
+        res.details.fixed_test = fixed_value_test(prob, theta, nodes, free, tscale, options.test_fixed)
+    return res
+
+
+def shooting_point(records: Sequence[IdRecord], theta0: VesselParameters = DEFAULT_PARAMETERS,
+                   fixed: Mapping[str, float] | None = None, options: SolverOptions = SolverOptions(),
+                   start: ShootingStart = ShootingStart(), progress: Callable[[int, float], None] | None = None,
+                   parallel: Map = SERIAL) -> tuple[VesselParameters, ShootingStart]:
+    """The point `estimate_multiple_shooting` ends at, without its intervals: the coefficients, and where
+    a next search starts from there (the node states, the lake model's environment, the yaw-rate
+    offsets). For a stage whose answer only starts the next one (the lake's steady-wind stages, the
+    reconstruction spread's one step): neither the covariance (on a lake the sandwich's second simulation
+    of every block) nor the sensitivities at the last point are computed."""
+    prob, _, theta, nodes, _, _, _ = _shooting_search(records, theta0, fixed, options, start, progress, None, parallel)
+    nk = prob.n_kernel
+    environment = theta[NTHETA:nk].copy() if prob.lake else None
+    bias = theta[nk:nk + prob.n_bias].copy() if prob.n_bias else None
+    return VesselParameters.from_vector(theta[:NTHETA]), ShootingStart(nodes, environment, bias)
+
+
+def _shooting_search(records: Sequence[IdRecord], theta0: VesselParameters, fixed: Mapping[str, float] | None,
+                     options: SolverOptions, start: ShootingStart, progress: Callable[[int, float], None] | None,
+                     problem: MultipleShootingProblem | None, parallel: Map
+                     ) -> tuple[MultipleShootingProblem, _Search, np.ndarray, np.ndarray, int, bool, int]:
+    """The search of `estimate_multiple_shooting` (its docstring): the problem, the search, where it ended
+    (the parameters with the environment and the offsets, the node states), the iterations, whether it
+    converged and the noise passes run."""
     max_iterations, total_iterations, tol = options.max_iterations, options.total_iterations, options.tol
     estimate_noise, misfit_check = options.estimate_noise, options.misfit_check
     nodes0, env0, gyro_bias0 = start.nodes, start.environment, start.gyro_bias
@@ -712,26 +760,7 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
                     prob.noise[n] *= math.sqrt(max(s2, 1e-12))
             if not changed:
                 break
-    lin = prob.linearise(theta, nodes, free, tscale, True)
-    blocks = prob.normal_blocks(lin)
-    F_rel = _fisher_from(prob, lin, blocks)
-    cost = 2.0 * lin.measurement_cost  # V = sum of squared weighted residuals
-    m = prob.n_measurements
-    p_eff = len(free) + 6 * len(prob.segments) + (prob.n_nodes if prob.lake else 0)
-    # the noise factor on the effective number of independent residuals (sum_j m_j / tau_j)
-    s2 = float(np.sum(np.sum(lin.e ** 2, axis=0) * _weight_correlation_times(prob, lin))) / max(m - p_eff, 1)
-    factor = s2 if estimate_noise else max(1.0, s2)
-    # honest intervals for correlated residuals (gusts, a model that is not the hull's): the sandwich
-    # covariance F^-1 M F^-1, the score's covariance M estimated from the residuals (Newey-West),
-    # expressed as the equivalent information. With white residuals (every output's correlation time
-    # below WHITE_CORRELATION_TIME) s^2 F^-1 is exact and the sandwich only adds its own sampling noise
-    # (0.87-1.21 of the bound on 60-s records of a boat equal to its model)
-    if prob.lake or float(np.max(residual_correlation_times(prob, lin))) > WHITE_CORRELATION_TIME:
-        F_rel, factor = sandwich_information(prob, lin, blocks, F_rel), 1.0
-    res = _result(prob, search, theta, nodes, _Fit(F_rel, factor, cost, s2, total_it, converged, passes, lin))
-    if options.test_fixed:
-        res.details.fixed_test = fixed_value_test(prob, theta, nodes, free, tscale, options.test_fixed)
-    return res
+    return prob, search, theta, nodes, total_it, converged, passes
 
 
 def _fisher_from(prob: MultipleShootingProblem, lin: _Lin, blocks: tuple) -> np.ndarray:
@@ -1136,7 +1165,10 @@ def _gauss_newton(prob: MultipleShootingProblem, search: _Search, theta: np.ndar
             break
         rel = ared / max(merit0, 1e-300)
         theta, nodes = th_new, nodes_new
-        lin = prob.linearise(theta, nodes, free, tscale, True)
+        # the sensitivities at the new point for the next iteration; after the last one, whoever goes on
+        # from there computes them (the search's result, the next pass): a stage that only starts the
+        # next search (shooting_point) never needs them, the trial's linearisation has the cost and defects
+        lin = prob.linearise(theta, nodes, free, tscale, True) if it < max_iterations else lin_new
         history.append(2.0 * lin.cost)
         ratio = ared / pred
         mu = mu / 3.0 if ratio > 0.75 else (mu * 2.0 if ratio < 0.25 else mu)
@@ -1193,15 +1225,9 @@ def estimate_lake(records: Sequence[IdRecord], theta0: VesselParameters = DEFAUL
     options = replace(options, lake=True)
     steady = replace(options, gust_std=1e-3)
     all_fixed = {**theta0.to_dict(), **(fixed or {})}
-    zero = estimate_multiple_shooting(records, theta0, all_fixed, steady, progress=progress)
-    env = zero.details.environment
-    first = estimate_multiple_shooting(records, theta0, fixed, steady,
-                                       ShootingStart(zero.details.nodes, list(env.values.values()),
-                                                     zero.details.gyro_bias), progress)
-    env = first.details.environment
-    return estimate_multiple_shooting(records, first.params, fixed, options,
-                                      ShootingStart(first.details.nodes, list(env.values.values()),
-                                                    first.details.gyro_bias), progress)
+    _, zero = shooting_point(records, theta0, all_fixed, steady, progress=progress)
+    params, first = shooting_point(records, theta0, fixed, steady, zero, progress)
+    return estimate_multiple_shooting(records, params, fixed, options, first, progress)
 
 
 #: The lake model holds each gust factor constant over one shooting interval. How the gusts are cut

@@ -169,15 +169,23 @@ class _Window:
     gyro_row: int
 
 
+def _near(seg: Segment, t0: float, half_s: float) -> tuple[np.ndarray, slice]:
+    """The rows within +-half_s of t0: the mask over a slice of the (sorted) stamps that holds them, so a
+    window's fits look at their few rows, not at the whole record's (290 windows of a 10-min record)."""
+    rows = slice(*np.searchsorted(seg.t, [t0 - 2.0 * half_s, t0 + 2.0 * half_s], side="left"))
+    return np.abs(seg.t[rows] - t0) <= half_s, rows
+
+
 def _cubic_at(seg: Segment, col: int, t0: float, unwrap: bool = False) -> np.ndarray | None:
     """A cubic through the column's own rows within +-FIT_HALF_WINDOW_S of t0 (value and slope at t0 last)."""
-    w = (np.abs(seg.t - t0) <= FIT_HALF_WINDOW_S) & np.isfinite(seg.outputs[:, col])
+    near, rows = _near(seg, t0, FIT_HALF_WINDOW_S)
+    w = near & np.isfinite(seg.outputs[rows, col])
     if w.sum() < 8:
         return None
-    tt = seg.t[w] - t0
+    tt = seg.t[rows][w] - t0
     if tt.min() > -0.5 * FIT_HALF_WINDOW_S or tt.max() < 0.5 * FIT_HALF_WINDOW_S:
         return None  # the fit would extrapolate
-    y = seg.outputs[w, col]
+    y = seg.outputs[rows][w, col]
     return np.polyfit(tt, np.unwrap(y) if unwrap else y, 3)
 
 
@@ -202,9 +210,10 @@ def _initial_state(seg: Segment, k: int, gyro_bias: float) -> np.ndarray | None:
     r = float(cp[-2])
     if "r" in names:
         ir = names.index("r")
-        w = (np.abs(seg.t - t0) <= R_HALF_WINDOW_S) & np.isfinite(seg.outputs[:, ir])
+        near, rows = _near(seg, t0, R_HALF_WINDOW_S)
+        w = near & np.isfinite(seg.outputs[rows, ir])
         if w.sum() >= 2:
-            cr = np.polyfit(seg.t[w] - t0, seg.outputs[w, ir], 1)
+            cr = np.polyfit(seg.t[rows][w] - t0, seg.outputs[rows][w, ir], 1)
             r = float(cr[-1]) - gyro_bias
     return np.array([cN[-1], cE[-1], wrap_angle(p0), u, v, r])
 

@@ -175,25 +175,33 @@ def test_loaders_ignore_identification_extras_but_not_typos():
                                     "identification": {"reasons": ["the estimation did not converge"]}})
 
 
-def test_a_record_too_long_for_the_budget_is_refused_first_with_the_time_it_would_take(short_run, tmp_path, capsys):
-    """Issue 49 item 5: a 50-MB record of repeated zigzags computed for minutes without a word. The time
-    expected is said before any work, and a record over the budget (--max-cpu) is refused (exit 2,
-    nothing written) with how much of it would fit."""
+@pytest.fixture(scope="module")
+def over_budget_csv(tmp_path_factory, short_run):
+    """The short run repeated: more rows than 1 s of CPU at CPU_S_PER_ROW (calm)."""
     import numpy as np
 
     from lotsen.sysid.data import IdRecord
 
     r = short_run.record
     span = r.t[-1] - r.t[0] + 0.05
-    copies = -(-5000 // len(r.t))  # more rows than 1 s of CPU at CPU_S_PER_ROW (calm)
+    copies = -(-5000 // len(r.t))
     long = IdRecord(np.concatenate([r.t + k * span for k in range(copies)]), np.vstack([r.inputs] * copies),
                     np.vstack([r.outputs] * copies), r.output_names, "long", r.input_kind)
-    data = tmp_path / "long.csv"
+    data = tmp_path_factory.mktemp("budget") / "long.csv"
     save_csv(long, data)
+    return data, len(long.t)
+
+
+def test_a_record_too_long_for_the_budget_is_refused_first_with_the_time_it_would_take(over_budget_csv, tmp_path,
+                                                                                        capsys):
+    """Issue 49 item 5: a 50-MB record of repeated zigzags computed for minutes without a word. The time
+    expected is said before any work, and a record over the budget (--max-cpu) is refused (exit 2,
+    nothing written) with how much of it would fit."""
+    data, rows = over_budget_csv
     out = tmp_path / "p.json"
     assert main_standalone(["identify", str(data), "--out", str(out), "--max-cpu", "1"]) == 2
     err = capsys.readouterr().err
-    assert f"{len(long.t)} rows" in err and "expect about" in err
+    assert f"{rows} rows" in err and "expect about" in err
     assert "more than the budget of 1 s" in err and "--max-cpu" in err and "Traceback" not in err
     assert not out.exists()
 
@@ -211,3 +219,22 @@ def test_every_estimator_writes_its_report_and_says_what_judged_it(run_csv, tmp_
     assert data["identification"]["estimator"] in ("single shooting", "output error", "equation error")
     html = rep.read_text()
     assert f"Verdict: {data['verdict']}" in html and "Judged on the last 20 %" in html
+
+
+def test_identify_on_a_csv_record_does_not_import_the_run_time_stack(over_budget_csv, tmp_path):
+    """Issue 49 item 1: every module is start-up time of `lotsen identify` (read from source where no
+    bytecode is kept). A CSV record needs neither the log reader (MCAP, the wire codec) nor the bus and
+    the executors; the refusal over the budget comes after the files and the flags are read."""
+    import subprocess
+    import sys
+
+    data, _ = over_budget_csv
+    code = ("import sys; from lotsen.cli.main import main; main(sys.argv[1:]); print(' '.join(sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code, "identify", str(data), "--out", str(tmp_path / "p.json"),
+                          "--max-cpu", "1", "--reverse-thrust-ratio", "0.8", "--gnss-antenna", "0.05,0"],
+                         capture_output=True, text=True, check=True).stdout
+    loaded = set(out.split())
+    assert "lotsen.runtime.config" in loaded  # the flags' ranges: read, so the probe reached them
+    for heavy in ("lotsen.logs", "lotsen.transport", "lotsen.runtime.executor", "lotsen.runtime.bus", "lotsen.web",
+                  "lotsen.control", "lotsen.sim", "lotsen.stack", "numba", "shapely", "osqp", "matplotlib"):
+        assert heavy not in loaded, heavy

@@ -81,7 +81,7 @@ def test_identify_jobs_writes_the_same_file_as_one_job(short_run, small_blocks, 
     assert files[0] == files[1]
 
 
-def test_jobs_is_a_count_of_workers():
+def test_jobs_is_a_count_of_processes():
     assert JOBS("3") == 3
     for bad in ("0", "-1", "1.5", "nan", "many"):
         with pytest.raises(argparse.ArgumentTypeError):
@@ -221,3 +221,45 @@ def test_a_linearisation_is_made_again_only_where_it_differs(lake_minute):
     assert again is not first
     for a, b in zip((again.e, again.c, again.Gx, again.Gp, *again.normal), (ref.e, ref.c, ref.Gx, ref.Gp, *ref.normal)):
         assert np.array_equal(a, b)
+
+
+def test_a_stage_point_is_the_estimates_point_without_its_intervals(lake_minute):
+    """shooting_point (the lake's steady-wind stages, the reconstruction spread's step) ends where
+    estimate_multiple_shooting ends, to the last digit: the coefficients, node states, environment and
+    gyro offsets the next search starts from. It skips the covariance and the sensitivities at the last
+    point, which the last iteration's trial (states without sensitivities) makes unnecessary: the
+    kernels' states are the same to the last bit with and without the sensitivities."""
+    from lotsen.model import DEFAULT_PARAMETERS
+    from lotsen.sysid.estimate import SolverOptions
+    from lotsen.sysid.multiple import ENV_NAMES, estimate_multiple_shooting, shooting_point
+
+    records = [lake_minute.run.record]
+    options = SolverOptions(lake=True, gust_std=1e-3, max_iterations=3, estimate_noise=False)
+    fixed = {"m11": lake_minute.boat.m11}
+    res = estimate_multiple_shooting(records, DEFAULT_PARAMETERS, fixed, options)
+    params, start = shooting_point(records, DEFAULT_PARAMETERS, fixed, options)
+    assert res.iterations == 3  # ended by the budget: the last iteration's trial is the end point
+    assert np.array_equal(params.to_vector(), res.params.to_vector())
+    assert np.array_equal(start.nodes, res.details.nodes)
+    assert np.array_equal(start.environment, [res.details.environment.values[n] for n in ENV_NAMES])
+    assert np.array_equal(start.gyro_bias, res.details.gyro_bias)
+
+
+def _where(x: int) -> tuple[int, int]:
+    import os
+
+    return os.getpid(), 2 * x
+
+
+def test_jobs_counts_the_commands_own_process():
+    """--jobs N: N processes compute, the command's own (the first n // N pieces of a map, the same ones
+    every call) and N - 1 workers; the results in the pieces' order."""
+    import os
+
+    with worker_pool(3) as par:
+        out = list(par(_where, range(7)))
+        again = list(par(_where, range(7)))
+    assert [v for _, v in out] == [2 * k for k in range(7)]
+    assert [pid == os.getpid() for pid, _ in out] == [True] * 2 + [False] * 5
+    assert [pid == os.getpid() for pid, _ in again] == [True] * 2 + [False] * 5
+    assert len({pid for pid, _ in out + again} - {os.getpid()}) <= 2  # two workers
