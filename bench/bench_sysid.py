@@ -23,7 +23,7 @@ Rows:
      job, and whether the file written is the one of one job byte for byte. The peer: main's code
      (`git archive main`, or the revision in LOTSEN_BENCH_PEER for a change measured after it landed; one
      process, no --jobs) on the same record in the same run. Targets (issue
-     49): lake <= 6 s wall with 2 workers, calm <= 3 s, the same file with any --jobs. A control before
+     49): lake <= 6 s wall with 2 jobs (the command and one worker), calm <= 3 s, the same file with any --jobs. A control before
      and after: two 2-s busy loops one after the other and in a pool of two (the speed-up two
      processes can get on the machine at that moment).
   5. experiment design (issue 49 item 2): `lotsen experiment design --duration 60 --area 30x30` with
