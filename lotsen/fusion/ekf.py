@@ -850,8 +850,9 @@ class ModelAidedEKF:
         # a model force error GNSS velocity has shown is in the model's acceleration too: else the
         # accelerometer pulls the velocity back to where the wrong model's forces balance (hull B: the
         # sway 0.35 m/s off within 0.2 s of each fix once its process noise had freed it)
-        R[0, 0] += self._velocity_error_q[0] / self.config.model_error_time_s
-        R[1, 1] += self._velocity_error_q[1] / self.config.model_error_time_s
+        qv = self._velocity_error_q_now()
+        R[0, 0] += qv[0] / self.config.model_error_time_s
+        R[1, 1] += qv[1] / self.config.model_error_time_s
         y = np.array(a) - h
         if self._update("accel", y, H, R, reopen=reopen):  # a spike the gate rejects is no model error
             self._track_model_error(y, self._innovation_cov)
@@ -885,6 +886,13 @@ class ModelAidedEKF:
         if not (c.velocity_error_matching and c.model_error_time_s > 0.0) or not np.all(np.isfinite(y)):
             return
         t = self.t if self.t is not None else 0.0
+        # a heading error turns the velocity over ground sideways just as a sway error does: only while
+        # the compass vouches for the heading is the residual the model's (a 17 deg/s gyro bias in Hs 6 cm
+        # was otherwise taken as a sway error, and the compass declared it after 11.6 s instead of 4.6)
+        mag_nis = self.monitor.window_figures("mag", t)[0]
+        if not mag_nis <= self.config.integrity.nis_limit.get("mag", 4.0) / 2.0:
+            self._velocity_error_q = np.zeros(2)
+            return
         dt, self._velocity_innovation_t = t - self._velocity_innovation_t, t
         if not dt > 0.0:
             return
@@ -904,7 +912,15 @@ class ModelAidedEKF:
     def model_error_q(self) -> np.ndarray:
         """Surge and sway process noise from the model's own error now ((m/s^2)^2 s): the larger of
         what the accelerometer and GNSS velocity show (one error, seen by two sensors)."""
-        return np.maximum(self._accel_error_q, self._velocity_error_q)
+        return np.maximum(self._accel_error_q, self._velocity_error_q_now())
+
+    def _velocity_error_q_now(self) -> np.ndarray:
+        """GNSS velocity's share, while it keeps showing the error: not in dead reckoning (after a GNSS
+        jump, Hs 6 cm: held on, it let the accelerometer go and the 20 s of dead reckoning drifted 2.35 m
+        instead of 1.71)."""
+        t = self.t if self.t is not None else 0.0
+        fresh = t - self._velocity_innovation_t <= self.config.model_error_time_s
+        return self._velocity_error_q if fresh else np.zeros(2)
 
     def on_mag(self, m: MagSample) -> None:
         mx, my = m.field_uT[0], m.field_uT[1]
