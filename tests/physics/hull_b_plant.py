@@ -19,6 +19,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from hull_b import CatamaranEnvironment, CatamaranHull, CatamaranParameters  # noqa: E402
 from hull_plant import HullPlant  # noqa: E402
+import numpy as np  # noqa: E402
 
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits  # noqa: E402
 
@@ -63,6 +64,43 @@ def fly_path(path: Any, model: Any = None, *, environment: CatamaranEnvironment 
         return run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=ekf, plant=plant)
     finally:
         plant.close()
+
+
+def run_experiment(experiment: Any, *, seed: int = 0, model: Any = None) -> tuple[Any, list[tuple[float, float]]]:
+    """`lotsen experiment run EXPERIMENT --physics udp:...` against `hull_server.py --hull b` (calm), in-process
+    on simulated time: the same stack (the configured EKF, the supervisor with its failsafes, the experiment
+    node), without the protocol and the recorder. `model`: the EKF's and the supervisor's model (default:
+    the config's). Returns the ExperimentNode (`aborted`, `rows`) and the estimate's position error
+    against the hull, (t, metres) every 0.1 s."""
+    from dataclasses import replace as replace_config
+
+    from lotsen.runtime.config import WebSection
+    from lotsen.sim import Simulator
+    from lotsen.stack.config import load_stack_config
+    from lotsen.stack.experiment import ExperimentNode
+    from lotsen.stack.launch import Harness, build_stack
+    from lotsen.stack.stack import sim_config
+
+    config = replace_config(load_stack_config(None), seed=seed, mode="sim", web=WebSection(enabled=False))
+    plant = HullBPlant(dt_s=config.sim.dt_s)
+    sim = Simulator(plant, config=sim_config(config), x0=config.sim.initial_state)
+    stack = build_stack(config, realtime=False, parts=("state", "supervisor"), harness=Harness(simulator=sim, model=model))
+    node = stack.add(ExperimentNode(experiment))
+    ekf = stack.nodes["fusion"].estimator
+    errors: list[tuple[float, float]] = []
+    clock = stack.executor.clock
+
+    def sample() -> None:
+        est, x = ekf.estimate(clock.now()), sim.x
+        errors.append((clock.now(), float(np.hypot(est.north_m - x[0], est.east_m - x[1]))))
+
+    stack.executor.add_timer(0.1, sample, "position-error")
+    try:
+        stack.executor.run_until(experiment.duration_s + node.preroll_s + 10.0, stop=lambda: node.done)
+        stack.executor.shutdown()
+    finally:
+        plant.close()
+    return node, errors
 
 
 def figure_eight(speed_mps: float = 0.5) -> Any:
