@@ -895,7 +895,7 @@ class ModelAidedEKF:
         # the compass vouches for the heading is the residual the model's (a 17 deg/s gyro bias in Hs 6 cm
         # was otherwise taken as a sway error, and the compass declared it after 11.6 s instead of 4.6)
         mag_nis = self.monitor.window_figures("mag", t)[0]
-        if not mag_nis <= self.config.integrity.nis_limit.get("mag", 4.0) / 2.0:
+        if not mag_nis <= c.integrity.nis_limit.get("mag", 4.0) / 2.0:
             self._velocity_error_q = np.zeros(2)
             return
         dt, self._velocity_innovation_t = t - self._velocity_innovation_t, t

@@ -280,8 +280,9 @@ def actuator_activity(t_s: np.ndarray, actuators: np.ndarray) -> dict[str, float
     span = float(t[-1] - t[0]) if t.size > 1 else 0.0
     if span <= 0.0:
         return {}
-    energy = propulsion_energy_j(t, a[:, 2:5])
+    # per propeller (the other two columns zeroed): the total is their sum (the power is a sum over them)
     by_propeller = [propulsion_energy_j(t, a[:, 2:5] * (np.arange(3) == i)) for i in range(3)]
+    energy = sum(by_propeller)
     return {"azimuth_travel_deg_per_s": round(math.degrees(float(np.sum(np.abs(np.diff(a[:, :2], axis=0))))) / span, 3),
             "propeller_speed_change_rps_per_s": round(float(np.sum(np.abs(np.diff(a[:, 2:5], axis=0)))) / span, 3),
             "reversals_per_s": round(sum(propeller_reversals(a[:, 2:5])) / span, 4),
