@@ -14,6 +14,11 @@ The node is where the runtime's clock meets the (clock-free) estimator:
   supervisor's estimator failsafe acts;
 - a frozen output: an estimate that repeats itself exactly (all six states bit-identical) for
   `frozen_s` while samples arrive is a hung estimator, whatever the estimator says of itself;
+- samples are taken in at once (the clock check) and fed to the estimator in their order of
+  arrival at the next publication: the filter then runs a few predictions and updates back to back,
+  with warm caches, instead of one per wake-up of the loop (on the boat's 100 Hz loop each call cost
+  2-2.4 x more cold). What leaves the node is unchanged: every estimate and health it publishes is
+  computed after every sample that arrived before it, in the same order as before;
 - the sea state: the IMU's heave, roll and pitch (levelled by the estimator's tilt where it has one)
   feed a `SeaStateEstimator`, whose estimate goes out on fusion/sea_state every 2 s (the page shows it).
 """
@@ -22,7 +27,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from collections import deque
+from typing import Any, Callable
 
 from lotsen.errors import LotsenError
 from lotsen.fusion import MagCalibration, calibrated_heading
@@ -78,6 +84,10 @@ class FusionNode(Node):
         self._frozen = False
         self._codes: set[str] = set()  # fault codes of the last published health
         self._event_count = 0
+        self._pending: deque[tuple[Callable[[Any], None], Any]] = deque()
+
+    #: samples held for the next publication at most (a stalled timer must not hold memory)
+    MAX_PENDING = 512
 
     def start(self, ctx: NodeContext) -> None:
         self.ctx = ctx
@@ -87,12 +97,12 @@ class FusionNode(Node):
         ctx.subscribe(Topic.GNSS, self._checked(est.on_gnss))
         ctx.subscribe(Topic.ACTUATORS, self._checked(est.on_command))
         ctx.subscribe(Topic.SHIP_COMMAND, self._checked(est.on_command))
+        self._on_mag_checked = self._checked(est.on_mag)
         ctx.subscribe(Topic.MAG_CALIBRATION, self._on_calibration)
         ctx.add_timer(self.period_s, self._publish)
 
     def _checked(self, fn: Any) -> Any:
-        """Clock check, then the estimator; a message that upsets the filter is counted and
-        dropped, never fatal."""
+        """Clock check on arrival, then held for the estimator (`_feed`)."""
 
         def call(msg: Any) -> None:
             now = self.ctx.now()
@@ -105,13 +115,23 @@ class FusionNode(Node):
                                             f"{now:.3f} s (future or not finite): not fed to the estimator",
                                  refused_future=self.counters["future"])
                 return
+            self._pending.append((fn, msg))
+            if len(self._pending) > self.MAX_PENDING:
+                self._feed()
+        return call
+
+    def _feed(self) -> None:
+        """The held samples to the estimator, in their order of arrival; a message that upsets the
+        filter is counted and dropped, never fatal."""
+        pending = self._pending
+        while pending:
+            fn, msg = pending.popleft()
             try:
                 fn(msg)
                 self.counters["fed"] += 1
             except (ValueError, ArithmeticError, LotsenError) as exc:
                 self.counters["dropped"] += 1
                 self.ctx.log("warning", f"fusion dropped a {type(msg).__name__}: {exc}")
-        return call
 
     def _on_imu(self, msg: ImuSample) -> None:
         self.estimator.on_imu(msg)
@@ -120,7 +140,7 @@ class FusionNode(Node):
             self.sea.on_imu(msg, tilt.level(msg.accel_mps2) if tilt is not None else None)
 
     def _on_mag(self, msg: MagSample) -> None:
-        self._checked(self.estimator.on_mag)(msg)
+        self._on_mag_checked(msg)
         if all(math.isfinite(v) for v in msg.field_uT[:2]):
             self.ctx.publish(Topic.IMU_MAG_CALIBRATED, calibrated_heading(msg, self.calibration))
 
@@ -128,6 +148,7 @@ class FusionNode(Node):
         """A fresh fit is used at once; the operator's rejection brings back the one before it."""
         if not result.ok:
             return
+        self._feed()  # the samples before the new calibration with the one they came with
         if result.decision == "accepted":
             self._before_review = None
             return
@@ -183,6 +204,7 @@ class FusionNode(Node):
 
     def _publish(self) -> None:
         t = self.ctx.now()
+        self._feed()
         self._check_starvation(t)
         try:
             est = self.estimator.estimate(t)

@@ -52,11 +52,15 @@ def add_boat(stack: Stack, simulator: Simulator | None = None, truth_rate_hz: fl
     physics of `extra.physics`), or the hardware drivers (emulated devices with `extra.emulated`)."""
     config = stack.config
     if config.mode == "sim":
+        own_boat = simulator is None and not stack_config(config).extra.physics.address
         stack.simulator = simulator or simulator_from_config(config, stack.model, realtime)
         stack.on_shutdown(stack.simulator.plant.close)  # an external physics's socket
+        # on wall-clock time lotsen's own boat steps twice per wake-up (docs/runtime.md, "A lighter
+        # idle run"); an external physics answers step by step, and simulated time costs no wake-ups
         stack.add(SimulatedBoatNode(stack.simulator, truth_rate_hz=truth_rate_hz,
                                     command_deadline_s=config.nodes.command_deadline_s,
-                                    esc_arm_time_s=config.sim.esc_arm_time_s))
+                                    esc_arm_time_s=config.sim.esc_arm_time_s,
+                                    steps_per_wakeup=2 if realtime and own_boat else 1))
     else:
         from lotsen.stack.hardware import add_hardware_boat  # pigpio/serial openers only on this path
 

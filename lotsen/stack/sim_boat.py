@@ -38,8 +38,14 @@ class SimulatedBoatNode(Node):
     name = "sim_boat"
 
     def __init__(self, simulator: Simulator, truth_rate_hz: float = 20.0, command_deadline_s: float = 0.5,
-                 rtk_convergence_s: float = 8.0, esc_arm_time_s: float = 0.0) -> None:
+                 rtk_convergence_s: float = 8.0, esc_arm_time_s: float = 0.0, steps_per_wakeup: int = 1) -> None:
         self.sim = simulator
+        # the boat steps at its dt (100 Hz) whatever this is; a real-time loop woken for every step
+        # pays a cache-cold wake-up each time, so `lotsen run` wakes it every second step and steps
+        # twice (the samples keep their own step's stamps; the thrust command is taken per wake-up)
+        if not (isinstance(steps_per_wakeup, int) and steps_per_wakeup >= 1):
+            raise ValueError(f"steps_per_wakeup must be an integer >= 1, got {steps_per_wakeup!r}")
+        self.steps_per_wakeup = steps_per_wakeup
         self.guard = ActuatorGuard(simulator.limits, command_deadline_s)
         self._truth_every = max(1, round(1.0 / (truth_rate_hz * simulator.config.dt_s)))
         self._steps = 0
@@ -60,11 +66,15 @@ class SimulatedBoatNode(Node):
         self.ctx = ctx
         ctx.subscribe(Topic.SHIP_COMMAND, self._on_command)
         ctx.subscribe(Topic.OPERATOR, self._on_operator)
-        ctx.add_timer(self.sim.config.dt_s, self._tick)
+        ctx.add_timer(self.sim.config.dt_s * self.steps_per_wakeup, self._tick)
 
     @property
     def escs_armed(self) -> bool:
-        return not self.esc_fault and self._escs_armed_at is not None and self.ctx.now() >= self._escs_armed_at
+        return self._armed_at(self.ctx.now())
+
+    def _armed_at(self, t: float) -> bool:
+        """The ESCs armed at `t` (a step's start: with two steps per wake-up the clock is ahead of it)."""
+        return not self.esc_fault and self._escs_armed_at is not None and t >= self._escs_armed_at
 
     def _on_operator(self, msg: OperatorCommand) -> None:
         if msg.action == "rtk_stop":
@@ -101,7 +111,8 @@ class SimulatedBoatNode(Node):
             self._rtk_fixed_at = None
         was_stale = self.guard.stale
         u = self.guard.output(t)
-        if not self.escs_armed:
+        armed = self._armed_at(t)
+        if not armed:
             u = (u[0], u[1], 0.0, 0.0, 0.0)  # ESCs not armed: propellers stay still, servos move
         self.sim.command(u)
         if self.guard.stale and not was_stale:
@@ -128,4 +139,4 @@ class SimulatedBoatNode(Node):
             a = self.sim.actuators.state
             publish(Topic.ACTUATORS, ActuatorState(stamp_s=self.sim.t + off, alpha1_rad=a[0], alpha2_rad=a[1],
                                                    n1_rps=a[2], n2_rps=a[3], nt_rps=a[4],
-                                                   escs_armed=self.escs_armed))
+                                                   escs_armed=armed))
