@@ -224,7 +224,11 @@ def _cmd_design(args: argparse.Namespace) -> int:
                           f"{args.duration / args.segment:.0f} input levels; a design has at most {MAX_DESIGN_SEGMENTS}")
     check_outputs((args.out,), (args.params,), ConfigError)
     params = load_params(args.params)
-    cfg = DesignConfig(duration_s=args.duration, area_size_m=size, segment_s=args.segment,
+    margin = DesignConfig.margin_m if args.margin is None else args.margin
+    if 2 * margin >= min(size):
+        raise ConfigError(f"--margin {margin:g} m leaves no room in a {args.area} m area: at most "
+                          f"{min(size) / 2:g} m less than half its shorter side")
+    cfg = DesignConfig(duration_s=args.duration, area_size_m=size, margin_m=margin, segment_s=args.segment,
                        criterion=args.criterion, seed=args.seed, iterations=args.iterations,
                        fixed=fixed or DesignConfig().fixed,
                        robust_samples=args.robust_samples, robust_spread=args.robust_spread)
@@ -306,6 +310,9 @@ def register(subparsers: Any) -> None:
     d = sub.add_parser("design", help="optimise an experiment's inputs for the Fisher information")
     d.add_argument("--duration", type=Number(5.0, 600.0, "s"), default=60.0, help="experiment length, s")
     d.add_argument("--area", default="30x30", help="allowed area NORTHxEAST in metres, centred on the start")
+    d.add_argument("--margin", type=MARGIN, default=None,
+                   help="keep the predicted track this far inside the area, m (default 2); more for a boat not yet "
+                        "identified, which turns wider or tighter than the model predicts")
     d.add_argument("--out", required=True)
     d.add_argument("--params", help="current parameter estimate JSON (default: the defaults)")
     d.add_argument("--segment", type=Number(0.5, 60.0, "s"), default=3.0,

@@ -134,8 +134,8 @@ class ExperimentNode(Node):
             # the area was checked on the model's prediction: a boat that turns wider than its model
             # (a hull not built like it, the defaults before any identification) leaves it
             why = (f"left the experiment area at ({s.north_m:.1f}, {s.east_m:.1f}) m: the boat went wider than "
-                   f"the model predicted; design for a smaller --area than the water allows, or design again "
-                   f"with --params from a first record's identification")
+                   f"the model predicted; design again with a larger --margin (the predicted track kept that far "
+                   f"inside the area), or with --params from a first record's identification")
         if mode != ModeName.EXPERIMENT:
             why = f"the supervisor left EXPERIMENT: {mode} ({self.status.reason if self.status else ''})"
         if why or tau >= self.experiment.duration_s:

@@ -25,3 +25,25 @@ def test_a_hardware_run_is_not_written_as_an_mcap(tmp_path, capsys):
                "--out", str(tmp_path / "run.mcap")])
     assert rc == 2 and not (tmp_path / "run.mcap").exists()
     assert "with --hardware the record is written as CSV (give RUN.csv" in capsys.readouterr().err
+
+
+def test_the_design_margin_reaches_the_design_and_a_margin_without_room_is_refused(tmp_path, capsys, monkeypatch):
+    """`--margin`: the predicted track kept that far inside the area, the experiment file keeping the
+    whole area (the run's check): room for a boat that turns wider than the model before it is identified."""
+    import yaml
+
+    import lotsen.sysid.design as design
+
+    seen = []
+    real = design.design_experiment
+    monkeypatch.setattr(design, "design_experiment", lambda params, cfg, **kw: seen.append(cfg) or real(params, cfg, **kw))
+    out = tmp_path / "d.yaml"
+    common = ["experiment", "design", "--duration", "6", "--segment", "3", "--iterations", "1", "--robust-samples", "1"]
+    assert main([*common, "--area", "30x20", "--margin", "6", "--out", str(out)]) == 0
+    assert seen[-1].margin_m == 6.0 and seen[-1].area_size_m == (30.0, 20.0)
+    area = yaml.safe_load(out.read_text())["area"]  # the run checks the whole area
+    assert area == {"north_m": [-15.0, 15.0], "east_m": [-10.0, 10.0]}
+    assert main([*common, "--out", str(out)]) == 0 and seen[-1].margin_m == design.DesignConfig.margin_m
+    assert main([*common, "--area", "30x20", "--margin", "10", "--out", str(tmp_path / "e.yaml")]) == 2
+    assert "--margin 10 m leaves no room in a 30x20 m area" in capsys.readouterr().err
+    assert not (tmp_path / "e.yaml").exists()

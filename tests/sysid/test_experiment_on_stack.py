@@ -97,7 +97,7 @@ def test_leaving_the_area_aborts_to_neutral(tmp_path):
                                 "pieces": [{"type": "constant", "duration_s": 30, "n_rps": 80}]})
     node = run_on_stack(exp, _config(tmp_path), realtime=False)
     assert node.done and "left the experiment area" in node.aborted
-    assert "smaller --area" in node.aborted  # and says what to do
+    assert "larger --margin" in node.aborted  # and says what to do
     assert node.record().t[-1] < 25.0
 
 
