@@ -19,10 +19,13 @@ import os
 import signal
 import sys
 from contextlib import contextmanager
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, TypeVar
 
 from lotsen.settings import Number
 from lotsen.sysid.parallel import SERIAL, Map
+
+T = TypeVar("T")
+A = TypeVar("A")
 
 #: `--jobs`: processes that compute, the command's own and `jobs` - 1 workers (1: the command alone)
 JOBS = Number(1, 64, "processes", integer=True)
@@ -120,3 +123,66 @@ class _SharedMap:
             if theirs is not None:
                 theirs.wait()  # no task of this call left running on a worker
         return here + (theirs.get() if theirs is not None else [])
+
+
+#: the side task's niceness: it takes the cores' idle moments, not the computing processes' time
+SIDE_NICENESS = 10
+
+
+@contextmanager
+def side_task(jobs: int | None, function: Callable[[A], T], argument: A) -> Iterator[Callable[[], T]]:
+    """`function(argument)` beside the computation, for a value needed only at its end (the record's sea
+    state, read from every IMU row: 0.2 s of one core on a 10-min record, the identification's judge the
+    first to need it); yields the getter, which waits for it. With several jobs it runs in a process
+    forked now at low priority (SIDE_NICENESS: it fills the moments the computing processes leave idle,
+    their serial stretches, instead of delaying them); with one job (or without fork) here, when asked
+    for. The value and any exception come back as if called here."""
+    jobs = default_jobs() if jobs is None else int(jobs)
+    if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods() or sys.platform == "darwin":
+        yield lambda: function(argument)
+        return
+    ctx = multiprocessing.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_run_side, args=(send, function, argument), daemon=True)
+    proc.start()
+    send.close()  # the child's end: a child that dies unheard closes the pipe (EOFError, not a hang)
+    got: list[Any] = []
+
+    def get() -> T:
+        if not got:
+            try:
+                got.append(receive.recv())
+            except EOFError:
+                got.append((False, RuntimeError(f"the side task {getattr(function, '__name__', '')} ended "
+                                                f"without an answer (exit code {proc.exitcode})")))
+        ok, value = got[0]
+        if not ok:
+            raise value
+        return value
+
+    try:
+        yield get
+    finally:
+        receive.close()
+        if proc.is_alive():
+            proc.terminate()
+        proc.join()
+
+
+def _run_side(send: Any, function: Callable[[Any], Any], argument: Any) -> None:
+    """In the side process: the answer (or the exception) sent back, never raised here."""
+    _ignore_interrupt()
+    try:
+        os.nice(SIDE_NICENESS)
+    except OSError:
+        pass
+    try:
+        result: tuple[bool, Any] = (True, function(argument))
+    except BaseException as exc:  # noqa: BLE001 - handed to the command, which raises it
+        result = (False, exc)
+    try:
+        send.send(result)
+    except Exception:  # noqa: BLE001 - an unpicklable answer or exception: its words
+        send.send((False, RuntimeError(f"{type(result[1]).__name__}: {result[1]}")))
+    finally:
+        send.close()

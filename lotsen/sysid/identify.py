@@ -14,6 +14,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from lotsen.messages import SeaState
 from lotsen.model.parameters import OPTIONAL_TERMS
 from lotsen.sysid.data import IdRecord, check_excitation, check_record, split_segments
 from lotsen.sysid.estimate import EstimationError
@@ -28,12 +29,14 @@ TERM_MIN_IMPROVEMENT = 0.05  # an optional model term is turned on when it predi
 Say = Callable[[str], None]
 
 
-def identify(problem: IdentificationProblem, progress: Say | None = None, parallel: Map = SERIAL) -> Identification:
+def identify(problem: IdentificationProblem, progress: Say | None = None, parallel: Map = SERIAL,
+             sea: Callable[[], SeaState | None] | None = None) -> Identification:
     """The identification of `problem` (module docstring; docs/sysid.md, "How `lotsen identify`
     answers"). `progress` is told each stage and iteration in words; `parallel` is the map the
     estimators' independent pieces run on (lotsen.sysid.parallel: the same answer with any number of
-    workers). Raises DataError for a record no estimator can use, IdentifiabilityError when the only
-    estimate leaves a direction undetermined."""
+    workers); `sea`, when given, yields the records' sea state in place of `problem.sea`, asked for only
+    when the judge needs it (the command computes it beside the estimators). Raises DataError for a record
+    no estimator can use, IdentifiabilityError when the only estimate leaves a direction undetermined."""
     say = progress or (lambda _msg: None)
     # the data's own faults first, in their own words (no excitation, a motionless boat, ...)
     for r in problem.records:
@@ -47,7 +50,8 @@ def identify(problem: IdentificationProblem, progress: Say | None = None, parall
 
     if problem.method == "single":
         say("single shooting in windows")
-        return judge(problem, [SingleShooting(iteration).estimate(problem, Start(problem.start))])
+        single = SingleShooting(iteration).estimate(problem, Start(problem.start))
+        return judge(_with_sea(problem, sea), [single])
     say("equation-error start")
     try:
         ee: Estimate | None = EquationError(tuple(problem.terms or ()), None, parallel).estimate(problem,
@@ -61,10 +65,14 @@ def identify(problem: IdentificationProblem, progress: Say | None = None, parall
     say("output-error estimate (multiple shooting)")
     oe = OutputError(iteration, parallel).estimate(problem, start)
     say("open-loop prediction of the held-out data")
-    ident = judge(problem, [oe] + ([ee] if ee is not None else []))
+    ident = judge(_with_sea(problem, sea), [oe] + ([ee] if ee is not None else []))
     if note:
         ident.advice.insert(0, note)
     return ident
+
+
+def _with_sea(problem: IdentificationProblem, sea: Callable[[], SeaState | None] | None) -> IdentificationProblem:
+    return problem if sea is None else replace(problem, sea=sea())
 
 
 def choose_terms(problem: IdentificationProblem, ee: Estimate | None, say: Say,
