@@ -142,8 +142,8 @@ def _serve(conn: Any, commands_ends: list[Any]) -> None:
 
 
 class _SharedMap:
-    """`map(function, items)` on this process and the workers: the first len(items) // jobs items here,
-    the rest on the workers in contiguous shares, sent before this process starts on its own. This
+    """`map(function, items)` on this process and the workers: the first ceil(len(items) / jobs) items
+    here, the rest on the workers in contiguous shares, sent before this process starts on its own. This
     process would only wait while the workers compute: computing a share itself saves a worker (its
     memory, its copies of the held values and caches: the equation error's filtered regressors are this
     process's own) and the sending of that share's arguments and results. The split is by position, so a
@@ -157,7 +157,7 @@ class _SharedMap:
 
     def __call__(self, function: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
         items = list(items)
-        mine = len(items) // self.jobs
+        mine = -(-len(items) // self.jobs)  # the larger share here: a worker's also waits for its pipe
         rest, k = items[mine:], len(self.conns)
         edges = [mine + (len(rest) * i) // k for i in range(k + 1)]
         sent = []
