@@ -18,13 +18,12 @@ import os
 import signal
 import sys
 from contextlib import contextmanager
-from typing import Any, Callable, Iterable, Iterator, TypeVar
+from typing import Any, Callable, Iterable, Iterator, Sequence, TypeVar
 
 from lotsen.settings import Number
 from lotsen.sysid.parallel import SERIAL, Map
 
 T = TypeVar("T")
-A = TypeVar("A")
 
 #: `--jobs`: processes that compute, the command's own and `jobs` - 1 workers (1: the command alone)
 JOBS = Number(1, 64, "processes", integer=True)
@@ -183,64 +182,107 @@ class _SharedMap:
         except (EOFError, OSError):
             return False, RuntimeError("a worker process ended without an answer (killed, or out of memory?)")
 
-#: the side task's niceness: it takes the cores' idle moments, not the computing processes' time
-SIDE_NICENESS = 10
-
-
 @contextmanager
-def side_task(jobs: int | None, function: Callable[[A], T], argument: A) -> Iterator[Callable[[], T]]:
-    """`function(argument)` beside the computation, for a value needed only at its end (the record's sea
-    state, read from every IMU row: 0.2 s of one core on a 10-min record, the identification's judge the
-    first to need it); yields the getter, which waits for it. With several jobs it runs in a process
-    forked now at low priority (SIDE_NICENESS: it fills the moments the computing processes leave idle,
-    their serial stretches, instead of delaying them); with one job (or without fork) here, when asked
-    for. The value and any exception come back as if called here."""
+def side_tasks(jobs: int | None, soon: Sequence[Callable[[], Any]],
+               later: Sequence[Callable[[], Any]] = ()) -> Iterator[list[Callable[[], Any]]]:
+    """Values that depend on the data alone and are needed only later (the prediction windows, the
+    record's sea state), computed beside the computation; yields a getter for each, `soon` then `later`.
+    With several jobs they run in order in a process forked now: `soon` at the priority of the computing
+    processes (it takes one of their cores for a moment, and takes its work off the command's serial
+    path), then `later` at a lower one (LATER_NICENESS: mostly in the gaps the computing processes leave,
+    their serial stretches). A getter takes the answer if it has come, else computes the
+    task here (a machine too busy to leave the side process any time is no slower than without it). With
+    one job (or without fork) each is computed here when asked for. The same value either way; an
+    exception is raised as if the task were called here."""
+    tasks = [*soon, *later]
     jobs = default_jobs() if jobs is None else int(jobs)
     if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods() or sys.platform == "darwin":
-        yield lambda: function(argument)
+        yield [_once(task) for task in tasks]
         return
     ctx = multiprocessing.get_context("fork")
-    receive, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_run_side, args=(send, function, argument), daemon=True)
+    pipes = [ctx.Pipe(duplex=False) for _ in tasks]  # one a task: a large answer waits for its reader alone
+    proc = ctx.Process(target=_run_side, args=([send for _, send in pipes], tasks, len(soon)), daemon=True)
     proc.start()
-    send.close()  # the child's end: a child that dies unheard closes the pipe (EOFError, not a hang)
-    got: list[Any] = []
+    for _, send in pipes:
+        send.close()  # the child's ends: a child that dies unheard closes them (EOFError, not a wait)
 
-    def get() -> T:
-        if not got:
+    def getter(i: int) -> Callable[[], Any]:
+        local, receive, come = _once(tasks[i]), pipes[i][0], []
+
+        def get() -> Any:
             try:
-                got.append(receive.recv())
-            except EOFError:
-                got.append((False, RuntimeError(f"the side task {getattr(function, '__name__', '')} ended "
-                                                f"without an answer (exit code {proc.exitcode})")))
-        ok, value = got[0]
-        if not ok:
-            raise value
-        return value
+                if not come and receive.poll(0):  # come, or on its way: read; else not waited for
+                    come.append(receive.recv())
+            except (EOFError, OSError):
+                pass
+            if not come:
+                return local()
+            ok, value = come[0]
+            if not ok:
+                raise value
+            return value
+
+        return get
 
     try:
-        yield get
+        yield [getter(i) for i in range(len(tasks))]
     finally:
-        receive.close()
+        for receive, _ in pipes:
+            receive.close()
         if proc.is_alive():
             proc.terminate()
         proc.join()
 
 
-def _run_side(send: Any, function: Callable[[Any], Any], argument: Any) -> None:
-    """In the side process: the answer (or the exception) sent back, never raised here."""
+def _once(task: Callable[[], T]) -> Callable[[], T]:
+    """The task computed at the first call, its value kept."""
+    kept: list[T] = []
+
+    def get() -> T:
+        if not kept:
+            kept.append(task())
+        return kept[0]
+
+    return get
+
+
+def _run_side(sends: list[Any], tasks: list[Callable[[], Any]], soon: int) -> None:
+    """In the side process: each task's answer (or exception) sent back on its own pipe as it is done, by
+    a thread of its own (a large answer waits there until the command reads it, the next task goes on);
+    the tasks from `soon` on at a lower priority; never raised here."""
+    import threading
+
     _ignore_interrupt()
+    senders = []
+    for i, (task, send) in enumerate(zip(tasks, sends)):
+        if i == soon:
+            _lower_priority()
+        try:
+            answer: tuple[bool, Any] = (True, task())
+        except BaseException as exc:  # noqa: BLE001 - handed to the command, which raises it
+            answer = (False, exc)
+        senders.append(threading.Thread(target=_send_answer, args=(send, answer), daemon=True))
+        senders[-1].start()
+    for t in senders:
+        t.join()
+
+
+#: the niceness of the side tasks wanted late: about a tenth of a core the computing processes want, so
+#: they finish within a 10-min identification (SCHED_IDLE got none on a busy machine), and all of an idle one
+LATER_NICENESS = 10
+
+
+def _lower_priority() -> None:
     try:
-        os.nice(SIDE_NICENESS)
+        os.nice(LATER_NICENESS)
     except OSError:
         pass
+
+
+def _send_answer(send: Any, answer: tuple[bool, Any]) -> None:
     try:
-        result: tuple[bool, Any] = (True, function(argument))
-    except BaseException as exc:  # noqa: BLE001 - handed to the command, which raises it
-        result = (False, exc)
-    try:
-        send.send(result)
-    except Exception:  # noqa: BLE001 - an unpicklable answer or exception: its words
-        send.send((False, RuntimeError(f"{type(result[1]).__name__}: {result[1]}")))
+        send.send(answer)
+    except Exception:  # noqa: BLE001 - the command has ended, or the answer does not pickle: it computes it
+        pass
     finally:
         send.close()
