@@ -41,15 +41,15 @@ from pathlib import Path
 from typing import Any
 
 from lotsen.cli.progress import progress_printer as _progress_printer
-from lotsen.cli.workers import add_jobs_flag, keep_freed_memory, worker_pool
+from lotsen.cli.workers import add_jobs_flag, keep_freed_memory, side_tasks, worker_pool
 from lotsen.errors import ConfigError, LotsenError
 from lotsen.files import check_outputs, write_output
 from lotsen.model import DEFAULT_GEOMETRY, DEFAULT_PARAMETERS, VesselParameters, load_parameter_file
 from lotsen.runtime.config import VesselSection
 from lotsen.settings import Number
 from lotsen.sysid.estimate import SolverOptions, check_scale_fixed
-from lotsen.sysid.identify import identify
-from lotsen.sysid.judge import Identification
+from lotsen.sysid.identify import Prepared, estimation_windows, identify
+from lotsen.sysid.judge import Identification, held_out_windows
 from lotsen.sysid.problem import DEFAULT_BUDGET_CPU_S, IdentificationProblem, budget_refusal, held_out_split
 
 SCALE_DEFAULT = ("m11", 14.0)
@@ -114,12 +114,18 @@ def _parse_noise(items: list[str]) -> dict[str, float]:
 
 def _cmd_identify(args: argparse.Namespace) -> int:
     """`lotsen identify`: the problem from the flags and files, `identify(problem)`, the answer written."""
-    problem, warnings = _problem(args)
+    problem, warnings, records = _problem(args)
     say = _progress_printer(f"identify ({'lake, ' if args.lake else ''}{args.method} shooting)")
     keep_freed_memory()
-    with worker_pool(args.jobs, lambda: _warm_kernels(problem)) as parallel:
-        ident = identify(problem, say, parallel)
-    return _answer(args, problem, ident, warnings)
+    # what depends on the records alone and is wanted only later is made beside the estimators, forked
+    # before the workers (which it does not need): the prediction windows (0.13 s on the 10-min records,
+    # wanted after the equation-error fit and by the judge) at once, then the sea state (0.2 s, it reads
+    # every IMU row; wanted by the judge) at a lower priority
+    soon = (lambda: estimation_windows(problem), lambda: held_out_windows(problem))
+    with side_tasks(args.jobs, soon, (lambda: _sea_state(records),)) as (windows, held_out, sea), \
+            worker_pool(args.jobs, lambda: _warm_kernels(problem)) as parallel:
+        ident = identify(problem, say, parallel, Prepared(lambda: _said(sea()), windows, held_out))
+    return _answer(args, dataclasses.replace(problem, sea=ident.sea), ident, warnings)
 
 
 def _warm_kernels(problem: IdentificationProblem) -> None:
@@ -130,10 +136,11 @@ def _warm_kernels(problem: IdentificationProblem) -> None:
     step_kernels(geometry_tuple(problem.geometry), lake=problem.lake)
 
 
-def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]]:
-    """The identification problem the flags and files describe, and the warnings to report; the files
-    first (a bad file is reported before any warning about the estimate), the time it will take said
-    before any work, and refused when over the budget (--max-cpu)."""
+def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str], list]:
+    """The identification problem the flags and files describe (its sea state not yet known: `_sea_state`
+    of the records), the warnings to report and the estimation records; the files first (a bad file is
+    reported before any warning about the estimate), the time it will take said before any work, and
+    refused when over the budget (--max-cpu)."""
     from lotsen.sysid.data import load_record, register_loader
 
     antenna = _parse_antenna(args.gnss_antenna) if args.gnss_antenna else (0.0, 0.0)
@@ -176,12 +183,16 @@ def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]
     too_long = budget_refusal(problem, args.max_cpu)
     if too_long:
         raise ConfigError(too_long)
-    problem = dataclasses.replace(problem, sea=_sea_state(records))  # after the budget: it reads every IMU row
-    if problem.sea is not None:
+    return problem, warnings, records
+
+
+def _said(sea):  # type: ignore[no-untyped-def]
+    """The sea state, printed when known."""
+    if sea is not None:
         from lotsen.sysid.waves import describe
 
-        print(f"sea state: {describe(problem.sea)}", file=sys.stderr)
-    return problem, warnings
+        print(f"sea state: {describe(sea)}", file=sys.stderr)
+    return sea
 
 
 def _answer(args: argparse.Namespace, problem: IdentificationProblem, ident: Identification,

@@ -26,6 +26,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -385,7 +386,10 @@ def load_csv(path: str | Path) -> IdRecord:
         rows: list[list[float]] = []
         line_of: list[int] = []
         t_prev = -math.inf
-        for i, row in enumerate(reader, start=first_line + 1):
+        body_at = fh.tell()
+        plain = _plain_rows(fh.read(), len(header), cols)  # None: rows the loop must look at one by one
+        fh.seek(body_at)
+        for i, row in enumerate(reader if plain is None else (), start=first_line + 1):
             if not row or all(not c.strip() for c in row):
                 continue
             if len(row) != len(header):
@@ -422,14 +426,42 @@ def load_csv(path: str | Path) -> IdRecord:
             t_prev = t
             rows.append(vals)
             line_of.append(i)
-    if len(rows) < 2:
-        raise DataError(f"{path}: fewer than 2 data rows")
-    a = np.array(rows)
+    a = plain if plain is not None else np.array(rows)
     del rows
+    if len(a) < 2:
+        raise DataError(f"{path}: fewer than 2 data rows")
     ny = 6 + len(out_names)
     rec = IdRecord(a[:, 0], a[:, 1:6], a[:, 6:ny], out_names, str(path), kind, a[:, ny:] if imu_names else None)
     check_record(rec)
     return rec
+
+
+#: a CSV body of numbers alone: digits, signs, points, exponents, commas and white space
+_NOT_PLAIN = re.compile(r"[^0-9.eE+\-,\s]")
+
+
+def _plain_rows(body: str, n_fields: int, cols: list[int]) -> np.ndarray | None:
+    """The data rows of a CSV body of numbers and empty cells (NaN) whose t (column cols[0]) increases, as
+    an array of `cols`: numpy's parser in one pass (each cell correctly rounded: the number float() reads,
+    bit for bit). None for anything else ('nan' written out, a cell of spaces, an infinite value, a stamp
+    repeated or going back, a wrong field count), which the row loop of load_csv then reads and names the
+    row of. The 10-min lake record (14400 rows): 0.07 s here, 0.13 s in the loop."""
+    body = body.rstrip("\r\n")
+    if len(body) < 2 or _NOT_PLAIN.search(body):
+        return None
+    # an empty cell is a value not measured at that stamp: NaN, as the loop reads it
+    body = body.replace(",,", ",nan,").replace(",,", ",nan,").replace("\n,", "\nnan,").replace(",\n", ",nan\n")
+    body = ("nan" if body[0] == "," else "") + body.replace(",\r", ",nan\r") + ("nan" if body[-1] == "," else "")
+    try:
+        a = np.loadtxt(io.StringIO(body), delimiter=",", comments=None, dtype=float, ndmin=2)
+    except ValueError:
+        return None
+    if a.shape[0] < 2 or a.shape[1] != n_fields or np.isinf(a).any():
+        return None
+    t = a[:, cols[0]]
+    if not np.isfinite(t).all() or not (np.diff(t) > 0).all():
+        return None
+    return np.array(a[:, cols], order="C")  # the loop's layout (einsum sums in the order of the strides)
 
 
 def save_csv(record: IdRecord, path: str | Path, inputs: tuple = ()) -> None:

@@ -692,7 +692,15 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
     solve(kappa, current, wind, weights)  # `last` back to the whole record (kappa's profile below)
     kappa_std = math.inf
     if not kappa_fixed:
-        kappa_std = _profile_std(lambda k: float(np.sum(solve(k, current, wind, weights)[0] ** 2)), kappa,
+        profiled: dict[float, tuple] = {}
+
+        def at(k: float) -> tuple:
+            """The solve at kappa k, once: the slope's two kappas are the curvature's outer two."""
+            if k not in profiled:
+                profiled[k] = solve(k, current, wind, weights)
+            return profiled[k]
+
+        kappa_std = _profile_std(lambda k: float(np.sum(at(k)[0] ** 2)), kappa,
                                  float(np.median(np.diag(cov)[:len(free)]
                                                  / np.maximum(_naive_var(last[0])[:len(free)], 1e-300))),
                                  3 * len(ms.t) - len(x))
@@ -700,7 +708,7 @@ def estimate_equation_error(records: Sequence[IdRecord], fixed: Mapping[str, flo
             # kappa is profiled (the rest re-solved at each kappa), so its uncertainty moves the others
             # along the profile: the delta method adds (dx/dkappa)(dx/dkappa)^T var(kappa). Without it
             # C_N, which trades with kappa, was 6.7 of its sigma apart between two records of one hull
-            dx = _profile_slope(lambda k: solve(k, current, wind, weights)[1][:len(free)], kappa)
+            dx = _profile_slope(lambda k: at(k)[1][:len(free)], kappa)
             d = cov[:len(free), :len(free)]
             fin = np.isfinite(np.diag(d))
             d[np.ix_(fin, fin)] += np.outer(dx[fin], dx[fin]) * kappa_std ** 2

@@ -32,7 +32,8 @@ from lotsen.sysid.estimate import IdentificationResult
 from lotsen.sysid.estimators import Estimate
 from lotsen.sysid.multiple import FixedValueTest, check_identifiable
 from lotsen.sysid.prediction import (
-    PredictionScore, improvement, improvement_interval, prediction_windows, score_windows, stacked, windows_of,
+    PredictionScore, PredictionWindows, improvement, improvement_interval, prediction_windows, score_windows, stacked,
+    windows_of,
 )
 from lotsen.sysid.problem import IdentificationProblem
 from lotsen.sysid.sensitivity import ENV_NAMES
@@ -277,17 +278,25 @@ def physical_checks(est: Estimate) -> Verdict:
     return v
 
 
-def judge(problem: IdentificationProblem, estimates: Sequence[Estimate]) -> Identification:
+def held_out_windows(problem: IdentificationProblem) -> PredictionWindows:
+    """The windows of the held-out records every model is scored on (`judge`): the records alone decide."""
+    return prediction_windows(problem.validation, gap_s=problem.gap_s)
+
+
+def judge(problem: IdentificationProblem, estimates: Sequence[Estimate],
+          windows: PredictionWindows | None = None) -> Identification:
     """The verdict on `estimates` of `problem` (docs/sysid.md, "The verdict"): each scored by open-loop
     prediction of the held-out records against the documented defaults and the model in use; the
     answer is the best predictor (a physical estimate within PHYSICAL_PREDICTION_SLACK of it is
     preferred), ok / weak when it is the physical one, predictive when effective coefficients predict
-    measurably better than the model in use on windows they were not chosen on, else refused."""
+    measurably better than the model in use on windows they were not chosen on, else refused.
+    `windows`: `held_out_windows(problem)` when made beforehand."""
     phys = next((e for e in estimates if e.physical), None)
     if phys is not None and len(estimates) == 1 and phys.result.identifiability.unidentifiable:
         check_identifiable(phys.result)  # nothing else to answer with: refused with the error (exit 2)
     physical = physical_checks(phys) if phys is not None else None
-    windows = prediction_windows(problem.validation, gap_s=problem.gap_s)  # every model on the same windows
+    if windows is None:
+        windows = held_out_windows(problem)  # every model on the same windows
     scores = {e.estimator: score_windows(e.params, windows, problem.geometry, e.environment) for e in estimates}
     # the defaults and the model in use predict in the lake the best-predicting estimate found (an
     # estimate gone wrong would otherwise lend them its wrong wind and flatter the comparison)

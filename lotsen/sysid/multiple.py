@@ -484,15 +484,31 @@ class MultipleShootingProblem:
         self._pattern_cache["A"] = (np.concatenate(rr), np.concatenate(cc))
         return self._pattern_cache["A"]
 
+    def _csc_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Where A's entries (in `_pattern`'s order) stand in its CSC form, and the form's row indices and
+        column pointers: fixed for the problem, found once by converting the entries' positions. None if
+        an entry repeated (the conversion would sum, not move, it)."""
+        if "csc" not in self._pattern_cache:
+            rows, cols = self._pattern()
+            n = self.nz * self.n_nodes + 6 * self.n_con
+            pos = sp.csc_matrix((np.arange(len(rows), dtype=float), (rows, cols)), shape=(n, n))
+            self._pattern_cache["csc"] = (pos.data.astype(np.intp), pos.indices, pos.indptr) \
+                if pos.nnz == len(rows) else None
+        return self._pattern_cache["csc"]
+
     def factor_A(self, Hss: np.ndarray, Gx: np.ndarray, Ds: np.ndarray, mu: float):  # type: ignore[no-untyped-def]
-        rows, cols = self._pattern()
         H = Hss.copy()
         idx = np.arange(self.nz)
         H[:, idx, idx] += mu * Ds
         nc = self.n_con
         data = np.concatenate([H.ravel(), Gx.ravel(), Gx.ravel(), -np.ones(6 * nc), -np.ones(6 * nc)])
         n = self.nz * self.n_nodes + 6 * nc
-        A = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
+        layout = self._csc_layout()
+        if layout is None:
+            A = sp.csc_matrix((data, self._pattern()), shape=(n, n))
+        else:  # the same matrix as converting the entries each time (their values moved, not summed)
+            order, indices, indptr = layout
+            A = sp.csc_matrix((data[order], indices, indptr), shape=(n, n))
         return spla.splu(A, permc_spec="COLAMD", options={"SymmetricMode": False})
 
     def coupling(self, Hsp: np.ndarray, Gp: np.ndarray) -> np.ndarray:

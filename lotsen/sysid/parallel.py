@@ -2,7 +2,7 @@
 
 The algorithms stay pure: an estimator takes `parallel`, a map with the signature of the built-in
 `map(function, items)` (the default: the built-in, one core), and the command (lotsen.cli.workers)
-hands it a process pool's map. The work is cut into pieces that do not depend on how many workers
+hands it a map over its worker processes. The work is cut into pieces that do not depend on how many workers
 there are, and whatever is summed over the pieces is summed here, in the pieces' order: the answer is
 the same to the last digit with 1 and N workers (tests/sysid/test_parallel.py).
 

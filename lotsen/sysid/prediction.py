@@ -239,35 +239,33 @@ def gyro_offset(seg: Segment) -> float:
     return (integral - change) / float(tr[w][-1] - tr[w][0])
 
 
-def _windows(records: Sequence[IdRecord], horizons_s: Sequence[float], every_s: float,
-             gap_s: float) -> list[_Window]:
+def _windows(segments: Sequence[Segment], horizons_s: Sequence[float], every_s: float) -> list[_Window]:
     H = max(horizons_s)
     out: list[_Window] = []
-    for rec in records:
-        for seg in split_segments(rec, gap_s):
-            if not {"north", "east", "psi"} <= set(seg.output_names):
+    for seg in segments:
+        if not {"north", "east", "psi"} <= set(seg.output_names):
+            continue
+        iN, iE = seg.output_names.index("north"), seg.output_names.index("east")
+        meas = np.flatnonzero(np.isfinite(seg.outputs[:, iN]) & np.isfinite(seg.outputs[:, iE]))  # the fixes
+        if len(meas) < 2:
+            continue
+        tm = seg.t[meas]
+        next_start = seg.t[0] + FIT_HALF_WINDOW_S
+        bias = gyro_offset(seg)
+        for q, k in enumerate(meas):
+            t0 = seg.t[k]
+            if t0 < next_start or t0 + H > tm[-1]:
                 continue
-            iN, iE = seg.output_names.index("north"), seg.output_names.index("east")
-            meas = np.flatnonzero(np.isfinite(seg.outputs[:, iN]) & np.isfinite(seg.outputs[:, iE]))  # the fixes
-            if len(meas) < 2:
+            x0 = _initial_state(seg, int(k), bias)
+            if x0 is None:
                 continue
-            tm = seg.t[meas]
-            next_start = seg.t[0] + FIT_HALF_WINDOW_S
-            bias = gyro_offset(seg)
-            for q, k in enumerate(meas):
-                t0 = seg.t[k]
-                if t0 < next_start or t0 + H > tm[-1]:
-                    continue
-                x0 = _initial_state(seg, int(k), bias)
-                if x0 is None:
-                    continue
-                rows = meas[np.searchsorted(tm, [t0 + h - 1e-9 for h in horizons_s])]
-                end = int(rows[-1]) + 1
-                sub = Segment(seg.t[k:end], seg.inputs[k:end], seg.outputs[k:end], seg.output_names, seg.source,
-                              seg.first_row + int(k),
-                              input_slopes=None if seg.input_slopes is None else seg.input_slopes[k:end])
-                out.append(_Window(sub, x0, rows - k, int(k)))
-                next_start = t0 + every_s
+            rows = meas[np.searchsorted(tm, [t0 + h - 1e-9 for h in horizons_s])]
+            end = int(rows[-1]) + 1
+            sub = Segment(seg.t[k:end], seg.inputs[k:end], seg.outputs[k:end], seg.output_names, seg.source,
+                          seg.first_row + int(k),
+                          input_slopes=None if seg.input_slopes is None else seg.input_slopes[k:end])
+            out.append(_Window(sub, x0, rows - k, int(k)))
+            next_start = t0 + every_s
     return out
 
 
@@ -299,10 +297,11 @@ def prediction_windows(records: Sequence[IdRecord], horizons_s: Sequence[float] 
     """The windows of `records` at `horizons_s` (module docstring), ready to score models on."""
     horizons = tuple(float(h) for h in sorted(horizons_s))
     # a short held-out record: the horizons that fit in it (a 12-s record holds out 2.4 s)
-    longest = max((s.duration_s for r in records for s in split_segments(r, gap_s)), default=0.0)
+    segments = [s for r in records for s in split_segments(r, gap_s)]  # once: it copies the records
+    longest = max((s.duration_s for s in segments), default=0.0)
     fits = tuple(h for h in horizons if h <= longest - 2.0 * FIT_HALF_WINDOW_S)
     horizons = fits or horizons
-    wins = _windows(records, horizons, every_s, gap_s)
+    wins = _windows(segments, horizons, every_s)
     if not wins:
         return PredictionWindows(horizons, wins)
     grid = make_grid([w.seg for w in wins], 0.0625)

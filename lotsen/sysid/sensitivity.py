@@ -146,5 +146,8 @@ def make_grid(windows: Sequence[Segment], h_max: float) -> StepGrid:
         sstep.append(offset + np.concatenate([[0], np.cumsum(m)]) if n > 1 else np.array([offset]))
         wos.append(np.full(n, w))
         offset += 1 + len(row)
-    return StepGrid(np.concatenate(hs), np.vstack(us).T.copy(), np.concatenate(resets), np.array(wstart),
-                    np.concatenate(sstep), np.concatenate(wos), len(windows))
+    # U as a C-ordered lines x steps, each window's block transposed alone (one transposing copy of the
+    # whole took 0.03 s on a 10-min record's prediction windows)
+    U = np.concatenate([u.T for u in us], axis=1, out=np.empty((2 * NU, offset)))
+    return StepGrid(np.concatenate(hs), U, np.concatenate(resets), np.array(wstart), np.concatenate(sstep),
+                    np.concatenate(wos), len(windows))

@@ -27,6 +27,28 @@ def test_round_trip_with_nan(tmp_path):
     assert np.allclose(back.outputs[4:], y[4:])
 
 
+@pytest.mark.parametrize("body", [
+    # every cell a number (sample-aligned), then asynchronous rows (empty cells), CRLF, spaces, exponents
+    "".join(f"{k * 0.125},0.1,-0.2,7.5,7.5,-10,{k * 0.3!r},{-k * 1e-3!r},0.5,1e-320\n" for k in range(20)),
+    "".join(f"{k * 0.1},{'0.1,0.2,7,7,1,,,,' if k % 2 else ',,,,,' + repr(k / 7) + ',2.5e-3,-0,3'}\n" for k in range(20)),
+    "".join(f" {k * 0.1} ,0.1,+0.2,7.,7,.5,{k / 3!r},1E2,0.1000000000000000055511151231257827021181583404541015625001,3\r\n"
+            for k in range(20)),
+])
+def test_a_plain_body_reads_as_the_row_loop_reads_it(tmp_path, body, monkeypatch):
+    """numpy's one pass over a body of numbers (data._plain_rows) and the row loop: the same arrays, bit
+    for bit and in the same layout (the estimators' sums follow the strides)."""
+    import lotsen.sysid.data as data
+
+    p = _write(tmp_path, "# inputs: mean\n" + HEADER + body)
+    assert data._plain_rows(body, 10, list(range(10))) is not None  # this body takes the one pass
+    fast = load_csv(p)
+    monkeypatch.setattr(data, "_plain_rows", lambda *_: None)
+    loop = load_csv(p)
+    for a, b in ((fast.t, loop.t), (fast.inputs, loop.inputs), (fast.outputs, loop.outputs)):
+        assert a.strides == b.strides and np.array_equal(a.view(np.int64), b.view(np.int64))
+    assert fast.input_kind == loop.input_kind == "mean"
+
+
 def test_the_stamps_are_written_exactly(tmp_path):
     """Rows at one stamp are one instant (merged on reading), rows 1e-17 s apart are two (two streams'
     clocks): the CSV keeps every stamp to the last bit, so the file is the record it was written from;

@@ -252,14 +252,15 @@ def _where(x: int) -> tuple[int, int]:
 
 
 def test_jobs_counts_the_commands_own_process():
-    """--jobs N: N processes compute, the command's own (the first n // N pieces of a map, the same ones
-    every call) and N - 1 workers; the results in the pieces' order."""
+    """--jobs N: N processes compute, the command's own (the first ceil(n / N) pieces of a map, the same
+    ones every call) and N - 1 workers; the results in the pieces' order."""
     import os
 
     with worker_pool(3) as par:
         out = list(par(_where, range(7)))
         again = list(par(_where, range(7)))
     assert [v for _, v in out] == [2 * k for k in range(7)]
-    assert [pid == os.getpid() for pid, _ in out] == [True] * 2 + [False] * 5
-    assert [pid == os.getpid() for pid, _ in again] == [True] * 2 + [False] * 5
+    assert [pid == os.getpid() for pid, _ in out] == [True] * 3 + [False] * 4
+    assert [pid == os.getpid() for pid, _ in again] == [True] * 3 + [False] * 4
+    assert [pid for pid, _ in out] == [pid for pid, _ in again]  # each worker the same pieces
     assert len({pid for pid, _ in out + again} - {os.getpid()}) <= 2  # two workers
