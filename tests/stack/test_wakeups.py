@@ -11,25 +11,27 @@ import pytest
 
 from lotsen.messages import Topic, ThrustCommand
 from lotsen.runtime.config import load_config
+from lotsen.runtime.executor import SimExecutor
 from lotsen.stack.launch import build_stack
 from lotsen.stack.sim_boat import SimulatedBoatNode
+from lotsen.stack.stack import simulator_from_config
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _command_every_100ms(stack) -> None:
+def _command_every_100ms(executor) -> None:
     """A constant command, fresh for the actuator guard: the boat moves and turns."""
     def send() -> None:
-        stack.executor.bus.publish(Topic.SHIP_COMMAND, ThrustCommand(
-            stamp_s=stack.executor.clock.now(), alpha1_rad=0.2, alpha2_rad=0.2, n1_rps=30.0, n2_rps=30.0))
-    stack.executor.add_timer(0.1, send, "test-command")
+        executor.bus.publish(Topic.SHIP_COMMAND, ThrustCommand(
+            stamp_s=executor.clock.now(), alpha1_rad=0.2, alpha2_rad=0.2, n1_rps=30.0, n2_rps=30.0))
+    executor.add_timer(0.1, send, "test-command")
 
 
 def _estimates(max_pending: int | None, seconds: float = 12.0) -> list[tuple[float, ...]]:
     stack = build_stack(load_config(ROOT / "config" / "sim.yaml"), realtime=False, parts=("state",))
     if max_pending is not None:
         stack.nodes["fusion"].MAX_PENDING = max_pending
-    _command_every_100ms(stack)
+    _command_every_100ms(stack.executor)
     out: list[tuple[float, ...]] = []
     stack.executor.bus.subscribe(Topic.STATE, lambda est: out.append((est.stamp_s,) + est.as_array_tuple()))
     stack.executor.run_until(seconds)
@@ -55,36 +57,42 @@ def test_samples_wait_for_the_publication_and_none_is_left_at_it():
     stack.executor.shutdown()
 
 
+class _CountingBoat(SimulatedBoatNode):
+    """The simulated boat, counting its wake-ups."""
+
+    wakeups = 0
+
+    def _tick(self) -> None:
+        self.wakeups += 1
+        super()._tick()
+
+
 def _imu_and_ticks(steps_per_wakeup: int, seconds: float = 3.0) -> tuple[dict[float, tuple], int, float]:
     """The IMU samples by stamp, the boat's wake-ups and the most its stamps ran ahead of the clock
-    after its first wake-up."""
-    stack = build_stack(load_config(ROOT / "config" / "sim.yaml"), realtime=False, parts=())
-    boat: SimulatedBoatNode = stack.nodes["sim_boat"]
-    assert boat.steps_per_wakeup == 1  # simulated time: one step per wake-up
-    boat.steps_per_wakeup = steps_per_wakeup
-    # the timer was made at start: make it again at this node's period
-    for _, _, timer in stack.executor._heap:
-        if timer.callback == boat._tick:
-            timer.cancel()
-    ticks = [0]
-
-    def tick() -> None:
-        ticks[0] += 1
-        boat._tick()
-    stack.executor.add_timer(boat.sim.config.dt_s * steps_per_wakeup, tick, "sim_boat")
-    _command_every_100ms(stack)
-    clock = stack.executor.clock
+    after its first wake-up: the config's boat, as `lotsen run` makes it, at `steps_per_wakeup`."""
+    config = load_config(ROOT / "config" / "sim.yaml")
+    executor = SimExecutor()
+    boat = executor.add_node(_CountingBoat(simulator_from_config(config),
+                                           command_deadline_s=config.nodes.command_deadline_s,
+                                           esc_arm_time_s=config.sim.esc_arm_time_s,
+                                           steps_per_wakeup=steps_per_wakeup))
+    _command_every_100ms(executor)
     samples: dict[float, tuple] = {}
     ahead = [0.0]
 
     def on_imu(msg) -> None:
         samples[round(msg.stamp_s, 6)] = tuple(msg.accel_mps2) + tuple(msg.gyro_radps)
-        if ticks[0] > 1:
-            ahead[0] = max(ahead[0], msg.stamp_s - clock.now())
-    stack.executor.bus.subscribe(Topic.IMU_RAW, on_imu)
-    stack.executor.run_until(seconds)
-    stack.executor.shutdown()
-    return samples, ticks[0], ahead[0]
+        if boat.wakeups > 1:
+            ahead[0] = max(ahead[0], msg.stamp_s - executor.clock.now())
+    executor.bus.subscribe(Topic.IMU_RAW, on_imu)
+    executor.run_until(seconds)
+    executor.shutdown()
+    return samples, boat.wakeups, ahead[0]
+
+
+def test_simulated_time_steps_the_boat_once_per_wakeup():
+    stack = build_stack(load_config(ROOT / "config" / "sim.yaml"), realtime=False, parts=())
+    assert stack.nodes["sim_boat"].steps_per_wakeup == 1
 
 
 def test_two_steps_per_wakeup_give_the_same_boat_with_half_the_wakeups():
