@@ -413,15 +413,16 @@ def core_main(config: StackConfig, endpoint: str, ready: Any) -> None:
                         progress=lambda line: print(f"lotsen core: {line}", flush=True))
     sources = [f"web/{t}" for t in OPERATOR_TOPICS] + [f"ros2/{t}" for t in ROS2_TOPICS] + \
         [f"recorder/{t}" for t in RECORDER_TOPICS]
-    # every topic out in 50 ms batches: Zenoh then packs a batch into few frames (the core's
-    # sending thread and the edge's receiving threads wake 20 times a second, not 100 and more);
-    # the edge sees the telemetry up to 50 ms later, its stamps are the core's. JSON for every
+    # every topic out in batches of up to 50 ms, each closed by the 20 Hz estimate: Zenoh then
+    # packs a batch into few frames (the core's sending thread and the edge's receiving threads
+    # wake 20 times a second, not 100 and more), and the page's pose leaves as it is made; the
+    # edge sees the other telemetry up to 50 ms later, its stamps are the core's. JSON for every
     # type, not ROS 2 CDR where one fits: the router listens on loopback only (ROS 2 tools get CDR
     # from the ros2 process), JSON costs the core less to encode and the edge less to decode, the
     # recorder writes the received JSON as it is (no decode and re-encode), and what is recorded
     # is exactly what was published (CDR rounds stamps to nanoseconds and the field to tesla)
     _bridge(stack, vessel="core", mode="router", listen=(endpoint,), publish=("*",), subscribe=tuple(sources),
-            send_batch_s=CORE_SEND_BATCH_S, encoding="json")
+            send_batch_s=CORE_SEND_BATCH_S, flush_on=(Topic.STATE,), encoding="json")
     watchdog = CoreWatchdog(stack, opts.watchdog_s, opts.watchdog_exit_s)
     stack.on_shutdown(watchdog.stop)
     stack.executor.add_timer(5.0, lambda: print(summary(stack), flush=True), "console")
@@ -468,10 +469,10 @@ def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) 
     done = apply_edge_priority(opts, opts.web_nice)
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
-    bridge = _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+    bridge = _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS, bulk=(Topic.ROUTE,),
                      subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log",
                                 f"recorder/{Topic.RECORDER}", "launcher/log"),
-                     wait_for_router=True, receive="poll", drain_period_s=0.05)
+                     wait_for_router=True, receive="poll", drain_period_s=0.1, wake_on=(f"core/{Topic.STATE}",))
     server = stack.services.get("web")
     if server is not None and not config.extra.mavlink.endpoints:
         # the live view's ~90 messages a second decoded only while a page is connected (a MAVLink

@@ -28,6 +28,7 @@ import json
 import re
 import threading
 import uuid
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Literal
 
@@ -59,6 +60,16 @@ class BridgeConfig:
     # the sender takes what arrives within this long after a first message in one go: one
     # wake-up per burst (a sensor tick publishes several topics), not one per message
     send_batch_s: float = field(default=0.01, metadata=_r(0.0, 1.0))
+    # topics that end the gathering at once: a batch goes out with the newest estimate, not up to
+    # send_batch_s after it. Batches on their own 50-ms cycle (plus the wait for its first message)
+    # drifted against the 20 Hz estimate: two estimates in one batch, none in the next, and the
+    # page showed one pose in five less (16.7 Hz, not 20)
+    flush_on: tuple[str, ...] = ()
+    # topics sent at Zenoh's DATA_LOW priority: large messages (a survey's planned route, 5 MB) queue
+    # behind the stream on every link they cross. At the default priority the route filled the
+    # router's queue to the recorder for ~0.1 s and Zenoh dropped the core's messages behind it
+    # (congestion control DROP): a ship_command missing from the log in 2 of 3 uploads
+    bulk: tuple[str, ...] = ()
     latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
     # a client that starts before its router (the processes of a run start side by side): keep
     # trying to connect (opening the session waits for the router) instead of failing at once
@@ -69,6 +80,11 @@ class BridgeConfig:
     # drain_period_s: no thread switch per sample, for a process that receives the core's
     # whole stream, e.g. the recorder)
     receive: Literal["callback", "poll"] = "callback"
+    # with receive="poll": subscribe patterns whose samples ask for a drain as they arrive (the
+    # web process: the page's pose, one frame per estimate). A drain on its timer alone, on the
+    # same 10-ms grid as the publisher's timer, takes an estimate that arrives just after it with
+    # the next one: a pose lost for the page
+    wake_on: tuple[str, ...] = ()
     # Zenoh's shared-memory transport: off, lotsen's payloads are small byte strings and never
     # use it, while its watchdog threads and the 20 Hz timer it adds to every connected session
     # woke each process of a run ~70 times a second for nothing
@@ -86,6 +102,9 @@ class BridgeConfig:
                               "'.' and '/' only")
         for pattern in self.subscribe:
             check_key_expression(f"{self.key_prefix}/{pattern.strip('/')}", f"subscribe pattern {pattern[:40]!r}")
+        for pattern in self.wake_on:
+            if pattern not in self.subscribe:
+                raise ConfigError(f"zenoh bridge: wake_on {pattern[:40]!r} is not one of the subscribe patterns")
 
 
 _NAME = re.compile(r"[A-Za-z0-9_.\-]{1,64}")
@@ -177,25 +196,34 @@ class ZenohBridge(Node):
         self._unsubscribe: Any = None
         self._wake: Any = None  # the executor's call_soon_threadsafe, once started
         self._drain_pending = threading.Event()
+        self._flush = threading.Event()  # a flush_on topic was queued: the sender stops gathering
+        self._flush_topics = frozenset(config.flush_on)
         self._encoded_sink: Callable[[list[tuple[str, codec.Envelope]]], None] | None = None
         self._decoded_topics: frozenset[str] = frozenset()
         self._held_topics: frozenset[str] = frozenset()
         self._wanted: Callable[[], bool] = lambda: True
         self._held: dict[str, tuple[str, codec.Envelope]] = {}  # topic -> (key, newest envelope)
         self.session = open_session(config)
-        self._subs = []
+        self._subs: list[Any] = []  # every subscriber (kept open) ...
+        self._polled: list[Any] = []  # ... and those whose ring the drain empties (receive="poll")
+        # samples of the wake_on patterns: Zenoh's thread appends, the drain takes (drop-oldest)
+        self._woken: deque[Any] = deque(maxlen=config.queue_maxlen)
         from zenoh import ext
 
         for pattern in config.subscribe:
             key = f"{config.key_prefix}/{pattern.strip('/')}"
+            polled = config.receive == "poll" and pattern not in config.wake_on
+            handler: Any = (zenoh.handlers.RingChannel(config.queue_maxlen) if polled
+                            else self._on_sample if config.receive == "callback" else self._on_waking_sample)
             # an advanced subscriber: live samples, plus the cached last sample of every latched
             # publisher it detects (now or when that publisher appears)
-            handler = self._on_sample if config.receive == "callback" else zenoh.handlers.RingChannel(
-                config.queue_maxlen)
-            self._subs.append(ext.declare_advanced_subscriber(
+            sub = ext.declare_advanced_subscriber(
                 self.session, key, handler, allowed_origin=zenoh.Locality.REMOTE,
                 history=ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
-                recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None)))
+                recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None))
+            self._subs.append(sub)
+            if polled:
+                self._polled.append(sub)
         self._sender = threading.Thread(target=self._send_loop, name="zenoh-bridge-send", daemon=True)
         self._sender.start()
 
@@ -228,7 +256,7 @@ class ZenohBridge(Node):
             msg = ctx.bus.latest.get(topic)
             if msg is not None:
                 self._on_local(topic, msg)
-        if self.config.receive == "callback":
+        if self.config.receive == "callback" or self.config.wake_on:
             self._wake = getattr(ctx.executor, "call_soon_threadsafe", None)
         ctx.add_timer(self.config.drain_period_s, self.drain)
         self._request_drain()  # what arrived before the start
@@ -239,6 +267,8 @@ class ZenohBridge(Node):
             return  # the message this bridge is bringing in: never send it back out
         if self._publish_all or topic in self._publish:
             self._out.put(topic, msg)
+            if topic in self._flush_topics:
+                self._flush.set()
 
     def _request_drain(self) -> None:
         """From the receiving thread: one drain on the executor thread, unless one is pending."""
@@ -255,9 +285,11 @@ class ZenohBridge(Node):
                 self._decode_in(topic, key, env)
         if self.config.receive == "poll":
             forwarded: list[tuple[str, codec.Envelope]] = []
-            for sub in self._subs:
+            for sub in self._polled:
                 while (sample := sub.try_recv()) is not None:
                     self._on_sample(sample, forwarded)
+            while self._woken:
+                self._on_sample(self._woken.popleft(), forwarded)
             if forwarded and self._encoded_sink is not None:
                 self._encoded_sink(forwarded)
         items = self._in.get_all()
@@ -286,8 +318,10 @@ class ZenohBridge(Node):
             item = self._out.get(timeout=0.1)
             if item is None:
                 continue
-            if self.config.send_batch_s > 0:
-                self._stop.wait(self.config.send_batch_s)
+            if self.config.send_batch_s > 0 and item[0] not in self._flush_topics:
+                self._flush.wait(self.config.send_batch_s)
+            # cleared before taking: a flush_on message queued from now on ends the next gathering
+            self._flush.clear()
             for topic, msg in [item, *self._out.get_all()]:
                 try:
                     data = codec.encode(msg, self.config.encoding, origin=self.origin)
@@ -321,12 +355,24 @@ class ZenohBridge(Node):
                 # a heartbeat (the last sequence number, 1/s) lets a subscriber that joined while this
                 # sample was on its way notice the miss and fetch it from the cache
                 return ext.declare_advanced_publisher(
-                    self.session, self._key(topic), congestion_control=cc, publisher_detection=True,
+                    self.session, self._key(topic), congestion_control=cc, priority=self._priority(topic),
+                    publisher_detection=True,
                     cache=ext.CacheConfig(max_samples=1, replies_config=replies),
                     sample_miss_detection=ext.MissDetectionConfig(heartbeat=1.0, sporadic_heartbeat=None))
             except Exception as exc:  # noqa: BLE001 - still publish it live; say why it is not latched
                 self.stats.last_error = f"{topic}: not latched: {exc}"
-        return self.session.declare_publisher(self._key(topic), congestion_control=cc)
+        return self.session.declare_publisher(self._key(topic), congestion_control=cc, priority=self._priority(topic))
+
+    def _priority(self, topic: str) -> Any:
+        return self._z.Priority.DATA_LOW if topic in self.config.bulk else self._z.Priority.DATA
+
+    def _on_waking_sample(self, sample: Any) -> None:
+        """Zenoh's thread, a sample of a `wake_on` pattern: kept for the drain, which it asks for at
+        once unless its topic is held and nobody reads it now (then the timer's drain keeps it)."""
+        self._woken.append(sample)
+        parts = str(sample.key_expr).split("/", 2)
+        if len(parts) < 3 or self.config.local_prefix + parts[2] not in self._held_topics or self._wanted():
+            self._request_drain()
 
     def _on_sample(self, sample: Any, forwarded: list[tuple[str, codec.Envelope]] | None = None) -> None:
         """A received sample: decoded into the queue the executor drains, or its envelope to the
@@ -375,6 +421,7 @@ class ZenohBridge(Node):
         if self._stop.is_set():
             return
         self._stop.set()
+        self._flush.set()  # the sender: no more gathering
         if self._unsubscribe is not None:
             self._unsubscribe()
         self._sender.join(2.0)

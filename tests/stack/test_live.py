@@ -23,15 +23,18 @@ pytestmark = pytest.mark.live
 def test_idle_then_route_auto_return_under_a_flood_of_strangers(tmp_path):
     """Idle, upload a route, arm, AUTO while 20 strangers send maximal valid `plan` requests at
     the rate limit for 20 s, RETURN: no failsafe, the estimator uses its samples and is honest
-    about its error, the helm keeps 10 Hz with no gap over 150 ms (issue 15's bar). The short
-    route's first turn (~28 s in AUTO, the return ~25 s): the whole route with a 25-s flood and its
-    60-s return is bench live's row (a minute more here)."""
+    about its error, the helm keeps 10 Hz with no gap over 150 ms (issue 15's bar), the pilot's
+    page gets every pose. The short route's first turn (~28 s in AUTO, the return ~25 s): the whole
+    route with a 25-s flood and its 60-s return is bench live's row (a minute more here)."""
     report = run_live(LivePlan(config=CONFIG, idle_s=8.0, route=FIRST_TURN_ROUTE, flood_viewers=20, flood_s=20.0),
                       tmp_path)
     print(report.summary())
     assert report.ok, report.summary() + "\n" + "\n".join(report.output[-20:])
     f = report.figures
     assert f["ship_command_hz"] >= 9.5 and f["ship_command_max_gap_ms"] <= 150
+    # the page gets every estimate (20 Hz; bench live's bar is 19): when the core's batches and
+    # the web process's drains beat against the estimate, one pose in five was lost (16.7 Hz)
+    assert f["telemetry_hz"] >= 18.5 and f["telemetry_age_p95_ms"] <= 100
     assert f["flood_sent"] > 0  # the strangers really flooded
     assert min(v for k, v in f.items() if k.startswith("used_frac_")) >= 0.99
 

@@ -38,7 +38,10 @@ def survey_config(work: Path) -> Path:
 
 # the loop's timing under the load the route makes is the point: not beside another run; and not in `make
 # test`: on fresh clones its gaps were 200 and 300 ms (2 of 2, 2026-11-28 18:13), in main 100-159 ms (bench
-# survey table 2d measures the same); run it with `pytest -m timing_bar`
+# survey table 2d measures the same); run it with `pytest -m timing_bar`. The 200-300 ms were the log's, not
+# the loop's: the core sent every ship_command 100 ms apart, and Zenoh dropped one behind the 5-MB route on
+# the router's link to the recorder (1 of 3 runs on main on 2026-11-29, 5 of 5 once the core sent its batches with
+# the estimate); with the route at low priority (the web bridge's `bulk`) 100-108 ms in 3 of 3
 @pytest.mark.alone
 @pytest.mark.timing_bar
 def test_a_survey_route_arriving_before_and_in_auto_leaves_no_gap_in_the_control_loop(tmp_path):

@@ -407,6 +407,114 @@ def test_a_polling_bridge_holds_the_newest_of_unread_topics_until_they_are_wante
             ZenohBridge.hold_latest(type("B", (), {"config": BridgeConfig()})(), [M.Topic.STATE], lambda: True)
 
 
+@pytest.mark.live
+def test_a_polling_bridge_drains_at_once_for_its_wake_on_topic_and_only_while_it_is_read():
+    """The web process: the page's pose reaches the bus as it arrives (a frame per estimate), not
+    at the backstop drain; what came with it on the other subscriptions goes along; while the
+    pose is held for nobody, its arrival wakes nothing."""
+    from lotsen.runtime import RealtimeExecutor
+
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",)))
+    b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=(f"a/{M.Topic.STATE}", f"a/{M.Topic.PATH}"),
+                                 receive="poll", drain_period_s=30.0, wake_on=(f"a/{M.Topic.STATE}",)))
+    ex_a, ex_b = SimExecutor(), RealtimeExecutor()
+    wanted = [False]
+    b.hold_latest([M.Topic.STATE], lambda: wanted[0])
+    got: list = []
+    try:
+        ex_a.add_node(a)
+        ex_b.add_node(b)
+        ex_b.bus.subscribe(M.Topic.STATE, lambda m: got.append(("state", time.monotonic())))
+        ex_b.bus.subscribe(M.Topic.PATH, lambda m: got.append(("path", time.monotonic())))
+        runner = threading.Thread(target=ex_b.run, daemon=True)
+        runner.start()
+        time.sleep(1.0)  # the start's drain has run; the next one is 30 s away
+        ex_a.bus.publish(M.Topic.PATH, SAMPLES[-1])
+        deadline = time.monotonic() + 10
+        while not b._woken and time.monotonic() < deadline:
+            ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])  # held for nobody: no drain
+            time.sleep(0.2)
+        assert b._woken, "nothing arrived"
+        time.sleep(0.3)
+        assert got == [] and b.stats.received == 0  # neither the held pose nor the path woke a drain
+        wanted[0] = True
+        deadline = time.monotonic() + 10
+        while not any(k == "state" for k, _ in got) and time.monotonic() < deadline:
+            sent = time.monotonic()
+            ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])
+            time.sleep(0.2)
+        arrived = [t for k, t in got if k == "state"]
+        assert arrived and arrived[0] - sent < 1.0  # the sample's own wake-up, not the 30 s backstop
+        assert [k for k, _ in got][0] == "path"  # the other subscriptions' samples go with it
+    finally:
+        ex_b.stop()
+        a.close()
+        b.close()
+    with pytest.raises(ConfigError, match="wake_on"):
+        BridgeConfig(subscribe=("a/**",), wake_on=("a/state",))
+
+
+@pytest.mark.live
+def test_a_flush_on_topic_sends_the_gathered_batch_at_once():
+    """The core gathers outgoing messages up to send_batch_s; its estimate closes the batch, so
+    it (and what was gathered before it) leaves as it is made, while a batch without it waits."""
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), send_batch_s=1.0,
+                                 flush_on=(M.Topic.STATE,)))
+    b = ZenohBridge(BridgeConfig(vessel="b", connect=(ep,), subscribe=("a/**",)))
+    ex_a, ex_b = SimExecutor(), SimExecutor()
+    try:
+        ex_a.add_node(a)
+        ex_b.add_node(b)
+        time.sleep(0.5)  # connected
+        for _ in range(2):  # a batch without the estimate: held for the whole gathering
+            t0 = time.monotonic()
+            ex_a.bus.publish(M.Topic.PATH, SAMPLES[-1])
+            before = b.stats.received
+            while b.stats.received == before and time.monotonic() < t0 + 5:
+                time.sleep(0.01)
+            assert time.monotonic() - t0 >= 0.9
+        t0 = time.monotonic()
+        before = b.stats.received
+        ex_a.bus.publish(M.Topic.PATH, SAMPLES[-1])
+        time.sleep(0.1)
+        ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])
+        while b.stats.received < before + 2 and time.monotonic() < t0 + 5:
+            time.sleep(0.01)
+        assert b.stats.received == before + 2
+        assert time.monotonic() - t0 < 0.8  # with the estimate, not at the gathering's end (1.1 s)
+    finally:
+        a.close()
+        b.close()
+
+
+def test_bulk_topics_travel_at_low_priority_behind_the_stream():
+    """A survey's route (5 MB) queued at the default priority made Zenoh drop the messages behind it
+    on a busy link; bulk topics go at DATA_LOW, everything else at DATA."""
+    import zenoh
+
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    a = ZenohBridge(BridgeConfig(vessel="a", listen=(ep,), publish=("*",), bulk=(M.Topic.PATH,)))
+    raw = zenoh.open(zenoh_config(BridgeConfig(vessel="raw", connect=(ep,))))
+    got: dict = {}
+    sub = raw.declare_subscriber("lotsen/a/**", lambda s: got.setdefault(str(s.key_expr).split("/", 2)[2], s.priority))
+    ex_a = SimExecutor()
+    try:
+        ex_a.add_node(a)
+        deadline = time.monotonic() + 10
+        while len(got) < 2 and time.monotonic() < deadline:
+            ex_a.bus.publish(M.Topic.PATH, SAMPLES[-1])
+            ex_a.bus.publish(M.Topic.STATE, SAMPLES[4])
+            time.sleep(0.1)
+        assert got.get(M.Topic.PATH) == zenoh.Priority.DATA_LOW
+        assert got.get(M.Topic.STATE) == zenoh.Priority.DATA
+    finally:
+        sub.undeclare()
+        raw.close()
+        a.close()
+
+
 def test_a_bridge_forwarding_encoded_hands_over_the_envelopes_and_decodes_only_what_is_subscribed(same):
     with _polling_pair(encoding="json") as (ex_a, ex_b, b):
         commands: list = []
