@@ -147,7 +147,7 @@ def lab_loop_rows(quick: bool) -> list[dict]:
     r_mean = statistics.mean(i) / statistics.mean(d) if d and i and len(d) == len(i) == len(seeds) else None
     rows.append({"table": summary, "hull": "B (tests/physics/hull_b.py, catamaran)",
                  "estimated on": "designed.mcap (60-s design, calm, over the seam)",
-                 "judged on": ", ".join((out.get("identification") or {}).get("judged_on") or []) or "?",
+                 "judged on": (out.get("identification") or {}).get("judged_on") or "?",
                  "verdict": out.get("verdict"), "m11": m11, "reverse_thrust_ratio": ratio,
                  "nominal_mps": speed, "planned_mps": round(path.length_m / planned_duration_s(path), 3),
                  "speed_flown_mps": round(statistics.mean(flown_all), 3) if flown_all else None,

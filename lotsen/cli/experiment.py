@@ -121,7 +121,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         _say_sea(args.waves.waves() if args.waves else None)
         with atomic_output(out, _run_inputs(args, config_files(config)), ConfigError, "log") as tmp:
-            node = record_on_simulated_stack(exp, tmp, config)
+            node = record_on_simulated_stack(exp, tmp, config, keep_inside=not args.no_return)
         print(f"{args.out}: {exp.duration_s:.1f} s of '{exp.name}' on {boat_description(config, model)}"
               + (f" (ABORTED: {node.aborted})" if node.aborted else ""), file=sys.stderr)
         _say_measured_sea(node)
@@ -137,7 +137,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         config = load_stack_config(args.config)
         config = replace(config, mode="hardware", seed=args.seed,
                          extra=replace(config.extra, emulated=bool(args.emulated)))
-        node = run_on_stack(exp, config, realtime=not args.emulated)
+        node = run_on_stack(exp, config, realtime=not args.emulated, keep_inside=not args.no_return)
         record = node.record()
         save_csv(record, args.out, _run_inputs(args))
         where = "the emulated boat" if args.emulated else "the boat"
@@ -289,6 +289,9 @@ def register(subparsers: Any) -> None:
     r.add_argument("--seed", type=SEED, default=0)
     r.add_argument("--psi-noise", type=Number(0.0, 1.0, "rad"), default=0.01, help="heading noise std, rad (default 0.01)")
     r.add_argument("--margin", type=MARGIN, default=1.0, help="area safety margin in metres (default 1)")
+    r.add_argument("--no-return", action="store_true",
+                   help="on the stack: end the run at the area's edge instead of turning the boat back to the "
+                        "area's centre and resuming the signal (docs/sysid.md, 'Keeping inside the area')")
     r.set_defaults(func=_cmd_run)
     lk = sub.add_parser("lake", help="a simulated lake record: a 10-min PRBS on a boat that is not the default "
                                      "model, in current and gusty wind (for identify --lake)")

@@ -45,14 +45,16 @@ EXPERIMENTS = ("prbs_multisine", "zigzag_20_20", "turning_circles", "bow_thruste
 LAB_ENVIRONMENT = Environment(current_speed_mps=0.1, current_to_deg=90.0, wind_speed_mps=3.0, wind_from_deg=45.0)
 
 
-def record_on_simulated_stack(experiment: Experiment, out: Path, config: LaunchConfig) -> ExperimentNode:
+def record_on_simulated_stack(experiment: Experiment, out: Path, config: LaunchConfig,
+                              keep_inside: bool = True) -> ExperimentNode:
     """Run `experiment` on the stack with the simulated boat of `config` (its `sim.boat`), on
     simulated time, recording every topic as the boat's recorder does; the MCAP lands at `out`
-    (what `lotsen identify RUN.mcap` reads). Returns the ExperimentNode."""
+    (what `lotsen identify RUN.mcap` reads). Returns the ExperimentNode. `keep_inside`: the boat is
+    turned back at the area's edge (ExperimentNode)."""
     with tempfile.TemporaryDirectory(prefix="lotsen-experiment-") as tmp:
         config = dataclasses.replace(config, mode="sim", logging=LoggingSection(enabled=True, directory=tmp),
                                      web=WebSection(enabled=False))
-        node = run_on_stack(experiment, config, realtime=False)
+        node = run_on_stack(experiment, config, realtime=False, keep_inside=keep_inside)
         logs = sorted(Path(tmp).glob("*.mcap"))
         if not logs:
             raise LotsenError("the experiment ran but the recorder wrote no log")

@@ -11,9 +11,13 @@ record as it goes:
   - inputs: the commanded azimuth angles (the servos report no angle) and the propeller speeds
     measured by the tachometers (rpm_chatter; the command where none has arrived yet);
   - outputs: north, east, psi, r, u, v of state/estimate at each command tick.
-It aborts (and disarms) when the estimate is not finite, when it leaves the experiment's area
-(relative to where the experiment started), when the supervisor refuses the mode or leaves it (a
-failsafe, the RC pilot, an e-stop). It knows the sea the boat's IMU measures (fusion/sea_state): when
+When the boat is about to leave the experiment's area (relative to where the experiment started;
+a hull that turns wider than the model the design predicted with) the signal pauses and the node
+steers the boat back to the area's centre, then resumes the signal where it paused
+(`lotsen.sysid.experiment.AreaKeeper`; the return's rows stay in the record). It aborts (and
+disarms) when the estimate is not finite, when the boat leaves the area all the same or a return
+takes too long, when the supervisor refuses the mode or leaves it (a failsafe, the RC pilot, an
+e-stop). It knows the sea the boat's IMU measures (fusion/sea_state): when
 the experiment starts in waves it warns that the sea is too high for a trustworthy record and what to
 do (lotsen.sysid.waves.experiment_sea_warning); `sea` is the last estimate.
 """
@@ -21,7 +25,7 @@ do (lotsen.sysid.waves.experiment_sea_warning); `sea` is the last estimate.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -32,16 +36,22 @@ from lotsen.runtime.config import LaunchConfig
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.stack.launch import build_stack
 
+if TYPE_CHECKING:
+    from lotsen.sysid.experiment import ReturnConfig
+
 
 class ExperimentNode(Node):
     name = "experiment"
 
     def __init__(self, experiment: Any, preroll_s: float = 2.0, margin_m: float = 0.0,
-                 request_timeout_s: float = 3.0) -> None:
-        from lotsen.sysid.experiment import InputGenerator
+                 request_timeout_s: float = 3.0, keep_inside: bool = True,
+                 returns: ReturnConfig | None = None) -> None:
+        from lotsen.sysid.experiment import AreaKeeper, InputGenerator, ReturnConfig
 
         self.experiment = experiment
         self.generator = InputGenerator(experiment)
+        # keep_inside False: no return, the area's edge aborts the run
+        self.keeper = AreaKeeper(experiment.area, returns or ReturnConfig()) if keep_inside else None
         self.preroll_s = preroll_s
         self.margin_m = margin_m
         self.request_timeout_s = request_timeout_s
@@ -130,21 +140,47 @@ class ExperimentNode(Node):
             return
         tau = t - self.t0
         why = "" if finite else "the state estimate is not finite"
+        back = self._keep_inside(tau, s) if finite else None
         if finite and not self._inside(s):
             # the area was checked on the model's prediction: a boat that turns wider than its model
             # (a hull not built like it, the defaults before any identification) leaves it
             why = (f"left the experiment area at ({s.north_m:.1f}, {s.east_m:.1f}) m: the boat went wider than "
-                   f"the model predicted; design again with a larger --margin (the predicted track kept that far "
-                   f"inside the area), or with --params from a first record's identification")
+                   f"the model predicted" + (" and did not turn back in time" if self.keeper else "")
+                   + "; design again with a larger --margin (the predicted track kept that far inside the area), "
+                   "or with --params from a first record's identification")
+        elif self.keeper is not None and self.keeper.overdue(tau):
+            why = (f"the boat did not get back into the area's central part within "
+                   f"{self.keeper.config.max_return_s:g} s")
+        elif tau > 3.0 * self.experiment.duration_s + (self.keeper.config.max_return_s if self.keeper else 0.0):
+            why = f"the returns to the area took {self.keeper.paused_s if self.keeper else 0.0:.0f} s of the run"
         if mode != ModeName.EXPERIMENT:
             why = f"the supervisor left EXPERIMENT: {mode} ({self.status.reason if self.status else ''})"
-        if why or tau >= self.experiment.duration_s:
+        signal_s = tau - (self.keeper.paused_s if self.keeper is not None else 0.0)
+        if why or signal_s >= self.experiment.duration_s:
             self._end(t, why)
             return
-        u = self.generator.command(tau, s)
+        u = back if back is not None else self.generator.command(signal_s, s)
         self.ctx.publish(Topic.EXPERIMENT_COMMAND, ThrustCommand.from_tuple(t, u, source="experiment"))
         n = (self.rpm.n1_rps, self.rpm.n2_rps, self.rpm.nt_rps) if self.rpm is not None else u[2:]
         self.rows.append((tau, u[0], u[1], *n, s.north_m, s.east_m, s.heading_rad, s.r_radps, s.u_mps, s.v_mps))
+
+    def _keep_inside(self, tau: float, s: VesselState) -> tuple[float, ...] | None:
+        """The return's set-points while the boat is brought back into the area, else None (and
+        the operator told when a return starts and ends)."""
+        k = self.keeper
+        if k is None:
+            return None
+        was, returns = k.returning, k.returns
+        back = k.update(tau, s.north_m - self.origin[0], s.east_m - self.origin[1], s.heading_rad, s.u_mps, s.v_mps)
+        if k.returns > returns:
+            self.ctx.log("warning", f"experiment '{self.experiment.name}': the boat is about to leave the area at "
+                                    f"({s.north_m:.1f}, {s.east_m:.1f}) m: the signal pauses at "
+                                    f"{tau - k.paused_s:.1f} s and the boat turns back to the area's centre "
+                                    f"(return {k.returns})")
+        elif was and not k.returning:
+            self.ctx.log("info", f"experiment '{self.experiment.name}': back in the area; the signal resumes at "
+                                 f"{tau - k.paused_s:.1f} s ({k.paused_s:.0f} s of returns so far)")
+        return back
 
     def _check_sea(self) -> None:
         """The experiment's check of the sea (the boat's IMU estimate at the start): a warning in waves."""
@@ -170,15 +206,18 @@ class ExperimentNode(Node):
                         source=f"runtime:{self.experiment.name}")
 
 
-def run_on_stack(experiment: Any, config: LaunchConfig, realtime: bool) -> ExperimentNode:
+def run_on_stack(experiment: Any, config: LaunchConfig, realtime: bool, keep_inside: bool = True) -> ExperimentNode:
     """Run `experiment` through the runtime on the boat the config names (hardware, its emulated
     twin, or the simulated boat): drivers, the state estimate, the supervisor and the recorder
     run; the experiment node is the supervisor's command source in EXPERIMENT mode. Returns the
     ExperimentNode (its `record()`, `aborted`, and `plant`: the simulated boat's plant, whose
-    `status()` says whether an external physics answered throughout)."""
+    `status()` says whether an external physics answered throughout). `keep_inside` False: the
+    area's edge ends the run instead of a return."""
     stack = build_stack(config, realtime=realtime, parts=("state", "supervisor", "logs"))
-    node = stack.add(ExperimentNode(experiment))
-    deadline = experiment.duration_s + node.preroll_s + 10.0
+    node = stack.add(ExperimentNode(experiment, keep_inside=keep_inside))
+    # the node ends the run itself; with returns it may take up to 3 x the signal (then it aborts)
+    deadline = 3.0 * experiment.duration_s + node.preroll_s + 10.0 + (
+        node.keeper.config.max_return_s if node.keeper is not None else 0.0)
     try:
         if realtime:
             stack.executor.add_timer(0.2, lambda: stack.executor.stop() if node.done else None, "experiment-end")

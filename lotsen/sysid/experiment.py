@@ -387,6 +387,94 @@ def _heading(state: Any) -> float:
 
 
 # ----------------------------------------------------------------------------------------------
+# keeping the boat inside the area during a run
+
+@dataclass(frozen=True)
+class ReturnConfig:
+    """When and how a running experiment brings its boat back into its area (`AreaKeeper`)."""
+
+    # the position `lookahead_s` ahead at the present velocity within `guard_m` of the area's edge
+    # starts a return: the designed track keeps its margin (2 m by default) inside, so a boat that
+    # flies like its model never returns, and a straight run at the edge is caught ~2 s early
+    lookahead_s: float = 3.0
+    guard_m: float = 0.5
+    # the signal resumes once the boat is inside the central part of the area (this fraction of each
+    # side) and heads within `resume_heading_rad` of the area's centre
+    resume_fraction: float = 0.5
+    resume_heading_rad: float = 0.5
+    n_rps: float = 40.0  # both azimuths on the way back (the boat's cruise, ~0.6 m/s on the model)
+    k_heading: float = 1.5  # azimuth angle per heading error (rad/rad), clipped to the limits
+    nt_per_rad: float = 80.0  # bow thruster speed per heading error (rev/s per rad), clipped
+    turn_speed_fraction: float = 0.2  # of n_rps while the bow points away from the centre
+    max_return_s: float = 60.0  # a boat not back in the central part by then: the experiment ends
+
+    def __post_init__(self) -> None:
+        for name in ("lookahead_s", "guard_m", "n_rps", "k_heading", "nt_per_rad", "turn_speed_fraction"):
+            if not getattr(self, name) >= 0.0:
+                raise ConfigError(f"return: {name} must be >= 0, got {getattr(self, name)}")
+        if not 0.0 < self.resume_fraction < 1.0:
+            raise ConfigError(f"return: resume_fraction must be in (0, 1), got {self.resume_fraction}")
+        if not 0.0 < self.resume_heading_rad <= math.pi or not self.max_return_s > 0.0:
+            raise ConfigError("return: resume_heading_rad must be in (0, pi] and max_return_s > 0")
+
+
+class AreaKeeper:
+    """Pauses an experiment's signal and steers its boat back when it is about to leave the area.
+
+    A design keeps its predicted track inside the area, but the boat is not its model: a hull that
+    turns wider than predicted (before any identification, or not built like the model) would leave
+    it, and the run had to be aborted, the record lost. Fed the boat's position (relative to the
+    experiment's start) and velocity each command tick, `update` returns None while the signal may
+    run, or the return's set-points: both azimuths at `n_rps`, angled (and the bow thruster) to turn
+    the bow to the area's centre. The signal resumes where it paused once the boat is inside the
+    area's central part and heads for the centre. Pure: no clock, no I/O; the record keeps every row
+    (the return's inputs are logged like the signal's, so the identification uses them too)."""
+
+    def __init__(self, area: Area, config: ReturnConfig = ReturnConfig(),
+                 limits: ActuatorLimits = DEFAULT_LIMITS) -> None:
+        self.area, self.config, self.limits = area, config, limits
+        self.centre = (0.5 * (area.north_m[0] + area.north_m[1]), 0.5 * (area.east_m[0] + area.east_m[1]))
+        side = min(area.north_m[1] - area.north_m[0], area.east_m[1] - area.east_m[0])
+        self._resume_margin_m = 0.5 * (1.0 - config.resume_fraction) * side
+        self.returning = False
+        self.returns = 0  # how many returns so far
+        self.paused_s = 0.0  # signal time not run: the returns' total duration
+        self._since: float | None = None  # when the present return began
+        self._last_t: float | None = None
+
+    def update(self, t: float, north_m: float, east_m: float, heading_rad: float, u_mps: float,
+               v_mps: float) -> tuple[float, float, float, float, float] | None:
+        """None: run the signal; else the return's set-points (alpha1, alpha2, n1, n2, nt)."""
+        c, a = self.config, self.area
+        dt = 0.0 if self._last_t is None else max(t - self._last_t, 0.0)
+        self._last_t = t
+        if self.returning:
+            self.paused_s += dt
+        cos_h, sin_h = math.cos(heading_rad), math.sin(heading_rad)
+        vn, ve = u_mps * cos_h - v_mps * sin_h, u_mps * sin_h + v_mps * cos_h
+        err = wrap_angle(math.atan2(self.centre[1] - east_m, self.centre[0] - north_m) - heading_rad)
+        if not self.returning:
+            if a.contains(north_m + vn * c.lookahead_s, east_m + ve * c.lookahead_s, c.guard_m):
+                return None
+            self.returning, self._since = True, t
+            self.returns += 1
+        elif a.contains(north_m, east_m, self._resume_margin_m) and abs(err) <= c.resume_heading_rad:
+            self.returning, self._since = False, None
+            return None
+        # alpha > 0 yaws the bow to port, nt > 0 to starboard (docs/model.md): err > 0 asks starboard
+        alpha = -min(max(c.k_heading * err, -self.limits.alpha_max_rad), self.limits.alpha_max_rad)
+        nt = min(max(c.nt_per_rad * err, -self.limits.n_bow_max_rps), self.limits.n_bow_max_rps)
+        # slow while the bow is far off the centre: the turn is tight where the boat is (the bow
+        # thruster's authority does not fade with it), and the run towards the edge ends
+        n = min(c.n_rps, self.limits.n_az_max_rps) * min(max(math.cos(err), c.turn_speed_fraction), 1.0)
+        return (alpha, alpha, n, n, nt)
+
+    def overdue(self, t: float) -> bool:
+        """A return that has taken longer than `max_return_s`."""
+        return self._since is not None and t - self._since > self.config.max_return_s
+
+
+# ----------------------------------------------------------------------------------------------
 # checks before a run
 
 def check_limits(experiment: Experiment, limits: ActuatorLimits = DEFAULT_LIMITS, dt_s: float = 0.05) -> list[str]:

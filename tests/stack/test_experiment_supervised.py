@@ -2,6 +2,9 @@
 forwards it in EXPERIMENT mode under its pre-arm checks and failsafes, and the experiment ends
 (thrusters neutral, disarmed) when the supervisor refuses or leaves the mode."""
 
+import numpy as np
+import pytest
+
 from lotsen.messages import OperatorCommand, ThrustCommand, Topic
 from lotsen.runtime.config import LaunchConfig, NodesSection, WebSection
 from lotsen.stack.experiment import ExperimentNode
@@ -77,3 +80,39 @@ def test_experiment_commands_move_nothing_outside_the_experiment_mode():
     stack.bus.publish(Topic.OPERATOR, OperatorCommand(stamp_s=5.0, action="experiment", source="test"))
     stack.executor.run_until(6.0)
     assert stack.nodes["supervisor"].mode.name == "EXPERIMENT" and commands[-1].n1_rps == 40.0
+
+
+def test_a_boat_about_to_leave_the_area_turns_back_and_the_experiment_completes():
+    """A straight 60-s run at ~0.6 m/s in a 20 x 20 m area on the stack (lake boat, EKF): the boat
+    would leave after ~15 s; the node pauses the signal, steers back, resumes, and the experiment
+    ends normally with every second of the signal and the returns' rows in the record."""
+    from lotsen.messages import LogEvent
+
+    straight = {"name": "straight", "area": {"size_m": [20, 20]},
+                "pieces": [{"type": "constant", "duration_s": 60, "n_rps": 40}]}
+    cfg = LaunchConfig(nodes=NodesSection(fusion="ekf", controller="los"), web=WebSection(enabled=False))
+    stack = build_stack(cfg, realtime=False, parts=("state", "supervisor"))
+    node = stack.add(ExperimentNode(parse_experiment(straight, "test")))
+    logs: list[str] = []
+    stack.bus.subscribe(Topic.LOG, lambda e: logs.append(e.text) if isinstance(e, LogEvent) else None)
+    stack.executor.run_until(400.0, stop=lambda: node.done)
+    assert node.done and node.aborted == "", node.aborted
+    k = node.keeper
+    assert k.returns >= 1 and k.paused_s > 5.0
+    rec = node.record()
+    assert rec.t[-1] == pytest.approx(60.0 + k.paused_s, abs=0.2)  # the signal whole, the returns on top
+    north, east = rec.outputs[:, 0] - node.origin[0], rec.outputs[:, 1] - node.origin[1]
+    assert np.all(np.abs(north) < 10.0) and np.all(np.abs(east) < 10.0)
+    assert any("turns back to the area's centre" in text for text in logs)
+    assert any("the signal resumes" in text for text in logs)
+    assert stack.nodes["supervisor"].mode.name == "MANUAL"
+
+
+def test_without_returns_the_area_edge_aborts_the_experiment():
+    straight = {"name": "straight", "area": {"size_m": [20, 20]},
+                "pieces": [{"type": "constant", "duration_s": 60, "n_rps": 40}]}
+    cfg = LaunchConfig(nodes=NodesSection(fusion="ekf", controller="los"), web=WebSection(enabled=False))
+    stack = build_stack(cfg, realtime=False, parts=("state", "supervisor"))
+    node = stack.add(ExperimentNode(parse_experiment(straight, "test"), keep_inside=False))
+    stack.executor.run_until(100.0, stop=lambda: node.done)
+    assert node.done and "left the experiment area" in node.aborted and node.record().t[-1] < 30.0

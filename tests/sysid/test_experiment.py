@@ -92,3 +92,73 @@ def test_prbs_and_multisine_stay_within_base_plus_amplitude():
     u = np.array([g.command(t, None) for t in np.arange(0, 20, 0.05)])
     assert set(np.round(np.abs(u[:200, 4]), 6)) == {30.0}
     assert np.all(np.abs(u[200:, 2] - 50) <= 10 * 2.5) and np.std(u[200:, 2]) > 3
+
+
+def _fly(exp, model, keeper=None, max_s=600.0, dt_s=0.05):
+    """The experiment flown on `model` (set-points at once), with the keeper's returns as the
+    stack's ExperimentNode applies them: the signal's time pauses while the boat is brought back."""
+    from lotsen.model import rk4_step
+
+    gen = InputGenerator(exp)
+    x, t, track, returning = (0.0, 0.0, exp.start_heading_rad, exp.start_speed_mps, 0.0, 0.0), 0.0, [], []
+    while t < max_s:
+        back = keeper.update(t, x[0], x[1], x[2], x[3], x[4]) if keeper is not None else None
+        signal_s = t - (keeper.paused_s if keeper is not None else 0.0)
+        if signal_s >= exp.duration_s:
+            break
+        u = back if back is not None else gen.command(signal_s, x)
+        x, _ = rk4_step(x, u, model.arrays.packed, 0.0, 0.0, 0.0, 0.0, 0.0, dt_s)
+        t += dt_s
+        track.append(x)
+        returning.append(back is not None)
+    return np.array(track), np.array(returning), t
+
+
+def test_a_boat_about_to_leave_the_area_is_brought_back_and_the_signal_resumes():
+    """A straight run of 90 s at ~0.6 m/s in a 20 x 20 m area: without the keeper the boat leaves
+    after ~15 s; with it the boat turns back before the edge (several times), every second of the
+    signal is flown, and the returns' time is what the run took longer."""
+    from lotsen.sysid.experiment import AreaKeeper
+
+    exp = parse_experiment({"name": "straight", "area": {"size_m": [20, 20]},
+                            "pieces": [{"type": "constant", "duration_s": 90, "n_rps": 40}]})
+    model = VesselModel()
+    free, _, _ = _fly(exp, model)
+    assert np.max(np.abs(free[:, :2])) > 30.0  # it would leave
+    keeper = AreaKeeper(exp.area)
+    track, returning, t_end = _fly(exp, model, keeper)
+    assert keeper.returns >= 2 and not keeper.returning
+    assert all(exp.area.contains(n, e) for n, e in track[:, :2])  # never outside
+    assert t_end == pytest.approx(90.0 + keeper.paused_s, abs=0.06)  # the whole signal, after the returns
+    assert returning.sum() * 0.05 == pytest.approx(keeper.paused_s, abs=0.06)
+    assert not keeper.overdue(t_end)
+
+
+def test_a_boat_equal_to_its_model_never_returns_on_a_checked_design():
+    """Every example experiment passes its check on the model (its predicted track inside the area):
+    flown on that model, none of them triggers a return."""
+    from pathlib import Path
+
+    from lotsen.sysid.experiment import AreaKeeper
+
+    model = VesselModel()
+    for f in sorted(Path(__file__).parents[2].joinpath("examples", "experiments").glob("*.yaml")):
+        exp = load_experiment(f)
+        keeper = AreaKeeper(exp.area)
+        _fly(exp, model, keeper)
+        assert keeper.returns == 0, f.name
+
+
+def test_the_return_turns_the_bow_towards_the_centre_and_a_stuck_return_is_overdue():
+    from lotsen.sysid.experiment import Area, AreaKeeper, ReturnConfig
+
+    keeper = AreaKeeper(Area.centred(20, 20), ReturnConfig(max_return_s=10.0))
+    # east of the centre, heading east at 0.6 m/s, 1 m from the edge: the centre is to the west
+    back = keeper.update(0.0, 0.0, 9.0, math.pi / 2, 0.6, 0.0)
+    assert back is not None and keeper.returns == 1
+    # the centre is behind: either way round; north of it heading east, it lies to starboard
+    back = keeper.update(0.1, 0.0, 9.0, math.pi / 2 - 0.5, 0.6, 0.0)  # heading a little north of east
+    assert back[0] > 0 and back[1] > 0 and back[4] < 0  # bow to port (alpha > 0, nt < 0): the short way
+    assert not keeper.overdue(5.0) and keeper.overdue(10.2)
+    with pytest.raises(ConfigError, match="resume_fraction"):
+        ReturnConfig(resume_fraction=1.0)

@@ -47,3 +47,24 @@ def test_the_design_margin_reaches_the_design_and_a_margin_without_room_is_refus
     assert main([*common, "--area", "30x20", "--margin", "10", "--out", str(tmp_path / "e.yaml")]) == 2
     assert "--margin 10 m leaves no room in a 30x20 m area" in capsys.readouterr().err
     assert not (tmp_path / "e.yaml").exists()
+
+
+def test_a_boat_wider_than_the_checked_model_is_turned_back_unless_told_not_to(tmp_path, capsys):
+    """`experiment run --sim --out RUN.mcap` (the stack): the area check's model (`--model-params`,
+    here a hull 100 x draggier, predicted to crawl) keeps a 40-s straight run inside 20 x 20 m; the
+    simulated boat goes ~0.5 m/s and would leave. The run turns it back and finishes (exit 0);
+    with `--no-return` the edge ends it (exit 1, the reason said)."""
+    import json
+
+    exp = tmp_path / "straight.yaml"
+    exp.write_text("name: straight\narea: {size_m: [20, 20]}\npieces:\n  - {type: constant, duration_s: 40, n_rps: 40}\n")
+    crawl = tmp_path / "crawl.json"
+    crawl.write_text(json.dumps({"X_u": 400.0, "X_uu": -400.0, "defaults_for": [
+        "m11", "m22", "m33", "Y_v", "Y_r", "Y_uv", "Y_vv", "Y_rv", "N_v", "N_r", "N_vv", "N_rr", "kappa", "C_N",
+        "mu_az", "mu_t"]}))
+    common = ["experiment", "run", str(exp), "--sim", "--model-params", str(crawl)]
+    assert main([*common, "--out", str(tmp_path / "a.mcap")]) == 0
+    err = capsys.readouterr().err
+    assert "ABORTED" not in err and (tmp_path / "a.mcap").is_file()
+    assert main([*common, "--no-return", "--out", str(tmp_path / "b.mcap")]) == 1
+    assert "ABORTED: left the experiment area" in capsys.readouterr().err

@@ -93,9 +93,11 @@ def test_run_log_to_asynchronous_record_export_and_identify(steps_run, tmp_path,
 
 
 def test_leaving_the_area_aborts_to_neutral(tmp_path):
+    """`--no-return` (keep_inside=False): the area's edge ends the run (with the return, the boat is
+    turned back first: tests/stack/test_experiment_supervised.py)."""
     exp = parse_experiment({"name": "too_far", "area": {"size_m": [6, 6]},
                                 "pieces": [{"type": "constant", "duration_s": 30, "n_rps": 80}]})
-    node = run_on_stack(exp, _config(tmp_path), realtime=False)
+    node = run_on_stack(exp, _config(tmp_path), realtime=False, keep_inside=False)
     assert node.done and "left the experiment area" in node.aborted
     assert "larger --margin" in node.aborted  # and says what to do
     assert node.record().t[-1] < 25.0
