@@ -17,7 +17,7 @@ from shapely.ops import unary_union
 from lotsen.errors import ConfigError
 
 if TYPE_CHECKING:
-    from lotsen.planning.survey import SurveyPattern
+    from lotsen.planning.survey.pattern import SurveyPattern  # the module, not the package: no circle
 
 Forbidden = Literal["inside", "outside"]
 
