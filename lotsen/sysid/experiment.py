@@ -395,7 +395,7 @@ class ReturnConfig:
 
     # the position `lookahead_s` ahead at the present velocity within `guard_m` of the area's edge
     # starts a return: the designed track keeps its margin (2 m by default) inside, so a boat that
-    # flies like its model never returns, and a straight run at the edge is caught ~2 s early
+    # flies like its model does not return, and a straight run at the edge is caught ~3 s before it
     lookahead_s: float = 3.0
     guard_m: float = 0.5
     # the signal resumes once the boat is inside the central part of the area (this fraction of each

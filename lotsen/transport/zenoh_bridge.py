@@ -68,7 +68,8 @@ class BridgeConfig:
     # topics sent at Zenoh's DATA_LOW priority: large messages (a survey's planned route, 5 MB) queue
     # behind the stream on every link they cross. At the default priority the route filled the
     # router's queue to the recorder for ~0.1 s and Zenoh dropped the core's messages behind it
-    # (congestion control DROP): a ship_command missing from the log in 2 of 3 uploads
+    # (congestion control DROP): a ship_command missing from the log (1 of 3 runs of
+    # test_live_route_arrival; 5 of 5 once the core's batches went out with the estimate)
     bulk: tuple[str, ...] = ()
     latched: tuple[str, ...] = LATCHED_TOPICS  # kept for late joiners (transient-local)
     # a client that starts before its router (the processes of a run start side by side): keep
