@@ -89,8 +89,7 @@ def worker_pool(jobs: int | None, warm: Callable[[], None] | None = None) -> Ite
         return
     if warm is not None:
         warm()
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() and sys.platform != "darwin" else "spawn"
-    ctx = multiprocessing.get_context(method)
+    ctx = multiprocessing.get_context("fork" if _can_fork() else "spawn")
     workers: list[tuple[Any, Any]] = []
     try:
         for _ in range(jobs - 1):
@@ -182,6 +181,13 @@ class _SharedMap:
         except (EOFError, OSError):
             return False, RuntimeError("a worker process ended without an answer (killed, or out of memory?)")
 
+
+def _can_fork() -> bool:
+    """Whether worker processes can be forked here (not on macOS, where forking after numpy's and the
+    system's threads have started is unsafe)."""
+    return "fork" in multiprocessing.get_all_start_methods() and sys.platform != "darwin"
+
+
 @contextmanager
 def side_tasks(jobs: int | None, soon: Sequence[Callable[[], Any]],
                later: Sequence[Callable[[], Any]] = ()) -> Iterator[list[Callable[[], Any]]]:
@@ -196,7 +202,7 @@ def side_tasks(jobs: int | None, soon: Sequence[Callable[[], Any]],
     exception is raised as if the task were called here."""
     tasks = [*soon, *later]
     jobs = default_jobs() if jobs is None else int(jobs)
-    if jobs <= 1 or "fork" not in multiprocessing.get_all_start_methods() or sys.platform == "darwin":
+    if jobs <= 1 or not _can_fork():
         yield [_once(task) for task in tasks]
         return
     ctx = multiprocessing.get_context("fork")

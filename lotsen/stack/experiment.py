@@ -141,18 +141,15 @@ class ExperimentNode(Node):
         tau = t - self.t0
         why = "" if finite else "the state estimate is not finite"
         back = self._keep_inside(tau, s) if finite else None
-        if finite and not self._inside(s):
+        if finite and not self.experiment.area.contains(*self._relative(s), -self.margin_m):
             # the area was checked on the model's prediction: a boat that turns wider than its model
             # (a hull not built like it, the defaults before any identification) leaves it
             why = (f"left the experiment area at ({s.north_m:.1f}, {s.east_m:.1f}) m: the boat went wider than "
                    f"the model predicted" + (" and did not turn back in time" if self.keeper else "")
                    + "; design again with a larger --margin (the predicted track kept that far inside the area), "
                    "or with --params from a first record's identification")
-        elif self.keeper is not None and self.keeper.overdue(tau):
-            why = (f"the boat did not get back into the area's central part within "
-                   f"{self.keeper.config.max_return_s:g} s")
-        elif tau > 3.0 * self.experiment.duration_s + (self.keeper.config.max_return_s if self.keeper else 0.0):
-            why = f"the returns to the area took {self.keeper.paused_s if self.keeper else 0.0:.0f} s of the run"
+        elif self.keeper is not None:
+            why = self.keeper.failure(tau, self.experiment.duration_s)
         if mode != ModeName.EXPERIMENT:
             why = f"the supervisor left EXPERIMENT: {mode} ({self.status.reason if self.status else ''})"
         signal_s = tau - (self.keeper.paused_s if self.keeper is not None else 0.0)
@@ -171,7 +168,7 @@ class ExperimentNode(Node):
         if k is None:
             return None
         was, returns = k.returning, k.returns
-        back = k.update(tau, s.north_m - self.origin[0], s.east_m - self.origin[1], s.heading_rad, s.u_mps, s.v_mps)
+        back = k.update(tau, *self._relative(s), s.heading_rad, s.u_mps, s.v_mps)
         if k.returns > returns:
             self.ctx.log("warning", f"experiment '{self.experiment.name}': the boat is about to leave the area at "
                                     f"({s.north_m:.1f}, {s.east_m:.1f}) m: the signal pauses at "
@@ -191,10 +188,14 @@ class ExperimentNode(Node):
         if msg:
             self.ctx.log("warning", f"experiment '{self.experiment.name}': {msg}")
 
-    def _inside(self, s: VesselState) -> bool:
-        a, m = self.experiment.area, self.margin_m
-        dn, de = s.north_m - self.origin[0], s.east_m - self.origin[1]
-        return a.north_m[0] - m <= dn <= a.north_m[1] + m and a.east_m[0] - m <= de <= a.east_m[1] + m
+    def _relative(self, s: VesselState) -> tuple[float, float]:
+        """North and east from where the experiment started: the frame of its area."""
+        return s.north_m - self.origin[0], s.east_m - self.origin[1]
+
+    def run_limit_s(self) -> float:
+        """The longest the signal may take from its start: its duration, or with returns the keeper's limit."""
+        d = self.experiment.duration_s
+        return self.keeper.config.run_limit_s(d) if self.keeper is not None else d
 
     def record(self) -> Any:
         """The identification record of what ran so far (lotsen.sysid.data.IdRecord, with u and v)."""
@@ -215,9 +216,7 @@ def run_on_stack(experiment: Any, config: LaunchConfig, realtime: bool, keep_ins
     area's edge ends the run instead of a return."""
     stack = build_stack(config, realtime=realtime, parts=("state", "supervisor", "logs"))
     node = stack.add(ExperimentNode(experiment, keep_inside=keep_inside))
-    # the node ends the run itself; with returns it may take up to 3 x the signal (then it aborts)
-    deadline = 3.0 * experiment.duration_s + node.preroll_s + 10.0 + (
-        node.keeper.config.max_return_s if node.keeper is not None else 0.0)
+    deadline = node.run_limit_s() + node.preroll_s + 10.0  # the node ends the run itself before it
     try:
         if realtime:
             stack.executor.add_timer(0.2, lambda: stack.executor.stop() if node.done else None, "experiment-end")

@@ -469,7 +469,8 @@ def web_main(config: StackConfig, endpoint: str, ready: Any, tls: bool = False) 
     done = apply_edge_priority(opts, opts.web_nice)
     # the page's topics only: the core's 100-200 Hz sensor streams (imu/*) are two thirds of
     # its messages, and the page shows none of them; decoding them was most of this process's CPU
-    bridge = _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS, bulk=(Topic.ROUTE,),
+    bridge = _bridge(stack, vessel="web", mode="client", connect=(endpoint,), publish=OPERATOR_TOPICS,
+                     bulk=(Topic.ROUTE,),
                      subscribe=(*(f"core/{topic}" for topic in PAGE_TOPICS), "recorder/log",
                                 f"recorder/{Topic.RECORDER}", "launcher/log"),
                      wait_for_router=True, receive="poll", drain_period_s=0.1, wake_on=(f"core/{Topic.STATE}",))

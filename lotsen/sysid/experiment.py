@@ -417,6 +417,11 @@ class ReturnConfig:
         if not 0.0 < self.resume_heading_rad <= math.pi or not self.max_return_s > 0.0:
             raise ConfigError("return: resume_heading_rad must be in (0, pi] and max_return_s > 0")
 
+    def run_limit_s(self, duration_s: float) -> float:
+        """The longest a run of a `duration_s` signal may take with its returns: three times the signal
+        and one return's allowance; longer, the returns are eating the experiment and it ends."""
+        return 3.0 * duration_s + self.max_return_s
+
 
 class AreaKeeper:
     """Pauses an experiment's signal and steers its boat back when it is about to leave the area.
@@ -472,6 +477,15 @@ class AreaKeeper:
     def overdue(self, t: float) -> bool:
         """A return that has taken longer than `max_return_s`."""
         return self._since is not None and t - self._since > self.config.max_return_s
+
+    def failure(self, t: float, duration_s: float) -> str:
+        """Why the run must end at `t` (s since its start) for its returns, or "": a return overdue, or
+        the run past `ReturnConfig.run_limit_s` of its `duration_s` signal."""
+        if self.overdue(t):
+            return f"the boat did not get back into the area's central part within {self.config.max_return_s:g} s"
+        if t > self.config.run_limit_s(duration_s):
+            return f"the returns to the area took {self.paused_s:.0f} s of the run"
+        return ""
 
 
 # ----------------------------------------------------------------------------------------------

@@ -371,17 +371,26 @@ class ZenohBridge(Node):
         """Zenoh's thread, a sample of a `wake_on` pattern: kept for the drain, which it asks for at
         once unless its topic is held and nobody reads it now (then the timer's drain keeps it)."""
         self._woken.append(sample)
-        parts = str(sample.key_expr).split("/", 2)
-        if len(parts) < 3 or self.config.local_prefix + parts[2] not in self._held_topics or self._wanted():
+        split = self._split_key(str(sample.key_expr))
+        if split is None or not self._unread(split[1]):
             self._request_drain()
+
+    def _split_key(self, key: str) -> tuple[str, str] | None:
+        """(vessel, local topic) of a key lotsen/<vessel>/<topic>; None for a key of another shape."""
+        parts = key.split("/", 2)
+        return (parts[1], self.config.local_prefix + parts[2]) if len(parts) == 3 else None
+
+    def _unread(self, topic: str) -> bool:
+        """A held topic while nobody reads it (`hold_latest`): its newest envelope is kept, not decoded."""
+        return topic in self._held_topics and not self._wanted()
 
     def _on_sample(self, sample: Any, forwarded: list[tuple[str, codec.Envelope]] | None = None) -> None:
         """A received sample: decoded into the queue the executor drains, or its envelope to the
         encoded sink (collected in `forwarded` when given)."""
         self.stats.received += 1
         key = str(sample.key_expr)
-        parts = key.split("/", 2)  # lotsen / vessel / topic
-        if len(parts) < 3 or parts[1] == self.config.vessel:
+        split = self._split_key(key)
+        if split is None or split[0] == self.config.vessel:
             self.stats.echoes_ignored += 1
             return
         try:
@@ -393,7 +402,7 @@ class ZenohBridge(Node):
         if env.origin == self.origin:
             self.stats.echoes_ignored += 1
             return
-        topic = self.config.local_prefix + parts[2]
+        topic = split[1]
         sink = self._encoded_sink
         if sink is not None and topic not in self._decoded_topics:
             self.stats.per_topic_in[topic] = self.stats.per_topic_in.get(topic, 0) + 1
@@ -402,8 +411,8 @@ class ZenohBridge(Node):
             else:
                 sink([(topic, env)])
             return
-        if topic in self._held_topics and not self._wanted():
-            self._held[topic] = (key, env)  # nobody reads it now: kept, not decoded
+        if self._unread(topic):
+            self._held[topic] = (key, env)
             return
         self._decode_in(topic, key, env)
 

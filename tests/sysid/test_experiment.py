@@ -160,5 +160,10 @@ def test_the_return_turns_the_bow_towards_the_centre_and_a_stuck_return_is_overd
     back = keeper.update(0.1, 0.0, 9.0, math.pi / 2 - 0.5, 0.6, 0.0)  # heading a little north of east
     assert back[0] > 0 and back[1] > 0 and back[4] < 0  # bow to port (alpha > 0, nt < 0): the short way
     assert not keeper.overdue(5.0) and keeper.overdue(10.2)
+    assert keeper.failure(5.0, 60.0) == "" and "within 10 s" in keeper.failure(10.2, 60.0)
+    back = keeper.update(10.3, 0.0, 1.0, -math.pi / 2, 0.5, 0.0)  # central, heading for the centre: back
+    assert back is None and not keeper.returning and keeper.paused_s == pytest.approx(10.3)
+    assert keeper.failure(189.0, 60.0) == ""  # within 3 x 60 s + 10 s
+    assert keeper.failure(190.1, 60.0) == "the returns to the area took 10 s of the run"
     with pytest.raises(ConfigError, match="resume_fraction"):
         ReturnConfig(resume_fraction=1.0)
