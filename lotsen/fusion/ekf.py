@@ -217,13 +217,14 @@ class EkfConfig:
     origin: tuple[float, float, float] | None = None  # lat, lon, h; None: the first usable fix
     # initial uncertainty: N, E, psi, u, v, r, b_g, b_ax, b_ay; then current and force blocks
     P0_std: tuple[float, ...] = (100.0, 100.0, math.pi, 1.0, 0.5, 0.5, 0.03, 0.2, 0.2)
-    # The current's start uncertainty: a lake's current is a few cm/s. 0.2 let a model's force error in the
+    # The current's start uncertainty: a lake's current is a few cm/s, 0.2 m/s a strong one (learnt in the 3 s
+    # before AUTO of the fault suite's current_toward_geofence). 0.2 let a model's force error in the
     # first seconds of a run become current before any turn could tell the two apart, and the MPC, which
     # flies the velocity through the water, then pushed harder, which grew the error: hull B on its
     # identified model booked 0.9-1.0 m/s of current in 5 s (true 0.08), lost its first turn by 57 cm
-    # and, over the seam, held on dead reckoning; the 6-DOF hull on the defaults 0.35 m/s. 0.05: at most
-    # 0.14 m/s in the first 20 s (hull B, seeds 0-3). A stronger current is learnt through the walk.
-    P0_current_std_mps: float = 0.05
+    # and, over the seam, held on dead reckoning. 0.1: at most 0.15-0.20 m/s in the first 20 s (hull B,
+    # seeds 0-3; 0.05: 0.11-0.14). A stronger current is learnt through the walk.
+    P0_current_std_mps: float = 0.1
     P0_tau_std: tuple[float, float, float] = (0.5, 0.5, 0.1)
     P0_wave_std: tuple[float, float] = (0.01, 0.01)  # m, rad (the rates: times the wave frequency)
 

