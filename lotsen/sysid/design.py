@@ -272,14 +272,16 @@ def parameter_samples(params: VesselParameters, n: int, spread: float, seed: int
 
 
 def relative_std(F: np.ndarray, theta: Sequence[float], free_names: Sequence[str]) -> np.ndarray:
-    """1-sigma relative to |theta| of each free parameter from the Fisher information."""
-    th = np.array([theta[NAMES.index(n)] for n in free_names])
+    """1-sigma relative to |theta| of each free parameter from the Fisher information; |theta| floored at a
+    tenth of the default's magnitude (`parameter_scale`): a coefficient an identification left at zero (at
+    its physical bound) has no relative error, and a design for it (`--params`) saw an infinite one."""
+    scale = parameter_scale(theta)[[NAMES.index(n) for n in free_names]]
     try:
         C = np.linalg.inv(F)
     except np.linalg.LinAlgError:
         return np.full(len(free_names), np.inf)
     d = np.diag(C)
-    return np.where(d > 0, np.sqrt(np.abs(d)), np.inf) / np.maximum(np.abs(th), 1e-12)
+    return np.where(d > 0, np.sqrt(np.abs(d)), np.inf) / scale
 
 
 def time_to_accuracy(rel_std: np.ndarray, duration_s: float, target: float = 0.05, z: float = 1.96) -> float:
@@ -370,8 +372,11 @@ def design_experiment(params: VesselParameters, config: DesignConfig = DesignCon
     def crit(F: np.ndarray, th: np.ndarray) -> float:
         if not np.all(np.isfinite(F)):
             return 1e3
-        thf = th[fidx]
-        Fr = F * thf[:, None] * thf[None, :]  # relative information
+        # relative information; the scale floored as relative_std's: with a coefficient at zero (a design
+        # for an identified model, --params) the relative information was singular, every point scored
+        # alike and the optimiser stopped where it started
+        thf = parameter_scale(th)[fidx]
+        Fr = F * thf[:, None] * thf[None, :]
         try:
             if cfg.criterion == "D":
                 sign, logdet = np.linalg.slogdet(Fr)
