@@ -93,72 +93,28 @@ def flight_rows(quick: bool) -> list[dict]:
 
 def lab_loop_rows(quick: bool) -> list[dict]:
     """Module docstring, 3: bench_hull's lab loop with hull B's lab measurements, then its figure eight
-    per seed with both models over the seam, and their ratio."""
-    import statistics
-
-    from bench_hull import _cm, hull_server, lab_identify, lake_server_args, mission_over_seam, planned, write_route
+    per seed with both models over the seam, and their ratio (bench_hull.fastest_figure_eight_rows)."""
+    from bench_hull import fastest_figure_eight_rows, lab_identify
     from hull_b import CatamaranHull, reverse_thrust_ratio
-
-    from lotsen.harness.mission import planned_duration_s
-    from lotsen.planning import PlannerConfig
 
     table = "3. the lab loop on hull B (catamaran), command by command (design -> run over the seam -> identify)"
     flights = "3. the fastest figure eight on hull B over the seam, by seed and model (current 0.08 m/s, wind 4 m/s gusty)"
     summary = "3. the lab loop's answer on hull B: identified against defaults, mean over seeds"
+    hull = "B (tests/physics/hull_b.py, catamaran)"
     server = ("--hull", "b")
     m11 = round(float(CatamaranHull().M[0, 0]), 2)  # weighed mass + surge added mass
     ratio = round(reverse_thrust_ratio(), 2)  # the bollard pull, astern over ahead
-    planner = PlannerConfig()
-    speed = planner.speed_max_mps
-    path = planned(1.0, speed, planner.a_lat_max_mps2)
-    seeds = (0,) if quick else (0, 1, 2, 3)
     with tempfile.TemporaryDirectory(prefix="lotsen-hull-b-bench-") as tmp:
         work = Path(tmp)
         rows, out, params = lab_identify(work, quick, table, m11, ratio, server)
         if params is None:  # say where the loop stopped: no model, nothing to fly
             last = rows[-1]
-            return rows + [{"table": summary, "hull": "B (tests/physics/hull_b.py, catamaran)",
-                            "stopped at": f"{last['step']} (exit {last['exit']})", "why": last.get("result"),
-                            "verdict": (out or {}).get("verdict"),
+            return rows + [{"table": summary, "hull": hull, "stopped at": f"{last['step']} (exit {last['exit']})",
+                            "why": last.get("result"), "verdict": (out or {}).get("verdict"),
                             "target": "identify answers; identified <= 0.8 x the defaults' cross-track RMS",
                             "pass": False}]
-        route = write_route(work, "figure_eight_fastest.yaml", speed)
-        cte: dict[str, list[float]] = {"defaults": [], "identified": []}
-        done = True
-        for seed in seeds:
-            for name, extra in (("defaults", ()), ("identified", ("--params", "identified.json"))):
-                with hull_server(*server, *lake_server_args(seed)) as address:  # a fresh server: the same gusts
-                    command, rc, rep, cpu, wall = mission_over_seam(work, route, address, f"mission_{name}_{seed}.json",
-                                                                    "--seed", str(seed), *extra)
-                ok = bool(rc == 0 and rep.get("completed") and not rep.get("failsafes_triggered"))
-                done = done and ok
-                if rep.get("cross_track_rms_m") is not None:
-                    cte[name].append(rep["cross_track_rms_m"])
-                flown = rep["path_length_m"] / rep["duration_s"] if ok else None
-                rows.append({"table": flights, "seed": seed, "model": name, "exit": rc,
-                             "completed, no failsafe": ok, "cross_track_rms_cm": _cm(rep.get("cross_track_rms_m")),
-                             "cross_track_max_cm": _cm(rep.get("cross_track_max_m")),
-                             "failsafes": ", ".join(rep.get("failsafes_triggered", [])) or "none",
-                             "speed_flown_mps": None if flown is None else round(flown, 3),
-                             "duration_s": rep.get("duration_s"), "cpu_s": round(cpu, 1), "wall_s": round(wall, 1),
-                             "command": command})
-    d, i = cte["defaults"], cte["identified"]
-    flown_all = [r["speed_flown_mps"] for r in rows if r["table"] == flights and r["speed_flown_mps"]]
-    r_mean = statistics.mean(i) / statistics.mean(d) if d and i and len(d) == len(i) == len(seeds) else None
-    rows.append({"table": summary, "hull": "B (tests/physics/hull_b.py, catamaran)",
-                 "estimated on": "designed.mcap (60-s design, calm, over the seam)",
-                 "judged on": (out.get("identification") or {}).get("judged_on") or "?",
-                 "verdict": out.get("verdict"), "m11": m11, "reverse_thrust_ratio": ratio,
-                 "nominal_mps": speed, "planned_mps": round(path.length_m / planned_duration_s(path), 3),
-                 "speed_flown_mps": round(statistics.mean(flown_all), 3) if flown_all else None,
-                 "seeds": len(seeds), "defaults_cm": round(100 * statistics.mean(d), 2) if d else None,
-                 "identified_cm": round(100 * statistics.mean(i), 2) if i else None,
-                 "per_seed_ratio": ", ".join(f"{b / a:.2f}" for a, b in zip(d, i)),
-                 "identified_over_defaults": None if r_mean is None else round(r_mean, 2),
-                 "target": "every mission completes without a failsafe; identified <= 0.8 x the defaults' "
-                           "cross-track RMS (mean over >= 4 seeds)",
-                 "pass": bool(done and r_mean is not None and r_mean <= 0.8 and len(seeds) >= 4)})
-    return rows
+        return rows + fastest_figure_eight_rows(work, out, hull, (0,) if quick else (0, 1, 2, 3), flights, summary,
+                                                server, m11=m11, reverse_thrust_ratio=ratio)
 
 
 def run(quick: bool = False) -> list[dict]:
