@@ -13,8 +13,11 @@ coefficients), and the question is what such a model is worth in closed loop.
    and, for validation, examples/experiments/prbs_multisine.yaml (66 s, `--seed 1`) run on the hull
    over the seam (`lotsen experiment run ... --physics udp:...` against tests/physics/hull_server.py,
    calm water); `lotsen identify designed.mcap --validate validation.mcap --fix m11=14.2
-   --reverse-thrust-ratio 0.75` (m11 as a user gets it: the weighed 13 kg plus the surge added mass,
-   1.2 kg for this hull; astern/ahead thrust from a bollard pull: 0.75); then `lotsen mission` on the
+   --reverse-thrust-ratio 0.75 --out first.json` (m11 as a user gets it: the weighed 13 kg plus the
+   surge added mass, 1.2 kg for this hull; astern/ahead thrust from a bollard pull: 0.75); a second
+   design for that first answer (`--params first.json`: what an experiment teaches depends on the
+   boat), run (`--seed 2`), and `lotsen identify designed.mcap designed2.mcap --validate
+   validation.mcap ... --out identified.json` on both records, as the README's lab loop; then `lotsen mission` on the
    figure eight at 1.0 m/s over the seam in current and wind (hull_server.py `--current 0.08,30
    --wind 4,250 --gusts 0.2 --wander 15`), with the defaults and with `--params identified.json`. A
    60-s design holds one 10-s prediction window in its last 20 % (identify refuses to judge effective
@@ -249,46 +252,59 @@ def step_row(table: str, name: str, command: str, rc: int, cpu: float, wall: flo
 
 def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust_ratio: float,
                  server: tuple[str, ...] = ()) -> tuple[list[dict], dict | None, Any]:
-    """The lab loop up to the model, through the commands (module docstring, 1): design, the design and the
-    validation experiment run on the hull over the seam (hull_server.py `server` flags, calm, seed 0),
-    identify with the lab's m11 and bollard-pull ratio. Returns the rows of `table`, the parameter file
-    written ({} without one; None when a step before identify failed) and its parameters (None when
-    identify refused or did not run)."""
+    """The lab loop up to the model, through the commands (module docstring, 1), as the README runs it: a
+    design at the defaults, it and the validation experiment run on the hull over the seam
+    (hull_server.py `server` flags, calm, seed 0), identify with the lab's m11 and bollard-pull ratio
+    (first.json); a second design for that first answer (`--params first.json`: the information an
+    experiment gives depends on the boat), run, and identify on both records (identified.json). Returns
+    the rows of `table`, the final parameter file ({} without one; None when a step before identify
+    failed) and its parameters (None when identify refused or did not run)."""
     from lotsen.stack.stack import load_parameters
 
     rows: list[dict] = []
-    design = ["experiment", "design", "--duration", "60", "--area", "30x30", "--out", "designed.yaml"]
-    if quick:
-        design += ["--iterations", "6", "--robust-samples", "1"]
-    rc, err, cpu, wall = lotsen(*design, cwd=work)
-    summary = err.strip().splitlines()[-1] if err.strip() else ""
-    rows.append(step_row(table, "design", "lotsen " + " ".join(design), rc, cpu, wall,
-                         result=summary.split(": ", 1)[-1][:160]))
-    if rc != 0:
-        return rows, None, None
     validation = str(REPO / "examples" / "experiments" / "prbs_multisine.yaml")
-    with hull_server(*server, "--seed", "0") as address:
-        for name, exp, extra in (("run (estimation)", "designed.yaml", []),
-                                 ("run (validation)", validation, ["--seed", "1"])):
-            out = "designed.mcap" if "estimation" in name else "validation.mcap"
-            args = ["experiment", "run", exp, "--physics", address, "--out", out, *extra]
-            rc, err, cpu, wall = lotsen(*args, cwd=work)
-            rows.append(step_row(table, name, "lotsen " + " ".join(args).replace(str(REPO) + "/", ""), rc, cpu, wall,
-                                 result=(err.strip().splitlines() or [""])[-1][:160]))
-            if rc != 0:
-                return rows, None, None
-    ident = ["designed.mcap", "--validate", "validation.mcap", "--fix", f"m11={m11:g}",
-             "--reverse-thrust-ratio", f"{reverse_thrust_ratio:g}", "--out", "identified.json", "--report", "report.html"]
-    t0 = time.perf_counter()
-    rc, err, cpu = timed_identify(*ident, cwd=work)
-    wall = time.perf_counter() - t0
-    out = json.loads((work / "identified.json").read_text()) if (work / "identified.json").is_file() else {}
-    chosen, p10, d10 = _prediction(out)
-    rows.append(step_row(table, "identify", "lotsen identify " + " ".join(ident), rc, cpu.get("command_s", math.nan),
-                         wall, verdict=out.get("verdict"), written=chosen, pred_10s_m=p10, defaults_10s_m=d10,
-                         better_than_defaults_pct=round(100 * (1 - p10 / d10)) if p10 and d10 else None,
-                         identify_cpu_s=round(cpu["identify_s"], 1) if cpu.get("identify_s") is not None else None,
-                         result=_reasons(out)[:300]))
+    lab = ["--validate", "validation.mcap", "--fix", f"m11={m11:g}", "--reverse-thrust-ratio", f"{reverse_thrust_ratio:g}"]
+    records: list[str] = []
+    out: dict = {}
+    rc = 1
+    for k, (designed, record, answer) in enumerate((("designed.yaml", "designed.mcap", "first.json"),
+                                                    ("designed2.yaml", "designed2.mcap", "identified.json"))):
+        design = ["experiment", "design", "--duration", "60", "--area", "30x30", "--out", designed]
+        if k and rc == 0:  # for the first answer (a refused one: the defaults again)
+            design += ["--params", "first.json"]
+        if quick:
+            design += ["--iterations", "6", "--robust-samples", "1"]
+        rc, err, cpu, wall = lotsen(*design, cwd=work)
+        summary = err.strip().splitlines()[-1] if err.strip() else ""
+        rows.append(step_row(table, "design" if k == 0 else "design again (for the first answer)", "lotsen " + " ".join(design),
+                             rc, cpu, wall, result=summary.split(": ", 1)[-1][:160]))
+        if rc != 0:
+            return rows, None, None
+        runs = [("run (estimation)" if k == 0 else "run (estimation, second design)", designed, record,
+                 [] if k == 0 else ["--seed", "2"])]
+        if k == 0:
+            runs.append(("run (validation)", validation, "validation.mcap", ["--seed", "1"]))
+        with hull_server(*server, "--seed", "0") as address:
+            for name, exp, rec, extra in runs:
+                args = ["experiment", "run", exp, "--physics", address, "--out", rec, *extra]
+                rc, err, cpu, wall = lotsen(*args, cwd=work)
+                rows.append(step_row(table, name, "lotsen " + " ".join(args).replace(str(REPO) + "/", ""), rc, cpu, wall,
+                                     result=(err.strip().splitlines() or [""])[-1][:160]))
+                if rc != 0:
+                    return rows, None, None
+        records.append(record)
+        ident = [*records, *lab, "--out", answer] + (["--report", "report.html"] if k else [])
+        t0 = time.perf_counter()
+        rc, err, cpu = timed_identify(*ident, cwd=work)
+        wall = time.perf_counter() - t0
+        out = json.loads((work / answer).read_text()) if (work / answer).is_file() else {}
+        chosen, p10, d10 = _prediction(out)
+        rows.append(step_row(table, "identify" if k == 0 else "identify (both records)", "lotsen identify " + " ".join(ident),
+                             rc, cpu.get("command_s", math.nan), wall, verdict=out.get("verdict"), written=chosen,
+                             pred_10s_m=p10, defaults_10s_m=d10,
+                             better_than_defaults_pct=round(100 * (1 - p10 / d10)) if p10 and d10 else None,
+                             identify_cpu_s=round(cpu["identify_s"], 1) if cpu.get("identify_s") is not None else None,
+                             result=_reasons(out)[:300]))
     return rows, out, load_parameters(str(work / "identified.json")) if rc == 0 else None
 
 
@@ -355,7 +371,7 @@ def lab_loop_rows(work: Path, quick: bool) -> tuple[list[dict], Any]:
 
 
 def fastest_figure_eight_rows(work: Path, out: dict, hull: str, seeds: tuple[int, ...], flights: str, summary: str,
-                              server: tuple[str, ...] = (), estimated_on: str = "designed.mcap (60-s design, calm, over the seam)",
+                              server: tuple[str, ...] = (), estimated_on: str = "designed.mcap + designed2.mcap (60-s designs at the defaults and at the first answer, calm, over the seam)",
                               m11: float | None = None, reverse_thrust_ratio: float | None = None) -> list[dict]:
     """Issue 47's bar for the lab loop's answer (`work`/identified.json, the parameter file `out`): the
     fastest figure eight the planner flies (every node at its speed_max_mps; the lobes capped by its

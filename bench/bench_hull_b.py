@@ -20,12 +20,13 @@ Rows (the long checks of tests/physics/test_hull_b.py live here, out of `make te
      calm); `lotsen identify designed.mcap --validate validation.mcap --fix m11=14.33
      --reverse-thrust-ratio 0.65` (m11: hull B's mass + surge added mass; the ratio measured on hull B
      as a lab does, astern over ahead bollard pull at equal propeller speed: hull_b.reverse_thrust_ratio);
+     a second design for that first answer, run, and identify on both records (bench_hull.lab_identify);
      then `lotsen mission` over the seam on the fastest figure eight the planner flies (every node at
      its speed_max_mps, 1.5 m/s; the lobes are capped by its lateral acceleration limit, so the speed
      as flown, path length over the time to fly it, is shown) in bench_hull's lake (hull_server.py
      `--current 0.08,30 --wind 4,250 --gusts 0.2 --wander 15`), with the defaults and with `--params
      identified.json`, on seeds 0-3 (quick: 0) of the server's gusts and lotsen's sensors, a fresh
-     server per mission so both models meet the same water. Identified once. Target (issue 47): the
+     server per mission so both models meet the same water. Target (issue 47): the
      identified model's cross-track RMS, mean over the seeds, <= 0.8 x the defaults'.
 """
 

@@ -51,7 +51,8 @@ def test_the_walkthrough_is_parsed_into_its_commands():
     cmds = walkthrough_commands((ROOT / "README.md").read_text())
     assert cmds[0].startswith("echo ") and cmds[0].endswith("> myboat.json")
     lotsen = [c.split()[1] for c in cmds[1:]]
-    assert lotsen == ["experiment", "experiment", "experiment", "identify", "mission", "mission", "run"], cmds
+    assert lotsen == ["experiment", "experiment", "experiment", "identify", "experiment", "experiment", "identify",
+                      "mission", "mission", "run"], cmds
     runs_the_boat = [c for c in cmds if c.split()[1] in ("mission", "run") or " run " in c]
     assert runs_the_boat and all("--boat myboat.json" in c for c in runs_the_boat), runs_the_boat
     assert not any("examples/" in c or "config/" in c for c in cmds), "the walkthrough must run from any folder"
@@ -76,13 +77,15 @@ def test_the_readme_walkthrough_runs_as_written_on_a_boat_that_is_not_the_defaul
     assert p.returncode == 0, said[-5000:]
     boat = "lake boat with myboat.json"
     # the experiment's lines, identify's output, report and parameter file name the boat file
-    assert said.count(f"of 'designed_60s' on {boat}") == 1, said[-5000:]
+    assert said.count(f"of 'designed_60s' on {boat}") == 2, said[-5000:]  # at the defaults, at the first answer
     # the answer is judged on a record with other inputs, not on the design flown again (a replay)
     assert said.count(f"of 'prbs_multisine' on {boat}") == 1, said[-5000:]
-    assert f"run.mcap: recorded on {boat}" in said and f"check.mcap: recorded on {boat}" in said
+    assert all(f"{r}: recorded on {boat}" in said for r in ("run.mcap", "run2.mcap", "check.mcap"))
+    first = json.loads((tmp_path / "first.json").read_text())
+    assert first["verdict"] in ("ok", "weak", "predictive"), first.get("identification")
     identified = json.loads((tmp_path / "params.json").read_text())
     assert identified["verdict"] in ("ok", "weak", "predictive"), identified.get("identification")
-    assert set(identified["recorded_on"]) == {"run.mcap", "check.mcap"}
+    assert set(identified["recorded_on"]) == {"run.mcap", "run2.mcap", "check.mcap"}
     judged = identified["identification"]["judged_on"]
     assert judged.startswith("check.mcap") and judged.endswith("(another record)"), judged
     assert all(v.startswith(boat) for v in identified["recorded_on"].values())
