@@ -369,13 +369,14 @@ def design_experiment(params: VesselParameters, config: DesignConfig = DesignCon
     p_norm = 4.0
     fidx = np.array([NAMES.index(n) for n in free_names])
 
-    def crit(F: np.ndarray, th: np.ndarray) -> float:
+    # relative information; the scale floored as relative_std's: with a coefficient at zero (a design for
+    # an identified model, --params) the relative information was singular, every point scored alike and
+    # the optimiser stopped where it started. Once per parameter set: crit runs thousands of times
+    scales = [parameter_scale(th)[fidx] for th in samples]
+
+    def crit(F: np.ndarray, thf: np.ndarray) -> float:
         if not np.all(np.isfinite(F)):
             return 1e3
-        # relative information; the scale floored as relative_std's: with a coefficient at zero (a design
-        # for an identified model, --params) the relative information was singular, every point scored
-        # alike and the optimiser stopped where it started
-        thf = parameter_scale(th)[fidx]
         Fr = F * thf[:, None] * thf[None, :]
         try:
             if cfg.criterion == "D":
@@ -397,7 +398,7 @@ def design_experiment(params: VesselParameters, config: DesignConfig = DesignCon
     def evaluate(z: np.ndarray, base: list[Evaluation] | None = None, from_row: int = 0) -> tuple[float, list]:
         U = _levels_to_rows(z, nseg, rows_per_seg, lim)
         evs = [info.evaluate(U, th, x0, base[i] if base else None, from_row) for i, th in enumerate(samples)]
-        return sum(crit(ev.F, th) + penalty(ev.X) for ev, th in zip(evs, samples)) / len(samples), evs
+        return sum(crit(ev.F, sc) + penalty(ev.X) for ev, sc in zip(evs, scales)) / len(samples), evs
 
     # the last point evaluated: L-BFGS-B asks for the finite-difference columns of the gradient right after
     # the value at the same point, and each column changes one level: the columns reuse its evaluation
