@@ -17,7 +17,9 @@ coefficients), and the question is what such a model is worth in closed loop.
    surge added mass, 1.2 kg for this hull; astern/ahead thrust from a bollard pull: 0.75); a second
    design for that first answer (`--params first.json`: what an experiment teaches depends on the
    boat), run (`--seed 2`), and `lotsen identify designed.mcap designed2.mcap --validate
-   validation.mcap ... --out identified.json` on both records, as the README's lab loop; then `lotsen mission` on the
+   validation.mcap --in-use first.json ... --out identified.json` on both records; refused (effective
+   coefficients no better than the first answer's) the first answer stays, as the README's lab loop
+   has it; then `lotsen mission` on the
    figure eight at 1.0 m/s over the seam in current and wind (hull_server.py `--current 0.08,30
    --wind 4,250 --gusts 0.2 --wander 15`), with the defaults and with `--params identified.json`. A
    60-s design holds one 10-s prediction window in its last 20 % (identify refuses to judge effective
@@ -53,6 +55,7 @@ import json
 import math
 import re
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -266,7 +269,7 @@ def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust
     lab = ["--validate", "validation.mcap", "--fix", f"m11={m11:g}", "--reverse-thrust-ratio", f"{reverse_thrust_ratio:g}"]
     records: list[str] = []
     out: dict = {}
-    rc = 1
+    rc = first_rc = 1
     for k, (designed, record, answer) in enumerate((("designed.yaml", "designed.mcap", "first.json"),
                                                     ("designed2.yaml", "designed2.mcap", "identified.json"))):
         design = ["experiment", "design", "--duration", "60", "--area", "30x30", "--out", designed]
@@ -293,7 +296,8 @@ def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust
                 if rc != 0:
                     return rows, None, None
         records.append(record)
-        ident = [*records, *lab, "--out", answer] + (["--report", "report.html"] if k else [])
+        # the second answer must predict better than the first (--in-use), else the first stays the answer
+        ident = [*records, *lab, "--out", answer] + (["--in-use", "first.json", "--report", "report.html"] if k else [])
         t0 = time.perf_counter()
         rc, err, cpu = timed_identify(*ident, cwd=work)
         wall = time.perf_counter() - t0
@@ -305,6 +309,13 @@ def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust
                              better_than_defaults_pct=round(100 * (1 - p10 / d10)) if p10 and d10 else None,
                              identify_cpu_s=round(cpu["identify_s"], 1) if cpu.get("identify_s") is not None else None,
                              result=_reasons(out)[:300]))
+        if k and rc == 1 and first_rc == 0:  # refused against the first answer: keep it, as the README does
+            shutil.copy(work / "first.json", work / "identified.json")
+            out = json.loads((work / "identified.json").read_text())
+            rows.append(step_row(table, "keep the first answer", "cp first.json identified.json", 0, 0.0, 0.0,
+                                 verdict=out.get("verdict"), result="the second answer did not predict better"))
+            rc = 0
+        first_rc = rc
     return rows, out, load_parameters(str(work / "identified.json")) if rc == 0 else None
 
 
@@ -371,8 +382,8 @@ def lab_loop_rows(work: Path, quick: bool) -> tuple[list[dict], Any]:
 
 
 def fastest_figure_eight_rows(work: Path, out: dict, hull: str, seeds: tuple[int, ...], flights: str, summary: str,
-                              server: tuple[str, ...] = (), estimated_on: str = "designed.mcap + designed2.mcap (60-s designs at the defaults and at the first answer, calm, over the seam)",
-                              m11: float | None = None, reverse_thrust_ratio: float | None = None) -> list[dict]:
+                              server: tuple[str, ...] = (), m11: float | None = None,
+                              reverse_thrust_ratio: float | None = None) -> list[dict]:
     """Issue 47's bar for the lab loop's answer (`work`/identified.json, the parameter file `out`): the
     fastest figure eight the planner flies (every node at its speed_max_mps; the lobes capped by its
     lateral acceleration, so the speed as flown is shown), over the seam in the lake (`lake_server_args`)
@@ -410,7 +421,8 @@ def fastest_figure_eight_rows(work: Path, out: dict, hull: str, seeds: tuple[int
     d, i = cte["defaults"], cte["identified"]
     flown_all = [r["speed_flown_mps"] for r in rows if r["speed_flown_mps"]]
     r_mean = statistics.mean(i) / statistics.mean(d) if d and i and len(d) == len(i) == len(seeds) else None
-    rows.append({"table": summary, "hull": hull, "estimated on": estimated_on,
+    estimated_on = " + ".join(r for r in out.get("recorded_on", {}) if r != "validation.mcap")
+    rows.append({"table": summary, "hull": hull, "estimated on": f"{estimated_on} (60-s designs, calm, over the seam)",
                  "judged on": (out.get("identification") or {}).get("judged_on") or "?",
                  "verdict": out.get("verdict"), "m11": m11, "reverse_thrust_ratio": reverse_thrust_ratio,
                  "nominal_mps": speed, "planned_mps": round(path.length_m / planned_duration_s(path), 3),
