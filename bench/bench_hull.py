@@ -297,7 +297,8 @@ def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust
                     return rows, None, None
         records.append(record)
         # the second answer must predict better than the first (--in-use), else the first stays the answer
-        ident = [*records, *lab, "--out", answer] + (["--in-use", "first.json", "--report", "report.html"] if k else [])
+        ident = [*records, *lab, "--out", answer] + (["--in-use", "first.json"] if k and first_rc == 0 else []) \
+            + (["--report", "report.html"] if k else [])
         t0 = time.perf_counter()
         rc, err, cpu = timed_identify(*ident, cwd=work)
         wall = time.perf_counter() - t0
