@@ -225,8 +225,10 @@ class EkfConfig:
     # (tests/physics/test_hull_b_experiment.py). 0.15: at most 0.16-0.23 m/s in the first 20 s (seeds
     # 0-3). Smaller values kept more of the error out (0.1: 0.15-0.20; 0.05: 0.11-0.14) but moved two
     # of the fault suite's marginal cases in Hs 6 cm to a failure (0.1: imu_bias seed 0, the frozen-
-    # heading check at 0.24 of the gyro's turn against its 0.25; 0.05: the 0.2 m/s current present at
-    # power-up learnt too slowly in the 3 s before AUTO). A stronger current is learnt through the walk.
+    # heading check at 0.24 of the gyro's turn against its 0.25; 0.05: current_toward_geofence seed 1,
+    # GNSS declared inconsistent 1.75 s after power-up, before AUTO: the waves' orbital velocity, which the
+    # wave states do not yet take while the wave band fills, went nowhere). A stronger current is learnt
+    # through the walk.
     P0_current_std_mps: float = 0.15
     P0_tau_std: tuple[float, float, float] = (0.5, 0.5, 0.1)
     P0_wave_std: tuple[float, float] = (0.01, 0.01)  # m, rad (the rates: times the wave frequency)
