@@ -273,7 +273,7 @@ def lab_identify(work: Path, quick: bool, table: str, m11: float, reverse_thrust
     for k, (designed, record, answer) in enumerate((("designed.yaml", "designed.mcap", "first.json"),
                                                     ("designed2.yaml", "designed2.mcap", "identified.json"))):
         design = ["experiment", "design", "--duration", "60", "--area", "30x30", "--out", designed]
-        if k and rc == 0:  # for the first answer (a refused one: the defaults again)
+        if k and first_rc == 0:  # for the first answer (a refused one: the defaults again)
             design += ["--params", "first.json"]
         if quick:
             design += ["--iterations", "6", "--robust-samples", "1"]
