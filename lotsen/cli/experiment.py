@@ -103,8 +103,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         load_stack_config(args.config)
     model = VesselModel(load_params(args.params))
-    check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
-                     margin_m=args.margin)
+    try:
+        check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
+                         margin_m=args.margin)
+    except ConfigError as exc:
+        if args.params or args.model_params or "leave its area" not in str(exc):
+            raise
+        # a design for an identified model (`design --params P`) keeps P's predicted track inside the
+        # area, not the defaults': the check must predict with the model it was designed for
+        designed_for = exp.description.rpartition("; designed for the model in ")[2] \
+            if "; designed for the model in " in exp.description else "P.json"
+        raise ConfigError(f"{exc} The prediction used the default coefficients; an experiment designed for "
+                          f"another model (`experiment design --params {designed_for}`) is run with the same "
+                          f"--params {designed_for}") from None
     out = Path(args.out)
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
@@ -247,9 +258,14 @@ def _cmd_design(args: argparse.Namespace) -> int:
     result = design_experiment(params, cfg, progress=step)
     progress(None)
     check_experiment(result.experiment, VesselModel(params), margin_m=0.0)
+    experiment = result.experiment
+    if args.params:  # which model the design is for: `experiment run` checks the area with it (--params)
+        from dataclasses import replace
+
+        experiment = replace(experiment, description=f"{experiment.description}; designed for the model in {args.params}")
     from lotsen.sysid.experiment import experiment_to_dict
 
-    write_output(args.out, yaml.safe_dump(experiment_to_dict(result.experiment), sort_keys=False, width=120),
+    write_output(args.out, yaml.safe_dump(experiment_to_dict(experiment), sort_keys=False, width=120),
                  (args.params,), ConfigError, "experiment")
     print(f"{args.out}: {result.summary()}", file=sys.stderr)
     if args.sea is not None:

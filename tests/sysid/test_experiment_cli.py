@@ -68,3 +68,33 @@ def test_a_boat_wider_than_the_checked_model_is_turned_back_unless_told_not_to(t
     assert "ABORTED" not in err and (tmp_path / "a.mcap").is_file()
     assert main([*common, "--no-return", "--out", str(tmp_path / "b.mcap")]) == 1
     assert "ABORTED: left the experiment area" in capsys.readouterr().err
+
+
+def test_a_design_for_an_identified_model_says_so_and_its_run_is_checked_with_that_model(tmp_path, capsys):
+    """`experiment design --params first.json` keeps first.json's predicted track inside the area, not the
+    defaults': the file says which model it was designed for, and a run checked with the defaults that
+    would leave the area names the `--params` to give (found in the README's lab loop, 6-DOF hull: a
+    120-s second design refused by `experiment run` at t = 60.8 s)."""
+    import json
+
+    import yaml
+
+    crawl = tmp_path / "crawl.json"  # a hull 100 x draggier than the defaults: predicted to crawl
+    crawl.write_text(json.dumps({"X_u": 400.0, "X_uu": -400.0, "defaults_for": [
+        "m11", "m22", "m33", "Y_v", "Y_r", "Y_uv", "Y_vv", "Y_rv", "N_v", "N_r", "N_vv", "N_rr", "kappa", "C_N",
+        "mu_az", "mu_t"]}))
+    designed = tmp_path / "d.yaml"
+    assert main(["experiment", "design", "--duration", "6", "--segment", "3", "--iterations", "1",
+                 "--robust-samples", "1", "--params", str(crawl), "--out", str(designed)]) == 0
+    assert yaml.safe_load(designed.read_text())["description"].endswith(f"; designed for the model in {crawl}")
+    capsys.readouterr()
+
+    exp = tmp_path / "straight.yaml"  # inside 20 x 20 m for the crawling model, out of it for the defaults
+    exp.write_text("name: straight\narea: {size_m: [20, 20]}\n"
+                   f"description: 'a straight run; designed for the model in {crawl}'\n"
+                   "pieces:\n  - {type: constant, duration_s: 40, n_rps: 40}\n")
+    assert main(["experiment", "run", str(exp), "--sim", "--out", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "is predicted to leave its area" in err and "The prediction used the default coefficients" in err
+    assert f"run with the same --params {crawl}" in err and not (tmp_path / "a.csv").exists()
+    assert main(["experiment", "run", str(exp), "--sim", "--params", str(crawl), "--out", str(tmp_path / "b.csv")]) == 0
