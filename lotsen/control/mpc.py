@@ -255,6 +255,33 @@ class MPCConfig:
     # return is a reversal, and on the figure eight (test_no_propeller_reversals_in_steady_tracking_on_the_ekf,
     # seed 0) it makes 6 in 60 s against the bar of 0.1/s (5 without); the control owner decides.
     azimuth_astern_hold_s: float = math.inf
+    # An azimuth whose direction is astern but whose modelled achieved speed has stayed inside the
+    # hysteresis (|n| < reversal_hysteresis_rps: idle, not pushing astern) for longer than this gets
+    # ahead as its direction again (its direction state drops to none, sigma ahead), so ahead thrust is
+    # free and astern priced. The astern trap it breaks: an azimuth sent astern once (in the first 2 s
+    # of a start on the EKF, or in a turn) keeps sigma = astern while it idles at the band's edge
+    # (+3 rev/s), ahead thrust then costs the crossing price at every stage, so the other azimuth
+    # carries the thrust and the idle one is used astern as a free yaw couple, on straights as much as in
+    # turns (lake boat, figure eight 0.5 m/s calm, seed 0: azimuth 2 astern-directed from t = 1.6 s
+    # for 99 % of the mission, astern 63 % of the straights, 45 % of the turns, 66 rev/s against it).
+    # Unlike `azimuth_astern_hold_s` it never flips a propeller that is pushing astern, only one idle.
+    # Measured 2026-11-29 (bench_waves' cases: 0.08 m/s current, 4 m/s gusty wind, EKF, default model,
+    # seeds 0-2; inf -> 2 s): figure eight 0.5 m/s lake boat 8001 -> 6685 J, 0.90 -> 0.93 cm; 6-DOF hull
+    # 5769 -> 5097 J, 1.39 -> 1.38 cm; 1.0 m/s lake 9745 -> 8685 J, 1.18 -> 1.13 cm; 6-DOF 6945 -> 6094 J,
+    # 3.31 -> 3.36 cm; Hs 6 cm 0.5 m/s lake 8856 -> 8990 J, 2.02 -> 1.93 cm; 6-DOF 10186 -> 9107 J,
+    # 4.43 -> 4.37 cm. The cost: reversals 0.025 -> 0.065/s (lake, 0.5 m/s), 0.024 -> 0.064 (6-DOF),
+    # 0.098 -> 0.148 (6-DOF 1.0 m/s); test_no_propeller_reversals_in_steady_tracking_on_the_ekf unchanged
+    # (5 in 60 s, seeds 0-2 as before). An azimuth actively pushing astern stays trapped (lake 0.5 m/s
+    # seed 1: 7754 J; split pricing below or a hold catches that, at a price). inf: off.
+    azimuth_idle_release_s: float = 2.0
+    # Calm-water split pricing: the azimuths' thrust cost this many times r_thrust_azimuth_per_N2 about
+    # the nominal plan's common mode (as wave_azimuth_split_scale in a sea; the sea level then scales it
+    # on to that). 1: off (the trim reference). Not the default: measured as above, 10 cut the energy
+    # most (lake 0.5 m/s 5127 J at 0.90 cm; 1.0 m/s 8327 J at 1.17 cm) but cost the 6-DOF hull its
+    # tracking (1.55 cm instead of 1.39 at 0.5 m/s, 3.64 instead of 3.31 at 1.0 m/s; 5: 1.50 / 3.31;
+    # 3: 1.53 / 3.48); 3 with the idle release: 5338 / 4154 / 8380 / 5058 J, 6-DOF 0.5 m/s 1.50 cm
+    # (+8 %) and 8 reversals in 60 s in test_no_propeller_reversals_in_steady_tracking_on_the_ekf seed 0.
+    azimuth_split_scale: float = 1.0
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
     reversal_hysteresis_rps: float = 5.0  # direction changes on achieved speeds beyond +-this (also the count)
     # ESC + motor lag in the prediction (first order, motor_time_constant_s of the limits): each
@@ -278,6 +305,8 @@ class MPCConfig:
             raise ValueError(f"MPCConfig.qp_iterations: {self.qp_iterations} must be in 1..5")
         if not (math.isfinite(self.reiterate_dw) and self.reiterate_dw >= 0.0):
             raise ValueError(f"MPCConfig.reiterate_dw: {self.reiterate_dw} must be a finite number >= 0")
+        if not self.azimuth_idle_release_s > 0.0:
+            raise ValueError(f"MPCConfig.azimuth_idle_release_s: {self.azimuth_idle_release_s} must be > 0 (inf: off)")
         if not self.reversal_band_rps < self.reversal_hysteresis_rps:
             raise ValueError(f"MPCConfig.reversal_band_rps: {self.reversal_band_rps} must be below "
                              f"reversal_hysteresis_rps ({self.reversal_hysteresis_rps})")
@@ -288,7 +317,7 @@ class MPCConfig:
         for name in ("r_thrust_azimuth_per_N2", "r_thrust_bow_per_N2", "reversal_cost_azimuth_per_N",
                      "reversal_cost_bow_per_N", "reversal_band_rps", "reversal_dwell_s", "reversal_dwell_factor",
                      "reversal_quadratic", "reversal_hysteresis_rps", "q_cross_track", "q_cross_track_far",
-                     "cross_track_far_m", "wave_azimuth_split_scale", "wave_bow_cost_scale"):
+                     "cross_track_far_m", "wave_azimuth_split_scale", "wave_bow_cost_scale", "azimuth_split_scale"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
@@ -862,6 +891,7 @@ class MPCController:
         self._sigma = np.array([1.0, 1.0, 0.0])
         self._since_flip_s = np.full(NREV, np.inf)  # time since each propeller changed direction
         self._astern_s = np.zeros(NREV)  # how long each propeller's direction has been astern
+        self._idle_s = np.zeros(NREV)  # how long each propeller has idled with its direction astern
         self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
@@ -876,8 +906,10 @@ class MPCController:
         (R + count S on the diagonal, -S off it)."""
         cfg = self.config
         self.rate_scale = scale
-        self._split[0] = sea_level
-        self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
+        s_calm = max(cfg.azimuth_split_scale, 1.0)
+        s_sea = max(cfg.wave_azimuth_split_scale, s_calm)
+        self._split[0] = 1.0 if s_calm > 1.0 else sea_level
+        self._R[2:4] = self._R_calm[2:4] * (s_calm + (s_sea - s_calm) * sea_level)
         self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
         p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)  # R on the diagonal only
         self._S[:] = self._S_calm * scale
@@ -948,7 +980,17 @@ class MPCController:
                     self._since_flip_s[j] = 0.0
                 self._direction[j] = d
         self._astern_s = np.where(self._direction < 0.0, self._astern_s + cfg.dt_s, 0.0)
-        sigma = np.where(self._direction != 0.0, self._direction, self._sigma)
+        idle = (self._direction < 0.0) & (np.abs(self._n_achieved) < h)
+        self._idle_s = np.where(idle, self._idle_s + cfg.dt_s, 0.0)
+        sigma_prev = self._sigma.copy()
+        if math.isfinite(cfg.azimuth_idle_release_s):  # an azimuth idle astern-directed: ahead again
+            for j in range(2):
+                if self._idle_s[j] > cfg.azimuth_idle_release_s:
+                    self._direction[j] = 0.0
+                    self._astern_s[j] = 0.0
+                    self._idle_s[j] = 0.0
+                    sigma_prev[j] = 1.0
+        sigma = np.where(self._direction != 0.0, self._direction, sigma_prev)
         if cfg.azimuth_ahead_only:
             sigma[:2] = 1.0
         hold = min(cfg.azimuth_astern_hold_s, cfg.wave_azimuth_astern_hold_s) if self.sea_level > 0.0 \
