@@ -437,17 +437,19 @@ def test_reversal_guard_holds_a_direction_and_prices_only_the_crossing():
 
 def test_an_azimuth_left_astern_comes_back_ahead_and_shares_the_thrust():
     """A start or a turn can leave an azimuth's direction astern; on a straight line at 0.8 m/s it must
-    come back ahead after `azimuth_astern_hold_s` and share the thrust (the same thrust from one
-    propeller draws ~40 % more power). With the hold off it stays astern or idle: the trap (found on
-    the survey, issue 48: azimuth 2 astern for a whole 240-s survey on the EKF)."""
+    come back ahead after `azimuth_astern_hold_s`, or (the default) after `azimuth_idle_release_s` of
+    idling, and share the thrust (the same thrust from one propeller draws ~40 % more power). With
+    both off it stays astern or idle: the trap (found on the survey, issue 48: azimuth 2 astern for a
+    whole 240-s survey on the EKF)."""
     from dataclasses import replace as dc_replace
 
     from lotsen.sim import SimConfig, Simulator
 
     path = straight_path(30.0, speed_mps=0.8)
 
-    def fly(hold_s: float) -> np.ndarray:
-        c = MPCController(config=dc_replace(NO_TIME_LIMIT, azimuth_astern_hold_s=hold_s))
+    def fly(hold_s: float, idle_s: float = math.inf) -> np.ndarray:
+        c = MPCController(config=dc_replace(NO_TIME_LIMIT, azimuth_astern_hold_s=hold_s,
+                                            azimuth_idle_release_s=idle_s))
         c.reset(path)
         c._direction[1] = -1.0          # as after a start that sent azimuth 2 astern
         c._update_direction()
@@ -460,6 +462,9 @@ def test_an_azimuth_left_astern_comes_back_ahead_and_shares_the_thrust():
     assert np.mean(back[:, 1]) > 0.7 * np.mean(back[:, 0])             # and sharing
     stuck = fly(math.inf)
     assert np.mean(stuck[:, 1]) < 0.3 * np.mean(stuck[:, 0])          # the trap, without the hold
+    released = fly(math.inf, MPCConfig().azimuth_idle_release_s)      # the default: released when idle
+    assert np.all(released[:, 1] > 5.0)
+    assert np.mean(released[:, 1]) > 0.7 * np.mean(released[:, 0])
 
 
 def _wave_motion(t: float) -> tuple[float, float, float]:
@@ -501,7 +506,8 @@ def test_in_a_sea_an_azimuth_left_astern_comes_back_ahead_but_not_in_calm_water(
     """Issue 46: the reversal guard's crossing price grows with the sea, so an azimuth sent astern
     (at a start, in a turn) stayed there for 40-60 % of a mission while the other carried the thrust,
     and the figure eight drew 1.2-2x the energy. In a sea its direction comes back ahead after
-    wave_azimuth_astern_hold_s; in flat water nothing changes (azimuth_astern_hold_s stays off)."""
+    wave_azimuth_astern_hold_s; in flat water nothing changes (azimuth_astern_hold_s stays off; the
+    idle release, azimuth_idle_release_s, is off here to see the hold alone)."""
     from dataclasses import replace as dc_replace
 
     from lotsen.sim import SimConfig, Simulator
@@ -509,7 +515,8 @@ def test_in_a_sea_an_azimuth_left_astern_comes_back_ahead_but_not_in_calm_water(
     path = straight_path(40.0, speed_mps=0.8)
 
     def fly(wavy: bool, hold_s: float) -> np.ndarray:
-        c = MPCController(config=dc_replace(NO_TIME_LIMIT, wave_azimuth_astern_hold_s=hold_s))
+        c = MPCController(config=dc_replace(NO_TIME_LIMIT, wave_azimuth_astern_hold_s=hold_s,
+                                            azimuth_idle_release_s=math.inf))
         c.reset(path)
         c._direction[1] = -1.0          # as after a start that sent azimuth 2 astern
         c._update_direction()
