@@ -271,8 +271,9 @@ class MPCConfig:
     # 3.31 -> 3.36 cm; Hs 6 cm 0.5 m/s lake 8856 -> 8990 J, 2.02 -> 1.93 cm; 6-DOF 10186 -> 9107 J,
     # 4.43 -> 4.37 cm. The cost: reversals 0.025 -> 0.065/s (lake, 0.5 m/s), 0.024 -> 0.064 (6-DOF),
     # 0.098 -> 0.148 (6-DOF 1.0 m/s); test_no_propeller_reversals_in_steady_tracking_on_the_ekf unchanged
-    # (5 in 60 s, seeds 0-2 as before). An azimuth actively pushing astern stays trapped (lake 0.5 m/s
-    # seed 1: 7754 J; split pricing below or a hold catches that, at a price). inf: off.
+    # (5 in 60 s, seeds 0-2 as before). A partial fix: an azimuth that keeps pushing astern is not idle
+    # and stays astern-directed (lake 0.5 m/s seed 1: 33 % astern, 7754 J; 6-DOF hull 0.5 m/s: azimuth 1
+    # astern 38-54 % on every seed); split pricing below or a hold catches that, at a price. inf: off.
     azimuth_idle_release_s: float = 2.0
     # Calm-water split pricing: the azimuths' thrust cost this many times r_thrust_azimuth_per_N2 about
     # the nominal plan's common mode (as wave_azimuth_split_scale in a sea; the sea level then scales it
