@@ -273,16 +273,9 @@ class MPCConfig:
     # 0.098 -> 0.148 (6-DOF 1.0 m/s); test_no_propeller_reversals_in_steady_tracking_on_the_ekf unchanged
     # (5 in 60 s, seeds 0-2 as before). A partial fix: an azimuth that keeps pushing astern is not idle
     # and stays astern-directed (lake 0.5 m/s seed 1: 33 % astern, 7754 J; 6-DOF hull 0.5 m/s: azimuth 1
-    # astern 38-54 % on every seed); split pricing below or a hold catches that, at a price. inf: off.
+    # astern 38-54 % on every seed); calm-water split pricing (tried, docs/control.md) or a hold
+    # catches that, at a price. inf: off.
     azimuth_idle_release_s: float = 2.0
-    # Calm-water split pricing: the azimuths' thrust cost this many times r_thrust_azimuth_per_N2 about
-    # the nominal plan's common mode (as wave_azimuth_split_scale in a sea; the sea level then scales it
-    # on to that). 1: off (the trim reference). Not the default: measured as above, 10 cut the energy
-    # most (lake 0.5 m/s 5127 J at 0.90 cm; 1.0 m/s 8327 J at 1.17 cm) but cost the 6-DOF hull its
-    # tracking (1.55 cm instead of 1.39 at 0.5 m/s, 3.64 instead of 3.31 at 1.0 m/s; 5: 1.50 / 3.31;
-    # 3: 1.53 / 3.48); 3 with the idle release: 5338 / 4154 / 8380 / 5058 J, 6-DOF 0.5 m/s 1.50 cm
-    # (+8 %) and 8 reversals in 60 s in test_no_propeller_reversals_in_steady_tracking_on_the_ekf seed 0.
-    azimuth_split_scale: float = 1.0
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
     reversal_hysteresis_rps: float = 5.0  # direction changes on achieved speeds beyond +-this (also the count)
     # ESC + motor lag in the prediction (first order, motor_time_constant_s of the limits): each
@@ -318,7 +311,7 @@ class MPCConfig:
         for name in ("r_thrust_azimuth_per_N2", "r_thrust_bow_per_N2", "reversal_cost_azimuth_per_N",
                      "reversal_cost_bow_per_N", "reversal_band_rps", "reversal_dwell_s", "reversal_dwell_factor",
                      "reversal_quadratic", "reversal_hysteresis_rps", "q_cross_track", "q_cross_track_far",
-                     "cross_track_far_m", "wave_azimuth_split_scale", "wave_bow_cost_scale", "azimuth_split_scale"):
+                     "cross_track_far_m", "wave_azimuth_split_scale", "wave_bow_cost_scale"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"MPCConfig.{name}: {v} must be a finite number >= 0")
@@ -907,10 +900,8 @@ class MPCController:
         (R + count S on the diagonal, -S off it)."""
         cfg = self.config
         self.rate_scale = scale
-        s_calm = max(cfg.azimuth_split_scale, 1.0)
-        s_sea = max(cfg.wave_azimuth_split_scale, s_calm)
-        self._split[0] = 1.0 if s_calm > 1.0 else sea_level
-        self._R[2:4] = self._R_calm[2:4] * (s_calm + (s_sea - s_calm) * sea_level)
+        self._split[0] = sea_level
+        self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
         self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
         p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)  # R on the diagonal only
         self._S[:] = self._S_calm * scale
