@@ -274,7 +274,10 @@ class MPCConfig:
     # (5 in 60 s, seeds 0-2 as before). A partial fix: an azimuth that keeps pushing astern is not idle
     # and stays astern-directed (lake 0.5 m/s seed 1: 33 % astern, 7754 J; 6-DOF hull 0.5 m/s: azimuth 1
     # astern 38-54 % on every seed); calm-water split pricing (tried, docs/control.md) or a hold
-    # catches that, at a price. inf: off.
+    # catches that, at a price. In flat water only (sea level 0): in a sea `wave_azimuth_astern_hold_s`
+    # acts, and the idle release there cost the 6-DOF hull tracking in Hs 10 cm (figure eight, seeds
+    # 0-2: 0.5 m/s 6.20 -> 7.33 cm, 1.0 m/s 13.78 -> 15.32 cm, every seed worse at 1.0 m/s) for -5 / +2 %
+    # energy, and the lake boat +1.5-3.7 % energy in Hs 6-10 cm. inf: off.
     azimuth_idle_release_s: float = 2.0
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
     reversal_hysteresis_rps: float = 5.0  # direction changes on achieved speeds beyond +-this (also the count)
@@ -975,7 +978,8 @@ class MPCController:
         idle = (self._direction < 0.0) & (np.abs(self._n_achieved) < h)
         self._idle_s = np.where(idle, self._idle_s + cfg.dt_s, 0.0)
         sigma_prev = self._sigma.copy()
-        if math.isfinite(cfg.azimuth_idle_release_s):  # an azimuth idle astern-directed: ahead again
+        # an azimuth idle astern-directed: ahead again; in flat water only (in a sea the wave hold acts)
+        if math.isfinite(cfg.azimuth_idle_release_s) and self.sea_level == 0.0:
             for j in range(2):
                 if self._idle_s[j] > cfg.azimuth_idle_release_s:
                     self._direction[j] = 0.0

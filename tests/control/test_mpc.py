@@ -507,16 +507,16 @@ def test_in_a_sea_an_azimuth_left_astern_comes_back_ahead_but_not_in_calm_water(
     (at a start, in a turn) stayed there for 40-60 % of a mission while the other carried the thrust,
     and the figure eight drew 1.2-2x the energy. In a sea its direction comes back ahead after
     wave_azimuth_astern_hold_s; in flat water nothing changes (azimuth_astern_hold_s stays off; the
-    idle release, azimuth_idle_release_s, is off here to see the hold alone)."""
+    idle release, azimuth_idle_release_s, is off here to see the hold alone, and acts in flat water only)."""
     from dataclasses import replace as dc_replace
 
     from lotsen.sim import SimConfig, Simulator
 
     path = straight_path(40.0, speed_mps=0.8)
 
-    def fly(wavy: bool, hold_s: float) -> np.ndarray:
+    def fly(wavy: bool, hold_s: float, idle_s: float = math.inf) -> np.ndarray:
         c = MPCController(config=dc_replace(NO_TIME_LIMIT, wave_azimuth_astern_hold_s=hold_s,
-                                            azimuth_idle_release_s=math.inf))
+                                            azimuth_idle_release_s=idle_s))
         c.reset(path)
         c._direction[1] = -1.0          # as after a start that sent azimuth 2 astern
         c._update_direction()
@@ -533,6 +533,9 @@ def test_in_a_sea_an_azimuth_left_astern_comes_back_ahead_but_not_in_calm_water(
     assert np.mean(back[:, 1]) > 0.7 * np.mean(back[:, 0])             # and sharing
     calm = fly(False, 10.0)
     assert np.mean(calm[:, 1]) < 0.3 * np.mean(calm[:, 0])             # flat water: as before (the trap)
+    # the idle release (default 2 s) is for flat water: in a sea, the wave hold off, the trap stays
+    sea_no_hold = fly(True, math.inf, MPCConfig().azimuth_idle_release_s)
+    assert np.mean(sea_no_hold[:, 1]) < 0.3 * np.mean(sea_no_hold[:, 0])
 
 
 def test_cross_track_weight_falls_from_near_to_far():
