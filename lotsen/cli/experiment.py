@@ -30,7 +30,7 @@ from lotsen.model import DEFAULT_PARAMETERS, VesselModel, VesselParameters
 from lotsen.physics.config import address_flag as physics_address
 from lotsen.settings import SEED, Number
 from lotsen.sysid.data import save_csv
-from lotsen.sysid.experiment import check_experiment, load_experiment
+from lotsen.sysid.experiment import DESIGNED_FOR, Experiment, check_experiment, designed_for, load_experiment
 
 #: the area check's margin inside the experiment's area
 MARGIN = Number(0.0, 100.0, "m")
@@ -71,6 +71,17 @@ def _run_inputs(args: argparse.Namespace, config_files: tuple[str, ...] = ()) ->
             None if args.boat == "ideal" else args.boat, *config_files)
 
 
+def _area_advice(exp: Experiment, params: str | None) -> str:
+    """What to say when the area check, predicting with the defaults (no `params`), refuses `exp`: a
+    design for an identified model (`design --params P`) keeps P's predicted track inside the area, not
+    the defaults', so the check must predict with the model it was designed for."""
+    if params:
+        return ""
+    p = designed_for(exp) or "P.json"
+    return (f" The prediction used the default coefficients; an experiment designed for another model "
+            f"(`experiment design --params {p}`) is checked and run with the same --params {p}")
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from lotsen.stack.stack import example_or_file
 
@@ -103,19 +114,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
         load_stack_config(args.config)
     model = VesselModel(load_params(args.params))
-    try:
-        check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
-                         margin_m=args.margin)
-    except ConfigError as exc:
-        if args.params or args.model_params or "leave its area" not in str(exc):
-            raise
-        # a design for an identified model (`design --params P`) keeps P's predicted track inside the
-        # area, not the defaults': the check must predict with the model it was designed for
-        designed_for = exp.description.rpartition("; designed for the model in ")[2] \
-            if "; designed for the model in " in exp.description else "P.json"
-        raise ConfigError(f"{exc} The prediction used the default coefficients; an experiment designed for "
-                          f"another model (`experiment design --params {designed_for}`) is run with the same "
-                          f"--params {designed_for}") from None
+    check_experiment(exp, VesselModel(load_params(args.model_params)) if args.model_params else model,
+                     margin_m=args.margin, area_advice=_area_advice(exp, args.params or args.model_params))
     out = Path(args.out)
     if args.sim and out.suffix == ".mcap":  # the lab loop: the stack, its recorder, an MCAP to identify
         from dataclasses import replace
@@ -213,7 +213,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     from lotsen.stack.stack import describe_parameters
 
     exp = load_experiment(args.experiment)
-    pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin)
+    pred = check_experiment(exp, VesselModel(load_params(args.params)), margin_m=args.margin,
+                            area_advice=_area_advice(exp, args.params))
     if args.params:
         print(f"model: {describe_parameters(args.params)}")
     if args.sea is not None:
@@ -262,7 +263,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
     if args.params:  # which model the design is for: `experiment run` checks the area with it (--params)
         from dataclasses import replace
 
-        experiment = replace(experiment, description=f"{experiment.description}; designed for the model in {args.params}")
+        experiment = replace(experiment, description=f"{experiment.description}{DESIGNED_FOR}{args.params}")
     from lotsen.sysid.experiment import experiment_to_dict
 
     write_output(args.out, yaml.safe_dump(experiment_to_dict(experiment), sort_keys=False, width=120),

@@ -540,9 +540,21 @@ def predict_trajectory(experiment: Experiment, model: VesselModel | None = None,
     return Prediction(ts, X, U)
 
 
+#: how a design for a model other than the defaults ends its description (`experiment design --params P`)
+DESIGNED_FOR = "; designed for the model in "
+
+
+def designed_for(experiment: Experiment) -> str | None:
+    """The parameter file an experiment was designed for (its description's DESIGNED_FOR), if any."""
+    _, marker, tail = experiment.description.rpartition(DESIGNED_FOR)
+    return tail if marker else None
+
+
 def check_experiment(experiment: Experiment, model: VesselModel | None = None,
-                     limits: ActuatorLimits = DEFAULT_LIMITS, margin_m: float = 1.0) -> Prediction:
-    """Refuse (ConfigError) an experiment that exceeds actuator limits or is predicted to leave its area."""
+                     limits: ActuatorLimits = DEFAULT_LIMITS, margin_m: float = 1.0,
+                     area_advice: str = "") -> Prediction:
+    """Refuse (ConfigError) an experiment that exceeds actuator limits or is predicted to leave its area
+    (`area_advice` appended to the latter's message)."""
     problems = check_limits(experiment, limits)
     if problems:
         raise ConfigError(f"experiment '{experiment.name}' exceeds actuator limits:\n  " + "\n  ".join(problems))
@@ -558,7 +570,7 @@ def check_experiment(experiment: Experiment, model: VesselModel | None = None,
             f"experiment '{experiment.name}' is predicted to leave its area (north {a.north_m[0]:g}..{a.north_m[1]:g} m, "
             f"east {a.east_m[0]:g}..{a.east_m[1]:g} m, {margin_m:g} m margin): at t = {pred.t[k]:.1f} s in piece "
             f"{i + 1} ({experiment.pieces[i].label}) the predicted position is north {pred.x[k, 0]:.1f} m, "
-            f"east {pred.x[k, 1]:.1f} m. Shorten the pieces, lower the speed or enlarge the area.")
+            f"east {pred.x[k, 1]:.1f} m. Shorten the pieces, lower the speed or enlarge the area.{area_advice}")
     return pred
 
 

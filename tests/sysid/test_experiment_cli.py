@@ -97,4 +97,7 @@ def test_a_design_for_an_identified_model_says_so_and_its_run_is_checked_with_th
     err = capsys.readouterr().err
     assert "is predicted to leave its area" in err and "The prediction used the default coefficients" in err
     assert f"run with the same --params {crawl}" in err and not (tmp_path / "a.csv").exists()
+    assert main(["experiment", "check", str(exp)]) == 2  # the check alone says the same
+    assert f"checked and run with the same --params {crawl}" in capsys.readouterr().err
+    assert main(["experiment", "check", str(exp), "--params", str(crawl)]) == 0
     assert main(["experiment", "run", str(exp), "--sim", "--params", str(crawl), "--out", str(tmp_path / "b.csv")]) == 0
