@@ -398,8 +398,6 @@ def repeated_lab_loop_rows(work: Path, rows: list[dict]) -> list[dict]:
     """1d: the lab loop again on records whose only difference is lotsen's sensor noise (the runs'
     `--seed`), each answer flown on the fastest figure eight, seeds 0-3, against the defaults' flights
     of 1b: how much of 1c's ratio is the one loop's luck."""
-    import statistics
-
     table = ("1d. the lab loop repeated: the same commands, the estimation runs with other sensor noise "
              "(their --seed), the answer on the fastest figure eight (seeds 0-3) against 1b's defaults")
     defaults = {r["seed"]: r["cross_track_rms_cm"] for r in rows if r.get("model") == "defaults" and "seed" in r}
@@ -416,15 +414,10 @@ def repeated_lab_loop_rows(work: Path, rows: list[dict]) -> list[dict]:
         row = {"table": table, "record_seeds": f"{rs[0]}, {rs[1]}", "verdict": (out or {}).get("verdict"),
                "first answer kept": kept_first}
         if params is not None:
-            from lotsen.planning import PlannerConfig
-
-            route = write_route(sub, "figure_eight_fastest.yaml", PlannerConfig().speed_max_mps)
             cte = {}
             for seed in sorted(defaults):
-                with hull_server(*lake_server_args(seed)) as address:
-                    _, rc, rep, _, _ = mission_over_seam(sub, route, address, f"mission_identified_{seed}.json",
-                                                         "--seed", str(seed), "--params", "identified.json")
-                if rc == 0 and rep.get("completed") and not rep.get("failsafes_triggered"):
+                _, _, rep, _, _, ok = fly_fastest_figure_eight(sub, "identified", seed)
+                if ok:
                     cte[seed] = 100 * rep["cross_track_rms_m"]
             if len(cte) == len(defaults) and defaults:
                 r = statistics.mean(cte.values()) / statistics.mean(defaults.values())
@@ -438,6 +431,22 @@ def repeated_lab_loop_rows(work: Path, rows: list[dict]) -> list[dict]:
     return out_rows
 
 
+def fly_fastest_figure_eight(work: Path, model: str, seed: int, server: tuple[str, ...] = ()
+                             ) -> tuple[str, int, dict, float, float, bool]:
+    """The fastest figure eight the planner flies (every node at its speed_max_mps) over the seam in the
+    lake (`lake_server_args(seed)`, a fresh hull_server.py with `server` flags), with the defaults
+    (`model` "defaults") or `work`/identified.json ("identified"): (the command, exit code, report, CPU s,
+    wall s, completed without a failsafe)."""
+    from lotsen.planning import PlannerConfig
+
+    route = write_route(work, "figure_eight_fastest.yaml", PlannerConfig().speed_max_mps)
+    extra = ("--params", "identified.json") if model == "identified" else ()
+    with hull_server(*server, *lake_server_args(seed)) as address:
+        command, rc, rep, cpu, wall = mission_over_seam(work, route, address, f"mission_{model}_{seed}.json",
+                                                        "--seed", str(seed), *extra)
+    return command, rc, rep, cpu, wall, bool(rc == 0 and rep.get("completed") and not rep.get("failsafes_triggered"))
+
+
 def fastest_figure_eight_rows(work: Path, out: dict, hull: str, seeds: tuple[int, ...], flights: str, summary: str,
                               server: tuple[str, ...] = (), m11: float | None = None,
                               reverse_thrust_ratio: float | None = None) -> list[dict]:
@@ -446,24 +455,18 @@ def fastest_figure_eight_rows(work: Path, out: dict, hull: str, seeds: tuple[int
     lateral acceleration, so the speed as flown is shown), over the seam in the lake (`lake_server_args`)
     with the defaults and with the answer, per seed a fresh hull_server.py (`server` flags) so that both
     models meet the same water. Rows of `flights` per seed and model, and one of `summary`."""
-    import statistics
-
     from lotsen.harness.mission import planned_duration_s
     from lotsen.planning import PlannerConfig
 
     planner = PlannerConfig()
     speed = planner.speed_max_mps
     path = planned(1.0, speed, planner.a_lat_max_mps2)
-    route = write_route(work, "figure_eight_fastest.yaml", speed)
     rows: list[dict] = []
     cte: dict[str, list[float]] = {"defaults": [], "identified": []}
     done = True
     for seed in seeds:
-        for name, extra in (("defaults", ()), ("identified", ("--params", "identified.json"))):
-            with hull_server(*server, *lake_server_args(seed)) as address:
-                command, rc, rep, cpu, wall = mission_over_seam(work, route, address, f"mission_{name}_{seed}.json",
-                                                                "--seed", str(seed), *extra)
-            ok = bool(rc == 0 and rep.get("completed") and not rep.get("failsafes_triggered"))
+        for name in ("defaults", "identified"):
+            command, rc, rep, cpu, wall, ok = fly_fastest_figure_eight(work, name, seed, server)
             done = done and ok
             if rep.get("cross_track_rms_m") is not None:
                 cte[name].append(rep["cross_track_rms_m"])
