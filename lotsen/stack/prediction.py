@@ -4,7 +4,8 @@
 takes and draws depends on the model in use (identified or the defaults), the controller and the
 water and air: so the prediction flies the path with the controller in use on a boat equal to the
 model in use (`SimulatedBoat.ideal_for`), on simulated time, in the current and wind the estimator
-knows (the controller is given that current, as the estimate carries it), and in the sea given (a
+knows (the controller is given that current, as the estimate carries it, and the estimate's error:
+`EstimateNoise`, the mean of three draws), and in the sea given (a
 `Waves`, as `lotsen mission --waves` gives it; a wind sea costs energy: `lotsen mission survey_lake --waves
 0.05,0.9,45` in 0.1 m/s current and 3 m/s wind flew 26.2 Wh against 11.8 Wh predicted in flat water,
 2026-11-28). Its figures are measured
@@ -15,7 +16,7 @@ report's `energy_J`), the time on survey lines (`lotsen.planning.survey.keeping`
 Cost: one controller step and ten simulator steps per 0.1 s of mission and flight; measured 2026-11-28 on
 this machine ~7 ms of CPU per simulated second with the MPC (the 40 x 30 m survey, 1000 s: ~7 s) for one
 flight (estimator="truth"); the default's three draws with the estimator's error 22.8 ms per simulated
-second (16 x 12 m survey, 197 s: 4.5 s, 2026-11-29); the EKF itself in the loop ~29 ms per draw.
+second (16 x 12 m survey, 197 s: 4.5 s, 2026-11-29).
 """
 
 from __future__ import annotations
@@ -28,8 +29,7 @@ from typing import Any
 import numpy as np
 
 from lotsen.control import ControlConfig, make_path_follower
-from lotsen.fusion import EkfConfig, MagCalibration, ModelAidedEKF
-from lotsen.messages import ActuatorState, GnssFix, ImuSample, MagSample, VesselState
+from lotsen.messages import VesselState
 from lotsen.model import DEFAULT_LIMITS, ActuatorLimits, Environment, VesselModel
 from lotsen.model.environment import Waves
 from lotsen.planning.survey.keeping import LineSpan, line_keeping, track_on_path
@@ -38,8 +38,8 @@ from lotsen.sim.loop import control_ticks
 
 #: the prediction gives up after this multiple of the planned time (+ 60 s): a path the model cannot fly
 MAX_TIME_FACTOR = 2.0
-#: what the prediction's controller sees: the stack's estimator on simulated sensors, or the true state
-ESTIMATORS = ("noise", "ekf", "truth")
+#: what the prediction's controller sees: the true state with the estimator's error, or the true state
+ESTIMATORS = ("noise", "truth")
 #: flights averaged with the estimator's error: one flight's energy is one draw of the MPC's discrete
 #: choices (which azimuth goes astern in a turn), 8.5 % apart (std) over six draws on the 16 x 12 m
 #: survey, as the flights on the EKF are (seeds 0-2: 10.8-12.3 kJ); three keep the mean within ~5 %
@@ -70,8 +70,6 @@ class EstimateNoise:
                         self.r_radps[1]])
         a = np.exp(-dt_s / tau)
         return a, std * np.sqrt(1.0 - a * a)
-#: the EKF's initial uncertainty (N, E m; psi rad; u, v m/s; r rad/s; biases; current): `make_sim_ekf`'s
-INITIAL_STD = (0.5, 0.5, 0.2, 0.1, 0.1, 0.1, 0.02, 0.2, 0.2)
 
 
 @dataclass(frozen=True)
@@ -128,9 +126,8 @@ def predict_mission(path: Any, model: VesselModel | None = None, *, current_ne_m
     current (north, east, m/s over ground), the wind (m/s, from deg) and the sea (`waves`; None: flat
     water) given. `estimator`: what the controller sees. "noise" (default): the true state with the
     current given and the estimator's error (`noise`, the EKF's on the simulator's sensors), `draws`
-    flights on its draws from `seed` on, their mean; "ekf": the model-aided EKF itself on the simulator's
-    sensors (5x the CPU of one "noise" flight), `draws` seeds likewise; "truth": one flight on the true
-    state with the current given, as the estimate would carry it without its error."""
+    flights on its draws from `seed` on, their mean; "truth": one flight on the true state with the
+    current given, as the estimate would carry it without its error."""
     if estimator not in ESTIMATORS:
         raise ValueError(f"predict_mission: estimator {estimator!r} is not one of {', '.join(ESTIMATORS)}")
     if not (isinstance(draws, int) and draws >= 1):
@@ -172,79 +169,39 @@ def _fly(path: Any, model: VesselModel, control: ControlConfig, limits: Actuator
     rev/s at each control tick, whether the follower reached the end, the controller's name)."""
     h0 = float(path.heading_rad[0])
     x0 = [float(path.north_m[0]), float(path.east_m[0]), h0, 0.0, 0.0, 0.0]
-    config = SimConfig(dt_s=sim_dt_s, sensors=estimator == "ekf", seed=seed, environment=env)
-    sim = Simulator(SimulatedBoat.ideal_for(model, limits), config=config, x0=x0)
+    sim = Simulator(SimulatedBoat.ideal_for(model, limits),
+                    config=SimConfig(dt_s=sim_dt_s, sensors=False, seed=seed, environment=env), x0=x0)
     follower = make_path_follower(control, model, limits)
     follower.reset(path)
-    ts, xs, ns = [], [], []
     period = round(control.dt_s / sim_dt_s) * sim_dt_s
-    if estimator != "ekf":
-        # The estimate's error is what the flown energy has and the true state has not: on the 16 x 12 m
-        # survey (lake boat, its coefficients, 0.1 m/s current, 3 m/s wind, seed 0, 2026-11-29) the flight
-        # on the EKF drew 11.7 kJ, on the truth with the EKF's current 10.0 kJ, and each state's error alone
-        # (position, heading, u, v) added 0.3-0.9 kJ: the MPC answers it with the bow thruster (1.03 kJ
-        # against 0.68) and an azimuth astern (14 % of the time against 3 %)
-        decay, kick = noise.process(period)
-        rng = np.random.default_rng(seed)
-        err = rng.standard_normal(6) * kick / np.sqrt(1.0 - decay * decay) if estimator == "noise" else np.zeros(6)
+    # The estimate's error is what the flown energy has and the true state has not: on the 16 x 12 m
+    # survey (lake boat, its coefficients, 0.1 m/s current, 3 m/s wind, seed 0, 2026-11-29) the flight
+    # on the EKF drew 11.7 kJ, on the truth with the EKF's current 10.0 kJ, and each state's error alone
+    # (position, heading, u, v) added 0.3-0.9 kJ: the MPC answers it with the bow thruster (1.03 kJ
+    # against 0.68) and an azimuth astern (14 % of the time against 3 %)
+    decay, kick = noise.process(period)
+    rng = np.random.default_rng(seed)
+    err = rng.standard_normal(6) * kick / np.sqrt(1.0 - decay * decay) if estimator == "noise" else np.zeros(6)
 
-        def step(t: float, state: VesselState) -> Any:
-            if estimator == "noise":
-                err[:] = decay * err + kick * rng.standard_normal(6)
-                c, s = math.cos(state.heading_rad), math.sin(state.heading_rad)
-                state = replace(state, north_m=state.north_m + c * err[0] - s * err[1],
-                                east_m=state.east_m + s * err[0] + c * err[1], heading_rad=state.heading_rad + err[2],
-                                u_mps=state.u_mps + err[3], v_mps=state.v_mps + err[4], r_radps=state.r_radps + err[5])
-            return follower.update(t, replace(state, current_ne_mps=cur))
+    def step(t: float, state: VesselState) -> Any:
+        if estimator == "noise":
+            err[:] = decay * err + kick * rng.standard_normal(6)
+            c, s = math.cos(state.heading_rad), math.sin(state.heading_rad)
+            state = replace(state, north_m=state.north_m + c * err[0] - s * err[1],
+                            east_m=state.east_m + s * err[0] + c * err[1], heading_rad=state.heading_rad + err[2],
+                            u_mps=state.u_mps + err[3], v_mps=state.v_mps + err[4], r_radps=state.r_radps + err[5])
+        return follower.update(t, replace(state, current_ne_mps=cur))
 
-        for tick in control_ticks(sim, step, period, until_s=t_max):
-            a = sim.actuators.state
-            ts.append(tick.t_s + period)
-            xs.append(sim.x[:2])
-            ns.append((a[2], a[3], a[4]))
-            if follower.done:
-                break
-    else:
-        ekf = _sim_ekf(model, config, x0)
-        while sim.t < t_max:
-            t = sim.t
-            cmd, _ = follower.update(t, ekf.estimate(t))
-            sim.command(cmd)
-            ekf.on_command(cmd)
-            for msg in sim.advance(period):   # the stack's estimator takes these three (FusionNode)
-                if isinstance(msg, ImuSample):
-                    ekf.on_imu(msg)
-                elif isinstance(msg, MagSample):
-                    ekf.on_mag(msg)
-                elif isinstance(msg, GnssFix):
-                    ekf.on_gnss(msg)
-            a = sim.actuators.state
-            # the achieved values as the boat reports them, once a control period (every 10-ms step: 0.2 %
-            # apart in energy on the survey, seed 0)
-            ekf.on_command(ActuatorState(stamp_s=sim.t, alpha1_rad=a[0], alpha2_rad=a[1], n1_rps=a[2], n2_rps=a[3],
-                                         nt_rps=a[4], escs_armed=True))
-            ts.append(sim.t)
-            xs.append(sim.x[:2])
-            ns.append((a[2], a[3], a[4]))
-            if follower.done:
-                break
+    ts, xs, ns = [], [], []
+    for tick in control_ticks(sim, step, period, until_s=t_max):
+        a = sim.actuators.state
+        ts.append(tick.t_s + period)
+        xs.append(sim.x[:2])
+        ns.append((a[2], a[3], a[4]))
+        if follower.done:
+            break
     return (np.asarray(ts), np.asarray(xs).reshape(-1, 2), np.asarray(ns).reshape(-1, 3), bool(follower.done),
             getattr(follower, "name", control.controller))
-
-
-def _sim_ekf(model: VesselModel, config: SimConfig, x0: list[float]) -> ModelAidedEKF:
-    """The stack's estimator as a flight on the simulator has it (`lotsen.harness.mission.make_sim_ekf`
-    for a boat equal to the model: the antenna at the origin): the magnetometer calibration the
-    simulated sensor's distortion implies, the GNSS origin of the simulator, the start pose."""
-    imu, gnss = config.imu, config.gnss
-    H = imu.earth_field_horizontal_uT
-    (s00, s01), (s10, s11) = imu.soft_iron
-    cal = MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)),
-                         heading_offset_rad=imu.declination_rad)
-    start = VesselState(stamp_s=0.0, north_m=x0[0], east_m=x0[1], heading_rad=x0[2], u_mps=0.0, v_mps=0.0,
-                        r_radps=0.0)
-    return ModelAidedEKF(model, cal, EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m)),
-                         initial=start, initial_std=INITIAL_STD)
 
 
 def compare_with_flown(prediction: MissionPrediction, duration_s: float, energy_J: float) -> dict[str, float]:

@@ -77,8 +77,8 @@ def test_the_prediction_flies_with_the_estimators_error(survey):
     with that error (`EstimateNoise`, the default: three draws) and comes within 10 % of the mean of the
     flights on the EKF on a boat equal to the model; on the truth it is a quarter short. Measured
     2026-11-29 on this survey in 0.1 m/s current and 3 m/s wind: flown on the EKF 5106 / 4789 / 4393 J
-    (seeds 0-2, mean 4763), predicted with the error 4347 J (-8.7 %; the EKF itself in the loop,
-    estimator="ekf", 3 seeds: 4716 J), on the truth 3505 J (-26 %)."""
+    (seeds 0-2, mean 4763), predicted with the error 4347 J (-8.7 %; with the EKF itself in the
+    prediction's loop, tried, 3 seeds: 4716 J), on the truth 3505 J (-26 %)."""
     from lotsen.harness.mission import make_sim_ekf
     from lotsen.model import Environment
     from lotsen.sim import SimulatedBoat
