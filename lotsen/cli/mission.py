@@ -156,9 +156,11 @@ def run(args: argparse.Namespace) -> int:
     boat = plant if plant is not None else boat
     estimator = make_sim_ekf(cfg, path, model, boat=boat) if args.estimator == "ekf" else None
     # before the boat leaves: the time and energy the model in use predicts in the current, wind and waves
-    # given (with --physics none are given: the prediction is in calm water)
+    # given (with --physics none are given: the prediction is in calm water), the controller on the estimate's
+    # error as on the EKF, or on the true state as the flight is with --estimator truth
     prediction = predict(route, path, model, model_file.describe() if model_file else "default coefficients",
-                         cur, wind, args.controller, waves=waves)
+                         cur, wind, args.controller, waves=waves,
+                         estimator="noise" if args.estimator == "ekf" else "truth")
     try:
         result = run_mission(path, make_path_follower(control, model), cfg, model=model, estimator=estimator,
                              survey_lines=line_spans(route, path),

@@ -26,7 +26,8 @@ def parse_speed_dir(text: str | None, what: str) -> tuple[float, float]:
 
 
 #: the planned time a prediction (or a simulated mission) may take: beyond it a route is a typo or a
-#: hostile file, and the simulation would run for many minutes (~7 ms of CPU per simulated second)
+#: hostile file, and the simulation would run for many minutes (~23 ms of CPU per simulated second: three
+#: flights with the estimator's error, lotsen.stack.prediction)
 MAX_PREDICTED_PLANNED_S = 3600.0
 
 
@@ -39,9 +40,10 @@ def model_in_use(params: str | None):  # type: ignore[no-untyped-def]
 
 
 def predict(route, path, model, model_name: str, current: tuple[float, float], wind: tuple[float, float],
-            controller: str = "mpc", waves=None):  # type: ignore[no-untyped-def]
+            controller: str = "mpc", waves=None, estimator: str = "noise"):  # type: ignore[no-untyped-def]
     """The mission's time and energy (lotsen.stack.prediction) in the current (m/s, to deg), wind
-    (m/s, from deg) and sea (a `Waves`, None: flat water) given; ConfigError for a path too long to predict."""
+    (m/s, from deg) and sea (a `Waves`, None: flat water) given, the controller on the estimate's error
+    (`estimator` "noise") or on the true state ("truth"); ConfigError for a path too long to predict."""
     from lotsen.control import ControlConfig
     from lotsen.planning.survey.keeping import line_spans
     from lotsen.stack.prediction import predict_mission
@@ -53,7 +55,8 @@ def predict(route, path, model, model_name: str, current: tuple[float, float], w
     a = math.radians(current[1])
     return predict_mission(path, model, current_ne_mps=(current[0] * math.cos(a), current[0] * math.sin(a)),
                            wind_mps=wind[0], wind_from_deg=wind[1], control=ControlConfig(controller=controller),
-                           survey_lines=line_spans(route, path), model_name=model_name, waves=waves)
+                           survey_lines=line_spans(route, path), model_name=model_name, waves=waves,
+                           estimator=estimator)
 
 
 def describe_prediction(p) -> str:  # type: ignore[no-untyped-def]
