@@ -28,7 +28,8 @@ def register(subparsers) -> None:
         description="Plan the path harbour -> nodes of ROUTE (YAML, GeoJSON, or a ground station's file: "
                     "QGroundControl .plan, QGC WPL 110 .waypoints/.txt, KML, GPX) and write it as JSON "
                     "and/or a plot; --export writes the route in another of these formats.")
-    p.add_argument("route", help="route file (.yaml, .yml, .geojson, .plan, .waypoints, .txt, .kml, .gpx)")
+    p.add_argument("route", help="route file (.yaml, .yml, .geojson, .plan, .waypoints, .txt, .kml, .gpx), or the "
+                   "NAME of an example route (figure_eight, survey_lake, ...)")
     p.add_argument("--out", help="write the path as JSON (lotsen.path format)")
     p.add_argument("--plot", help="write a PNG of area, obstacles, nodes and the path coloured by speed")
     p.add_argument("--return-from", nargs=3, metavar=("NORTH", "EAST", "HEADING_DEG"),
@@ -162,6 +163,9 @@ def run(args: argparse.Namespace) -> int:
         from lotsen.planning.formats import format_of
 
         format_of(export)  # an unknown suffix is refused before any planning
+    from lotsen.stack.stack import example_or_file
+
+    args.route = example_or_file(args.route, "routes")  # a bare NAME: the example route, as `lotsen mission` takes it
     check_outputs((args.out, args.plot, export), (args.route,) + ((args.params,) if getattr(args, "params", None)
                                                                    else ()), ConfigError)
     predicting = None

@@ -63,7 +63,9 @@ def describe_prediction(p) -> str:  # type: ignore[no-untyped-def]
     """One line for the console: what the prediction says and what it was made with."""
     c = math.hypot(*p.current_ne_mps)
     lines = (f", {100 * p.share_on_lines:.0f} % on lines" if p.time_on_lines_s > 0 else "")
-    return (f"predicted: {p.duration_s:.0f} s ({p.duration_s / 60:.1f} min{lines}), {p.energy_J / 3600:.1f} Wh "
+    spread = (f" ({p.energy_range_J[0] / 3600:.1f}-{p.energy_range_J[1] / 3600:.1f} over {p.draws} flights on the "
+              f"estimate's error)" if p.draws > 1 else "")
+    return (f"predicted: {p.duration_s:.0f} s ({p.duration_s / 60:.1f} min{lines}), {p.energy_J / 3600:.1f} Wh{spread} "
             f"at the motors (mean {p.mean_power_W:.0f} W); {p.controller} on the {p.model}, current {c:.2f} m/s, "
             f"wind {p.wind_mps:g} m/s" + (f", waves Hs {p.waves.hs_m * 100:.0f} cm" if p.waves is not None else "")
             + ("" if p.reached_end else "; the model did NOT reach the end"))

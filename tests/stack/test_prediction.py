@@ -101,3 +101,25 @@ def test_the_prediction_flies_with_the_estimators_error(survey):
     assert abs(noisy.energy_J - mean) / mean < 0.10, (noisy.energy_J, flown)
     assert truth.energy_J < 0.8 * mean, (truth.energy_J, flown)   # the cause: without the error, a quarter short
     assert abs(noisy.duration_s - truth.duration_s) / truth.duration_s < 0.02
+
+
+def test_lotsen_plan_predicts_an_example_route_by_name_from_any_folder(tmp_path):
+    """The operator's way in: `lotsen plan NAME --predict` from a folder without the examples, as `lotsen
+    mission NAME` is; the line says the energy and its spread over the flights on the estimate's error."""
+    import re
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "lotsen", "plan", "figure_eight", "--out", "path.json", "--predict",
+                          "--current", "0.1,90", "--wind", "3,45"], capture_output=True, text=True, timeout=300,
+                         cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    m = re.search(r"predicted: (\d+) s .*?, ([\d.]+) Wh \(([\d.]+)-([\d.]+) over 3 flights on the estimate's error\)",
+                  res.stdout)
+    assert m, res.stdout
+    low, mid, high = float(m.group(3)), float(m.group(2)), float(m.group(4))
+    assert int(m.group(1)) > 0 and 0.0 < low <= mid <= high, res.stdout
+    assert "current 0.10 m/s, wind 3 m/s" in res.stdout and (tmp_path / "path.json").is_file()
+    bad = subprocess.run([sys.executable, "-m", "lotsen", "plan", "no_such_route", "--out", "p.json"],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert bad.returncode != 0 and "no such file, nor an example route" in bad.stderr and "figure_eight" in bad.stderr
