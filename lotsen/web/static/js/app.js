@@ -763,7 +763,9 @@ $("#btn-predict").onclick = async () => {
     const c = Math.hypot(res.current_ne_mps[0], res.current_ne_mps[1]);
     $("#predictinfo").textContent = `predicted: ${fmtDuration(res.duration_s)}` +
       (res.share_on_lines != null ? ` (${Math.round(100 * res.share_on_lines)} % on lines)` : "") +
-      `, ${res.energy_Wh.toFixed(1)} Wh at the motors (mean ${res.mean_power_W.toFixed(0)} W); ${res.controller} on the ${res.model},` +
+      `, ${res.energy_Wh.toFixed(1)} Wh` +
+      (res.draws > 1 && res.energy_range_Wh ? ` (${res.energy_range_Wh[0].toFixed(1)}-${res.energy_range_Wh[1].toFixed(1)} over ${res.draws} flights)` : "") +
+      ` at the motors (mean ${res.mean_power_W.toFixed(0)} W); ${res.controller} on the ${res.model},` +
       ` in the estimated current ${c.toFixed(2)} m/s` + (res.reached_end ? "" : "; the model did NOT reach the end");
   } else $("#predictinfo").textContent = `no prediction: ${res.error || (res.errors && res.errors[0].message) || "failed"}`;
 };
