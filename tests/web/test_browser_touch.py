@@ -86,6 +86,10 @@ def hit(pg, sel: str) -> bool:
 
 
 def tap(pg, sel: str) -> None:
+    # a draft plan due or on its way rewrites the plan's status above the buttons when it lands: a tap
+    # aimed before that can land on the button the text pushed there (on a busy machine, #btn-clear's
+    # tap opened nothing and the next tap waited 30 s for the box)
+    pg.wait_for_function("() => !window.lotsen || !window.lotsen.planPending", timeout=30000)
     pg.locator(sel).scroll_into_view_if_needed()
     pg.tap(sel)
 

@@ -16,7 +16,7 @@ const EDIT_TOL = 2e-3;   // the editor keeps 1 mm / 0.001 deg: closer than this 
 
 const state = {
   ws: null, connected: false, pilot: false, token: null, hello: null,
-  telemetry: null, lastPlan: null, planSeq: 0, planTimer: null, nextId: 1, pending: new Map(),
+  telemetry: null, lastPlan: null, planSeq: 0, planTimer: null, planScheduled: 0, planPending: 0, nextId: 1, pending: new Map(),
   rttMs: null, framesRx: 0, mode: null, logs: [], origin: null,
   boatRoute: null,        // the boat's read-back {route, route_id}
   upload: null,           // this page's last upload {route_id, route}
@@ -667,10 +667,16 @@ route.onChange((replan) => {
 
 function schedulePlan() {
   clearTimeout(state.planTimer);
+  state.planPending = ++state.planScheduled;   // a draft plan is due: the page's text will still change
   state.planTimer = setTimeout(plan, 150);
 }
 
 async function plan() {
+  const mine = state.planScheduled;
+  try { await planDraft(); } finally { if (state.planPending === mine) state.planPending = 0; }
+}
+
+async function planDraft() {
   renderSurvey();
   if (!route.complete()) {
     route.errors = []; map.draftPath = null; state.lastPlan = null; map.surveyLines = null; map.surveyPolygon = null;
