@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -62,14 +62,12 @@ class EstimateNoise:
     v_mps: tuple[float, float] = (0.0098, 0.14)
     r_radps: tuple[float, float] = (0.0057, 0.36)
 
-    def process(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Per state (along, across, heading, u, v, r): the step's decay and the innovation's std."""
-        std = np.array([self.along_m[0], self.across_m[0], self.heading_rad[0], self.u_mps[0], self.v_mps[0],
-                        self.r_radps[0]])
-        tau = np.array([self.along_m[1], self.across_m[1], self.heading_rad[1], self.u_mps[1], self.v_mps[1],
-                        self.r_radps[1]])
+    def process(self, dt_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per state (along, across, heading, u, v, r): the stationary std, the step's decay and the
+        innovation's std."""
+        std, tau = np.array([self.along_m, self.across_m, self.heading_rad, self.u_mps, self.v_mps, self.r_radps]).T
         a = np.exp(-dt_s / tau)
-        return a, std * np.sqrt(1.0 - a * a)
+        return std, a, std * np.sqrt(1.0 - a * a)
 
 
 @dataclass(frozen=True)
@@ -143,8 +141,8 @@ def predict_mission(path: Any, model: VesselModel | None = None, *, current_ne_m
     planned = float(path.duration_s())
     flights = []
     for k in range(1 if estimator == "truth" else draws):
-        t, xy, n, done, name = _fly(path, model, control, limits, env, cur, sim_dt_s, estimator, seed + k, noise,
-                              MAX_TIME_FACTOR * planned + 60.0)
+        t, xy, n, done, name = _fly(path, model, control, limits, env, cur, sim_dt_s, seed + k,
+                                    noise if estimator == "noise" else None, MAX_TIME_FACTOR * planned + 60.0)
         duration = float(t[-1]) if t.size else 0.0
         on_lines = 0.0
         if survey_lines and t.size:
@@ -163,10 +161,11 @@ def predict_mission(path: Any, model: VesselModel | None = None, *, current_ne_m
 
 
 def _fly(path: Any, model: VesselModel, control: ControlConfig, limits: ActuatorLimits, env: Environment,
-         cur: tuple[float, float], sim_dt_s: float, estimator: str, seed: int, noise: EstimateNoise,
+         cur: tuple[float, float], sim_dt_s: float, seed: int, noise: EstimateNoise | None,
          t_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, str]:
-    """One flight of `path` on a boat equal to `model`: (times s, positions N/E m, propeller speeds
-    rev/s at each control tick, whether the follower reached the end, the controller's name)."""
+    """One flight of `path` on a boat equal to `model`, the controller on the true state with `noise`'s
+    error (None: on the true state): (times s, positions N/E m, propeller speeds rev/s at each control
+    tick, whether the follower reached the end, the controller's name)."""
     h0 = float(path.heading_rad[0])
     x0 = [float(path.north_m[0]), float(path.east_m[0]), h0, 0.0, 0.0, 0.0]
     sim = Simulator(SimulatedBoat.ideal_for(model, limits),
@@ -179,18 +178,10 @@ def _fly(path: Any, model: VesselModel, control: ControlConfig, limits: Actuator
     # on the EKF drew 11.7 kJ, on the truth with the EKF's current 10.0 kJ, and each state's error alone
     # added 0.55 kJ (position), 0.39 (u), 0.64 (v), 0.07 (heading), 0.02 (r): the MPC answers it with the
     # bow thruster (1.03 kJ against 0.68) and an azimuth astern (14 % of the time against 3 %)
-    decay, kick = noise.process(period)
-    rng = np.random.default_rng(seed)
-    err = rng.standard_normal(6) * kick / np.sqrt(1.0 - decay * decay) if estimator == "noise" else np.zeros(6)
+    observe = (lambda state: state) if noise is None else _with_error(noise, period, seed)
 
     def step(t: float, state: VesselState) -> Any:
-        if estimator == "noise":
-            err[:] = decay * err + kick * rng.standard_normal(6)
-            c, s = math.cos(state.heading_rad), math.sin(state.heading_rad)
-            state = replace(state, north_m=state.north_m + c * err[0] - s * err[1],
-                            east_m=state.east_m + s * err[0] + c * err[1], heading_rad=state.heading_rad + err[2],
-                            u_mps=state.u_mps + err[3], v_mps=state.v_mps + err[4], r_radps=state.r_radps + err[5])
-        return follower.update(t, replace(state, current_ne_mps=cur))
+        return follower.update(t, replace(observe(state), current_ne_mps=cur))
 
     ts, xs, ns = [], [], []
     for tick in control_ticks(sim, step, period, until_s=t_max):
@@ -202,6 +193,23 @@ def _fly(path: Any, model: VesselModel, control: ControlConfig, limits: Actuator
             break
     return (np.asarray(ts), np.asarray(xs).reshape(-1, 2), np.asarray(ns).reshape(-1, 3), bool(follower.done),
             getattr(follower, "name", control.controller))
+
+
+def _with_error(noise: EstimateNoise, period_s: float, seed: int) -> Callable[[VesselState], VesselState]:
+    """The true state as the estimator would give it, once a control period: plus `noise`'s error,
+    drawn from `seed` (started from its stationary spread; position error along and across the boat)."""
+    std, decay, kick = noise.process(period_s)
+    rng = np.random.default_rng(seed)
+    err = rng.standard_normal(6) * std
+
+    def observe(state: VesselState) -> VesselState:
+        err[:] = decay * err + kick * rng.standard_normal(6)
+        c, s = math.cos(state.heading_rad), math.sin(state.heading_rad)
+        return replace(state, north_m=state.north_m + c * err[0] - s * err[1],
+                       east_m=state.east_m + s * err[0] + c * err[1], heading_rad=state.heading_rad + err[2],
+                       u_mps=state.u_mps + err[3], v_mps=state.v_mps + err[4], r_radps=state.r_radps + err[5])
+
+    return observe
 
 
 def compare_with_flown(prediction: MissionPrediction, duration_s: float, energy_J: float) -> dict[str, float]:
