@@ -173,7 +173,7 @@ def _problem(args: argparse.Namespace) -> tuple[IdentificationProblem, list[str]
         warnings.append("validation on the estimation data (--holdout 0): fit figures are optimistic")
     solver = SolverOptions(gap_s=args.gap, noise_std=noise, max_iterations=args.max_iter, window_s=args.window,
                            node_s=args.node, estimate_noise=not args.fixed_noise, gust_std=args.gust_std,
-                           gyro_bias=True if args.gyro_offset else None)
+                           gyro_bias=True if args.gyro_offset else None, gyro_offset_block_s=args.gyro_offset_block)
     problem = IdentificationProblem(
         est, val, fixed, provenance, dataclasses.replace(DEFAULT_GEOMETRY, reverse_thrust_ratio=args.reverse_thrust_ratio),
         init.parameters if init else DEFAULT_PARAMETERS, in_use.parameters if in_use else None, args.lake,
@@ -268,9 +268,12 @@ def _print_environment(ident: Identification) -> None:
         print("gust model: with the gusts cut into longer intervals the coefficients move "
               + (", ".join(f"{n} {shift[n]:+.1f} sigma" for n in moved) if moved else "by less than 1 sigma each")
               + "; the answer is the average of the two, its intervals include the difference", file=sys.stderr)
-    if sh.gyro_bias is not None and sh.gyro_bias_std is not None:
-        print("gyro offset per record (rad/s): " + ", ".join(
-            f"{b:+.4f} +- {sb:.4f}" for b, sb in zip(sh.gyro_bias, sh.gyro_bias_std)), file=sys.stderr)
+    if sh.gyro_bias is not None and sh.gyro_bias_std is not None and sh.gyro_bias_record is not None:
+        rec = [int(q) for q in sh.gyro_bias_record]
+        print("gyro offset (rad/s): " + "; ".join(
+            f"record {q + 1}: " + ", ".join(f"{b:+.4f}" for b, p in zip(sh.gyro_bias, rec) if p == q)
+            + f" (+- {max(s for s, p in zip(sh.gyro_bias_std, rec) if p == q):.4f})" for q in sorted(set(rec))),
+            file=sys.stderr)
 
 
 def _parse_terms(text: str) -> tuple[str, ...] | None:
@@ -394,8 +397,10 @@ def register(subparsers: Any) -> None:
                    help="optional model terms (X_uuu: surge resistance growing faster than speed squared): auto "
                         "(default) turns each on where the held-out prediction shows the record needs it")
     p.add_argument("--gyro-offset", action="store_true",
-                   help="estimate a constant offset of the yaw rate (r) per record with the coefficients "
-                        "(always on with --lake)")
+                   help="estimate the yaw rate's (r) offset with the coefficients, one per record and "
+                        "--gyro-offset-block: a gyro's bias wanders (always on with --lake)")
+    p.add_argument("--gyro-offset-block", type=Number(0.0, 86400.0, "s"), default=60.0, metavar="S",
+                   help="one yaw-rate offset per this many seconds of a record (default 60; 0: one per record)")
     p.add_argument("--lake", action="store_true",
                    help="estimate a constant current, the wind (air velocity and drag coefficients) and a gust "
                         "factor per shooting interval with the parameters (records taken outside calm water); "

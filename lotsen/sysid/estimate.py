@@ -64,7 +64,8 @@ class SolverOptions:
     lake: bool = False  # current, wind and gusts estimated with the coefficients
     gust_std: float = 0.3  # lake: prior spread of the per-interval gust factors
     wind_coefficient_spread: float = 0.01  # lake: relative prior spread of the wind's drag coefficients
-    gyro_bias: bool | None = None  # a yaw-rate offset per record (None: with `lake`)
+    gyro_bias: bool | None = None  # yaw-rate offsets (None: with `lake`)
+    gyro_offset_block_s: float = 60.0  # one offset per record and block of about this long (0: per record)
     test_fixed: tuple[str, ...] = ()  # fixed coefficients whose value the record may contradict
     misfit_check: int = 0  # stop after this many iterations when the track's errors stay correlated
     terms: tuple[str, ...] = ()  # optional model terms estimated (OPTIONAL_TERMS; the others off)

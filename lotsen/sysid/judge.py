@@ -234,9 +234,11 @@ class Identification:
             # how far each coefficient moved with the inputs' other reconstruction (already in its std)
             out["input_reconstruction_shift_sigma"] = {n: round(x, 2) if math.isfinite(x) else None
                                                        for n, x in sh.reconstruction_shift.items()}
-        if sh is not None and sh.gyro_bias is not None and sh.gyro_bias_std is not None:
+        if sh is not None and sh.gyro_bias is not None and sh.gyro_bias_std is not None \
+                and sh.gyro_bias_record is not None:
             out["gyro_bias_radps"] = {"values": [float(b) for b in sh.gyro_bias],
-                                      "std": [float(b) for b in sh.gyro_bias_std]}
+                                      "std": [float(b) for b in sh.gyro_bias_std],
+                                      "record": [int(q) for q in sh.gyro_bias_record]}
         return out
 
 

@@ -79,11 +79,14 @@ ENV_SCALE = np.array([0.05, 0.05, 2.0, 2.0, *_K_WIND])
 ENV_PRIOR_STD = np.array([1.0, 1.0, 10.0, 10.0, *_K_WIND])  # the coefficients' x wind_coefficient_spread
 ENV_LO = np.array([-1.0, -1.0, -30.0, -30.0, 0.0, 0.0, -1.0, -1.0])
 ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0, 1.0])
-# The yaw-rate output's constant offset, one per record (`gyro_bias=True`): r_measured = r + b. A gyro
+# The yaw-rate output's offset (`gyro_bias=True`): r_measured = r + b, one b per record and block of
+# SolverOptions.gyro_offset_block_s (60 s), since a MEMS gyro's bias wanders (temperature). A gyro
 # bias calibrated "at rest" is wrong by the yaw rate the boat had then (on a lake the wind turns a
 # drifting boat: 0.02-0.06 rad/s on the lake records, 7-20 x the gyro noise), and the stack's records
 # carry the estimator's bias error. Unmodelled, the offset contradicts the heading's slope, and the
 # fit bends the yaw coefficients to share the difference (m33 1-2 % off at 4-5 sigma on lake records).
+# One offset for a 10-min record whose bias walks (lotsen's simulator: 0.0002 rad/s/sqrt(s)) leaves
+# the walk in r: per minute, the core coefficients' errors fell 5-14 % (docs/sysid.md).
 # Scale, weak prior and bounds in rad/s.
 GYRO_BIAS_SCALE = 0.01
 GYRO_BIAS_PRIOR_STD = 0.2
@@ -318,7 +321,15 @@ class MultipleShootingProblem:
         self.prior_std = np.concatenate([np.full(NTHETA, np.inf), env_std]) if lake else np.full(NTHETA, np.inf)
         # the kernel's parameters (vessel [+ environment]); measurement parameters follow them
         self.n_kernel = NTHETA_LAKE if lake else NTHETA
-        self.n_bias = len(records) if gyro_bias and "r" in names else 0
+        # the yaw-rate offsets: per record, one per block of about options.gyro_offset_block_s
+        starts = [float(r.t[0]) for r in records]
+        blocks = [max(1, int(round(r.duration_s / options.gyro_offset_block_s))) if options.gyro_offset_block_s > 0
+                  else 1 for r in records]
+        self.bias_record = np.repeat(np.arange(len(records)), blocks) if gyro_bias and "r" in names \
+            else np.zeros(0, int)
+        self.n_bias = len(self.bias_record)
+        self._bias_slots = (np.array(starts), np.array([max(r.duration_s / b, 1e-9) for r, b in zip(records, blocks)]),
+                            np.concatenate([[0], np.cumsum(blocks)[:-1]]).astype(int), np.array(blocks))
         self.prior_mean = np.concatenate([self.prior_mean, np.zeros(self.n_bias)])
         self.prior_std = np.concatenate([self.prior_std, np.full(self.n_bias, GYRO_BIAS_PRIOR_STD)])
         self.grid = build_grid(segs, node_s, h_max)
@@ -337,7 +348,7 @@ class MultipleShootingProblem:
         self.n_nodes = g.n_nodes
         self.n_con = len(self.con)
         self.meas_bounds = np.searchsorted(g.meas_node, np.arange(self.n_nodes + 1))
-        self.meas_record = self.seg_record[g.node_seg[g.meas_node]]
+        self.meas_bias = self.bias_slot(self.seg_record[g.node_seg[g.meas_node]], g.meas_t)
         self.r_col = names.index("r") if "r" in names else None
         self._pattern_cache: dict = {}
         self.blocks = [Held(self._block(n0, n1)) for n0, n1 in cut_blocks(g.node_step, g.n_steps)]
@@ -365,16 +376,23 @@ class MultipleShootingProblem:
         return ShootingBlock(geometry_tuple(self.geometry), self.lake, n0, n1, g.h[s0:s1], g.U[s0:s1],
                              g.reset[s0:s1], g.node_step[n0:n1] - s0, need, np.searchsorted(need, meas),
                              np.searchsorted(need, ends), self.Y[m0:m1], self.mask[m0:m1],
-                             self.meas_bounds[n0:n1 + 1] - m0, self.meas_record[m0:m1],
+                             self.meas_bounds[n0:n1 + 1] - m0, self.meas_bias[m0:m1],
                              tuple(self.out_idx), self.psi_col, self.r_col)
+
+    def bias_slot(self, record: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """The yaw-rate offset (its index) of record `record` at time `t` (per element)."""
+        t0, length, first, n = self._bias_slots
+        k = np.floor((np.asarray(t, float) - t0[record]) / length[record]).astype(int)
+        return first[record] + np.clip(k, 0, n[record] - 1)
 
     def initial_gyro_bias(self) -> np.ndarray:
         """Per record, the yaw-rate offset from the data alone: (integral of the measured r - the
         heading's change) / duration over its segments. A start for the estimate, no more."""
-        b = np.zeros(self.n_bias)
+        n_records = int(self.seg_record.max()) + 1 if len(self.seg_record) else 0
+        b = np.zeros(n_records)
         if not self.n_bias or self.psi_col is None:
             return b
-        num, den = np.zeros(self.n_bias), np.zeros(self.n_bias)
+        num, den = np.zeros(n_records), np.zeros(n_records)
         for seg, q in zip(self.segments, self.seg_record):
             ip, ir = self.psi_col, self.r_col
             okp, okr = np.isfinite(seg.outputs[:, ip]), np.isfinite(seg.outputs[:, ir])
@@ -546,8 +564,11 @@ class MultipleShootingResult:
     # per output: the normalised autocorrelation of its residuals at lags 1..K measurements
     residual_autocorr: dict[str, np.ndarray] | None = None
     environment: "EnvironmentEstimate | None" = None  # the lake model's current, wind and gusts
-    gyro_bias: np.ndarray | None = None  # per record, the yaw-rate output's offset (rad/s), if estimated
+    # the yaw-rate output's offsets (rad/s), if estimated: per record and block of
+    # SolverOptions.gyro_offset_block_s in time order, with the record (index) of each
+    gyro_bias: np.ndarray | None = None
     gyro_bias_std: np.ndarray | None = None
+    gyro_bias_record: np.ndarray | None = None
     # lake model: how far each coefficient moved, in its own sigma, when the gusts were cut into
     # longer intervals (estimate_lake_averaged); already part of the covariance
     gust_interval_shift: dict[str, float] | None = None
@@ -616,7 +637,7 @@ def _quad(prob: MultipleShootingProblem, blocks: tuple, ds: np.ndarray, dp: np.n
 @dataclass(frozen=True)
 class ShootingStart:
     """Where a multiple-shooting search starts beyond the coefficients (None: from the data): the node
-    states, the lake model's environment (ENV_NAMES order) and the yaw-rate offsets per record."""
+    states, the lake model's environment (ENV_NAMES order) and the yaw-rate offsets (per record and block)."""
 
     nodes: np.ndarray | None = None
     environment: Sequence[float] | None = None
@@ -642,9 +663,9 @@ def estimate_multiple_shooting(records: Sequence[IdRecord], theta0: VesselParame
     per shooting interval (prior 1 +- `gust_std`); the covariance is then also inflated for the
     residuals' autocorrelation (`autocorrelation_factor`). Results in `details.environment`.
 
-    `gyro_bias` (default: with `lake`): estimate a constant offset of the yaw-rate output per record
-    (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from the data
-    (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
+    `gyro_bias` (default: with `lake`): estimate an offset of the yaw-rate output per record and block
+    of `gyro_offset_block_s` (r_measured = r + b; GYRO_BIAS_SCALE), started from `gyro_bias0` or from
+    the data (`MultipleShootingProblem.initial_gyro_bias`). Results in `details.gyro_bias`.
 
     `parallel`: the map the shooting intervals' blocks run on (lotsen.sysid.parallel), unless `problem`
     is given (then its own).
@@ -720,9 +741,12 @@ def _shooting_search(records: Sequence[IdRecord], theta0: VesselParameters, fixe
         if nodes.shape[1] == 6:
             nodes = np.column_stack([nodes, np.ones(len(nodes)), np.zeros(len(nodes))])
     if prob.n_bias:
-        b0 = prob.initial_gyro_bias() if gyro_bias0 is None else np.asarray(gyro_bias0, float)
+        if gyro_bias0 is None:  # every block of a record from the record's offset
+            b0 = prob.initial_gyro_bias()[prob.bias_record]
+        else:
+            b0 = np.asarray(gyro_bias0, float)
         if nodes0 is None:  # the nodes' r from the measured r, less its offset
-            nodes[:, 5] -= b0[prob.seg_record[prob.grid.node_seg]]
+            nodes[:, 5] -= b0[prob.bias_slot(prob.seg_record[prob.grid.node_seg], prob.grid.node_time)]
         theta = np.concatenate([theta, b0])
         free = np.concatenate([free, prob.n_kernel + np.arange(prob.n_bias)])
         tscale = np.concatenate([tscale, np.full(prob.n_bias, GYRO_BIAS_SCALE)])
@@ -1072,6 +1096,7 @@ def _result(prob: MultipleShootingProblem, search: _Search, theta: np.ndarray, n
         nk = prob.n_kernel
         res.details.gyro_bias = theta[nk:nk + prob.n_bias].copy()
         res.details.gyro_bias_std = sd_all[-prob.n_bias:].copy()
+        res.details.gyro_bias_record = prob.bias_record.copy()
     if prob.lake:
         sd_env = sd_all[nv:nv + len(ENV_NAMES)]
         res.details.environment = EnvironmentEstimate(

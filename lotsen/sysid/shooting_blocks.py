@@ -51,7 +51,7 @@ class ShootingBlock:
     Y: np.ndarray  # measurement rows (0 where not measured)
     mask: np.ndarray
     meas_bounds: np.ndarray  # local node k's rows are meas_bounds[k]:meas_bounds[k + 1]
-    meas_record: np.ndarray  # each row's record (its gyro offset)
+    meas_bias: np.ndarray  # each row's yaw-rate offset (its index in BlockCall.gyro_bias)
     out_idx: tuple[int, ...]  # the state of each output column
     psi_col: int | None
     r_col: int | None
@@ -63,7 +63,7 @@ class BlockCall:
     and for the sensitivities the free parameters (the kernel's, then the offsets') and the scales."""
 
     theta: np.ndarray  # the kernel's parameters (vessel [+ environment])
-    gyro_bias: np.ndarray  # per record (empty: none estimated)
+    gyro_bias: np.ndarray  # the yaw-rate offsets (empty: none estimated)
     nodes: np.ndarray  # the block's node states, n1 - n0 x nz
     sqrt_w: np.ndarray  # per output, 1 / noise std
     sens: bool = False
@@ -103,7 +103,7 @@ def cut_blocks(node_step: np.ndarray, n_steps: int) -> list[tuple[int, int]]:
 def _residuals(block: ShootingBlock, call: BlockCall, Xm: np.ndarray) -> np.ndarray:
     e = block.Y - Xm[:, list(block.out_idx)]
     if len(call.gyro_bias) and block.r_col is not None:
-        e[:, block.r_col] -= call.gyro_bias[block.meas_record]
+        e[:, block.r_col] -= call.gyro_bias[block.meas_bias]
     if block.psi_col is not None:
         e[:, block.psi_col] = wrap_angle(e[:, block.psi_col])
     return np.where(block.mask, e, 0.0) * call.sqrt_w
@@ -127,9 +127,9 @@ def _jacobians(block: ShootingBlock, call: BlockCall, Sm: np.ndarray) -> tuple[n
     Jx = -Sy[:, :, :nz] * xs[None, None, :] * W  # type: ignore[index]
     Jp = -Sy[:, :, nz + fk] * call.scale_kernel[None, None, :] * W  # type: ignore[index,operator]
     fb = call.free_bias
-    if fb is not None and len(fb):  # d e_r / d b_q = -1 on record q's rows
+    if fb is not None and len(fb):  # d e_r / d b_q = -1 on offset q's rows
         Jb = np.zeros((len(Sm), len(call.sqrt_w), len(fb)))
-        Jb[:, block.r_col, :] = -(block.meas_record[:, None] == fb[None, :]).astype(float) * call.scale_bias[None, :]  # type: ignore[index]
+        Jb[:, block.r_col, :] = -(block.meas_bias[:, None] == fb[None, :]).astype(float) * call.scale_bias[None, :]  # type: ignore[index]
         Jp = np.concatenate([Jp, Jb * W], axis=2)
     return Jx, Jp
 

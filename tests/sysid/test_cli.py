@@ -238,3 +238,13 @@ def test_identify_on_a_csv_record_does_not_import_the_run_time_stack(over_budget
     for heavy in ("lotsen.logs", "lotsen.transport", "lotsen.runtime.executor", "lotsen.runtime.bus", "lotsen.web",
                   "lotsen.control", "lotsen.sim", "lotsen.stack", "numba", "shapely", "osqp", "matplotlib"):
         assert heavy not in loaded, heavy
+
+
+def test_gyro_offsets_per_block_are_written_and_said(run_csv, short_run, tmp_path, capsys):
+    out = tmp_path / "p.json"
+    rc = main_standalone(["identify", str(run_csv), "--out", str(out), "--gyro-offset", "--gyro-offset-block", "6"])
+    assert rc in (0, 1)
+    offsets = json.loads(out.read_text())["gyro_bias_radps"]
+    blocks = round(0.8 * short_run.record.duration_s / 6)  # the estimation part: 80 %
+    assert len(offsets["values"]) == len(offsets["std"]) == blocks > 1 and offsets["record"] == [0] * blocks
+    assert "gyro offset (rad/s): record 1: " in capsys.readouterr().err

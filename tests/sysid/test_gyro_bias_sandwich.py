@@ -61,3 +61,29 @@ def test_sandwich_reduces_to_the_fisher_information_for_white_residuals():
     Fs = sandwich_information(prob, lin, blocks, F)
     ratio = np.sqrt(np.diag(np.linalg.inv(Fs)) / np.diag(np.linalg.inv(F)))
     assert 0.7 < float(np.median(ratio)) < 1.3 and ratio.max() < 1.8, ratio
+
+
+def test_a_walking_gyro_offset_is_followed_block_by_block():
+    # a MEMS gyro's bias wanders over a record (temperature): here a ramp of 0.012 rad/s over 120 s,
+    # 4 x the gyro noise at its end; one offset per 30-s block follows it
+    params = perturbed(np.random.default_rng(107))
+    g = generate(120.0, seed=107, style="aligned", params=params)
+    t = g.record.t - g.record.t[0]
+    Y = g.record.outputs.copy()
+    Y[:, g.record.output_names.index("r")] += 0.012 * t / 120.0
+    rec = dataclasses.replace(g.record, outputs=Y)
+    res = estimate_multiple_shooting([rec], START, {"m11": 14.0},
+                                     SolverOptions(gyro_bias=True, gyro_offset_block_s=30.0))
+    assert res.converged
+    b, sb = res.details.gyro_bias, res.details.gyro_bias_std
+    assert len(b) == 4
+    assert np.allclose(b, 0.012 * (np.arange(4) + 0.5) / 4, atol=3 * sb.max() + 0.001), b
+    for n in res.free_names:
+        assert abs(getattr(res.params, n) - g.params[n]) <= 3 * res.std[n], n
+    # one offset for the whole record leaves the walk in the yaw rate's residuals: its noise is
+    # re-estimated larger and the yaw coefficients' intervals widen
+    one = estimate_multiple_shooting([rec], START, {"m11": 14.0},
+                                     SolverOptions(gyro_bias=True, gyro_offset_block_s=0.0))
+    assert len(one.details.gyro_bias) == 1
+    assert one.details.noise_std["r"] > 1.2 * res.details.noise_std["r"]
+    assert one.std["m33"] > res.std["m33"]
