@@ -11,8 +11,9 @@ lotsen's sensors, the EKF, the MPC (station keeping: the station keeper), the su
 failsafes; the default model (neither hull is built like it).
 
 Figures per case and sea: missions completed without any failsafe; cross-track RMS (and max) of the
-true track, and its low-frequency part (a 3-s moving average: the motion a controller should act on;
-the rest is the waves' own motion, which no controller should chase); the settled hold's RMS distance;
+true track, its low-frequency part (a 3-s moving average: the motion a controller should act on) and
+the rest, the hull's wave-frequency motion, which no controller should chase, also as a share of the
+tracking bar (2 x calm: above 1, the waves' own motion alone is over it); the settled hold's RMS distance;
 the actuators' activity (`lotsen.harness.mission.actuator_activity`): azimuth travel, propeller speed
 change, reversals per second, electrical energy (and where it goes: per propeller, and the share of
 the time each azimuth runs astern); each as the ratio to calm water from the same seeds.
@@ -102,6 +103,8 @@ def fly(job: tuple[str, str, str, int]) -> dict:
     if cte.size > 60:
         lf = np.convolve(cte, np.ones(30) / 30.0, mode="valid")
         m["cross_track_lf_rms_m"] = float(np.sqrt(np.mean(lf ** 2)))
+        # the rest, about each average's centre: the hull's wave-frequency motion
+        m["cross_track_wf_rms_m"] = float(np.sqrt(np.mean((cte[14:14 + len(lf)] - lf) ** 2)))
     m["no_failsafe"] = bool(res.completed and not m.get("failsafes_triggered"))
     return {"plant": plant_name, "case": case, "sea": sea, "seed": seed, "metrics": m}
 
@@ -132,6 +135,7 @@ def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) ->
     else:
         row["cross-track RMS cm"] = round(100 * (avg("cross_track_rms_m") or math.nan), 2)
         row["low-freq. cm"] = round(100 * (avg("cross_track_lf_rms_m") or math.nan), 2)
+        row["wave-freq. cm"] = round(100 * (avg("cross_track_wf_rms_m") or math.nan), 2)
         row["max cm"] = round(100 * (avg("cross_track_max_m") or math.nan), 1)
     row["azimuth travel deg/s"] = round(avg("azimuth_travel_deg_per_s", sub=sub) or math.nan, 1)
     row["reversals /s"] = round(avg("reversals_per_s", sub=sub) or 0.0, 3)
@@ -147,6 +151,10 @@ def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) ->
         key = "hold_position_error_rms_m" if station else "cross_track_rms_m"
         if not station:
             row["x calm (tracking)"] = _ratio(avg(key), avg(key, cm))
+            # the hull's wave-frequency motion alone, which the controllers are not to chase (issue 46
+            # item 3), against the tracking bar: above 1, no controller that leaves it alone meets the bar
+            calm_rms = avg(key, cm)
+            row["wave-freq. / (2 x calm)"] = _ratio(avg("cross_track_wf_rms_m"), 2 * calm_rms if calm_rms else None)
         row["x calm (travel)"] = _ratio(avg("azimuth_travel_deg_per_s", sub=sub), avg("azimuth_travel_deg_per_s", cm, sub))
         rev, rev_calm = avg("reversals_per_s", sub=sub), avg("reversals_per_s", cm, sub)
         # reversals: a ratio to a calm figure near zero says little; below 0.05/s counts as calm's
