@@ -105,7 +105,9 @@ def _residuals(block: ShootingBlock, call: BlockCall, Xm: np.ndarray) -> np.ndar
     if len(call.gyro_bias) and block.r_col is not None:
         e[:, block.r_col] -= call.gyro_bias[block.meas_bias]
     if block.psi_col is not None:
-        e[:, block.psi_col] = wrap_angle(e[:, block.psi_col])
+        # a trial point whose simulation diverged has inf states: no warning, linearise rejects the point
+        with np.errstate(invalid="ignore"):
+            e[:, block.psi_col] = wrap_angle(e[:, block.psi_col])
     return np.where(block.mask, e, 0.0) * call.sqrt_w
 
 
