@@ -322,6 +322,7 @@ class MultipleShootingProblem:
         # the kernel's parameters (vessel [+ environment]); measurement parameters follow them
         self.n_kernel = NTHETA_LAKE if lake else NTHETA
         # the yaw-rate offsets: per record, one per block of about options.gyro_offset_block_s
+        self.n_records = len(records)
         starts = [float(r.t[0]) for r in records]
         blocks = [max(1, int(round(r.duration_s / options.gyro_offset_block_s))) if options.gyro_offset_block_s > 0
                   else 1 for r in records]
@@ -388,11 +389,10 @@ class MultipleShootingProblem:
     def initial_gyro_bias(self) -> np.ndarray:
         """Per record, the yaw-rate offset from the data alone: (integral of the measured r - the
         heading's change) / duration over its segments. A start for the estimate, no more."""
-        n_records = int(self.seg_record.max()) + 1 if len(self.seg_record) else 0
-        b = np.zeros(n_records)
+        b = np.zeros(self.n_records)
         if not self.n_bias or self.psi_col is None:
             return b
-        num, den = np.zeros(n_records), np.zeros(n_records)
+        num, den = np.zeros(self.n_records), np.zeros(self.n_records)
         for seg, q in zip(self.segments, self.seg_record):
             ip, ir = self.psi_col, self.r_col
             okp, okr = np.isfinite(seg.outputs[:, ip]), np.isfinite(seg.outputs[:, ir])
