@@ -86,7 +86,7 @@ ENV_HI = np.array([1.0, 1.0, 30.0, 30.0, 1.0, 1.0, 1.0, 1.0])
 # carry the estimator's bias error. Unmodelled, the offset contradicts the heading's slope, and the
 # fit bends the yaw coefficients to share the difference (m33 1-2 % off at 4-5 sigma on lake records).
 # One offset for a 10-min record whose bias walks (lotsen's simulator: 0.0002 rad/s/sqrt(s)) leaves
-# the walk in r: per minute, the core coefficients' errors fell 5-14 % (docs/sysid.md).
+# the walk in r: per minute, the core coefficients' errors fell 0-13 % (docs/sysid.md).
 # Scale, weak prior and bounds in rad/s.
 GYRO_BIAS_SCALE = 0.01
 GYRO_BIAS_PRIOR_STD = 0.2
