@@ -166,15 +166,15 @@ def repeated_records_rows(quick: bool = False) -> list[dict]:
         offsets.append((seed, identify(IdentificationProblem(est, val, {"m11": boat.m11}, validation_source=src,
                                                              solver=SolverOptions(gyro_bias=True)))))
     table = "intervals over repeated records: one boat of the model's structure, calm, 10 min each (ideal model)"
-    return (_interval_rows(table, answers, boat, cpus)
-            + _interval_rows(table + ", with --gyro-offset (not judged)", offsets, boat, None))
+    shown = _interval_rows(table + ", with --gyro-offset (not judged)", offsets, boat, None)
+    return _interval_rows(table, answers, boat, cpus) + [dict(r, role="peer") for r in shown]
 
 
 def _interval_rows(table: str, answers: list, boat, cpus: list[float] | None) -> list[dict]:  # type: ignore[no-untyped-def]
-    """Per coefficient: each record's error against its own reported sigma (row 3 of the module docstring)."""
+    """Per coefficient: each record's error against its own reported sigma (row 3 of the module
+    docstring); `cpus`: each identification's CPU seconds, if measured."""
     from lotsen.sysid.judge import CORE_PARAMETERS
 
-    judged = cpus is not None
     # only a physical answer states intervals of the boat's coefficients
     idents = [i for _, i in answers if i.verdict.verdict in ("ok", "weak")]
     other = [f"{seed} ({i.verdict.verdict})" for seed, i in answers if i.verdict.verdict not in ("ok", "weak")]
@@ -211,9 +211,6 @@ def _interval_rows(table: str, answers: list, boat, cpus: list[float] | None) ->
                  "verdicts": ", ".join(sorted({i.verdict.verdict for _, i in answers})),
                  "cpu_s (median)": round(float(np.median(cpus)), 1) if cpus else None,
                  "target": ">= 97 % within 3 sigma", "pass": inside >= 0.97 * total})
-    if not judged:
-        for r in rows:
-            r["role"] = "peer"
     return rows
 
 

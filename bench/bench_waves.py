@@ -101,10 +101,12 @@ def fly(job: tuple[str, str, str, int]) -> dict:
     follow = res.mode == "follow"
     cte = res.cross_track_m[follow]
     if cte.size > 60:
-        lf = np.convolve(cte, np.ones(30) / 30.0, mode="valid")
+        window = 30  # control ticks: 3 s
+        lf = np.convolve(cte, np.ones(window) / window, mode="valid")
         m["cross_track_lf_rms_m"] = float(np.sqrt(np.mean(lf ** 2)))
         # the rest, about each average's centre: the hull's wave-frequency motion
-        m["cross_track_wf_rms_m"] = float(np.sqrt(np.mean((cte[14:14 + len(lf)] - lf) ** 2)))
+        centre = window // 2 - 1
+        m["cross_track_wf_rms_m"] = float(np.sqrt(np.mean((cte[centre:centre + len(lf)] - lf) ** 2)))
     m["no_failsafe"] = bool(res.completed and not m.get("failsafes_triggered"))
     return {"plant": plant_name, "case": case, "sea": sea, "seed": seed, "metrics": m}
 
@@ -150,10 +152,10 @@ def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) ->
     if sea != "calm":
         key = "hold_position_error_rms_m" if station else "cross_track_rms_m"
         if not station:
-            row["x calm (tracking)"] = _ratio(avg(key), avg(key, cm))
+            calm_rms = avg(key, cm)
+            row["x calm (tracking)"] = _ratio(avg(key), calm_rms)
             # the hull's wave-frequency motion alone, which the controllers are not to chase (issue 46
             # item 3), against the tracking bar: above 1, no controller that leaves it alone meets the bar
-            calm_rms = avg(key, cm)
             row["wave-freq. / (2 x calm)"] = _ratio(avg("cross_track_wf_rms_m"), 2 * calm_rms if calm_rms else None)
         row["x calm (travel)"] = _ratio(avg("azimuth_travel_deg_per_s", sub=sub), avg("azimuth_travel_deg_per_s", cm, sub))
         rev, rev_calm = avg("reversals_per_s", sub=sub), avg("reversals_per_s", cm, sub)

@@ -269,11 +269,10 @@ def _print_environment(ident: Identification) -> None:
               + (", ".join(f"{n} {shift[n]:+.1f} sigma" for n in moved) if moved else "by less than 1 sigma each")
               + "; the answer is the average of the two, its intervals include the difference", file=sys.stderr)
     if sh.gyro_bias is not None and sh.gyro_bias_std is not None and sh.gyro_bias_record is not None:
-        rec = [int(q) for q in sh.gyro_bias_record]
+        per_record = [(q, sh.gyro_bias_record == q) for q in sorted(set(sh.gyro_bias_record.tolist()))]
         print("gyro offset (rad/s): " + "; ".join(
-            f"record {q + 1}: " + ", ".join(f"{b:+.4f}" for b, p in zip(sh.gyro_bias, rec) if p == q)
-            + f" (+- {max(s for s, p in zip(sh.gyro_bias_std, rec) if p == q):.4f})" for q in sorted(set(rec))),
-            file=sys.stderr)
+            f"record {q + 1}: " + ", ".join(f"{b:+.4f}" for b in sh.gyro_bias[on])
+            + f" (+- {float(sh.gyro_bias_std[on].max()):.4f})" for q, on in per_record), file=sys.stderr)
 
 
 def _parse_terms(text: str) -> tuple[str, ...] | None:
