@@ -24,8 +24,10 @@ w0 is the wave model's frequency: the sea-state estimate's encounter frequency w
 (`set_wave_frequency`), else the mean frequency of the wave band (`lotsen.fusion.waveband`); sigma
 per axis follows the wave band's measured yaw-rate and acceleration within seconds, floored at
 `wave_*_std_floor` so that in flat water the states sleep. So wave-frequency motion is explained,
-not rejected as a sensor fault, and does not reach the controllers. The accelerometer is levelled
-first with the hull's roll and pitch (`lotsen.fusion.attitude.TiltFilter`): gravity's share on a
+not rejected as a sensor fault, and does not reach the controllers. What the wave states hold
+beyond a few of their periods is not wave motion: the estimate the controllers get adds their slow
+part (a low-pass over `wave_mean_periods` periods) back to the low-frequency pose and velocity.
+The accelerometer is levelled first with the hull's roll and pitch (`lotsen.fusion.attitude.TiltFilter`): gravity's share on a
 heeled axis is 0.17 m/s^2 a degree.
 
 Process model: the vessel model (lotsen.model, seed eq. 7-8, 22) with the estimated current and
@@ -197,6 +199,14 @@ class EkfConfig:
     # water current (hull B in a full-power turn at 1.6-2 m/s: 0.2-0.3 m/s of "current" in calm water,
     # the fixes gated out, GNSS declared inconsistent; docs/fusion.md)
     velocity_error_matching: bool = True
+    # What the wave states hold beyond a few of their own periods is not wave-frequency motion: the
+    # low-frequency estimate the controllers get (`estimate`) takes the wave states' running mean over
+    # `wave_mean_periods` periods of the wave model back (and the wave motion reported loses it). The gyro
+    # sees r + eta_psi_dot, and in a sea the tightened yaw model sent the difference between its own
+    # turn rate and the hull's to the wave state (figure eight 0.5 m/s, Hs 6 cm: 3-4.7 deg/s held there
+    # for 15-45 s on both hulls; the controller saw a turn rate that was not there and left 1.5-3.7 cm of
+    # slow cross-track; docs/fusion.md "Waves"). 0: off.
+    wave_mean_periods: float = 2.0
     wave_band: WaveBandConfig = field(default_factory=WaveBandConfig)
     # roll and pitch from the IMU, to take gravity out of the accelerometer's horizontal axes
     tilt_compensation: bool = True
@@ -313,6 +323,9 @@ class ModelAidedEKF:
         self._velocity_innovation_var = np.zeros(2)
         self._velocity_innovation_t = -math.inf
         self._velocity_error_q = np.zeros(2)
+        # the wave states' running mean over wave_mean_periods periods (`_track_wave_mean`)
+        self._wave_mean = np.zeros(6)
+        self._wave_mean_t = -math.inf
         self._innovation_cov = np.zeros((0, 0))  # S of the last update (`_update`)
         self._gnss_accel: tuple[float, float, float] | None = None  # (stamp, a_N, a_E)
         self._gnss_vel_prev: tuple[float, float, float] | None = None  # (stamp, v_N, v_E)
@@ -781,6 +794,7 @@ class ModelAidedEKF:
                 y -= self.x[self.i_wave + 5]
             ok = self._update("gyro", np.array([y]), H, np.array([[c.sigma_gyro_radps ** 2]]), reopen=(IBG, IR),
                               moves=self._gyro_moves)
+            self._track_wave_mean()
             # the frozen-heading test integrates the gyro the filter believed: a spike the gate
             # rejected stands in with the filter's own rate (else one spike "turns" the boat); the
             # heading is the whole one, wave-frequency motion included, as the gyro's is
@@ -884,6 +898,24 @@ class ModelAidedEKF:
         noise = np.sqrt(np.clip(np.diag(S), 0.0, None) * k / (2.0 - k))
         excess = np.clip(np.abs(m) - c.model_error_sigmas * noise, 0.0, None)
         self._accel_error_q = excess * excess * c.model_error_time_s
+
+    def _track_wave_mean(self) -> None:
+        """The wave states' running mean over T = wave_mean_periods periods of the wave model
+        (EkfConfig.wave_mean_periods): an oscillator's own mean over T is about its amplitude / T, so
+        what stays there is slow motion the low-frequency states did not take."""
+        c, iw = self.config, self.i_wave
+        if iw is None or not c.wave_mean_periods > 0.0:
+            return
+        t = self.t if self.t is not None else 0.0
+        dt, self._wave_mean_t = t - self._wave_mean_t, t
+        if self._wave_w0_given is None or self.monitor.faulty("gyro") or self.monitor.faulty("mag"):
+            # no sea (the sea-state estimate gives no encounter frequency: in flat water the states sleep
+            # at their floors), or the heading's two sensors disagree: slow content in the wave states
+            # may then be the fault (a gyro offset the wave rate took), not the hull's motion
+            self._wave_mean[:] = 0.0
+            return
+        T = c.wave_mean_periods * 2.0 * math.pi / self.wave_model()[0]
+        self._wave_mean += min(1.0, max(0.0, dt) / T) * (self.x[iw:iw + 6] - self._wave_mean)
 
     def _track_velocity_error(self, y: np.ndarray, S: np.ndarray, psi: float) -> None:
         """The model's velocity error from GNSS velocity (EkfConfig.velocity_error_matching), by
@@ -1054,9 +1086,15 @@ class ModelAidedEKF:
                 var[i] = max(0.0, var[i] + P[k, k] + 2.0 * P[i, k])
         std = np.sqrt(var)
         cn, ce, tx, ty, tn = self._environment(x)
-        return VesselState(stamp_s=float(stamp), north_m=float(x[0]), east_m=float(x[1]),
-                           heading_rad=float(wrap_angle(x[2])), u_mps=float(x[3]), v_mps=float(x[4]),
-                           r_radps=float(x[5]), source=self.source, std=tuple(float(s) for s in std),
+        lf = x[:6].copy()
+        if iw is not None:  # the wave states' slow part is low-frequency motion (EkfConfig.wave_mean_periods)
+            m = self._wave_mean
+            cs, sn = math.cos(lf[IPSI]), math.sin(lf[IPSI])
+            lf += (m[0], m[2], m[4], cs * m[1] + sn * m[3], -sn * m[1] + cs * m[3], m[5])
+            wave = (wave[0] - float(m[0]), wave[1] - float(m[2]), wave[2] - float(m[4]))
+        return VesselState(stamp_s=float(stamp), north_m=float(lf[0]), east_m=float(lf[1]),
+                           heading_rad=float(wrap_angle(lf[2])), u_mps=float(lf[3]), v_mps=float(lf[4]),
+                           r_radps=float(lf[5]), source=self.source, std=tuple(float(s) for s in std),
                            gyro_bias_radps=float(x[IBG]), current_ne_mps=(cn, ce), disturbance_tau=(tx, ty, tn),
                            wave_motion=wave)
 
