@@ -348,6 +348,16 @@ def antenna_height_m(boat: SimulatedBoat | Plant) -> float:
     return boat.hull.gnss_antenna_height_m if isinstance(boat, SimulatedBoat) else boat.gnss_antenna_height_m
 
 
+def sim_mag_calibration(sim_config: SimConfig) -> MagCalibration:
+    """The magnetometer calibration the simulated boat's distortion implies (what `lotsen calibrate`
+    would find): its hard iron as the centre, soft iron times the horizontal field, the declination."""
+    imu = sim_config.imu
+    H = imu.earth_field_horizontal_uT
+    (s00, s01), (s10, s11) = imu.soft_iron
+    return MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)),
+                          heading_offset_rad=imu.declination_rad)
+
+
 def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = None,
                  sim_config: SimConfig | None = None, boat: SimulatedBoat | Plant = DEFAULT_BOAT) -> ModelAidedEKF:
     """lotsen.fusion's model-aided EKF set up for the simulated boat (or plant): GNSS origin of the simulator,
@@ -355,11 +365,8 @@ def make_sim_ekf(config: MissionConfig, path: Any, model: VesselModel | None = N
     magnetometer calibration its distortion implies (what `lotsen calibrate` would find), and
     the start pose of the mission."""
     sc = sim_config or SimConfig()
-    imu, gnss = sc.imu, sc.gnss
-    H = imu.earth_field_horizontal_uT
-    (s00, s01), (s10, s11) = imu.soft_iron
-    cal = MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)),
-                         heading_offset_rad=imu.declination_rad)
+    gnss = sc.gnss
+    cal = sim_mag_calibration(sc)
     along, cross = config.start_offset_m
     h0 = float(path.heading_rad[0])
     x0 = VesselState(stamp_s=0.0, north_m=float(path.north_m[0]) + along * math.cos(h0) - cross * math.sin(h0),

@@ -13,8 +13,8 @@ import pytest
 
 from lotsen.fusion.common import feed
 from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
-from lotsen.fusion.magcal import MagCalibration
 from lotsen.fusion.seastate import SeaStateEstimator, encounter_frequency
+from lotsen.harness.mission import sim_mag_calibration
 from lotsen.messages import ImuSample, VesselState
 from lotsen.model import Environment, VesselModel
 from lotsen.model.environment import Waves
@@ -25,12 +25,8 @@ def _turn(wave_mean_periods: float, hs_m: float, duration_s: float = 60.0) -> np
     """Rows (t, true yaw rate, the estimate's yaw rate) at 10 Hz of a steady port turn, azimuths at
     -4 deg and 45 rev/s (about 0.5 m/s and 8 deg/s), waves from 250 deg."""
     sim = Simulator(config=SimConfig(environment=Environment(waves=Waves(hs_m, 1.0, 250.0) if hs_m else None), seed=3))
-    imu, gnss = sim.config.imu, sim.config.gnss
-    H = imu.earth_field_horizontal_uT
-    (s00, s01), (s10, s11) = imu.soft_iron
-    cal = MagCalibration(center=tuple(imu.hard_iron_uT), matrix=((H * s00, H * s01), (H * s10, H * s11)),
-                         heading_offset_rad=imu.declination_rad)
-    ekf = ModelAidedEKF(VesselModel(), cal,
+    gnss = sim.config.gnss
+    ekf = ModelAidedEKF(VesselModel(), sim_mag_calibration(sim.config),
                         EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m),
                                   gnss_antenna_m=sim.boat.gnss_antenna_m, wave_mean_periods=wave_mean_periods),
                         initial=VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=sim.x[2],
