@@ -989,6 +989,7 @@ class ModelAidedEKF:
             self.monitor.test("mag", self.t, math.inf, 1, gate, False)
             return
         z = wrap_angle(math.atan2(-wy, wx) + self.calibration.heading_offset_rad)
+        self.monitor.compass(self.t, z)
         H = np.zeros((1, self.n))
         H[0, IPSI] = 1.0
         if self.i_wave is not None:

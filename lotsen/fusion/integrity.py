@@ -24,6 +24,11 @@ Tests, each with its own persistence (numbers in docs/fusion.md, measured in ben
 - **Frozen heading**: over `frozen_window_s` the bias-corrected gyro integrates to more than
   `frozen_min_turn_rad`, but the heading estimate moved by less than `frozen_ratio` of that.
   Only while the gyro itself is healthy (a stuck gyro is its own fault).
+- **Gyro drifting from the compass**: over each `drift_window_s` the bias-corrected gyro's heading
+  change and the compass's (an undisturbed field only) differ by more than `drift_min_rad`, in two
+  windows in a row with the same sign: a ramp, so an offset on the gyro (a compass disturbance inside
+  the field-norm tolerance is a step, seen in one window). The gyro is then faulty: no heading. In a sea
+  the wave states take up a gyro offset that the gate would reject in flat water.
 - **Starvation and stalling**: no sample of any sensor used for more than `starvation_s` (one
   GNSS period, 0.125 s at 8 Hz), or the filter's time behind the caller's clock by as much; a
   sensor used before but not for `sensor_timeout_s` is reported as unused.
@@ -77,6 +82,10 @@ class IntegrityConfig:
     frozen_window_s: float = 2.0
     frozen_min_turn_rad: float = math.radians(5.0)  # 2.5 deg/s: the figure eight at 0.5 m/s turns ~4 deg/s
     frozen_ratio: float = 0.25
+    # the gyro against the compass (module docstring). Over 1 s the two differ by at most ~6 deg on the
+    # figure eight at 1.0 m/s in Hs 10 cm (both hulls; 6.5 deg over 2 s); a 0.3 rad/s offset by 17
+    drift_window_s: float = 1.0
+    drift_min_rad: float = math.radians(10.0)
     # starvation
     starvation_s: float = 0.125  # one GNSS period at 8 Hz
     sensor_timeout_s: dict = field(default_factory=lambda: {
@@ -160,6 +169,14 @@ class IntegrityMonitor:
         self._frozen_buckets: deque = deque()  # [bucket index, gyro integral, heading change]
         self._frozen_prev: tuple[float, float] | None = None  # (t, psi)
         self.frozen_since: float | None = None
+        # the gyro against the compass: the gyro's integrated turn, the open window's start
+        # (t, compass heading, gyro turn) and the last closed window's difference
+        self._gyro_turn = 0.0
+        self._drift_start: tuple[float, float, float] | None = None
+        self._drift_last = 0.0
+        self._drift_clean_since: float | None = None
+        self.drift_since: float | None = None
+        self.drift_detail = ""
         self._frozen_clean_since: float | None = None
         self.frozen_detail = ""
         self.events: deque = deque(maxlen=c.event_memory)
@@ -287,6 +304,35 @@ class IntegrityMonitor:
                 fb.popleft()
         fb[-1][1] += rate_radps * dt
         fb[-1][2] += dpsi
+        self._gyro_turn += rate_radps * dt
+
+    def compass(self, t: float, psi: float) -> None:
+        """A compass heading from an undisturbed field (its norm within tolerance): the gyro-drift test."""
+        c = self.config
+        if not math.isfinite(psi) or self.stuck("gyro") or self.inconsistent("gyro"):
+            self._drift_start = None
+            return
+        start = self._drift_start
+        if start is None or t < start[0] or t - start[0] > 2.0 * c.drift_window_s:  # a gap: start again
+            self._drift_start, self._drift_last = (t, psi, self._gyro_turn), 0.0
+            return
+        if t - start[0] < c.drift_window_s:
+            return
+        d = wrap_angle(psi - start[1]) - (self._gyro_turn - start[2])
+        prev, self._drift_last = self._drift_last, d
+        self._drift_start = (t, psi, self._gyro_turn)
+        if abs(d) > c.drift_min_rad and abs(prev) > c.drift_min_rad and d * prev > 0.0:
+            self._drift_clean_since = None
+            if self.drift_since is None:
+                self.drift_since = t
+                self.drift_detail = (f"the compass turned {math.degrees(prev):+.0f} and {math.degrees(d):+.0f} deg "
+                                     f"more than the gyro in two {c.drift_window_s:g}-s windows")
+        elif self.drift_since is not None:
+            if self._drift_clean_since is None:
+                self._drift_clean_since = t
+            elif t - self._drift_clean_since >= c.clear_s:
+                self.drift_since = None
+                self._drift_clean_since = None
 
     def _evaluate_frozen(self, t: float, K: int) -> None:
         c = self.config
@@ -324,7 +370,7 @@ class IntegrityMonitor:
         return w is not None and w.since is not None
 
     def faulty(self, sensor: str) -> bool:
-        return self.stuck(sensor) or self.inconsistent(sensor)
+        return self.stuck(sensor) or self.inconsistent(sensor) or (sensor == "gyro" and self.drift_since is not None)
 
     def reacquiring(self, sensor: str) -> bool:
         """The sensor's current rejection streak began without an accepted sample in the
@@ -381,6 +427,9 @@ class IntegrityMonitor:
                 w.reset_pending = True
                 w.streak_gap = math.inf
         self.frozen_since = None
+        if sensor is None or sensor == "gyro":
+            self.drift_since = None
+            self._drift_start = None
         self.event(t, f"integrity reset ({sensor or 'all sensors'})")
 
     def window_figures(self, sensor: str, t: float) -> tuple[float, float]:
@@ -404,6 +453,9 @@ class IntegrityMonitor:
                         if math.isfinite(last_any) else "fusion: no sensor sample used yet"))
         if filter_t is not None and t - filter_t > c.starvation_s:
             out.append(("fusion.stalled", f"fusion: filter time {filter_t:.2f} s is {t - filter_t:.2f} s behind"))
+        if self.drift_since is not None:
+            out.append(("gyro.drifting", f"gyro: drifting from the compass ({self.drift_detail}), since "
+                                         f"{self.drift_since:.2f} s"))
         if self.frozen_since is not None:
             out.append(("heading.frozen", f"heading: estimate frozen ({self.frozen_detail}), since "
                                           f"{self.frozen_since:.2f} s"))

@@ -5,6 +5,7 @@ cases and their detection times are in bench/bench_fusion.py and docs/fusion.md.
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import pytest
 
@@ -136,3 +137,34 @@ def test_a_diverged_estimate_is_re_anchored_but_a_receiver_jump_is_not() -> None
     ekf, track = _gnss_only_ekf_run(diverge=False)
     assert abs(track[-1][1]) < 0.05  # the jumped receiver is not followed
     assert "gnss.inconsistent" in ekf.health(track[-1][0]).fault_codes
+
+
+def _gyro_and_compass(mon: IntegrityMonitor, t0: float, seconds: float, gyro_radps: float,
+                      compass: Callable[[float], float]) -> float:
+    """Feed a 100-Hz gyro rate (through the frozen-heading input, as the EKF does) and a 50-Hz compass
+    heading compass(t); returns the end time."""
+    t = t0
+    for k in range(int(round(seconds * 100))):
+        t = t0 + (k + 1) * 0.01
+        mon.heading(t, compass(t), gyro_radps)
+        if k % 2 == 1:
+            mon.compass(t, compass(t))
+    return t
+
+
+def test_a_gyro_drifting_from_the_compass_is_declared_a_compass_step_is_not() -> None:
+    """IntegrityConfig.drift_*: a gyro offset is a ramp between the gyro's turn and the compass's,
+    declared in two 1-s windows (within 2.1 s at 0.3 rad/s, the fault suite's step; in a sea the wave states
+    take that step, so the gate does not). A compass that steps 17 deg (a disturbance inside the
+    field-norm tolerance) differs in one window only: no fault. Agreement clears it."""
+    mon = IntegrityMonitor(IntegrityConfig())
+    turn = 0.07  # rad/s: the boat turns 4 deg/s, the compass sees it
+    t = _gyro_and_compass(mon, 0.0, 5.0, turn, lambda t: turn * t)
+    t = _gyro_and_compass(mon, t, 5.0, turn, lambda t: turn * t + (0.3 if t > 6.0 else 0.0))
+    assert mon.drift_since is None and not mon.faulty("gyro")
+    t0 = t
+    t = _gyro_and_compass(mon, t, 2.1, turn + 0.3, lambda t: turn * t + 0.3)
+    assert mon.drift_since is not None and t0 < mon.drift_since <= t0 + 2.1
+    assert mon.faulty("gyro") and any(code == "gyro.drifting" for code, _ in mon.faults(t, t))
+    t = _gyro_and_compass(mon, t, 4.5, turn, lambda t: turn * t + 0.3)
+    assert mon.drift_since is None
