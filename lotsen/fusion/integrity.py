@@ -155,6 +155,29 @@ class _StuckDetector:
         self.first_t: float | None = None
 
 
+class _Latch:
+    """A fault that is declared at once and cleared after `clear_s` without it (frozen heading, drifting gyro)."""
+
+    def __init__(self) -> None:
+        self.since: float | None = None
+        self.clean_since: float | None = None
+        self.detail = ""
+
+    def step(self, t: float, fault: bool, detail: str, clear_s: float) -> None:
+        if fault:
+            self.clean_since = None
+            if self.since is None:
+                self.since, self.detail = t, detail
+        elif self.since is not None:
+            if self.clean_since is None:
+                self.clean_since = t
+            elif t - self.clean_since >= clear_s:
+                self.since = self.clean_since = None
+
+    def reset(self) -> None:
+        self.since = self.clean_since = None
+
+
 class IntegrityMonitor:
     """Integrity tests of one estimator (see the module docstring)."""
 
@@ -168,17 +191,13 @@ class IntegrityMonitor:
         self.last_used: dict[str, float] = {}
         self._frozen_buckets: deque = deque()  # [bucket index, gyro integral, heading change]
         self._frozen_prev: tuple[float, float] | None = None  # (t, psi)
-        self.frozen_since: float | None = None
         # the gyro against the compass: the gyro's integrated turn, the open window's start
         # (t, compass heading, gyro turn) and the last closed window's difference
         self._gyro_turn = 0.0
         self._drift_start: tuple[float, float, float] | None = None
         self._drift_last = 0.0
-        self._drift_clean_since: float | None = None
-        self.drift_since: float | None = None
-        self.drift_detail = ""
-        self._frozen_clean_since: float | None = None
-        self.frozen_detail = ""
+        self._drift = _Latch()
+        self._frozen = _Latch()
         self.events: deque = deque(maxlen=c.event_memory)
         self.event_count = 0
         self._gates: dict[str, float] = {}
@@ -321,18 +340,9 @@ class IntegrityMonitor:
         d = wrap_angle(psi - start[1]) - (self._gyro_turn - start[2])
         prev, self._drift_last = self._drift_last, d
         self._drift_start = (t, psi, self._gyro_turn)
-        if abs(d) > c.drift_min_rad and abs(prev) > c.drift_min_rad and d * prev > 0.0:
-            self._drift_clean_since = None
-            if self.drift_since is None:
-                self.drift_since = t
-                self.drift_detail = (f"the compass turned {math.degrees(prev):+.0f} and {math.degrees(d):+.0f} deg "
-                                     f"more than the gyro in two {c.drift_window_s:g}-s windows")
-        elif self.drift_since is not None:
-            if self._drift_clean_since is None:
-                self._drift_clean_since = t
-            elif t - self._drift_clean_since >= c.clear_s:
-                self.drift_since = None
-                self._drift_clean_since = None
+        self._drift.step(t, abs(d) > c.drift_min_rad and abs(prev) > c.drift_min_rad and d * prev > 0.0,
+                         f"the compass turned {math.degrees(prev):+.0f} and {math.degrees(d):+.0f} deg more than the "
+                         f"gyro in two {c.drift_window_s:g}-s windows", c.clear_s)
 
     def _evaluate_frozen(self, t: float, K: int) -> None:
         c = self.config
@@ -341,19 +351,9 @@ class IntegrityMonitor:
             return
         g = sum(x[1] for x in fb)
         h = sum(x[2] for x in fb)
-        frozen = abs(g) >= c.frozen_min_turn_rad and abs(h) < c.frozen_ratio * abs(g)
-        if frozen:
-            self._frozen_clean_since = None
-            if self.frozen_since is None:
-                self.frozen_since = t
-                self.frozen_detail = (f"moved {math.degrees(h):.1f} deg in {c.frozen_window_s:g} s while the gyro "
-                                      f"turned {math.degrees(g):.1f} deg")
-        elif self.frozen_since is not None:
-            if self._frozen_clean_since is None:
-                self._frozen_clean_since = t
-            elif t - self._frozen_clean_since >= c.clear_s:
-                self.frozen_since = None
-                self._frozen_clean_since = None
+        self._frozen.step(t, abs(g) >= c.frozen_min_turn_rad and abs(h) < c.frozen_ratio * abs(g),
+                          f"moved {math.degrees(h):.1f} deg in {c.frozen_window_s:g} s while the gyro "
+                          f"turned {math.degrees(g):.1f} deg", c.clear_s)
 
     def event(self, t: float, text: str) -> None:
         """An informational event (kept for EstimatorHealth.events)."""
@@ -371,6 +371,16 @@ class IntegrityMonitor:
 
     def faulty(self, sensor: str) -> bool:
         return self.stuck(sensor) or self.inconsistent(sensor) or (sensor == "gyro" and self.drift_since is not None)
+
+    @property
+    def frozen_since(self) -> float | None:
+        """When the heading estimate was declared frozen (None: it is not)."""
+        return self._frozen.since
+
+    @property
+    def drift_since(self) -> float | None:
+        """When the gyro was declared drifting from the compass (None: it is not)."""
+        return self._drift.since
 
     def reacquiring(self, sensor: str) -> bool:
         """The sensor's current rejection streak began without an accepted sample in the
@@ -426,9 +436,9 @@ class IntegrityMonitor:
                 w.buckets.clear()
                 w.reset_pending = True
                 w.streak_gap = math.inf
-        self.frozen_since = None
+        self._frozen.reset()
         if sensor is None or sensor == "gyro":
-            self.drift_since = None
+            self._drift.reset()
             self._drift_start = None
         self.event(t, f"integrity reset ({sensor or 'all sensors'})")
 
@@ -453,12 +463,12 @@ class IntegrityMonitor:
                         if math.isfinite(last_any) else "fusion: no sensor sample used yet"))
         if filter_t is not None and t - filter_t > c.starvation_s:
             out.append(("fusion.stalled", f"fusion: filter time {filter_t:.2f} s is {t - filter_t:.2f} s behind"))
-        if self.drift_since is not None:
-            out.append(("gyro.drifting", f"gyro: drifting from the compass ({self.drift_detail}), since "
-                                         f"{self.drift_since:.2f} s"))
-        if self.frozen_since is not None:
-            out.append(("heading.frozen", f"heading: estimate frozen ({self.frozen_detail}), since "
-                                          f"{self.frozen_since:.2f} s"))
+        if self._drift.since is not None:
+            out.append(("gyro.drifting", f"gyro: drifting from the compass ({self._drift.detail}), since "
+                                         f"{self._drift.since:.2f} s"))
+        if self._frozen.since is not None:
+            out.append(("heading.frozen", f"heading: estimate frozen ({self._frozen.detail}), since "
+                                          f"{self._frozen.since:.2f} s"))
         for s, d in self._stuck.items():
             if d.since is not None:
                 val = ", ".join(f"{v:.4g}" for v in d.value)
