@@ -163,15 +163,29 @@ class MPCConfig:
     # 8.7 cm at 20), so s_thrust stays small and the ESC's own time constant filters the rest.
     s_alpha: float = 10.0  # rate penalty per rad^2 (per step)
     s_thrust: float = 1.0  # rate penalty per q^2 (per step)
-    # In a sea the rate penalties grow, up to `wave_rate_scale` times, as the wave-frequency displacement
-    # the estimator separates out (`VesselState.wave_motion`, its RMS over `wave_rate_time_constant_s`)
-    # grows from `wave_rate_deadband_m` by `wave_rate_ref_m`: what the wave filter leaves of the waves in the
-    # estimate is not chased (issue 46; docs/control.md "Waves"). Flat water: unchanged.
+    # In a sea the rate penalties grow as the wave-frequency motion the estimator separates out
+    # (`VesselState.wave_motion`, its RMS over `wave_rate_time_constant_s`) grows beyond its dead band
+    # (the sea level f, 0..1): the angles' up to `wave_rate_scale` times, the propellers' up to
+    # `wave_thrust_rate_scale`, the reversal guard's crossing price up to `wave_reversal_scale`. What the
+    # wave filter leaves of the waves in the estimate (at 1 m/s in quartering and following seas the
+    # encounter frequency falls to 0.3-0.5 Hz, where it passes 80 % of the wave yaw rate) is then not
+    # chased (issue 46; docs/control.md "Waves"). Flat water: unchanged. The three are apart because
+    # they act apart: at 1 m/s the azimuths swing +-10 deg at 0.2-1 Hz (3-4 x calm travel) until the
+    # angles' scale is ~30, which alone moves the steering to propeller reversals; a crossing price at
+    # 10 x stops those but at 0.5 m/s holds an azimuth astern (tracking 1.5-2 x worse, a time-out):
+    # docs/control.md "Waves at 1 m/s: the rate scales apart".
     wave_rate_scale: float = 3.0
+    wave_thrust_rate_scale: float = 3.0
+    wave_reversal_scale: float = 3.0
     wave_rate_deadband_m: float = 0.001
     wave_rate_ref_m: float = 0.005
     wave_rate_time_constant_s: float = 5.0
-    wave_reversal_scaled: bool = True  # the reversal guard's crossing price scaled alike
+    # ... or as the heading's wave motion grows from its dead band by its ref, whichever is larger: in
+    # Hs 3 cm the displacement (0.6-0.8 mm) sits within the dead band and below the estimator's own
+    # start-up transient in flat water (0.6 mm), while the heading's (0.25-0.33 deg; flat water <= 0.013)
+    # is what the azimuths chased: in Hs 3 cm the schedule had stayed off (sea level 0.01-0.07)
+    wave_heading_deadband_rad: float = math.radians(0.05)
+    wave_heading_ref_rad: float = math.radians(0.2)
     # In a sea, uneven azimuth thrust and the bow thruster get dearer (issue 46, docs/control.md
     # "Waves"). The quadratic input cost is no power model (P ~ |n|^3 ~ |T|^1.5): at the calm weights
     # the MPC bought millimetres of tracking in a sea with yaw couples (one azimuth astern against the
@@ -893,40 +907,50 @@ class MPCController:
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
         self._wave_ms = 0.0  # mean square of the estimate's wave displacement (north, east)
+        self._wave_heading_ms = 0.0  # and of its heading's wave motion
         self.sea_level = 0.0  # 0 (flat water) .. 1 (wave_rate_ref_m beyond the dead band)
-        self._set_sea_weights(1.0, 0.0)
+        self._set_sea_weights(1.0, 1.0, 0.0)
 
-    def _set_sea_weights(self, scale: float, sea_level: float) -> None:
+    def _set_sea_weights(self, scale: float, thrust_scale: float, sea_level: float) -> None:
         """The input-rate penalties times `scale` and the thrust costs at `sea_level`
         (MPCConfig.wave_azimuth_split_scale, wave_bow_cost_scale): S in the first stage's linear term
         (the kernel's s_rate), R in the trim term (the kernel's r_input) and both in P's input entries
         (R + count S on the diagonal, -S off it)."""
         cfg = self.config
         self.rate_scale = scale
+        self.thrust_rate_scale = thrust_scale
+        self.reversal_scale = 1.0 + (max(cfg.wave_reversal_scale, 1.0) - 1.0) * sea_level
         self._split[0] = sea_level
         self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
         self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
         p_in_R = np.where(self._p_in_count > 0, self._R[self._p_in_j], 0.0)  # R on the diagonal only
-        self._S[:] = self._S_calm * scale
+        self._S[:] = self._S_calm * np.array([scale, scale, thrust_scale, thrust_scale, thrust_scale])
         self._Px[self._p_in_pos] = p_in_R + self._p_in_count * self._S[self._p_in_j]
 
     def _schedule_rate(self, state: VesselState) -> None:
-        """In a sea, dearer input changes, uneven azimuth thrust and bow thrust (MPCConfig.wave_*): the
-        RMS of the wave displacement the estimator separated out, beyond its dead band, is the sea level
-        f (0..1) that scales the rate penalties up to wave_rate_scale and the thrust costs up to
-        wave_azimuth_split_scale and wave_bow_cost_scale."""
+        """In a sea, dearer input changes, reversals, uneven azimuth thrust and bow thrust
+        (MPCConfig.wave_*): the RMS of the wave displacement or heading the estimator separated out,
+        beyond its dead band, is the sea level f (0..1) that scales the angles' rate penalty up to
+        wave_rate_scale, the propellers' up to wave_thrust_rate_scale, the crossing price up to
+        wave_reversal_scale and the thrust costs up to wave_azimuth_split_scale and wave_bow_cost_scale."""
         cfg = self.config
         w = getattr(state, "wave_motion", (0.0, 0.0, 0.0))
-        if not ((cfg.wave_rate_scale > 1.0 or cfg.wave_azimuth_split_scale > 1.0 or cfg.wave_bow_cost_scale > 1.0
-                 or math.isfinite(cfg.wave_azimuth_astern_hold_s)) and math.isfinite(w[0]) and math.isfinite(w[1])):
+        scales = (cfg.wave_rate_scale, cfg.wave_thrust_rate_scale, cfg.wave_reversal_scale, cfg.wave_azimuth_split_scale,
+                  cfg.wave_bow_cost_scale)
+        if not ((max(scales) > 1.0 or math.isfinite(cfg.wave_azimuth_astern_hold_s))
+                and all(math.isfinite(a) for a in w)):
             return
-        self._wave_ms += min(1.0, cfg.dt_s / cfg.wave_rate_time_constant_s) * (w[0] * w[0] + w[1] * w[1] - self._wave_ms)
-        rms = math.sqrt(0.5 * self._wave_ms)
-        f = min(1.0, max(0.0, (rms - cfg.wave_rate_deadband_m) / cfg.wave_rate_ref_m))
+        a = min(1.0, cfg.dt_s / cfg.wave_rate_time_constant_s)
+        self._wave_ms += a * (w[0] * w[0] + w[1] * w[1] - self._wave_ms)
+        self._wave_heading_ms += a * (w[2] * w[2] - self._wave_heading_ms)
+        f = max((math.sqrt(0.5 * self._wave_ms) - cfg.wave_rate_deadband_m) / cfg.wave_rate_ref_m,
+                (math.sqrt(self._wave_heading_ms) - cfg.wave_heading_deadband_rad) / cfg.wave_heading_ref_rad)
+        f = min(1.0, max(0.0, f))
         self.sea_level = f
         scale = 1.0 + (max(cfg.wave_rate_scale, 1.0) - 1.0) * f
+        thrust_scale = 1.0 + (max(cfg.wave_thrust_rate_scale, 1.0) - 1.0) * f
         if abs(scale - self.rate_scale) > 0.01 * self.rate_scale or abs(f - self._split[0]) > 0.01:
-            self._set_sea_weights(scale, f)
+            self._set_sea_weights(scale, thrust_scale, f)
 
     def _q_achieved(self) -> np.ndarray:
         n = self._n_achieved
@@ -1001,8 +1025,7 @@ class MPCController:
         changed direction less than reversal_dwell_s ago."""
         cfg = self.config
         lam = self._crossing_cost_q * np.where(self._since_flip_s < cfg.reversal_dwell_s, cfg.reversal_dwell_factor, 1.0)
-        if cfg.wave_reversal_scaled:
-            lam = lam * self.rate_scale
+        lam = lam * self.reversal_scale
         self._q[self._ti(0):] = np.tile(lam, self.N)
 
     def reset(self, path: Any, progress_m: float = 0.0) -> None:
