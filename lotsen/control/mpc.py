@@ -170,10 +170,7 @@ class MPCConfig:
     # wave filter leaves of the waves in the estimate (at 1 m/s in quartering and following seas the
     # encounter frequency falls to 0.3-0.5 Hz, where it passes 80 % of the wave yaw rate) is then not
     # chased (issue 46; docs/control.md "Waves"). Flat water: unchanged. The three are apart because
-    # they act apart: at 1 m/s the azimuths swing +-10 deg at 0.2-1 Hz (3-4 x calm travel) until the
-    # angles' scale is ~30, which alone moves the steering to propeller reversals; a crossing price at
-    # 10 x stops those but at 0.5 m/s holds an azimuth astern (tracking 1.5-2 x worse, a time-out):
-    # docs/control.md "Waves at 1 m/s: the rate scales apart".
+    # they act apart: the angles' alone dear, the MPC steers by reversing the propellers instead.
     wave_rate_scale: float = 3.0
     wave_thrust_rate_scale: float = 3.0
     wave_reversal_scale: float = 3.0
@@ -186,6 +183,15 @@ class MPCConfig:
     # is what the azimuths chased: in Hs 3 cm the schedule had stayed off (sea level 0.01-0.07)
     wave_heading_deadband_rad: float = math.radians(0.05)
     wave_heading_ref_rad: float = math.radians(0.2)
+    # Above `wave_speed_ref_mps` the angles' sea scale grows with the square of the azimuths' trim thrust
+    # and the crossing price with the thrust, k = q_trim(u) / q_trim(wave_speed_ref_mps) >= 1 (2.8 at
+    # 1 m/s): what the hull feels of an angle change is the side force T d(alpha), so a penalty per
+    # rad^2 is k^2 cheaper per newton at speed. Without it the azimuths chased the waves at 1 m/s (3.1-4.2
+    # x calm travel, 2.5-5.1 x reversals) and a scale high enough there (30 / 10) cost 0.5 m/s its
+    # tracking and two missions (docs/control.md "Waves at 1 m/s"). inf: off.
+    wave_speed_ref_mps: float = 0.5
+    wave_speed_angle_exponent: float = 2.0
+    wave_speed_reversal_exponent: float = 1.0
     # In a sea, uneven azimuth thrust and the bow thruster get dearer (issue 46, docs/control.md
     # "Waves"). The quadratic input cost is no power model (P ~ |n|^3 ~ |T|^1.5): at the calm weights
     # the MPC bought millimetres of tracking in a sea with yaw couples (one azimuth astern against the
@@ -909,9 +915,9 @@ class MPCController:
         self._wave_ms = 0.0  # mean square of the estimate's wave displacement (north, east)
         self._wave_heading_ms = 0.0  # and of its heading's wave motion
         self.sea_level = 0.0  # 0 (flat water) .. 1 (wave_rate_ref_m beyond the dead band)
-        self._set_sea_weights(1.0, 1.0, 0.0)
+        self._set_sea_weights(1.0, 1.0, 1.0, 0.0)
 
-    def _set_sea_weights(self, scale: float, thrust_scale: float, sea_level: float) -> None:
+    def _set_sea_weights(self, scale: float, thrust_scale: float, reversal_scale: float, sea_level: float) -> None:
         """The input-rate penalties times `scale` and the thrust costs at `sea_level`
         (MPCConfig.wave_azimuth_split_scale, wave_bow_cost_scale): S in the first stage's linear term
         (the kernel's s_rate), R in the trim term (the kernel's r_input) and both in P's input entries
@@ -919,7 +925,7 @@ class MPCController:
         cfg = self.config
         self.rate_scale = scale
         self.thrust_rate_scale = thrust_scale
-        self.reversal_scale = 1.0 + (max(cfg.wave_reversal_scale, 1.0) - 1.0) * sea_level
+        self.reversal_scale = reversal_scale
         self._split[0] = sea_level
         self._R[2:4] = self._R_calm[2:4] * (1.0 + (max(cfg.wave_azimuth_split_scale, 1.0) - 1.0) * sea_level)
         self._R[4] = self._R_calm[4] * (1.0 + (max(cfg.wave_bow_cost_scale, 1.0) - 1.0) * sea_level)
@@ -931,8 +937,8 @@ class MPCController:
         """In a sea, dearer input changes, reversals, uneven azimuth thrust and bow thrust
         (MPCConfig.wave_*): the RMS of the wave displacement or heading the estimator separated out,
         beyond its dead band, is the sea level f (0..1) that scales the angles' rate penalty up to
-        wave_rate_scale, the propellers' up to wave_thrust_rate_scale, the crossing price up to
-        wave_reversal_scale and the thrust costs up to wave_azimuth_split_scale and wave_bow_cost_scale."""
+        wave_rate_scale (times k^2 above wave_speed_ref_mps), the propellers' up to wave_thrust_rate_scale,
+        the crossing price up to wave_reversal_scale (times k) and the thrust costs up to wave_azimuth_split_scale and wave_bow_cost_scale."""
         cfg = self.config
         w = getattr(state, "wave_motion", (0.0, 0.0, 0.0))
         scales = (cfg.wave_rate_scale, cfg.wave_thrust_rate_scale, cfg.wave_reversal_scale, cfg.wave_azimuth_split_scale,
@@ -947,10 +953,15 @@ class MPCController:
                 (math.sqrt(self._wave_heading_ms) - cfg.wave_heading_deadband_rad) / cfg.wave_heading_ref_rad)
         f = min(1.0, max(0.0, f))
         self.sea_level = f
-        scale = 1.0 + (max(cfg.wave_rate_scale, 1.0) - 1.0) * f
+        k = 1.0
+        if f > 0.0 and state.u_mps > cfg.wave_speed_ref_mps:
+            k = float(self.q_trim(np.array(state.u_mps)) / self.q_trim(np.array(cfg.wave_speed_ref_mps)))
+        scale = 1.0 + (max(cfg.wave_rate_scale, 1.0) * k ** cfg.wave_speed_angle_exponent - 1.0) * f
         thrust_scale = 1.0 + (max(cfg.wave_thrust_rate_scale, 1.0) - 1.0) * f
-        if abs(scale - self.rate_scale) > 0.01 * self.rate_scale or abs(f - self._split[0]) > 0.01:
-            self._set_sea_weights(scale, thrust_scale, f)
+        reversal_scale = 1.0 + (max(cfg.wave_reversal_scale, 1.0) * k ** cfg.wave_speed_reversal_exponent - 1.0) * f
+        if abs(scale - self.rate_scale) > 0.01 * self.rate_scale or abs(f - self._split[0]) > 0.01 \
+                or abs(reversal_scale - self.reversal_scale) > 0.01 * self.reversal_scale:
+            self._set_sea_weights(scale, thrust_scale, reversal_scale, f)
 
     def _q_achieved(self) -> np.ndarray:
         n = self._n_achieved

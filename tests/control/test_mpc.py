@@ -628,3 +628,24 @@ def test_the_heading_wave_motion_alone_sets_the_sea_level(heading_rms_deg: float
         np.testing.assert_array_equal(c._Px[c._p_in_pos], P_calm)
     else:
         assert c.rate_scale == pytest.approx(c.config.wave_rate_scale, rel=0.02)
+
+
+@pytest.mark.parametrize("speed_mps", [0.4, 1.0])
+def test_the_angles_sea_scale_is_per_newton_of_side_force(speed_mps: float) -> None:
+    """Above wave_speed_ref_mps the angles' sea scale grows with k^2 and the crossing price with k,
+    k the azimuths' trim thrust at the speed over that at the reference speed: the side force an angle
+    change makes grows with the thrust (T d(alpha)). At or below it, the plain scales."""
+    cfg = NO_TIME_LIMIT
+    c = MPCController(config=cfg)
+    c.reset(straight_path(30.0))
+    state = VesselState(stamp_s=0.0, north_m=0.0, east_m=0.05, heading_rad=0.0, u_mps=speed_mps, v_mps=0.0,
+                        r_radps=0.0)
+    for k in range(200):  # a full sea level: 1 cm of wave displacement
+        w = 0.01 * math.sqrt(2.0) * math.sin(2.0 * math.pi * 0.1 * k)
+        c.update(0.1 * k, replace(state, stamp_s=0.1 * k, wave_motion=(w, w, 0.0)))
+    assert c.sea_level == pytest.approx(1.0, abs=0.01)
+    k_thrust = max(1.0, float(c.q_trim(np.array(speed_mps)) / c.q_trim(np.array(cfg.wave_speed_ref_mps))))
+    assert (k_thrust > 2.0) == (speed_mps > cfg.wave_speed_ref_mps)
+    assert c.rate_scale == pytest.approx(cfg.wave_rate_scale * k_thrust ** 2, rel=0.02)
+    assert c.reversal_scale == pytest.approx(cfg.wave_reversal_scale * k_thrust, rel=0.02)
+    assert c.thrust_rate_scale == pytest.approx(cfg.wave_thrust_rate_scale, rel=0.02)
