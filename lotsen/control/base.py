@@ -140,3 +140,48 @@ def make_status(t: float, controller: str, cte: float, heading_error: float, sta
 
 def state_is_finite(state: VesselState) -> bool:
     return all_finite(*state.as_array_tuple())
+
+
+@dataclass(frozen=True)
+class SeaLevelConfig:
+    """How a controller tells a sea from flat water (issue 46; docs/control.md "Waves"): from the
+    wave motion the estimator separated out (`VesselState.wave_motion`), its RMS over
+    `time_constant_s`. The displacement beyond `deadband_m` by `ref_m`, or the heading's beyond
+    `heading_deadband_rad` by `heading_ref_rad`, whichever is larger, is the sea level 0..1. The
+    heading tells the two apart 20-30 x (Hs 3 cm 0.25-0.33 deg, flat water <= 0.013 deg with the
+    estimator's start), the displacement not in Hs 3 cm (0.6-0.8 mm; the estimator's start in flat
+    water 0.6 mm)."""
+
+    deadband_m: float = 0.001
+    ref_m: float = 0.005
+    heading_deadband_rad: float = math.radians(0.05)
+    heading_ref_rad: float = math.radians(0.2)
+    time_constant_s: float = 5.0
+
+
+class SeaLevel:
+    """The sea level (0 flat water .. 1) of `SeaLevelConfig`, updated once per control step."""
+
+    def __init__(self, config: SeaLevelConfig, dt_s: float) -> None:
+        self.config = config
+        self._a = min(1.0, dt_s / config.time_constant_s)
+        self.reset()
+
+    def reset(self) -> None:
+        self._ms = 0.0  # mean square of the displacement (north, east)
+        self._heading_ms = 0.0
+        self.level = 0.0
+
+    def update(self, wave_motion: tuple[float, float, float]) -> float:
+        """The sea level after one more step's wave motion (north m, east m, heading rad); a
+        non-finite sample leaves it as it was."""
+        if not all(math.isfinite(w) for w in wave_motion):
+            return self.level
+        c, a = self.config, self._a
+        n, e, h = wave_motion
+        self._ms += a * (n * n + e * e - self._ms)
+        self._heading_ms += a * (h * h - self._heading_ms)
+        f = max((math.sqrt(0.5 * self._ms) - c.deadband_m) / c.ref_m,
+                (math.sqrt(self._heading_ms) - c.heading_deadband_rad) / c.heading_ref_rad)
+        self.level = min(1.0, max(0.0, f))
+        return self.level

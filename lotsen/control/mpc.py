@@ -96,7 +96,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 from typing import Any, NamedTuple
 
@@ -105,7 +105,7 @@ import osqp
 import scipy.sparse as sp
 
 from lotsen.control.allocation import rate_limit
-from lotsen.control.base import PathReference, make_status, state_is_finite, wrap_angle
+from lotsen.control.base import PathReference, SeaLevel, SeaLevelConfig, make_status, state_is_finite, wrap_angle
 from lotsen.messages import ControllerStatus, ThrustCommand, VesselState
 from lotsen.model._jit import njit
 from lotsen.model.dynamics import VesselModel, _jacobians_current, rk4_step, surge_drag
@@ -164,8 +164,7 @@ class MPCConfig:
     s_alpha: float = 10.0  # rate penalty per rad^2 (per step)
     s_thrust: float = 1.0  # rate penalty per q^2 (per step)
     # In a sea the rate penalties grow as the wave-frequency motion the estimator separates out
-    # (`VesselState.wave_motion`, its RMS over `wave_rate_time_constant_s`) grows beyond its dead band
-    # (the sea level f, 0..1): the angles' up to `wave_rate_scale` times, the propellers' up to
+    # (`VesselState.wave_motion`) grows beyond its dead band (the sea level f, 0..1: `SeaLevel`): the angles' up to `wave_rate_scale` times, the propellers' up to
     # `wave_thrust_rate_scale`, the reversal guard's crossing price up to `wave_reversal_scale`. What the
     # wave filter leaves of the waves in the estimate (at 1 m/s in quartering and following seas the
     # encounter frequency falls to 0.3-0.5 Hz, where it passes 80 % of the wave yaw rate) is then not
@@ -174,15 +173,7 @@ class MPCConfig:
     wave_rate_scale: float = 3.0
     wave_thrust_rate_scale: float = 3.0
     wave_reversal_scale: float = 3.0
-    wave_rate_deadband_m: float = 0.001
-    wave_rate_ref_m: float = 0.005
-    wave_rate_time_constant_s: float = 5.0
-    # ... or as the heading's wave motion grows from its dead band by its ref, whichever is larger: in
-    # Hs 3 cm the displacement (0.6-0.8 mm) sits within the dead band and below the estimator's own
-    # start-up transient in flat water (0.6 mm), while the heading's (0.25-0.33 deg; flat water <= 0.013)
-    # is what the azimuths chased: in Hs 3 cm the schedule had stayed off (sea level 0.01-0.07)
-    wave_heading_deadband_rad: float = math.radians(0.05)
-    wave_heading_ref_rad: float = math.radians(0.2)
+    sea: SeaLevelConfig = field(default_factory=SeaLevelConfig)  # what the sea level is read from
     # Above `wave_speed_ref_mps` the angles' sea scale grows with the square of the azimuths' trim thrust
     # and the crossing price with the thrust, k = q_trim(u) / q_trim(wave_speed_ref_mps) >= 1 (2.8 at
     # 1 m/s): what the hull feels of an angle change is the side force T d(alpha), so a penalty per
@@ -196,7 +187,7 @@ class MPCConfig:
     # "Waves"). The quadratic input cost is no power model (P ~ |n|^3 ~ |T|^1.5): at the calm weights
     # the MPC bought millimetres of tracking in a sea with yaw couples (one azimuth astern against the
     # other) and the bow thruster near its limit, 1.5-5.8x calm energy where the sea's mean drift alone
-    # asks 1.04-1.26x. With the sea level f (wave_rate_*): the azimuths' thrust cost is
+    # asks 1.04-1.26x. With the sea level f (`sea`): the azimuths' thrust cost is
     # r_thrust_azimuth_per_N2 (1 + (wave_azimuth_split_scale - 1) f) about a reference that moves by f
     # from the trim thrust to the nominal plan's mean of the two azimuths, so it prices their
     # difference (the couple, an uneven split) and not the thrust the sea's added resistance needs
@@ -912,9 +903,8 @@ class MPCController:
         self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
-        self._wave_ms = 0.0  # mean square of the estimate's wave displacement (north, east)
-        self._wave_heading_ms = 0.0  # and of its heading's wave motion
-        self.sea_level = 0.0  # 0 (flat water) .. 1 (wave_rate_ref_m beyond the dead band)
+        self._sea = SeaLevel(self.config.sea, self.config.dt_s)
+        self.sea_level = 0.0  # 0 (flat water) .. 1 (MPCConfig.sea)
         self._set_sea_weights(1.0, 1.0, 1.0, 0.0)
 
     def _set_sea_weights(self, scale: float, thrust_scale: float, reversal_scale: float, sea_level: float) -> None:
@@ -946,12 +936,7 @@ class MPCController:
         if not ((max(scales) > 1.0 or math.isfinite(cfg.wave_azimuth_astern_hold_s))
                 and all(math.isfinite(a) for a in w)):
             return
-        a = min(1.0, cfg.dt_s / cfg.wave_rate_time_constant_s)
-        self._wave_ms += a * (w[0] * w[0] + w[1] * w[1] - self._wave_ms)
-        self._wave_heading_ms += a * (w[2] * w[2] - self._wave_heading_ms)
-        f = max((math.sqrt(0.5 * self._wave_ms) - cfg.wave_rate_deadband_m) / cfg.wave_rate_ref_m,
-                (math.sqrt(self._wave_heading_ms) - cfg.wave_heading_deadband_rad) / cfg.wave_heading_ref_rad)
-        f = min(1.0, max(0.0, f))
+        f = self._sea.update(w)
         self.sea_level = f
         k = 1.0
         if f > 0.0 and state.u_mps > cfg.wave_speed_ref_mps:

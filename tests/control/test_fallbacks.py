@@ -132,3 +132,38 @@ def test_los_taking_over_under_way_keeps_the_crab_angle():
     c.update(0.0, VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=crab, u_mps=0.0, v_mps=0.0,
                               r_radps=0.0))
     assert abs(c._e_int) < 0.01
+
+
+def test_los_heading_loop_slows_in_a_sea_and_not_in_flat_water():
+    """LOSConfig.wave_heading_natural_freq_radps: with the heading's wave motion of a sea in the
+    estimate (0.5 deg RMS) the heading loop acts as one set up at that natural frequency; with the
+    largest flat water gave (0.013 deg) the calm loop to the bit."""
+    from dataclasses import replace as _replace
+
+    from lotsen.control.fallback import LOSConfig, LOSController
+    from lotsen.messages import VesselState
+
+    path = straight_path(30.0)
+    state = VesselState(stamp_s=0.0, north_m=1.0, east_m=0.2, heading_rad=0.1, u_mps=0.5, v_mps=0.0, r_radps=0.02)
+
+    def tau_after(cfg: LOSConfig, heading_rms_deg: float) -> tuple[np.ndarray, float]:
+        c = LOSController(config=cfg)
+        c.reset(path)
+        amp = math.radians(heading_rms_deg) * math.sqrt(2.0)
+        for k in range(200):  # four of the sea level's time constants
+            c._observe(_replace(state, wave_motion=(0.0, 0.0, amp * math.sin(2.0 * math.pi * 0.13 * k))))
+        c._observe(_replace(state, wave_motion=(0.0, 0.0, 0.0)))
+        x = np.array(state.as_array_tuple())
+        s, cte, hdg = c.path.project(x[0], x[1], 0.0)
+        return c._tau(0.0, x, s, cte, hdg), c.sea.level
+
+    cfg = LOSConfig()
+    calm_tau, calm_level = tau_after(cfg, 0.0)
+    flat_tau, flat_level = tau_after(cfg, 0.013)
+    assert flat_level == 0.0 and calm_level == 0.0
+    np.testing.assert_array_equal(flat_tau, calm_tau)
+    sea_tau, sea_level = tau_after(cfg, 0.5)
+    assert sea_level == pytest.approx(1.0, abs=0.01)
+    slow_tau, _ = tau_after(_replace(cfg, heading_natural_freq_radps=cfg.wave_heading_natural_freq_radps), 0.0)
+    np.testing.assert_allclose(sea_tau, slow_tau, rtol=0.01)
+    assert abs(sea_tau[2]) < abs(calm_tau[2])  # the slower loop answers the same error less hard
