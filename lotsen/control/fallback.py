@@ -280,7 +280,8 @@ class LOSController(_TauFollower):
         err = wrap_angle(psi_d - x[2])
         U = max(math.hypot(x[3], x[4]), v_ref)
         r_d = U * kappa_p  # curvature feedforward (the LOS angle's own rate is left to the PD)
-        w = c.heading_natural_freq_radps + (c.wave_heading_natural_freq_radps - c.heading_natural_freq_radps) * self.sea.level
+        w = c.heading_natural_freq_radps
+        w += (c.wave_heading_natural_freq_radps - w) * self.sea.level  # slower in a sea
         z = c.heading_damping
         kp = p.m33 * w * w
         kd = max(2.0 * z * w * p.m33 - p.N_r, 0.0)

@@ -164,8 +164,9 @@ class MPCConfig:
     s_alpha: float = 10.0  # rate penalty per rad^2 (per step)
     s_thrust: float = 1.0  # rate penalty per q^2 (per step)
     # In a sea the rate penalties grow as the wave-frequency motion the estimator separates out
-    # (`VesselState.wave_motion`) grows beyond its dead band (the sea level f, 0..1: `SeaLevel`): the angles' up to `wave_rate_scale` times, the propellers' up to
-    # `wave_thrust_rate_scale`, the reversal guard's crossing price up to `wave_reversal_scale`. What the
+    # (`VesselState.wave_motion`) grows beyond its dead band (the sea level f, 0..1: `SeaLevel`): the
+    # angles' up to `wave_rate_scale` times, the propellers' up to `wave_thrust_rate_scale`, the
+    # reversal guard's crossing price up to `wave_reversal_scale`. What the
     # wave filter leaves of the waves in the estimate (at 1 m/s in quartering and following seas the
     # encounter frequency falls to 0.3-0.5 Hz, where it passes 80 % of the wave yaw rate) is then not
     # chased (issue 46; docs/control.md "Waves"). Flat water: unchanged. The three are apart because
@@ -927,8 +928,9 @@ class MPCController:
         """In a sea, dearer input changes, reversals, uneven azimuth thrust and bow thrust
         (MPCConfig.wave_*): the RMS of the wave displacement or heading the estimator separated out,
         beyond its dead band, is the sea level f (0..1) that scales the angles' rate penalty up to
-        wave_rate_scale (times k^2 above wave_speed_ref_mps), the propellers' up to wave_thrust_rate_scale,
-        the crossing price up to wave_reversal_scale (times k) and the thrust costs up to wave_azimuth_split_scale and wave_bow_cost_scale."""
+        wave_rate_scale (times k^2 above wave_speed_ref_mps), the propellers' up to
+        wave_thrust_rate_scale, the crossing price up to wave_reversal_scale (times k) and the thrust
+        costs up to wave_azimuth_split_scale and wave_bow_cost_scale."""
         cfg = self.config
         w = getattr(state, "wave_motion", (0.0, 0.0, 0.0))
         scales = (cfg.wave_rate_scale, cfg.wave_thrust_rate_scale, cfg.wave_reversal_scale, cfg.wave_azimuth_split_scale,
