@@ -65,11 +65,12 @@ class LOSConfig:
     sideslip_compensation: bool = False  # steer the course, not the heading: psi_d -= atan2(v, u)
     min_speed_ref_mps: float = 0.15
     speed: SpeedPIDConfig = SpeedPIDConfig()
-    # In a sea the heading loop slows, as the sea level (`sea`) rises, to this natural frequency: at
-    # 2 rad/s it answered what the wave filter leaves of the waves (0.5 m/s, Hs 6 cm: 2.2 x calm azimuth
-    # travel, 3 x reversals); at 1.4 both within 1.5 x calm, tracking 1.2 x; at 1.0 tracking 2.6 x
-    # (docs/control.md "Waves"). Flat water: unchanged.
-    wave_heading_natural_freq_radps: float = 1.4
+    # In a sea the heading loop can slow, as the sea level (`sea`) rises, to this natural frequency
+    # (None: off, the default). Measured (lake boat, figure eight, Hs 6 cm, seed 0, x calm): at 0.5 m/s
+    # 1.4 rad/s took azimuth travel 2.23 -> 1.19 and reversals 2.98 -> 1.48 at tracking 1.18 -> 1.21; at
+    # 1.0 m/s it let the sea knock the hull off course, tracking 1.78 -> 4.6 x calm at 2.7 x the energy
+    # (docs/control.md "Waves"). Flat water: unchanged either way.
+    wave_heading_natural_freq_radps: float | None = None
     sea: SeaLevelConfig = SeaLevelConfig()
 
 
@@ -281,7 +282,8 @@ class LOSController(_TauFollower):
         U = max(math.hypot(x[3], x[4]), v_ref)
         r_d = U * kappa_p  # curvature feedforward (the LOS angle's own rate is left to the PD)
         w = c.heading_natural_freq_radps
-        w += (c.wave_heading_natural_freq_radps - w) * self.sea.level  # slower in a sea
+        if c.wave_heading_natural_freq_radps is not None:
+            w += (c.wave_heading_natural_freq_radps - w) * self.sea.level  # slower in a sea
         z = c.heading_damping
         kp = p.m33 * w * w
         kd = max(2.0 * z * w * p.m33 - p.N_r, 0.0)

@@ -135,9 +135,10 @@ def test_los_taking_over_under_way_keeps_the_crab_angle():
 
 
 def test_los_heading_loop_slows_in_a_sea_and_not_in_flat_water():
-    """LOSConfig.wave_heading_natural_freq_radps: with the heading's wave motion of a sea in the
-    estimate (0.5 deg RMS) the heading loop acts as one set up at that natural frequency; with the
-    largest flat water gave (0.013 deg) the calm loop to the bit."""
+    """LOSConfig.wave_heading_natural_freq_radps (set: 1.4 rad/s): with the heading's wave motion of a
+    sea in the estimate (0.5 deg RMS) the heading loop acts as one set up at that natural frequency;
+    with the largest flat water gave (0.013 deg) the calm loop to the bit; unset (the default), the
+    calm loop in the sea too."""
     from dataclasses import replace as _replace
 
     from lotsen.control.fallback import LOSConfig, LOSController
@@ -157,8 +158,11 @@ def test_los_heading_loop_slows_in_a_sea_and_not_in_flat_water():
         s, cte, hdg = c.path.project(x[0], x[1], 0.0)
         return c._tau(0.0, x, s, cte, hdg), c.sea.level
 
-    cfg = LOSConfig()
+    assert LOSConfig().wave_heading_natural_freq_radps is None
+    off_tau, _ = tau_after(LOSConfig(), 0.5)
+    cfg = LOSConfig(wave_heading_natural_freq_radps=1.4)
     calm_tau, calm_level = tau_after(cfg, 0.0)
+    np.testing.assert_array_equal(off_tau, calm_tau)
     flat_tau, flat_level = tau_after(cfg, 0.013)
     assert flat_level == 0.0 and calm_level == 0.0
     np.testing.assert_array_equal(flat_tau, calm_tau)
