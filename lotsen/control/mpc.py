@@ -848,6 +848,7 @@ class MPCController:
         self._ref = np.zeros((N, 5))
         p = self.model.params
         self._q_trim_gain = np.array([p.X_u, -p.X_uu, -p.X_uuu]) / (2.0 * p.mu_az * self.scale[2])
+        self._q_trim_sea_ref = float(self.q_trim(np.array(cfg.wave_speed_ref_mps)))  # k's denominator in a sea
         self._Qy = np.array([cfg.q_cross_track, cfg.q_course, cfg.q_heading, cfg.q_speed, cfg.q_yaw_rate])
         # the compiled assembly's view of the above (the same arrays, grouped)
         self._pattern = QpPattern(self._ad_idx[0], self._ad_idx[1], self._bd_idx[0], self._bd_idx[1],
@@ -905,8 +906,12 @@ class MPCController:
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
         self._sea = SeaLevel(self.config.sea, self.config.dt_s)
-        self.sea_level = 0.0  # 0 (flat water) .. 1 (MPCConfig.sea)
         self._set_sea_weights(1.0, 1.0, 1.0, 0.0)
+
+    @property
+    def sea_level(self) -> float:
+        """0 (flat water) .. 1 (MPCConfig.sea), from the wave motion the estimate carries."""
+        return self._sea.level
 
     def _set_sea_weights(self, scale: float, thrust_scale: float, reversal_scale: float, sea_level: float) -> None:
         """The input-rate penalties times `scale` and the thrust costs at `sea_level`
@@ -939,10 +944,9 @@ class MPCController:
                 and all(math.isfinite(a) for a in w)):
             return
         f = self._sea.update(w)
-        self.sea_level = f
         k = 1.0
         if f > 0.0 and state.u_mps > cfg.wave_speed_ref_mps:
-            k = float(self.q_trim(np.array(state.u_mps)) / self.q_trim(np.array(cfg.wave_speed_ref_mps)))
+            k = float(self.q_trim(np.array(state.u_mps))) / self._q_trim_sea_ref
         scale = 1.0 + (max(cfg.wave_rate_scale, 1.0) * k ** cfg.wave_speed_angle_exponent - 1.0) * f
         thrust_scale = 1.0 + (max(cfg.wave_thrust_rate_scale, 1.0) - 1.0) * f
         reversal_scale = 1.0 + (max(cfg.wave_reversal_scale, 1.0) * k ** cfg.wave_speed_reversal_exponent - 1.0) * f
