@@ -22,13 +22,19 @@ Welch's method (Hann windows of `segment_s`, half overlapping; numpy's FFT) and,
 - heave: the elevation's encounter spectrum S(w) = S_a(w) / w^4 (the heave acceleration a = w^2 z)
   divided by the hull's heave transfer function |H|^2, H = sinc(k L cos(chi) / 2) sinc(k B sin(chi)
   / 2) e^{-k T / 2} (the elevation averaged over the waterplane, its pressure at half the draft; L, B,
-  T the hull's, `hull_m`; chi the waves' travel relative to the bow, |H|^2 averaged over the window's
+  T the hull's, `hull_m`; chi the waves' travel relative to the bow, |H|^2 averaged over a segment's
   headings and floored at `min_transfer`): Hs = 4 sqrt(m0), Tp_encounter at the
   spectrum's peak. Without it a 1 m hull in 1.5 m waves heading into them read 0.47 of the Hs;
-- the true peak period from the encounter one: w_e = w - w^2 U cos(chi) / g solved for w (deep
-  water) at the boat's speed over ground along its heading, U cos(chi) averaged over the window; in
-  following seas faster than half the waves' group speed the encounter frequency is ambiguous and the
-  smaller root is taken.
+- the true frequencies from the encounter ones, per Welch segment: w_e = w - w^2 U cos(chi) / g
+  solved for w (deep water) at the boat's speed over ground along the waves' travel, U cos(chi)
+  averaged over that segment; each segment's elevation spectrum divided by |H|^2 at its own true
+  wavenumbers and its headings, and its energy put on the true-frequency axis, before the segments
+  are averaged. A manoeuvring boat meets one sea at several encounter frequencies: one speed for the
+  whole window (the boat's speed now, or the window's mean) read Hs 6 cm as 8-12 cm and Tp 1.0 s as
+  0.6 s on a boat that drifted, ran north and turned into following seas within the window (the live
+  test's route), where the segments' own speeds read 6.6-6.9 cm and 1.07-1.16 s. In following seas
+  faster than half the waves' group speed the encounter frequency is ambiguous and the smaller root is
+  taken.
 
 A sea below the IMU's noise reads as flat water (`hs_m` 0, `valid` True); too little data as not
 valid. Pure: time only from the sample stamps.
@@ -61,11 +67,6 @@ class SeaStateConfig:
     max_gap_s: float = 1.0  # a longer gap in the IMU starts the window again
     hull_m: tuple[float, float, float] = (0.99, 0.30, 0.08)  # waterline length, beam, draft (the lake boat's)
     min_transfer: float = 0.15  # |H|^2 floor: waves much shorter than the hull are not read back from nothing
-    # the speed along the waves' travel that turns encounter frequencies into true ones: averaged over
-    # the window (a whole record, manoeuvring: its last heading alone misread it) or the boat's now (the
-    # running boat: the EKF is given the encounter frequency from it; the window's mean on a figure eight
-    # at 1 m/s in Hs 10 cm lost the 6-DOF hull's GNSS, bench waves seed 2)
-    along_speed_over_window: bool = False
 
 
 class SeaStateEstimator:
@@ -120,6 +121,16 @@ class SeaStateEstimator:
         if math.isfinite(heading_rad) and math.isfinite(speed_mps):
             self._heading, self._speed = heading_rad, speed_mps
 
+    def encounter_frequency_radps(self) -> float | None:
+        """The frequency (rad/s) at which the boat met the sea's peak over the window, for the EKF's wave
+        model; None without an estimate of a sea. (The peak at the present heading and speed, from the
+        true period, is the theory; on a figure eight at 1 m/s in Hs 6 cm it lost one 6-DOF mission of
+        three to the estimator where the window's own peak lost none: a turning boat meets a mixture.)"""
+        s = self.last
+        if s is None or not (s.valid and s.hs_m > 0 and math.isfinite(s.tp_encounter_s)):
+            return None
+        return 2.0 * math.pi / s.tp_encounter_s
+
     def estimate(self, t: float) -> SeaState | None:
         """A new estimate when one is due (None otherwise); the latest is `last`."""
         if t < self._next_update:
@@ -136,7 +147,9 @@ class SeaStateEstimator:
         if span < c.min_data_s:
             return SeaState(stamp_s=t, valid=False, window_s=span, hs_m=nan, tp_s=nan, tp_encounter_s=nan,
                             from_deg=nan, heave_std_m=nan, roll_std_deg=nan, pitch_std_deg=nan)
-        f, S = _welch(data[:, 1:6] - data[:, 1:6].mean(axis=0), c.rate_hz, int(round(c.segment_s * c.rate_hz)))
+        nseg = int(round(c.segment_s * c.rate_hz))
+        f, P, starts = _welch(data[:, 1:6] - data[:, 1:6].mean(axis=0), c.rate_hz, nseg)
+        S = P.mean(axis=0)
         band = (f >= c.band_hz[0]) & (f <= c.band_hz[1])
         fb, df = f[band], float(f[1] - f[0])
         w = 2.0 * math.pi * fb
@@ -148,31 +161,36 @@ class SeaStateEstimator:
         if acc_std < c.min_heave_accel_mps2:  # flat water: nothing above the IMU's noise
             return SeaState(stamp_s=t, valid=True, window_s=span, hs_m=0.0, tp_s=nan, tp_encounter_s=nan,
                             from_deg=nan, heave_std_m=0.0, roll_std_deg=roll_std, pitch_std_deg=pitch_std)
-        Szz = Saa / w ** 4  # the hull's heave, encounter spectrum
-        heave_std = math.sqrt(float(np.sum(Szz) * df))
+        heave_std = math.sqrt(float(np.sum(Saa / w ** 4) * df))
         # direction of travel over ground: the horizontal orbit leads the heave by a quarter period
         q_an = float(np.sum(S[0, 3][band].imag))
         q_ae = float(np.sum(S[0, 4][band].imag))
         travel = math.atan2(q_ae, q_an)
-        # the true frequencies of the band (the encounter ones under way: the boat's speed along the waves'
-        # travel, for a record averaged over the window so that a boat that turned is not corrected by its
-        # last heading alone; on a 10-min manoeuvring record that read Hs 4.8-9.7 cm, Tp 0.71-1.22 s in
-        # 2-min windows of Hs 6 cm, Tp 1.0 s) and the hull's heave transfer
-        along = (float(np.mean(data[:, 7] * np.cos(travel - data[:, 6]))) if c.along_speed_over_window
-                 else self._speed * math.cos(travel - self._heading))
-        w_true = np.array([true_frequency(float(x), along) for x in w])
-        k = w_true ** 2 / GRAVITY_MPS2
+        # each segment's elevation spectrum at the true frequencies its own speed along the waves' travel
+        # met them at, through the hull's heave transfer at its own headings
         L, B, T = c.hull_m
-        rel = travel - data[:: max(1, len(data) // 60), 6]  # the waves' direction from the bow over the window
-        H2 = np.mean((_sinc(0.5 * np.outer(np.cos(rel), k) * L) * _sinc(0.5 * np.outer(np.sin(rel), k) * B)) ** 2,
-                     axis=0) * np.exp(-k * T)
-        Szeta = Szz / np.maximum(H2, c.min_transfer)
-        m0 = float(np.sum(Szeta) * df)
-        k_peak = int(np.argmax(np.convolve(Szeta, np.ones(3) / 3.0, mode="same")))
-        w_e = float(w[k_peak])
+        seg_len = min(nseg, len(data))
+        Szeta_encounter = np.zeros_like(w)  # the segments' mean, on the encounter axis
+        E_true = np.zeros_like(w)  # energy per true-frequency bin (the band's own grid)
+        for j, start in enumerate(starts):
+            rows = data[start:start + seg_len]
+            along = float(np.mean(rows[:, 7] * np.cos(travel - rows[:, 6])))
+            w_true = np.array([true_frequency(float(x), along) for x in w])
+            k = w_true ** 2 / GRAVITY_MPS2
+            rel = travel - rows[:: max(1, len(rows) // 30), 6]  # the waves' direction from the bow
+            H2 = np.mean((_sinc(0.5 * np.outer(np.cos(rel), k) * L) * _sinc(0.5 * np.outer(np.sin(rel), k) * B)) ** 2,
+                         axis=0) * np.exp(-k * T)
+            Szeta = P[j, 0, 0][band].real / w ** 4 / np.maximum(H2, c.min_transfer)
+            Szeta_encounter += Szeta / len(starts)
+            idx = np.clip(np.rint((w_true / (2.0 * math.pi) - fb[0]) / df).astype(int), 0, len(w) - 1)
+            np.add.at(E_true, idx, Szeta * df / len(starts))
+        m0 = float(np.sum(Szeta_encounter) * df)
+        smooth = np.ones(3) / 3.0
+        w_e = float(w[int(np.argmax(np.convolve(Szeta_encounter, smooth, mode="same")))])
+        w_p = float(w[int(np.argmax(np.convolve(E_true, smooth, mode="same")))])
         from_deg = math.degrees(travel + math.pi) % 360.0
         return SeaState(stamp_s=t, valid=True, window_s=span, hs_m=4.0 * math.sqrt(m0),
-                        tp_s=2.0 * math.pi / float(w_true[k_peak]), tp_encounter_s=2.0 * math.pi / w_e,
+                        tp_s=2.0 * math.pi / w_p, tp_encounter_s=2.0 * math.pi / w_e,
                         from_deg=from_deg, heave_std_m=heave_std, roll_std_deg=roll_std, pitch_std_deg=pitch_std)
 
 
@@ -184,8 +202,7 @@ RECORD_BAND_HZ = (0.4, 3.0)
 
 
 def record_sea_state(t: np.ndarray, imu: np.ndarray, heading_rad: np.ndarray, speed_mps: np.ndarray,
-                     config: SeaStateConfig = SeaStateConfig(band_hz=RECORD_BAND_HZ,
-                                                             along_speed_over_window=True)) -> SeaState:
+                     config: SeaStateConfig = SeaStateConfig(band_hz=RECORD_BAND_HZ)) -> SeaState:
     """The sea state of a whole record, from its own IMU: the same `SeaStateEstimator` the running boat
     uses, fed the record's IMU rows in time order (`imu`: K x 6, specific force x, y, z and rates p, q, r,
     each the mean over its row interval or a sample; NaN rows skipped) with the horizontal axes levelled
@@ -210,16 +227,6 @@ def record_sea_state(t: np.ndarray, imu: np.ndarray, heading_rad: np.ndarray, sp
     return est.compute(float(t[-1]) if len(t) else 0.0)
 
 
-def encounter_frequency(sea: SeaState, heading_rad: float, speed_mps: float) -> float | None:
-    """The frequency a boat on `heading_rad` at `speed_mps` meets the sea's peak at: w_e = |w_p - k_p U
-    cos(chi)|, chi the waves' travel relative to the bow (deep water). None without a sea or a direction."""
-    if not (sea.valid and sea.hs_m > 0 and math.isfinite(sea.tp_s) and math.isfinite(sea.from_deg)):
-        return None
-    w = 2.0 * math.pi / sea.tp_s
-    chi = math.radians(sea.from_deg) + math.pi - heading_rad
-    return abs(w - w * w / GRAVITY_MPS2 * speed_mps * math.cos(chi))
-
-
 def true_frequency(w_encounter: float, speed_along_waves_mps: float) -> float:
     """The wave frequency w met at w_e by a boat moving at U cos(chi) along the waves' travel (deep
     water: w_e = w - w^2 U cos(chi) / g). Head seas (U cos(chi) < 0): the one positive root. Following
@@ -237,21 +244,17 @@ def _sinc(z: np.ndarray) -> np.ndarray:
     return np.sinc(np.asarray(z) / math.pi)  # numpy's sinc is sin(pi x) / (pi x)
 
 
-def _welch(x: np.ndarray, fs: float, nseg: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cross-spectral densities of the columns of x (Welch: Hann windows of nseg, half overlapping),
-    one-sided: (frequencies, S[i, j, f])."""
+def _welch(x: np.ndarray, fs: float, nseg: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Welch's cross-spectral densities of the columns of x, segment by segment (Hann windows of nseg,
+    half overlapping), one-sided: (frequencies, P[segment, i, j, f], each segment's first row); their
+    mean over the segments is Welch's estimate."""
     n, m = x.shape
     nseg = min(nseg, n)
     step = max(1, nseg // 2)
     win = np.hanning(nseg)
     scale = 1.0 / (fs * float(np.sum(win ** 2)))
-    acc = None
-    count = 0
-    for start in range(0, n - nseg + 1, step):
-        X = np.fft.rfft(x[start:start + nseg] * win[:, None], axis=0)  # (freqs, m)
-        P = np.einsum("fi,fj->ijf", np.conj(X), X)
-        acc = P if acc is None else acc + P
-        count += 1
-    S = acc * (scale / count)
-    S[:, :, 1:-1] *= 2.0
-    return np.fft.rfftfreq(nseg, 1.0 / fs), S
+    starts = list(range(0, n - nseg + 1, step))
+    X = np.stack([np.fft.rfft(x[s:s + nseg] * win[:, None], axis=0) for s in starts])  # (segments, freqs, m)
+    P = np.einsum("sfi,sfj->sijf", np.conj(X), X) * scale
+    P[:, :, :, 1:-1] *= 2.0
+    return np.fft.rfftfreq(nseg, 1.0 / fs), P, starts

@@ -32,7 +32,7 @@ from typing import Any, Callable
 
 from lotsen.errors import LotsenError
 from lotsen.fusion import MagCalibration, calibrated_heading
-from lotsen.fusion.seastate import SeaStateConfig, SeaStateEstimator, encounter_frequency
+from lotsen.fusion.seastate import SeaStateConfig, SeaStateEstimator
 from lotsen.messages import ImuSample, MagCalibrationResult, MagSample, Topic, VesselState
 from lotsen.runtime.executor import Node, NodeContext
 
@@ -221,10 +221,10 @@ class FusionNode(Node):
                 if sea is not None:
                     self.ctx.publish(Topic.SEA_STATE, sea)
                 set_w = getattr(self.estimator, "set_wave_frequency", None)
-                if set_w is not None and self.sea.last is not None:
-                    # the wave model at the frequency the boat meets the sea's peak now: it changes with
-                    # every turn (following seas at 1 m/s: 2.9 rad/s where the 8-s heave mean said 5.3)
-                    set_w(encounter_frequency(self.sea.last, est.heading_rad, est.u_mps))
+                if set_w is not None:
+                    # the wave model at the frequency the boat met the sea's peak over the sea state's
+                    # window (following seas at 1 m/s: 2.9 rad/s where the 8-s heave mean said 5.3)
+                    set_w(self.sea.encounter_frequency_radps())
         if t - self._last_health_s >= self.health_period_s - 1e-9:
             self._last_health_s = t
             self._publish_health(t)

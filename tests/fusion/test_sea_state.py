@@ -71,6 +71,39 @@ def test_the_imu_reads_the_sea_on_the_independent_hull():
     assert angle_error_deg(s.from_deg, 90.0) < 30.0
 
 
+def test_a_boat_that_drifts_runs_and_turns_into_following_seas_reads_one_sea():
+    """The live test's first minute (tests/stack/test_live_waves.py): 15 s adrift, 25 s north at ~0.5 m/s,
+    then 60 deg, with the waves (from 250 deg) running along the bow. Each Welch segment is mapped from
+    encounter to true frequencies at its own speed along the waves: one speed for the window (the boat's
+    now) read this sea as Hs 8-12 cm, Tp 0.6-0.75 s once the boat ran with the waves."""
+    from lotsen.model.angles import wrap_angle
+
+    env = Environment(current_speed_mps=0.08, current_to_deg=30.0, wind_speed_mps=4.0, wind_from_deg=250.0,
+                      waves=Waves(0.06, 1.0, 250.0))
+    sim = Simulator(config=SimConfig(environment=env, seed=0), x0=[4, 20, 0, 0, 0, 0])
+    est, tilt = SeaStateEstimator(), TiltFilter()
+    readings = []
+    for k in range(7500):
+        s = sim.truth()
+        if k % 10 == 0:
+            target = 0.0 if sim.t < 40.0 else math.radians(60.0)
+            alpha = max(-0.5, min(0.5, -1.5 * wrap_angle(target - s.heading_rad)))
+            sim.command((0, 0, 0, 0, 0) if sim.t < 15.0 else (alpha, alpha, 40.0, 40.0, 0.0))
+            est.on_state(s)
+        for m in sim.step():
+            if isinstance(m, ImuSample):
+                tilt.update(m.stamp_s, m.gyro_radps, m.accel_mps2)
+                est.on_imu(m, tilt.level(m.accel_mps2))
+        if k >= 4500 and k % 500 == 0:  # under way with the waves, 45-75 s
+            assert math.degrees(abs(wrap_angle(s.heading_rad - math.radians(70.0)))) < 35.0
+            readings.append(est.compute(sim.t))
+    true_hs = sim.plant.sea.significant_height_m
+    for r in readings:
+        assert r.valid and r.hs_m == pytest.approx(true_hs, rel=0.25), r
+        assert r.tp_s == pytest.approx(1.0, rel=0.2), r
+        assert angle_error_deg(r.from_deg, 250.0) < 20.0, r
+
+
 def test_flat_water_reads_flat_and_too_little_data_is_not_an_estimate():
     sim = Simulator(config=SimConfig(seed=1), x0=[0, 0, 0, 0, 0, 0])
     sim.command((0.1, 0.1, 45.0, 45.0, 0.0))

@@ -13,7 +13,7 @@ import pytest
 
 from lotsen.fusion.common import feed
 from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
-from lotsen.fusion.seastate import SeaStateEstimator, encounter_frequency
+from lotsen.fusion.seastate import SeaStateEstimator
 from lotsen.harness.mission import sim_mag_calibration
 from lotsen.messages import ImuSample, VesselState
 from lotsen.model import Environment, VesselModel
@@ -51,8 +51,7 @@ def _turn(wave_mean_periods: float, hs_m: float, duration_s: float = 60.0) -> np
             est = ekf.estimate(t)
             sea.on_state(est)
             sea.estimate(t)
-            if sea.last is not None:
-                ekf.set_wave_frequency(encounter_frequency(sea.last, est.heading_rad, est.u_mps))
+            ekf.set_wave_frequency(sea.encounter_frequency_radps())
             rows.append((t, r_true, est.r_radps))
     return np.array(rows)
 

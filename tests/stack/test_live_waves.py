@@ -29,11 +29,11 @@ def test_lotsen_run_in_waves_flies_the_route_and_the_page_shows_the_sea(tmp_path
     f = report.figures
     assert f["failsafes"] == 0 and f.get("health_not_ok", 0) == 0
     assert f["ship_command_hz"] >= 9.5
-    # the page's sea state: Hs within a factor of 2, the period and the direction it comes from. This run
-    # gives the estimator ~60 s of a turning boat (100-120 s windows measure within 7 % on this hull,
-    # tests/fusion/test_sea_state.py): the page read Hs 7.5-11.5 cm for the 6 cm sea in 7 runs on
-    # 2026-11-30 (the bound was 40 % until the controllers' sea schedule changed how the boat meets the
-    # waves; the short window's over-read is an open item of issue 46)
-    assert 0.03 <= f["page_sea_hs"] <= 0.12, f
+    # the page's sea state: Hs within 40 %, the period and the direction it comes from. This run gives the
+    # estimator ~60 s of a boat that drifts, runs north and turns to run with the waves; with one speed for
+    # the whole window the page read Hs 7.5-11.7 cm for the 6 cm sea (2026-11-30), with each Welch
+    # segment's own speed 6.1-6.3 cm, Tp 1.16 s, from 248-251 deg in 4 runs
+    # (tests/fusion/test_sea_state.py has the same boat offline)
+    assert 0.036 <= f["page_sea_hs"] <= 0.084, f
     assert 0.8 <= f["page_sea_tp"] <= 1.25, f
     assert abs((f["page_sea_from"] - 250.0 + 180.0) % 360.0 - 180.0) <= 40.0, f
