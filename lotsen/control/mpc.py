@@ -291,6 +291,19 @@ class MPCConfig:
     # 0-2: 0.5 m/s 6.20 -> 7.33 cm, 1.0 m/s 13.78 -> 15.32 cm, every seed worse at 1.0 m/s) for -5 / +2 %
     # energy, and the lake boat +1.5-3.7 % energy in Hs 6-10 cm. inf: off.
     azimuth_idle_release_s: float = 2.0
+    # The bow thruster idle (inside the hysteresis) this long with a direction has none again: free both
+    # ways, as at the start. The trap it breaks is the azimuths' one above, in a sea: a start sent the bow
+    # thruster one way, the leg needed the other, the crossing price (scaled with the sea) kept it idle,
+    # and the azimuths made the yaw moment as a couple, one near full speed ahead, the other astern, for
+    # 37-53 s of the 6-DOF hull's figure eight at 0.5 m/s in Hs 3 cm (seeds 0-2; 2 x calm water's energy;
+    # the wave hold at 60 s ended it). Measured 2026-11-30 (bench waves, 3 seeds, x calm, inf -> 10 s):
+    # 6-DOF 0.5 m/s Hs 3 cm energy 1.66 -> 1.22, tracking 1.41 -> 1.23, reversals 0.78 -> 0.88 (every
+    # bar met); lake boat 0.5 m/s energy 0.92 / 1.15 / 1.77 -> 0.88 / 1.12 / 1.71 in Hs 3 / 6 / 10 cm;
+    # the cost: lake 0.5 m/s Hs 6 / 10 cm tracking 2.26 / 3.69 -> 2.42 / 4.20 and reversals 0.78 / 0.91 ->
+    # 0.89 / 1.26, 6-DOF 0.5 m/s Hs 6 cm tracking 2.71 -> 2.87, energy 1.74 -> 1.85; calm water and
+    # 1.0 m/s unchanged. At 2 s the bow thruster turned over so often that the 6-DOF hull's reversals
+    # went to 2.3 x calm (seed 0). inf: off.
+    bow_idle_release_s: float = 10.0
     reversal_quadratic: float = 1e-3  # small quadratic on the slacks (strict convexity)
     reversal_hysteresis_rps: float = 5.0  # direction changes on achieved speeds beyond +-this (also the count)
     # ESC + motor lag in the prediction (first order, motor_time_constant_s of the limits): each
@@ -316,6 +329,8 @@ class MPCConfig:
             raise ValueError(f"MPCConfig.reiterate_dw: {self.reiterate_dw} must be a finite number >= 0")
         if not self.azimuth_idle_release_s > 0.0:
             raise ValueError(f"MPCConfig.azimuth_idle_release_s: {self.azimuth_idle_release_s} must be > 0 (inf: off)")
+        if not self.bow_idle_release_s > 0.0:
+            raise ValueError(f"MPCConfig.bow_idle_release_s: {self.bow_idle_release_s} must be > 0 (inf: off)")
         if not self.reversal_band_rps < self.reversal_hysteresis_rps:
             raise ValueError(f"MPCConfig.reversal_band_rps: {self.reversal_band_rps} must be below "
                              f"reversal_hysteresis_rps ({self.reversal_hysteresis_rps})")
@@ -901,7 +916,7 @@ class MPCController:
         self._sigma = np.array([1.0, 1.0, 0.0])
         self._since_flip_s = np.full(NREV, np.inf)  # time since each propeller changed direction
         self._astern_s = np.zeros(NREV)  # how long each propeller's direction has been astern
-        self._idle_s = np.zeros(NREV)  # how long each propeller has idled with its direction astern
+        self._idle_s = np.zeros(NREV)  # how long each has idled with its direction astern (the bow: either)
         self._n_achieved = np.zeros(NREV)  # modelled ESC speeds (rev/s) at the present time
         self._cmd_effective: tuple[float, ...] = (0.0,) * NW
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
@@ -1002,8 +1017,13 @@ class MPCController:
                 self._direction[j] = d
         self._astern_s = np.where(self._direction < 0.0, self._astern_s + cfg.dt_s, 0.0)
         idle = (self._direction < 0.0) & (np.abs(self._n_achieved) < h)
+        idle[2] = self._direction[2] != 0.0 and abs(self._n_achieved[2]) < h  # the bow: idle either way
         self._idle_s = np.where(idle, self._idle_s + cfg.dt_s, 0.0)
         sigma_prev = self._sigma.copy()
+        if self._idle_s[2] > cfg.bow_idle_release_s:
+            self._direction[2] = 0.0
+            self._idle_s[2] = 0.0
+            sigma_prev[2] = 0.0
         # an azimuth idle astern-directed: ahead again; in flat water only (in a sea the wave hold acts)
         if math.isfinite(cfg.azimuth_idle_release_s) and self.sea_level == 0.0:
             for j in range(2):

@@ -435,6 +435,34 @@ def test_reversal_guard_holds_a_direction_and_prices_only_the_crossing():
     assert c._sigma[2] == 1.0 and c.reversals == 1
 
 
+def test_an_idle_bow_thruster_loses_its_direction_and_is_free_both_ways_again():
+    """Issue 46: the start sent the bow thruster one way, the leg needed the other; with the crossing
+    price scaled by the sea it stayed idle and the azimuths made the yaw moment as a couple (one
+    ahead, one astern near full speed for 37-53 s of the 6-DOF hull's figure eight at 0.5 m/s in
+    Hs 3 cm, twice calm water's energy). Idle (inside the hysteresis) for bow_idle_release_s, it has no
+    direction again; pushing, it keeps one; the azimuths are not touched."""
+    c = MPCController(config=NO_TIME_LIMIT)
+    c.reset(circle_path())
+    c._n_achieved = np.array([40.0, 40.0, 30.0])
+    c._update_direction()
+    assert list(c._sigma) == [1.0, 1.0, 1.0]
+    steps = int(round(c.config.bow_idle_release_s / c.config.dt_s))
+    c._n_achieved = np.array([40.0, 40.0, 2.0])  # idle
+    for _ in range(steps - 1):
+        c._update_direction()
+    assert c._sigma[2] == 1.0  # not yet
+    for _ in range(2):
+        c._update_direction()
+    assert c._sigma[2] == 0.0 and c._direction[2] == 0.0 and list(c._sigma[:2]) == [1.0, 1.0]
+    c._n_achieved = np.array([40.0, 40.0, -30.0])  # the other way: no reversal counted, direction set
+    c._update_direction()
+    assert c._sigma[2] == -1.0 and c.reversals == 0
+    c._n_achieved = np.array([40.0, 40.0, -30.0])  # pushing: kept however long
+    for _ in range(2 * steps):
+        c._update_direction()
+    assert c._sigma[2] == -1.0
+
+
 def test_an_azimuth_left_astern_comes_back_ahead_and_shares_the_thrust():
     """A start or a turn can leave an azimuth's direction astern; on a straight line at 0.8 m/s it must
     come back ahead after `azimuth_astern_hold_s`, or (the default) after `azimuth_idle_release_s` of
