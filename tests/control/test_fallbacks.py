@@ -79,6 +79,38 @@ def test_station_keeping_returns_to_the_target_and_turns_on_the_spot():
     assert_commands_within_limits(cmds)
 
 
+def test_station_keeping_slows_its_loops_in_a_sea_and_not_in_flat_water():
+    """Issue 46: in a sea the hold's natural frequencies fall to wave_natural_freq_scale of calm as the
+    sea level rises (K_p with the square, K_i the cube), so the wave motion left in the estimate is
+    chased less; flat water (no wave motion, or the estimator's start-up's 0.013 deg) keeps the calm
+    gains to the bit."""
+    from dataclasses import replace as _replace
+
+    from lotsen.control.station_keeping import StationKeepingConfig
+    from lotsen.messages import VesselState
+
+    state = VesselState(stamp_s=0.0, north_m=0.02, east_m=-0.01, heading_rad=0.01, u_mps=0.0, v_mps=0.0, r_radps=0.0)
+    target = HoldTarget(0.0, 0.0, 0.0)
+
+    def hold_after(heading_rms_deg: float) -> StationKeepingController:
+        k = StationKeepingController()
+        amp = math.radians(heading_rms_deg) * math.sqrt(2.0)
+        for i in range(200):  # four of the sea level's time constants
+            k.update(0.1 * i, _replace(state, stamp_s=0.1 * i,
+                                       wave_motion=(0.0, 0.0, amp * math.sin(2.0 * math.pi * 0.13 * i))), target)
+        return k
+
+    calm, flat, sea = StationKeepingController(), hold_after(0.013), hold_after(0.5)
+    assert flat.sea.level == 0.0 and sea.sea.level == pytest.approx(1.0, abs=0.01)
+    for a, b in ((flat.kp, calm.kp), (flat.kd, calm.kd), (flat.ki, calm.ki)):
+        np.testing.assert_array_equal(a, b)
+    s = StationKeepingConfig().wave_natural_freq_scale
+    assert s < 1.0
+    np.testing.assert_allclose(sea.kp, s ** 2 * calm.kp, rtol=0.02)
+    np.testing.assert_allclose(sea.ki, s ** 3 * calm.ki, rtol=0.03)
+    assert np.all(sea.kd < calm.kd)
+
+
 def _figure_eight():
     """The closed figure eight of the examples: it starts at its crossing (20, 20) and passes it
     again half way, on the other branch (s ~ 48.2 m)."""
