@@ -83,12 +83,15 @@ class StationKeepingConfig:
     integral_max_speed_mps: float = 0.05  # with an estimate fed forward, the integral pauses above this speed
     # In a sea (issue 46) the position and heading loops slow as the sea level (`sea`, read from the
     # wave motion the estimator separated out, as the MPC's and LOS's) rises, their natural frequencies
-    # to this fraction at level 1: what is left of the waves in the low-frequency estimate is chased
-    # less. Measured 2026-11-30 (bench waves' hold: 60 s head to wind and waves, 3 seeds, 1 -> 0.75): the
-    # 6-DOF hull in Hs 6 / 10 cm 1.23 / 1.66 -> 0.94 / 1.31 x calm energy, RMS 1.50 / 2.38 -> 1.98 / 2.88
-    # cm; the lake boat 1.01 / 1.04 -> 0.95 / 0.96 x, RMS 2.01 / 2.88 -> 3.17 / 4.08 cm (the bar: 5 cm);
-    # 0.6 (seed 0) took the 6-DOF hull to 0.97 x at 3.9 cm. 1: off; flat water is untouched.
-    wave_natural_freq_scale: float = 0.75
+    # to these fractions at level 1: what is left of the waves in the low-frequency estimate is chased
+    # less. The heading loop not while vaning (its stiffer loop holds the bow into a current: yaw-
+    # unstable). Measured 2026-11-30 (bench waves' hold: 60 s head to wind and waves, seed 0, J and
+    # RMS cm in Hs 6 / 10 cm): 6-DOF hull calm gains 134 / 190 J (calm water 129 J), 1.5 / 2.5 cm;
+    # both 0.75: 116 / 149 J, 2.3 / 3.0 cm; position 0.85, heading 0.5: 97 / 139 J, 1.9 / 2.7 cm; lake
+    # boat calm gains 378 J in Hs 10 (calm water 322 J), 2.7 cm; both 0.75 344 / 347 J, 3.1 / 3.7 cm;
+    # 0.85 / 0.5: 311 / 322 J, 2.7 / 3.4 cm. 1: off; flat water is untouched.
+    wave_position_freq_scale: float = 0.85
+    wave_heading_freq_scale: float = 0.5
     sea: SeaLevelConfig = SeaLevelConfig()
 
     def __post_init__(self) -> None:
@@ -130,8 +133,9 @@ class StationKeepingController:
                                                                           c.vane_heading_natural_freq_radps)
         else:
             w_position, w_heading = c.position_natural_freq_radps, c.heading_natural_freq_radps
-        scale = 1.0 + (c.wave_natural_freq_scale - 1.0) * sea_level
-        om = scale * np.array([w_position, w_position, w_heading])
+        scale = 1.0 + (c.wave_position_freq_scale - 1.0) * sea_level
+        scale_h = 1.0 if vaning else 1.0 + (c.wave_heading_freq_scale - 1.0) * sea_level
+        om = np.array([scale * w_position, scale * w_position, scale_h * w_heading])
         self.kp = self._m * om ** 2
         self.kd = np.maximum(2.0 * c.damping * om * self._m - self._lin, 0.1 * self._m * om)
         self.ki = self.kp * om / c.integral_ratio

@@ -80,8 +80,8 @@ def test_station_keeping_returns_to_the_target_and_turns_on_the_spot():
 
 
 def test_station_keeping_slows_its_loops_in_a_sea_and_not_in_flat_water():
-    """Issue 46: in a sea the hold's natural frequencies fall to wave_natural_freq_scale of calm as the
-    sea level rises (K_p with the square, K_i the cube), so the wave motion left in the estimate is
+    """Issue 46: in a sea the hold's natural frequencies fall to wave_position_freq_scale and
+    wave_heading_freq_scale of calm as the sea level rises (K_p with the square, K_i the cube), so the wave motion left in the estimate is
     chased less; flat water (no wave motion, or the estimator's start-up's 0.013 deg) keeps the calm
     gains to the bit."""
     from dataclasses import replace as _replace
@@ -104,8 +104,9 @@ def test_station_keeping_slows_its_loops_in_a_sea_and_not_in_flat_water():
     assert flat.sea.level == 0.0 and sea.sea.level == pytest.approx(1.0, abs=0.01)
     for a, b in ((flat.kp, calm.kp), (flat.kd, calm.kd), (flat.ki, calm.ki)):
         np.testing.assert_array_equal(a, b)
-    s = StationKeepingConfig().wave_natural_freq_scale
-    assert s < 1.0
+    cfg = StationKeepingConfig()
+    s = np.array([cfg.wave_position_freq_scale, cfg.wave_position_freq_scale, cfg.wave_heading_freq_scale])
+    assert np.all(s < 1.0)
     np.testing.assert_allclose(sea.kp, s ** 2 * calm.kp, rtol=0.02)
     np.testing.assert_allclose(sea.ki, s ** 3 * calm.ki, rtol=0.03)
     assert np.all(sea.kd < calm.kd)
