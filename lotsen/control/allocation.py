@@ -55,6 +55,9 @@ class AllocationConfig:
     weight_slack: tuple[float, float, float] = (1.0e4, 1.0e6, 1.0e7)
     smoothing: float = 0.05  # lambda: pull towards the previous forces (less chattering)
     switch_hysteresis: float = 0.02  # relative cost margin before the sign combination changes
+    # and an absolute one per azimuth that would reverse, 1/2 weight_azimuth F^2: at small forces (a hold)
+    # the relative margin is nothing (station_keeping.HOLD_ALLOCATION)
+    switch_force_N: float = 0.0
     min_force_for_angle_N: float = 0.02  # below this the azimuth keeps its previous angle
     housing_correction: bool = True  # one model-based correction for the housing force when nu is given
 
@@ -210,6 +213,9 @@ class ThrustAllocator:
             cost, z = out
             if signs == self._signs:
                 cost *= 1.0 - self.config.switch_hysteresis
+            else:
+                flips = sum(a != b for a, b in zip(signs, self._signs))
+                cost += flips * 0.5 * self.config.weight_azimuth * self.config.switch_force_N ** 2
             if best is None or cost < best[0]:
                 best = (cost, z, signs)
         if best is None:  # cannot happen with the slack unless OSQP fails: neutral forces

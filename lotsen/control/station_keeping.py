@@ -47,7 +47,17 @@ from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 # weaker than the model's (a real propeller: 60-80 %) was driven ahead by full differential thrust
 # while turning, and in a 0.2 m/s beam current drifted 9-15 m off its hold point; with equal prices
 # it brakes, turns and reaches the point for astern/ahead ratios 0.6-1.0 (tests/control/test_weathervane.py).
-HOLD_ALLOCATION = AllocationConfig(weight_slack=(1.0e6, 1.0e6, 1.0e7))
+#
+# A hold asks small forces in every direction, so an azimuth's direction (ahead or astern: the
+# allocator's sign combination) was nearly free to change at every step, and the relative hysteresis
+# (2 % of a cost of ~0.5 N^2) held nothing: in calm water the propellers reversed 1.6-3.6 times a
+# second and the servos swung 150-165 deg/s (bench waves' calm holds). A reversal now has to save
+# 1/2 (1.5 N)^2 of cost per azimuth. Measured 2026-11-30 (bench waves' 60-s hold, 3 seeds, lake boat /
+# 6-DOF hull): calm reversals 1.59 / 3.61 -> 0.09 / 1.36 per s, servo travel 151 / 163 -> 68 / 134 deg/s,
+# in Hs 10 cm reversals 1.54 / 3.05 -> 0.39 / 0.71, hold RMS as before, energy in Hs 10 cm +10 / +9 %
+# (docs/control.md "Thrust allocation"). 0.5 N halved the reversals only; 1 N left the lake boat 0.9
+# per s in Hs 10 (seed 0).
+HOLD_ALLOCATION = AllocationConfig(weight_slack=(1.0e6, 1.0e6, 1.0e7), switch_force_N=1.5)
 
 
 @dataclass(frozen=True)

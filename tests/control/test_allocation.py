@@ -93,3 +93,28 @@ def test_rate_limit_respects_slew_and_ramp():
     assert cmd[1] == pytest.approx(-lim.alpha_rate_max_radps * 0.1)
     assert cmd[2] == pytest.approx(lim.n_rate_max_rps2 * 0.1)
     assert rate_limit(None, (2.0, 0.0, 500.0, 0.0, 0.0), 0.1, lim)[:3] == (lim.alpha_max_rad, 0.0, lim.n_az_max_rps)
+
+
+def test_a_price_on_reversing_an_azimuth_stops_the_hold_from_chattering(model):
+    """A hold asks small forces in every direction: with only the relative hysteresis an azimuth's
+    direction changed at most steps (1.6-3.6 propeller reversals a second in a calm hold). With
+    switch_force_N a reversal has to save 1/2 w F^2 of cost; the forces asked are still produced."""
+    rng = np.random.default_rng(3)
+    taus = [np.array([0.3, 0.3, 0.08]) * rng.standard_normal(3) for _ in range(300)]
+
+    def run(switch_force_N: float) -> tuple[int, float]:
+        a = ThrustAllocator(model, DEFAULT_LIMITS, AllocationConfig(weight_slack=(1.0e6, 1.0e6, 1.0e7),
+                                                                    switch_force_N=switch_force_N))
+        flips, err, signs = 0, 0.0, None
+        for tau in taus:
+            res = a.allocate(tau)
+            if signs is not None:
+                flips += sum(x != y for x, y in zip(res.signs, signs))
+            signs = res.signs
+            err = max(err, float(np.max(np.abs(res.tau_achieved - tau))))
+        return flips, err
+
+    free, free_err = run(0.0)
+    priced, priced_err = run(1.5)
+    assert free > 60 and priced < free / 4, (free, priced)
+    assert free_err < 1e-3 and priced_err < 1e-3
