@@ -147,7 +147,7 @@ class SeaStateEstimator:
         if span < c.min_data_s:
             return SeaState(stamp_s=t, valid=False, window_s=span, hs_m=nan, tp_s=nan, tp_encounter_s=nan,
                             from_deg=nan, heave_std_m=nan, roll_std_deg=nan, pitch_std_deg=nan)
-        nseg = int(round(c.segment_s * c.rate_hz))
+        nseg = min(int(round(c.segment_s * c.rate_hz)), len(data))
         f, P, starts = _welch(data[:, 1:6] - data[:, 1:6].mean(axis=0), c.rate_hz, nseg)
         S = P.mean(axis=0)
         band = (f >= c.band_hz[0]) & (f <= c.band_hz[1])
@@ -169,11 +169,10 @@ class SeaStateEstimator:
         # each segment's elevation spectrum at the true frequencies its own speed along the waves' travel
         # met them at, through the hull's heave transfer at its own headings
         L, B, T = c.hull_m
-        seg_len = min(nseg, len(data))
         Szeta_encounter = np.zeros_like(w)  # the segments' mean, on the encounter axis
         E_true = np.zeros_like(w)  # energy per true-frequency bin (the band's own grid)
         for j, start in enumerate(starts):
-            rows = data[start:start + seg_len]
+            rows = data[start:start + nseg]
             along = float(np.mean(rows[:, 7] * np.cos(travel - rows[:, 6])))
             w_true = np.array([true_frequency(float(x), along) for x in w])
             k = w_true ** 2 / GRAVITY_MPS2
@@ -245,11 +244,10 @@ def _sinc(z: np.ndarray) -> np.ndarray:
 
 
 def _welch(x: np.ndarray, fs: float, nseg: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """Welch's cross-spectral densities of the columns of x, segment by segment (Hann windows of nseg,
-    half overlapping), one-sided: (frequencies, P[segment, i, j, f], each segment's first row); their
+    """Welch's cross-spectral densities of the columns of x, segment by segment (Hann windows of nseg <=
+    len(x), half overlapping), one-sided: (frequencies, P[segment, i, j, f], each segment's first row); their
     mean over the segments is Welch's estimate."""
     n, m = x.shape
-    nseg = min(nseg, n)
     step = max(1, nseg // 2)
     win = np.hanning(nseg)
     scale = 1.0 / (fs * float(np.sum(win ** 2)))

@@ -79,6 +79,13 @@ def test_station_keeping_returns_to_the_target_and_turns_on_the_spot():
     assert_commands_within_limits(cmds)
 
 
+def _heading_wave(heading_rms_deg: float, step: int) -> tuple[float, float, float]:
+    """The wave motion an estimate carries at control step `step` (10 Hz): heading only, a 0.13-cycle-per-
+    step sine of the given RMS (what sets a controller's sea level; 0.013 deg is the estimator's start in
+    flat water)."""
+    return (0.0, 0.0, math.radians(heading_rms_deg) * math.sqrt(2.0) * math.sin(2.0 * math.pi * 0.13 * step))
+
+
 def test_station_keeping_slows_its_loops_in_a_sea_and_not_in_flat_water():
     """Issue 46: in a sea the hold's natural frequencies fall to wave_position_freq_scale and
     wave_heading_freq_scale of calm as the sea level rises (K_p with the square, K_i the cube), so the wave motion left in the estimate is
@@ -94,10 +101,8 @@ def test_station_keeping_slows_its_loops_in_a_sea_and_not_in_flat_water():
 
     def hold_after(heading_rms_deg: float) -> StationKeepingController:
         k = StationKeepingController()
-        amp = math.radians(heading_rms_deg) * math.sqrt(2.0)
         for i in range(200):  # four of the sea level's time constants
-            k.update(0.1 * i, _replace(state, stamp_s=0.1 * i,
-                                       wave_motion=(0.0, 0.0, amp * math.sin(2.0 * math.pi * 0.13 * i))), target)
+            k.update(0.1 * i, _replace(state, stamp_s=0.1 * i, wave_motion=_heading_wave(heading_rms_deg, i)), target)
         return k
 
     calm, flat, sea = StationKeepingController(), hold_after(0.013), hold_after(0.5)
@@ -183,9 +188,8 @@ def test_los_heading_loop_slows_in_a_sea_and_not_in_flat_water():
     def tau_after(cfg: LOSConfig, heading_rms_deg: float) -> tuple[np.ndarray, float]:
         c = LOSController(config=cfg)
         c.reset(path)
-        amp = math.radians(heading_rms_deg) * math.sqrt(2.0)
         for k in range(200):  # four of the sea level's time constants
-            c._observe(_replace(state, wave_motion=(0.0, 0.0, amp * math.sin(2.0 * math.pi * 0.13 * k))))
+            c._observe(_replace(state, wave_motion=_heading_wave(heading_rms_deg, k)))
         c._observe(_replace(state, wave_motion=(0.0, 0.0, 0.0)))
         x = np.array(state.as_array_tuple())
         s, cte, hdg = c.path.project(x[0], x[1], 0.0)
