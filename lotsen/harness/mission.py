@@ -272,7 +272,7 @@ def actuator_activity(t_s: np.ndarray, actuators: np.ndarray) -> dict[str, float
     three summed), their reversals per second (`propeller_reversals`) and the motors' electrical
     energy (J, `lotsen.sim.propulsion_energy_j`) and mean power (W). A controller that chases wave
     motion shows it here first: travel, speed change and reversals grow while tracking does not improve.
-    Per propeller (azimuth 1, azimuth 2, bow): the energy, and for the azimuths the share of the time
+    Per propeller (azimuth 1, azimuth 2, bow): the energy and the reversals, and for the azimuths the share of the time
     astern (beyond REVERSAL_BAND_RPS): an azimuth pushing astern against the other, or the bow thruster
     holding a steady push, is where a mission's energy goes when it costs more than its route needs."""
     t = np.asarray(t_s, dtype=float)
@@ -283,9 +283,11 @@ def actuator_activity(t_s: np.ndarray, actuators: np.ndarray) -> dict[str, float
     # per propeller (the other two columns zeroed): the total is their sum (the power is a sum over them)
     by_propeller = [propulsion_energy_j(t, a[:, 2:5] * (np.arange(3) == i)) for i in range(3)]
     energy = sum(by_propeller)
+    reversals = propeller_reversals(a[:, 2:5])
     return {"azimuth_travel_deg_per_s": round(math.degrees(float(np.sum(np.abs(np.diff(a[:, :2], axis=0))))) / span, 3),
             "propeller_speed_change_rps_per_s": round(float(np.sum(np.abs(np.diff(a[:, 2:5], axis=0)))) / span, 3),
-            "reversals_per_s": round(sum(propeller_reversals(a[:, 2:5])) / span, 4),
+            "reversals_per_s": round(sum(reversals) / span, 4),
+            "reversals_per_s_by_propeller": [round(k / span, 4) for k in reversals],
             "energy_J": round(energy, 2), "mean_power_W": round(energy / span, 3),
             "energy_J_by_propeller": [round(e, 1) for e in by_propeller],
             "azimuth_astern_share": [round(float(np.mean(a[:, 2 + i] < -REVERSAL_BAND_RPS)), 3) for i in range(2)]}
