@@ -140,9 +140,11 @@ def timed_identify(*args: str, cwd: Path) -> tuple[int, str, dict]:
 
 
 @contextmanager
-def hull_server(*args: str) -> Iterator[str]:
-    """tests/physics/hull_server.py on a free port: its address udp:127.0.0.1:PORT."""
-    proc = subprocess.Popen([sys.executable, str(PHYSICS / "hull_server.py"), "--port", "0", *args],
+def hull_server(*args: str, realtime: bool = False) -> Iterator[str]:
+    """tests/physics/hull_server.py on a free port: its address udp:127.0.0.1:PORT. `realtime`: for a live
+    run at wall-clock pace (its `--realtime`)."""
+    proc = subprocess.Popen([sys.executable, str(PHYSICS / "hull_server.py"), "--port", "0", *args,
+                             *(["--realtime"] if realtime else [])],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         line = proc.stdout.readline() if proc.stdout else ""

@@ -32,7 +32,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-import os
 import subprocess
 import sys
 import tempfile
@@ -312,15 +311,6 @@ def share_rows() -> list[dict]:
     return rows
 
 
-def _keep_up() -> None:
-    """The hull's physics at real-time priority just below the core's loop, as tests/physics/test_seam_live.py
-    gives it: at nice 0 on this loaded machine it went silent for 0.2 s and the estimator refused AUTO."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(10))
-    except (AttributeError, PermissionError, OSError):
-        pass
-
-
 def live_config(work: Path, route: dict, parameters: dict | None = None) -> Path:
     """config/sim.yaml with the survey as its route: the boat's navigable area is its route's (the
     figure eight's 40 x 40 m area holds no 40 x 30 m survey with its turns); `parameters` (coefficient
@@ -358,9 +348,11 @@ def live_rows() -> list[dict]:
         extra: dict = {"planning": {"time_s": 60.0}}
         server = None
         if hull == "6-DOF hull":
-            server = subprocess.Popen([sys.executable, str(PHYSICS / "hull_server.py"), "--port", "0",
+            # --realtime: the physics at wall-clock pace beside the core (at nice 0 on this loaded machine it
+            # went silent for 0.2 s and the estimator refused AUTO)
+            server = subprocess.Popen([sys.executable, str(PHYSICS / "hull_server.py"), "--port", "0", "--realtime",
                                        "--current", f"{CURRENT[0]},{CURRENT[1]}", "--wind", f"{WIND[0]},{WIND[1]}"],
-                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_keep_up)
+                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
             m = re.search(r"listening on (udp:\S+)", server.stdout.readline() if server.stdout else "")
             # the receiver where config/sim.yaml's vessel has it (lotsen run warns when they differ)
             extra["physics"] = {"address": m.group(1) if m else "udp:127.0.0.1:1", "gnss_antenna_m": [0.05, 0.0],

@@ -14,7 +14,7 @@ Figures per case and sea: missions completed without any failsafe; cross-track R
 true track, its low-frequency part (a 3-s moving average: the motion a controller should act on) and
 the rest, the hull's wave-frequency motion, which no controller should chase, also as a share of the
 tracking bar (2 x calm: above 1, the waves' own motion alone is over it); the settled hold's RMS distance;
-the actuators' activity (`lotsen.harness.mission.actuator_activity`): azimuth travel, propeller speed
+the actuators' activity (`lotsen.sim.activity.actuator_activity`): azimuth travel, propeller speed
 change, reversals per second, electrical energy (and where it goes: per propeller, and the share of
 the time each azimuth runs astern); each as the ratio to calm water from the same seeds.
 
@@ -142,7 +142,7 @@ def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) ->
     row["azimuth travel deg/s"] = round(avg("azimuth_travel_deg_per_s", sub=sub) or math.nan, 1)
     row["reversals /s"] = round(avg("reversals_per_s", sub=sub) or 0.0, 3)
     row["energy J"] = round(avg("energy_J", sub=sub) or math.nan)
-    # where the energy goes (lotsen.harness.mission.actuator_activity): an azimuth pushing astern against
+    # where the energy goes (lotsen.sim.activity.actuator_activity): an azimuth pushing astern against
     # the other or a steady bow push shows here
     src = [(m.get(sub) or {}) if sub else m for m in ms]
     by_prop = [_mean([(x.get("energy_J_by_propeller") or [None] * 3)[i] for x in src]) for i in range(3)]

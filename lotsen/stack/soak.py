@@ -499,9 +499,11 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
                                    failures, plan.allowed_failsafes))
         if uploads:
             figures.update(arrival_gaps(log_path, uploads, failures))
-        if plan.route is not None and plan.route.get("survey") is not None and math.isfinite(t_route_end) \
-                and plan.reupload_after_auto_s is None:
-            figures.update(survey_figures(log_path, t_auto, t_route_end))
+        if math.isfinite(t_route_end) and plan.reupload_after_auto_s is None:
+            # the route flown to its end: its keeping and the actuators' work (and a survey's lines)
+            figures.update(track_figures(log_path, t_auto, t_route_end))
+            if plan.route is not None and plan.route.get("survey") is not None:
+                figures.update(survey_figures(log_path, t_auto, t_route_end))
     figures.update(telemetry_figures(frames, t_auto, t_route_end if math.isfinite(t_route_end) else t_stop))
     if flood_counts:
         figures.update({f"flood_{k}": v for k, v in flood_counts.items() if isinstance(v, (int, float))})
@@ -635,15 +637,13 @@ def arrival_gaps(path: str, uploads: list[float], failures: list[str]) -> dict[s
     return fig
 
 
-def survey_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
-    """The line keeping of the survey the boat flew in [t_from, t_to] (AUTO until the route's end), on
-    the simulator's truth against the planned route the boat held (its last `planning/route`), and the
-    motors' energy over it (`lotsen.sim.propulsion_energy_j` on the achieved propeller speeds, the
-    measure of a mission report and of the prediction)."""
+def _flown(path: str, t_from: float, t_to: float) -> tuple[Any, Any, np.ndarray, np.ndarray, np.ndarray, list] | None:
+    """What the boat flew in [t_from, t_to] by its log: the route it held (its last `planning/route`
+    before t_from) and that route's path, the true track's times (from t_from), arc length and signed
+    cross-track error on the path, and the achieved actuators. None without a route or a track."""
     from lotsen.planning.exchange import path_from_message
     from lotsen.planning.io import route_from_dict
-    from lotsen.planning.survey.keeping import line_keeping, line_spans, track_on_path
-    from lotsen.sim import propulsion_energy_j
+    from lotsen.planning.survey.keeping import track_on_path
 
     by: dict[str, list] = {t: [] for t in (Topic.ROUTE, Topic.TRUTH, Topic.ACTUATORS)}
     for topic, msg in read_log(path, list(by)):
@@ -652,18 +652,58 @@ def survey_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
     truth = sorted((s for s in by[Topic.TRUTH] if isinstance(s, VesselState) and t_from <= s.stamp_s <= t_to),
                    key=lambda s: s.stamp_s)
     if not routes or len(truth) < 2:
-        return {}
-    route, path = route_from_dict(routes[-1].route), path_from_message(routes[-1])
+        return None
+    route, route_path = route_from_dict(routes[-1].route), path_from_message(routes[-1])
     t = np.array([s.stamp_s for s in truth]) - t_from
-    s_m, cte = track_on_path(path, np.array([s.north_m for s in truth]), np.array([s.east_m for s in truth]))
-    summary = line_keeping(line_spans(route, path), t, s_m, cte, t_to - t_from).summary()
-    out: dict[str, Any] = {f"survey_{k}": v for k, v in summary.items() if k != "per_line"}
-    out["survey_per_line"] = summary.get("per_line", [])
+    s_m, cte = track_on_path(route_path, np.array([s.north_m for s in truth]), np.array([s.east_m for s in truth]))
     act = sorted((a for a in by[Topic.ACTUATORS] if isinstance(a, ActuatorState) and t_from <= a.stamp_s <= t_to),
                  key=lambda a: a.stamp_s)
+    return route, route_path, t, s_m, cte, act
+
+
+#: the boat has joined its route once its true track is this close to it (track_figures)
+JOINED_M = 0.05
+
+
+def track_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
+    """How the boat kept the route it flew in [t_from, t_to] (AUTO until the route's end), on the
+    simulator's (or the external physics's) truth: the cross-track RMS and max, over the whole window and
+    from the first time within JOINED_M of the route (and when that was), and the actuators' activity over it (`lotsen.sim.activity.actuator_activity` on the achieved values: servo travel,
+    propeller speed change, reversals, energy), the measures of a mission report and of bench waves."""
+    from lotsen.sim.activity import actuator_activity
+
+    flown = _flown(path, t_from, t_to)
+    if flown is None:
+        return {}
+    _, _, t, _, cte, act = flown
+    out: dict[str, Any] = {"cross_track_rms_m": round(float(np.sqrt(np.mean(cte ** 2))), 4),
+                           "cross_track_max_m": round(float(np.max(np.abs(cte))), 4)}
+    # a boat that drifted while the stack idled (disarmed, in a current and wind) starts AUTO off its route:
+    # the keeping once it has joined the route is the figure to compare between runs
+    joined = np.flatnonzero(np.abs(cte) <= JOINED_M)
+    if joined.size:
+        k = int(joined[0])
+        out["joined_after_s"] = round(float(t[k]), 2)
+        out["cross_track_joined_rms_m"] = round(float(np.sqrt(np.mean(cte[k:] ** 2))), 4)
+        out["cross_track_joined_max_m"] = round(float(np.max(np.abs(cte[k:]))), 4)
     if len(act) > 1:
-        out["energy_J"] = round(propulsion_energy_j(np.array([a.stamp_s for a in act]),
-                                                    np.array([(a.n1_rps, a.n2_rps, a.nt_rps) for a in act])), 1)
+        out.update(actuator_activity(np.array([a.stamp_s for a in act]), np.array(
+            [(a.alpha1_rad, a.alpha2_rad, a.n1_rps, a.n2_rps, a.nt_rps) for a in act])))
+    return out
+
+
+def survey_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
+    """The line keeping of the survey the boat flew in [t_from, t_to] (AUTO until the route's end), on
+    the simulator's truth against the planned route the boat held (`_flown`)."""
+    from lotsen.planning.survey.keeping import line_keeping, line_spans
+
+    flown = _flown(path, t_from, t_to)
+    if flown is None:
+        return {}
+    route, route_path, t, s_m, cte, _ = flown
+    summary = line_keeping(line_spans(route, route_path), t, s_m, cte, t_to - t_from).summary()
+    out: dict[str, Any] = {f"survey_{k}": v for k, v in summary.items() if k != "per_line"}
+    out["survey_per_line"] = summary.get("per_line", [])
     return out
 
 

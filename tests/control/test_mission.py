@@ -147,7 +147,7 @@ def test_actuator_activity_splits_the_energy_by_propeller_and_counts_an_azimuth_
     """The report's per-propeller energy adds up to its total (each motor draws its own power), and
     an azimuth held astern against the other (the couple that wastes a mission's energy) shows in the
     azimuths' astern share."""
-    from lotsen.harness.mission import actuator_activity
+    from lotsen.sim.activity import actuator_activity
 
     t = np.arange(0.0, 10.0, 0.1)
     a = np.zeros((len(t), 5))

@@ -270,7 +270,8 @@ def test_no_propeller_reversals_in_steady_tracking_on_the_ekf():
     route: needed, not chattering; 40 s alone would hold all 5), 0.8-1.0 cm."""
     from lotsen.planning import plan_route
     from lotsen.planning.io import load_route
-    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission, propeller_reversals
+    from lotsen.harness.mission import MissionConfig, make_sim_ekf, run_mission
+    from lotsen.sim.activity import propeller_reversals
 
     from pathlib import Path
 

@@ -5,7 +5,6 @@ tests/stack/test_live.py judges the simulated boat."""
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -21,23 +20,13 @@ CONFIG = HERE.parents[1] / "config" / "sim.yaml"
 pytestmark = pytest.mark.live
 
 
-def _keep_up() -> None:
-    """A physics at wall-clock pace must get the CPU when the core waits for it: real-time
-    priority just below the core's loop (10 < 11) where permitted, as `lotsen run` gives its core.
-    Without it, on this loaded two-core machine the server at nice 0 went silent for up to 0.34 s
-    (the estimator then reported its sensors missing)."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(10))
-    except (AttributeError, PermissionError, OSError):
-        pass
-
-
 # alone: the physics at wall-clock pace keeps step with the core only with the CPU it needs; beside
 # another live run (two real-time cores on two CPUs) the estimate left its 3 sigma 4.2 % of the time
 @pytest.mark.alone
 def test_lotsen_run_flies_the_6dof_hull_through_the_protocol(tmp_path):
-    server = subprocess.Popen([sys.executable, str(HERE / "hull_server.py"), "--port", "0"], stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, preexec_fn=_keep_up)
+    # --realtime: a physics at wall-clock pace must get the CPU when the core waits for it (hull_server.py)
+    server = subprocess.Popen([sys.executable, str(HERE / "hull_server.py"), "--port", "0", "--realtime"],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         line = server.stdout.readline()
         port = re.search(r"listening on udp:127.0.0.1:(\d+)", line)

@@ -29,6 +29,10 @@ def test_lotsen_run_in_waves_flies_the_route_and_the_page_shows_the_sea(tmp_path
     f = report.figures
     assert f["failsafes"] == 0 and f.get("health_not_ok", 0) == 0
     assert f["ship_command_hz"] >= 9.5
+    # the route's keeping and the actuators' work, from the run's own log (lotsen.stack.soak.track_figures);
+    # bench live_waves has them in each sea state on both hulls
+    assert 0.0 < f["cross_track_joined_rms_m"] < 0.10 and f["energy_J"] > 0, f
+    assert f["reversals_per_s"] >= 0 and f["azimuth_travel_deg_per_s"] > 0, f
     # the page's sea state: Hs within 40 %, the period and the direction it comes from. This run gives the
     # estimator ~60 s of a boat that drifts, runs north and turns to run with the waves; with one speed for
     # the whole window the page read Hs 7.5-11.7 cm for the 6 cm sea (2026-11-30), with each Welch
