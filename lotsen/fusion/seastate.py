@@ -26,8 +26,10 @@ Welch's method (Hann windows of `segment_s`, half overlapping; numpy's FFT) and,
   headings and floored at `min_transfer`): Hs = 4 sqrt(m0), Tp_encounter at the
   spectrum's peak. Without it a 1 m hull in 1.5 m waves heading into them read 0.47 of the Hs;
 - the true frequencies from the encounter ones, per Welch segment: w_e = w - w^2 U cos(chi) / g
-  solved for w (deep water) at the boat's speed over ground along the waves' travel, U cos(chi)
-  averaged over that segment; each segment's elevation spectrum divided by |H|^2 at its own true
+  solved for w (deep water) at the boat's velocity over ground along the waves' travel, U cos(chi)
+  averaged over that segment (the whole velocity: a boat adrift lies beam-on and drifts sideways down
+  the waves at 0.1-0.2 m/s in a 4 m/s wind; with the speed along the heading, which misses that, Tp
+  read 7-16 % long adrift and live); each segment's elevation spectrum divided by |H|^2 at its own true
   wavenumbers and its headings, and its energy put on the true-frequency axis, before the segments
   are averaged. A manoeuvring boat meets one sea at several encounter frequencies: one speed for the
   whole window (the boat's speed now, or the window's mean) read Hs 6 cm as 8-12 cm and Tp 1.0 s as
@@ -75,12 +77,13 @@ class SeaStateEstimator:
     def __init__(self, config: SeaStateConfig = SeaStateConfig()) -> None:
         self.config = config
         n = int(round(config.window_s * config.rate_hz))
-        self._buf: deque = deque(maxlen=n)  # rows (t, heave acceleration, p, q, a_north, a_east, heading, speed)
+        # rows (t, heave acceleration, p, q, a_north, a_east, heading, velocity over ground north, east)
+        self._buf: deque = deque(maxlen=n)
         self._acc = [0.0] * 6  # sums over the present decimation interval (the last: the count)
         self._bin: int | None = None
         self._t_last: float | None = None
         self._heading = math.nan
-        self._speed = 0.0
+        self._velocity_ne = (0.0, 0.0)
         self._next_update = -math.inf
         self.last: SeaState | None = None
 
@@ -105,7 +108,7 @@ class SeaStateEstimator:
         if self._bin is not None and b != self._bin and self._acc[5]:
             k = self._acc[5]
             self._buf.append(((self._bin + 0.5) / c.rate_hz, *(v / k for v in self._acc[:5]), self._heading,
-                              self._speed))
+                              *self._velocity_ne))
             self._acc = [0.0] * 6
         self._bin = b
         for i, v in enumerate(row):
@@ -113,13 +116,17 @@ class SeaStateEstimator:
         self._acc[5] += 1
 
     def on_state(self, s: VesselState) -> None:
-        """The boat's heading and speed along it (for the absolute direction and period)."""
-        self.on_heading(s.heading_rad, s.u_mps)
+        """The boat's heading and velocity over ground (for the absolute direction and period)."""
+        c, sn = math.cos(s.heading_rad), math.sin(s.heading_rad)
+        self.on_motion(s.heading_rad, (c * s.u_mps - sn * s.v_mps, sn * s.u_mps + c * s.v_mps))
 
-    def on_heading(self, heading_rad: float, speed_mps: float) -> None:
-        """The boat's heading and its speed along it (a non-finite value keeps the previous one)."""
-        if math.isfinite(heading_rad) and math.isfinite(speed_mps):
-            self._heading, self._speed = heading_rad, speed_mps
+    def on_motion(self, heading_rad: float, velocity_ne_mps: tuple[float, float]) -> None:
+        """The boat's heading (puts the IMU's axes on the map) and its velocity over ground, north and east
+        (undoes the encounter frequency: all of it, sway included; a non-finite value keeps the previous)."""
+        if math.isfinite(heading_rad):
+            self._heading = heading_rad
+        if all(math.isfinite(v) for v in velocity_ne_mps):
+            self._velocity_ne = (float(velocity_ne_mps[0]), float(velocity_ne_mps[1]))
 
     def encounter_frequency_radps(self) -> float | None:
         """The frequency (rad/s) at which the boat met the sea's peak over the window, for the EKF's wave
@@ -141,7 +148,7 @@ class SeaStateEstimator:
 
     def compute(self, t: float) -> SeaState:
         c = self.config
-        data = np.array(self._buf, dtype=float).reshape(-1, 8)
+        data = np.array(self._buf, dtype=float).reshape(-1, 9)
         span = float(data[-1, 0] - data[0, 0]) if len(data) > 1 else 0.0
         nan = math.nan
         if span < c.min_data_s:
@@ -173,7 +180,7 @@ class SeaStateEstimator:
         E_true = np.zeros_like(w)  # energy per true-frequency bin (the band's own grid)
         for j, start in enumerate(starts):
             rows = data[start:start + nseg]
-            along = float(np.mean(rows[:, 7] * np.cos(travel - rows[:, 6])))
+            along = float(np.mean(rows[:, 7] * math.cos(travel) + rows[:, 8] * math.sin(travel)))
             w_true = np.array([true_frequency(float(x), along) for x in w])
             k = w_true ** 2 / GRAVITY_MPS2
             rel = travel - rows[:: max(1, len(rows) // 30), 6]  # the waves' direction from the bow
@@ -200,13 +207,13 @@ class SeaStateEstimator:
 RECORD_BAND_HZ = (0.4, 3.0)
 
 
-def record_sea_state(t: np.ndarray, imu: np.ndarray, heading_rad: np.ndarray, speed_mps: np.ndarray,
+def record_sea_state(t: np.ndarray, imu: np.ndarray, heading_rad: np.ndarray, velocity_ne_mps: np.ndarray,
                      config: SeaStateConfig = SeaStateConfig(band_hz=RECORD_BAND_HZ)) -> SeaState:
     """The sea state of a whole record, from its own IMU: the same `SeaStateEstimator` the running boat
     uses, fed the record's IMU rows in time order (`imu`: K x 6, specific force x, y, z and rates p, q, r,
     each the mean over its row interval or a sample; NaN rows skipped) with the horizontal axes levelled
-    by the navigation filter's tilt filter (lotsen.fusion.attitude), its heading and speed over ground
-    along the heading (K each, NaN where unknown: the last known value holds), the window the whole
+    by the navigation filter's tilt filter (lotsen.fusion.attitude), its heading (K) and velocity over
+    ground north and east (K x 2; NaN where unknown: the last known value holds), the window the whole
     record (at least `config.window_s`). Pure."""
     from lotsen.fusion.attitude import TiltFilter  # the one tilt filter (the EKF's), offline
 
@@ -216,7 +223,7 @@ def record_sea_state(t: np.ndarray, imu: np.ndarray, heading_rad: np.ndarray, sp
     est = SeaStateEstimator(cfg)
     tilt = TiltFilter()
     for k in range(len(t)):
-        est.on_heading(float(heading_rad[k]), float(speed_mps[k]))
+        est.on_motion(float(heading_rad[k]), (float(velocity_ne_mps[k][0]), float(velocity_ne_mps[k][1])))
         row = imu[k]
         if not np.all(np.isfinite(row)):
             continue

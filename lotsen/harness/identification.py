@@ -171,9 +171,9 @@ def record_sea_state(record: IdRecord) -> Any:
     """The record's sea state from its own IMU (lotsen.fusion.seastate.record_sea_state, the boat's
     estimator run offline), or None for a record without IMU columns."""
     from lotsen.fusion.seastate import record_sea_state as from_imu
-    from lotsen.sysid.waves import heading_and_speed
+    from lotsen.sysid.waves import heading_and_velocity
 
     if record.imu is None or not np.isfinite(record.imu).all(axis=1).any():
         return None
-    psi, speed = heading_and_speed(record)
-    return from_imu(record.t, record.imu, psi, speed)
+    psi, velocity = heading_and_velocity(record)
+    return from_imu(record.t, record.imu, psi, velocity)

@@ -42,17 +42,17 @@ IN_WAVES_HS_M = 0.02
 SPEED_SPAN_S = 1.0  # the speed over ground from fixes this far apart
 
 
-def heading_and_speed(record: IdRecord) -> tuple[np.ndarray, np.ndarray]:
-    """Per row of `record`: the heading (its psi output, NaN before the first) and the speed over ground
-    along it from the position fixes SPEED_SPAN_S apart (NaN where not known): what the sea-state
-    estimator needs to put the IMU's axes on the map and to undo the encounter frequency."""
+def heading_and_velocity(record: IdRecord) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of `record`: the heading (its psi output, NaN before the first) and the velocity over
+    ground north and east (K x 2) from the position fixes SPEED_SPAN_S apart (NaN where not known): what
+    the sea-state estimator needs to put the IMU's axes on the map and to undo the encounter frequency."""
     names = record.output_names
     y = record.outputs
     K = len(record.t)
     psi = np.full(K, math.nan)
-    speed = np.full(K, math.nan)
+    velocity = np.full((K, 2), math.nan)
     if "psi" not in names or "north" not in names or "east" not in names:
-        return psi, speed
+        return psi, velocity
     jp, jn, je = names.index("psi"), names.index("north"), names.index("east")
     ok = np.isfinite(y[:, jp])
     if ok.any():
@@ -60,7 +60,7 @@ def heading_and_speed(record: IdRecord) -> tuple[np.ndarray, np.ndarray]:
         psi = np.where(np.arange(K) >= np.argmax(ok), y[idx, jp], math.nan)
     fix = np.flatnonzero(np.isfinite(y[:, jn]) & np.isfinite(y[:, je]))
     if len(fix) < 3:
-        return psi, speed
+        return psi, velocity
     tf = record.t[fix]
     a = np.searchsorted(tf, tf - SPEED_SPAN_S / 2)
     b = np.minimum(np.searchsorted(tf, tf + SPEED_SPAN_S / 2, side="right") - 1, len(fix) - 1)
@@ -68,9 +68,8 @@ def heading_and_speed(record: IdRecord) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", divide="ignore"):
         vn = np.where(dt > 0, (y[fix[b], jn] - y[fix[a], jn]) / dt, math.nan)
         ve = np.where(dt > 0, (y[fix[b], je] - y[fix[a], je]) / dt, math.nan)
-    h = psi[fix]
-    speed[fix] = vn * np.cos(h) + ve * np.sin(h)
-    return psi, speed
+    velocity[fix, 0], velocity[fix, 1] = vn, ve
+    return psi, velocity
 
 
 def in_waves(sea: SeaState | None) -> bool:

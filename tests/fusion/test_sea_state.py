@@ -71,6 +71,20 @@ def test_the_imu_reads_the_sea_on_the_independent_hull():
     assert angle_error_deg(s.from_deg, 90.0) < 30.0
 
 
+@pytest.mark.parametrize("tp", [0.8, 1.0, 1.2])
+def test_a_boat_adrift_in_the_wind_that_raised_the_sea_reads_its_period(tp):
+    """Adrift, the hull lies beam-on and the 4 m/s wind and the current carry it sideways down the waves
+    at ~0.15 m/s: it meets them less often. With the speed along the heading (none) the period read
+    11-16 % long (1.11-1.16 s for 1.0 s, seeds 0-1); with the velocity over ground within 5 %."""
+    env = Environment(current_speed_mps=0.08, current_to_deg=30.0, wind_speed_mps=4.0, wind_from_deg=250.0,
+                      waves=Waves(0.06, tp, 250.0))
+    sim = Simulator(config=SimConfig(environment=env, seed=0), x0=[0, 0, 0, 0, 0, 0])
+    s = estimate(sim, 90.0)
+    v = sim.truth()
+    assert math.hypot(v.u_mps, v.v_mps) > 0.08 and abs(v.v_mps) > abs(v.u_mps)  # adrift, sideways
+    assert s.valid and s.tp_s == pytest.approx(tp, rel=0.07)
+
+
 def test_a_boat_that_drifts_runs_and_turns_into_following_seas_reads_one_sea():
     """The live test's first minute (tests/stack/test_live_waves.py): 15 s adrift, 25 s north at ~0.5 m/s,
     then 60 deg, with the waves (from 250 deg) running along the bow. Each Welch segment is mapped from

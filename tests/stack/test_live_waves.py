@@ -36,7 +36,8 @@ def test_lotsen_run_in_waves_flies_the_route_and_the_page_shows_the_sea(tmp_path
     # the page's sea state: Hs within 40 %, the period and the direction it comes from. This run gives the
     # estimator ~60 s of a boat that drifts, runs north and turns to run with the waves; with one speed for
     # the whole window the page read Hs 7.5-11.7 cm for the 6 cm sea (2026-11-30), with each Welch
-    # segment's own speed 6.1-6.3 cm, Tp 1.16 s, from 248-251 deg in 4 runs
+    # segment's own speed 6.1-6.3 cm, Tp 1.16 s, from 248-251 deg in 4 runs, and with its velocity over
+    # ground (sway included: adrift, the boat moves sideways down the waves) 6.7 cm, 1.07 s, 250 deg
     # (tests/fusion/test_sea_state.py has the same boat offline)
     assert 0.036 <= f["page_sea_hs"] <= 0.084, f
     assert 0.8 <= f["page_sea_tp"] <= 1.25, f
