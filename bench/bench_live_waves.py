@@ -7,14 +7,15 @@ eight); this is the product as an operator meets it, one run per row, with whate
 was running.
 
 Each row: idle 15 s, upload the short route (4 nodes, 0.5 m/s, ~30 m; quick: its first turn) through the
-socket, arm, AUTO to the route's end; 0.08 m/s current to 30 deg, 4 m/s wind from 250 deg with 20 %
-gusts and 15 deg wander, and a JONSWAP sea from 250 deg (Hs 3 cm Tp 0.8 s, Hs 6 cm Tp 1.0 s, Hs 10 cm
-Tp 1.2 s; the 6-DOF hull's spreading s = 10). Figures: the route flown in AUTO to its end with no
-failsafe and an estimator that stays healthy; the true track's cross-track RMS and max on the route
-the boat held, from where it first came within 5 cm of it (the boat drifts in the current and wind while
-the stack idles disarmed, so AUTO starts by joining the route; over all of AUTO too); the actuators' activity on the achieved values (`lotsen.sim.activity`); the sea state
-the page showed at the route's end (its estimate from the boat's IMU: the window is 120 s, so it has
-had 50-90 s of the sea), and the ratios to calm water from the same run of this bench.
+socket, arm, AUTO to the route's end; 0.08 m/s current to 30 deg, 4 m/s wind from 250 deg with 20 % gusts and
+15 deg wander, and a JONSWAP sea from 250 deg (Hs 3 cm Tp 0.8 s, Hs 6 cm Tp 1.0 s, Hs 10 cm Tp 1.2 s; the
+6-DOF hull's spreading s = 10). Figures: the route flown in AUTO to its end with no failsafe and an estimator
+that stays healthy; the true track's cross-track RMS and max on the route the boat held, from where it first
+came within 5 cm of it (the boat drifts in the current and wind while the stack idles disarmed, so AUTO starts
+by joining the route; over all of AUTO too); the actuators' activity on the achieved values
+(`lotsen.sim.activity`); the sea state the page showed at the route's end (its estimate from the boat's IMU:
+the window is 120 s, so it has had 50-90 s of the sea), and the ratios to calm water from the same run of this
+bench.
 
 Target (the live part of issue 46's "done when"): every run completes in AUTO, no failsafe, the
 estimator healthy; in a sea, the page's Hs within 40 % of the sea's and its direction within 40 deg, in

@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from lotsen.sim.simulator import propulsion_energy_j
+
 #: a propeller's speed must leave +-this band on the other side to count as a reversal
 REVERSAL_BAND_RPS = 5.0
 
@@ -30,9 +31,10 @@ def actuator_activity(t_s: np.ndarray, actuators: np.ndarray) -> dict[str, float
     three summed), their reversals per second (`propeller_reversals`) and the motors' electrical
     energy (J, `lotsen.sim.propulsion_energy_j`) and mean power (W). A controller that chases wave
     motion shows it here first: travel, speed change and reversals grow while tracking does not improve.
-    Per propeller (azimuth 1, azimuth 2, bow): the energy and the reversals, and for the azimuths the share of the time
-    astern (beyond REVERSAL_BAND_RPS): an azimuth pushing astern against the other, or the bow thruster
-    holding a steady push, is where a mission's energy goes when it costs more than its route needs."""
+    Per propeller (azimuth 1, azimuth 2, bow): the energy and the reversals, and for the azimuths the
+    share of the time astern (beyond REVERSAL_BAND_RPS): an azimuth pushing astern against the other, or
+    the bow thruster holding a steady push, is where a mission's energy goes when it costs more than its
+    route needs."""
     t = np.asarray(t_s, dtype=float)
     a = np.asarray(actuators, dtype=float).reshape(len(t), 5)
     span = float(t[-1] - t[0]) if t.size > 1 else 0.0

@@ -666,10 +666,11 @@ JOINED_M = 0.05
 
 
 def track_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
-    """How the boat kept the route it flew in [t_from, t_to] (AUTO until the route's end), on the
-    simulator's (or the external physics's) truth: the cross-track RMS and max, over the whole window and
-    from the first time within JOINED_M of the route (and when that was), and the actuators' activity over it (`lotsen.sim.activity.actuator_activity` on the achieved values: servo travel,
-    propeller speed change, reversals, energy), the measures of a mission report and of bench waves."""
+    """How the boat kept the route it flew in [t_from, t_to] (AUTO until the route's end), on the simulator's
+    (or the external physics's) truth: the cross-track RMS and max, over the whole window and from the first
+    time within JOINED_M of the route (and when that was), and the actuators' activity over it
+    (`lotsen.sim.activity.actuator_activity` on the achieved values: servo travel, propeller speed change,
+    reversals, energy), the measures of a mission report and of bench waves."""
     from lotsen.sim.activity import actuator_activity
 
     flown = _flown(path, t_from, t_to)
