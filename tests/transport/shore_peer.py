@@ -4,6 +4,7 @@ records everything received from vessel "boat" (as boat/<topic>) to an MCAP file
 
 import sys
 import threading
+import time
 
 from lotsen.logs.recorder import McapRecorder, RecorderConfig
 from lotsen.messages import ThrustCommand
@@ -19,6 +20,19 @@ class Pong(Node):
         ctx.subscribe("boat/ping", lambda m: ctx.publish("pong", ThrustCommand(stamp_s=m.stamp_s, n1_rps=m.n1_rps, source="shore")))
 
 
+def _until_told(ex: RealtimeExecutor, rec: McapRecorder) -> None:
+    """Stops the shore when stdin closes; a line `expect N` first waits (at most 15 s) until N messages
+    from the boat other than pings are recorded: the pong to the last ping can overtake the boat's other
+    topics (their own subscribers), and a shore stopped on it lost the last 28 of 160 on a busy machine."""
+    for line in sys.stdin:
+        if line.startswith("expect "):
+            n, deadline = int(line.split()[1]), time.monotonic() + 15.0
+            while time.monotonic() < deadline and sum(
+                    v for t, v in dict(rec.stats.per_topic).items() if t.startswith("boat/") and t != "boat/ping") < n:
+                time.sleep(0.02)
+    ex.stop()
+
+
 def main(endpoint: str, out_mcap: str) -> None:
     ex = RealtimeExecutor()
     bridge = ZenohBridge(BridgeConfig(vessel="shore", connect=(endpoint,), subscribe=("boat/**",), publish=("pong",),
@@ -27,7 +41,7 @@ def main(endpoint: str, out_mcap: str) -> None:
     ex.add_node(Pong())
     rec = McapRecorder(RecorderConfig(fsync=False), clock=ex.clock.now).attach(ex.bus)
     rec.start(out_mcap)
-    threading.Thread(target=lambda: (sys.stdin.read(), ex.stop()), daemon=True).start()
+    threading.Thread(target=_until_told, args=(ex, rec), daemon=True).start()
     print("ready", flush=True)
     ex.run()
     bridge.close()

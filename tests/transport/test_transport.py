@@ -257,6 +257,8 @@ def test_two_processes_round_trip_and_shore_recording(tmp_path, same):
         ex.bus.publish("ping", M.ThrustCommand(stamp_s=1000.0, n1_rps=2.0))  # the last one: when it is back, all arrived
         assert _pump(ex, lambda: any(p.stamp_s == 1000.0 for p in pongs), 15.0)
         assert isinstance(pongs[-1], M.ThrustCommand) and pongs[-1].n1_rps == 2.0
+        shore.stdin.write(f"expect {len(sent)}\n")  # the pong can overtake the other topics: the shore waits
+        shore.stdin.flush()
     finally:
         shore.stdin.close()
         assert shore.wait(20) == 0
