@@ -36,8 +36,8 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_hull import hull_server  # noqa: E402
-from bench_waves import CURRENT, GUSTS, SEAS, WANDER_DEG, WAVES_FROM_DEG, WIND  # noqa: E402
+from bench_hull import hull_server, lake_server_args  # noqa: E402
+from bench_waves import CURRENT, GUSTS, SEAS, WANDER_DEG, WAVES_FROM_DEG, WIND, _ratio, reversal_ratio  # noqa: E402
 
 CONFIG = REPO / "config" / "sim.yaml"
 PLANTS = ("lotsen simulator (lake boat)", "6-DOF hull over the seam (tests/physics/hull_server.py)")
@@ -56,8 +56,7 @@ def _environment(sea: tuple[float, float] | None) -> dict:
 
 
 def _server_args(sea: tuple[float, float] | None) -> list[str]:
-    args = ["--current", f"{CURRENT[0]},{CURRENT[1]}", "--wind", f"{WIND[0]},{WIND[1]}", "--gusts", str(GUSTS),
-            "--wander", str(WANDER_DEG), "--seed", "0"]
+    args = lake_server_args(0)
     if sea:
         args += ["--waves", f"{sea[0]},{sea[1]},{WAVES_FROM_DEG}", "--wave-spreading", str(WAVE_SPREADING)]
     return args
@@ -82,10 +81,6 @@ def fly(plant: str, sea_name: str, route: dict) -> dict[str, Any]:
     return {"figures": report.figures, "failures": report.failures, "ok": report.ok}
 
 
-def _ratio(a: Any, b: Any) -> float | None:
-    return round(a / b, 2) if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b else None
-
-
 def _row(plant: str, sea_name: str, out: dict, calm: dict | None) -> dict:
     f = out["figures"]
     sea = SEAS[sea_name]
@@ -106,9 +101,8 @@ def _row(plant: str, sea_name: str, out: dict, calm: dict | None) -> dict:
         for key, name in (("cross_track_joined_rms_m", "tracking"), ("azimuth_travel_deg_per_s", "travel"),
                           ("reversals_per_s", "reversals"), ("energy_J", "energy")):
             a, b = f.get(key), cf.get(key)
-            if key == "reversals_per_s" and a is not None and b is not None:
-                a, b = max(a, 0.05), max(b, 0.05)  # as bench waves: below 0.05/s counts as calm's
-            row[f"x calm ({name}, not judged)"] = _ratio(a, b)
+            floored = key == "reversals_per_s" and a is not None and b is not None
+            row[f"x calm ({name}, not judged)"] = reversal_ratio(a, b) if floored else _ratio(a, b)
         hs, frm = f.get("page_sea_hs"), f.get("page_sea_from")
         ok = ok and hs is not None and abs(hs / sea[0] - 1.0) <= 0.4
         ok = ok and frm is not None and abs((frm - WAVES_FROM_DEG + 180.0) % 360.0 - 180.0) <= 40.0

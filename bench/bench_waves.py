@@ -120,6 +120,15 @@ def _ratio(a: float | None, b: float | None) -> float | None:
     return round(a / b, 2) if a is not None and b else None
 
 
+#: reversals per second below this count as calm water's: a ratio to a calm figure near zero says little
+REVERSAL_FLOOR_PER_S = 0.05
+
+
+def reversal_ratio(rev: float | None, rev_calm: float | None) -> float | None:
+    """Reversals per second against calm water's, each at least REVERSAL_FLOOR_PER_S."""
+    return _ratio(max(rev or 0.0, REVERSAL_FLOOR_PER_S), max(rev_calm or 0.0, REVERSAL_FLOOR_PER_S))
+
+
 def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) -> dict:
     ms = [r["metrics"] for r in runs]
     station = case == "station keeping"
@@ -159,8 +168,7 @@ def _row(plant: str, case: str, sea: str, runs: list[dict], calm: list[dict]) ->
             row["wave-freq. / (2 x calm)"] = _ratio(avg("cross_track_wf_rms_m"), 2 * calm_rms if calm_rms else None)
         row["x calm (travel)"] = _ratio(avg("azimuth_travel_deg_per_s", sub=sub), avg("azimuth_travel_deg_per_s", cm, sub))
         rev, rev_calm = avg("reversals_per_s", sub=sub), avg("reversals_per_s", cm, sub)
-        # reversals: a ratio to a calm figure near zero says little; below 0.05/s counts as calm's
-        row["x calm (reversals)"] = _ratio(max(rev or 0.0, 0.05), max(rev_calm or 0.0, 0.05))
+        row["x calm (reversals)"] = reversal_ratio(rev, rev_calm)
         row["x calm (energy)"] = _ratio(avg("energy_J", sub=sub), avg("energy_J", cm, sub))
         ok = all(m["no_failsafe"] for m in ms)
         if station:

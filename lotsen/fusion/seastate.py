@@ -51,6 +51,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from lotsen.messages import ImuSample, SeaState, VesselState
+from lotsen.model.angles import ground_velocity
 
 GRAVITY_MPS2 = 9.81
 
@@ -117,8 +118,7 @@ class SeaStateEstimator:
 
     def on_state(self, s: VesselState) -> None:
         """The boat's heading and velocity over ground (for the absolute direction and period)."""
-        c, sn = math.cos(s.heading_rad), math.sin(s.heading_rad)
-        self.on_motion(s.heading_rad, (c * s.u_mps - sn * s.v_mps, sn * s.u_mps + c * s.v_mps))
+        self.on_motion(s.heading_rad, ground_velocity(s.u_mps, s.v_mps, s.heading_rad))
 
     def on_motion(self, heading_rad: float, velocity_ne_mps: tuple[float, float]) -> None:
         """The boat's heading (puts the IMU's axes on the map) and its velocity over ground, north and east

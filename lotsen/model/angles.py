@@ -1,5 +1,5 @@
 """The one angle wrap, the one finite check (floats and numpy arrays alike) and the one lever arm
-rotation of the project."""
+rotation of the project (a body velocity turned onto the map with it: `ground_velocity`)."""
 
 from __future__ import annotations
 
@@ -37,6 +37,12 @@ def lever_arm_ne(heading_rad: float, arm_m: tuple[float, float]) -> tuple[float,
     c, s = math.cos(heading_rad), math.sin(heading_rad)
     ax, ay = arm_m
     return c * ax - s * ay, s * ax + c * ay
+
+
+def ground_velocity(u_mps: float, v_mps: float, heading_rad: float) -> tuple[float, float]:
+    """Body velocities (surge, sway) as north / east over ground: R(psi) of seed eq. 7-8, the rotation of
+    `lever_arm_ne`."""
+    return lever_arm_ne(heading_rad, (u_mps, v_mps))
 
 
 def mast_swing_body(height_m: float, roll_rad: float, pitch_rad: float) -> tuple[float, float]:

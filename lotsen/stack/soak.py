@@ -499,11 +499,13 @@ def run_live(plan: LivePlan, work_dir: str | os.PathLike | None = None) -> LiveR
                                    failures, plan.allowed_failsafes))
         if uploads:
             figures.update(arrival_gaps(log_path, uploads, failures))
-        if math.isfinite(t_route_end) and plan.reupload_after_auto_s is None:
+        flown = flown_route(log_path, t_auto, t_route_end) \
+            if math.isfinite(t_route_end) and plan.reupload_after_auto_s is None else None
+        if flown is not None:
             # the route flown to its end: its keeping and the actuators' work (and a survey's lines)
-            figures.update(track_figures(log_path, t_auto, t_route_end))
+            figures.update(track_figures(flown))
             if plan.route is not None and plan.route.get("survey") is not None:
-                figures.update(survey_figures(log_path, t_auto, t_route_end))
+                figures.update(survey_figures(flown))
     figures.update(telemetry_figures(frames, t_auto, t_route_end if math.isfinite(t_route_end) else t_stop))
     if flood_counts:
         figures.update({f"flood_{k}": v for k, v in flood_counts.items() if isinstance(v, (int, float))})
@@ -637,10 +639,23 @@ def arrival_gaps(path: str, uploads: list[float], failures: list[str]) -> dict[s
     return fig
 
 
-def _flown(path: str, t_from: float, t_to: float) -> tuple[Any, Any, np.ndarray, np.ndarray, np.ndarray, list] | None:
-    """What the boat flew in [t_from, t_to] by its log: the route it held (its last `planning/route`
-    before t_from) and that route's path, the true track's times (from t_from), arc length and signed
-    cross-track error on the path, and the achieved actuators. None without a route or a track."""
+@dataclass(frozen=True)
+class FlownRoute:
+    """What the boat flew in an AUTO window, by its log (`flown_route`)."""
+
+    route: Any  # the route it held (lotsen.planning.route.Route)
+    path: Any  # that route's planned path
+    duration_s: float  # the window's length
+    t: np.ndarray  # the true track's times from the window's start (s)
+    s_m: np.ndarray  # their arc length on the path
+    cross_track_m: np.ndarray  # their signed cross-track error on the path
+    actuators: list  # the achieved actuators (ActuatorState) in the window, in time order
+
+
+def flown_route(path: str, t_from: float, t_to: float) -> FlownRoute | None:
+    """What the boat flew in [t_from, t_to] by its log (read once for every figure of it): the route it
+    held (its last `planning/route` before t_from) and that route's path, the true track on the path and
+    the achieved actuators. None without a route or a track."""
     from lotsen.planning.exchange import path_from_message
     from lotsen.planning.io import route_from_dict
     from lotsen.planning.survey.keeping import track_on_path
@@ -658,25 +673,22 @@ def _flown(path: str, t_from: float, t_to: float) -> tuple[Any, Any, np.ndarray,
     s_m, cte = track_on_path(route_path, np.array([s.north_m for s in truth]), np.array([s.east_m for s in truth]))
     act = sorted((a for a in by[Topic.ACTUATORS] if isinstance(a, ActuatorState) and t_from <= a.stamp_s <= t_to),
                  key=lambda a: a.stamp_s)
-    return route, route_path, t, s_m, cte, act
+    return FlownRoute(route, route_path, t_to - t_from, t, s_m, cte, act)
 
 
 #: the boat has joined its route once its true track is this close to it (track_figures)
 JOINED_M = 0.05
 
 
-def track_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
-    """How the boat kept the route it flew in [t_from, t_to] (AUTO until the route's end), on the simulator's
+def track_figures(flown: FlownRoute) -> dict[str, Any]:
+    """How the boat kept the route it flew (AUTO until the route's end, `flown_route`), on the simulator's
     (or the external physics's) truth: the cross-track RMS and max, over the whole window and from the first
     time within JOINED_M of the route (and when that was), and the actuators' activity over it
     (`lotsen.sim.activity.actuator_activity` on the achieved values: servo travel, propeller speed change,
     reversals, energy), the measures of a mission report and of bench waves."""
     from lotsen.sim.activity import actuator_activity
 
-    flown = _flown(path, t_from, t_to)
-    if flown is None:
-        return {}
-    _, _, t, _, cte, act = flown
+    t, cte, act = flown.t, flown.cross_track_m, flown.actuators
     out: dict[str, Any] = {"cross_track_rms_m": round(float(np.sqrt(np.mean(cte ** 2))), 4),
                            "cross_track_max_m": round(float(np.max(np.abs(cte))), 4)}
     # a boat that drifted while the stack idled (disarmed, in a current and wind) starts AUTO off its route:
@@ -693,16 +705,13 @@ def track_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
     return out
 
 
-def survey_figures(path: str, t_from: float, t_to: float) -> dict[str, Any]:
-    """The line keeping of the survey the boat flew in [t_from, t_to] (AUTO until the route's end), on
-    the simulator's truth against the planned route the boat held (`_flown`)."""
+def survey_figures(flown: FlownRoute) -> dict[str, Any]:
+    """The line keeping of the survey the boat flew (AUTO until the route's end, `flown_route`), on the
+    simulator's truth against the planned route the boat held."""
     from lotsen.planning.survey.keeping import line_keeping, line_spans
 
-    flown = _flown(path, t_from, t_to)
-    if flown is None:
-        return {}
-    route, route_path, t, s_m, cte, _ = flown
-    summary = line_keeping(line_spans(route, route_path), t, s_m, cte, t_to - t_from).summary()
+    summary = line_keeping(line_spans(flown.route, flown.path), flown.t, flown.s_m, flown.cross_track_m,
+                           flown.duration_s).summary()
     out: dict[str, Any] = {f"survey_{k}": v for k, v in summary.items() if k != "per_line"}
     out["survey_per_line"] = summary.get("per_line", [])
     return out
