@@ -41,7 +41,8 @@ def lever_arm_ne(heading_rad: float, arm_m: tuple[float, float]) -> tuple[float,
 
 def ground_velocity(u_mps: float, v_mps: float, heading_rad: float) -> tuple[float, float]:
     """Body velocities (surge, sway) as north / east over ground: R(psi) of seed eq. 7-8, the rotation of
-    `lever_arm_ne`."""
+    `lever_arm_ne`. (lotsen.web.mavlink.mapping keeps its own three lines: web may not import model,
+    docs/architecture.md.)"""
     return lever_arm_ne(heading_rad, (u_mps, v_mps))
 
 

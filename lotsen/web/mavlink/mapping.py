@@ -4,9 +4,8 @@ from MAVLink's common.xml / ardupilotmega.xml, no pymavlink import). docs/mavlin
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
-
-from lotsen.model.angles import ground_velocity  # noqa: F401 (VesselState u, v for GLOBAL_POSITION_INT)
 
 # identity
 MAV_TYPE_SURFACE_BOAT = 11
@@ -178,3 +177,9 @@ def statustext_chunks(text: str, size: int = 50) -> list[str]:
         out.append(data[start:end].decode("utf-8"))
         start = end
     return out or [""]
+
+
+def ground_velocity(u_mps: float, v_mps: float, heading_rad: float) -> tuple[float, float]:
+    """Body velocities (surge, sway) as north / east over ground."""
+    c, s = math.cos(heading_rad), math.sin(heading_rad)
+    return u_mps * c - v_mps * s, u_mps * s + v_mps * c
