@@ -876,9 +876,10 @@ class ModelAidedEKF:
         # a model force error GNSS velocity has shown is in the model's acceleration too: else the
         # accelerometer pulls the velocity back to where the wrong model's forces balance (hull B: the
         # sway 0.35 m/s off within 0.2 s of each fix once its process noise had freed it)
-        qv = self._velocity_error_q_now()
-        R[0, 0] += qv[0] / self.config.model_error_time_s
-        R[1, 1] += qv[1] / self.config.model_error_time_s
+        if self.config.model_error_time_s > 0.0:  # 0: the matching is off (qv / 0 made R NaN: no accelerometer)
+            qv = self._velocity_error_q_now()
+            R[0, 0] += qv[0] / self.config.model_error_time_s
+            R[1, 1] += qv[1] / self.config.model_error_time_s
         y = np.array(a) - h
         if self._update("accel", y, H, R, reopen=reopen):  # a spike the gate rejects is no model error
             self._track_model_error(y, self._innovation_cov)

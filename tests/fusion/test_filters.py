@@ -193,6 +193,18 @@ def test_ekf_position_through_10s_gnss_outage(calibration: MagCalibration) -> No
     assert math.hypot(e.north_m - sim.x[0], e.east_m - sim.x[1]) < 0.05  # re-acquired
 
 
+def test_ekf_with_model_error_matching_off_still_uses_the_accelerometer(calibration: MagCalibration) -> None:
+    """`model_error_time_s = 0` switches the covariance matching off (EkfConfig), not the accelerometer:
+    its noise once divided by it (0 / 0), and every accelerometer sample was skipped as non-finite."""
+    sim = Simulator(config=SimConfig(seed=14))
+    ekf = ModelAidedEKF(calibration=calibration, config=EkfConfig(origin=_origin(sim), gnss_antenna_m=sim.boat.gnss_antenna_m,
+                                                                  model_error_time_s=0.0))
+    _run(sim, [ekf], 10.0, _turning)
+    assert ekf.counters.used.get("accel", 0) > 100
+    assert ekf.counters.skipped.get("accel", 0) == 0
+    assert np.all(np.isfinite(ekf.P))
+
+
 def test_ekf_thrust_command_used_without_actuator_state() -> None:
     ekf = ModelAidedEKF(initial=VesselState(stamp_s=0.0, north_m=0, east_m=0, heading_rad=0, u_mps=0,
                                             v_mps=0, r_radps=0))
