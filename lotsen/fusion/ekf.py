@@ -199,13 +199,6 @@ class EkfConfig:
     # water current (hull B in a full-power turn at 1.6-2 m/s: 0.2-0.3 m/s of "current" in calm water,
     # the fixes gated out, GNSS declared inconsistent; docs/fusion.md)
     velocity_error_matching: bool = True
-    # ... in a sea that process noise, up to this share of the waves' orbital velocity variance ((heave x
-    # w0)^2, times how far the low-frequency model is in a sea, `_sea_fraction`), goes to the wave states'
-    # velocity instead of the low-frequency surge and sway: what the wave states leave of the orbital
-    # velocity read as the model's velocity error, and the velocity the controllers get followed the
-    # waves (Hs 6 cm, a steady turn: 80 % of the hull's wave-frequency sway; docs/fusion.md "Waves").
-    # Beyond it the error is the model's. What of it is slow comes back through the wave states' mean. 0: none
-    wave_velocity_error_share: float = 1.0
     # What the wave states hold beyond a few of their own periods is not wave-frequency motion: the
     # low-frequency estimate the controllers get (`estimate`) takes the wave states' running mean over
     # `wave_mean_periods` periods of the wave model back (and the wave motion reported loses it). The gyro
@@ -330,7 +323,6 @@ class ModelAidedEKF:
         self._velocity_innovation_var = np.zeros(2)
         self._velocity_innovation_t = -math.inf
         self._velocity_error_q = np.zeros(2)
-        self._velocity_error_wave_q = np.zeros(2)  # the wave states' part of it in a sea
         # the wave states' running mean over wave_mean_periods periods (`_track_wave_mean`)
         self._wave_mean = np.zeros(6)
         self._wave_mean_t = -math.inf
@@ -439,8 +431,7 @@ class ModelAidedEKF:
         n = self.n
         diag = slice(None, None, n + 1)
         q, thrust_rel = self._low_frequency_slack()
-        model_error_q, wave_q = self._model_error_split()
-        wave_vel_ne = np.array([[self.i_wave + 1, self.i_wave + 3]]).T if wave_q is not None else None
+        model_error_q = self.model_error_q
         for k in range(steps):
             u = inputs.advance(t0 + (k + 1) * dt, dt)
             J, B = self._jacobians(x, u)
@@ -462,31 +453,23 @@ class ModelAidedEKF:
             P.flat[diag] += q * dt
             P[3, 3] += model_error_q[0] * dt
             P[4, 4] += model_error_q[1] * dt
-            if wave_q is not None:
-                P[wave_vel_ne, wave_vel_ne[:, 0]] += wave_q * dt
             if self.config.sigma_thrust_rel > 0.0 or self.config.sigma_azimuth_rad > 0.0:
                 P[3:6, 3:6] += self._actuator_accel_cov(B, u, thrust_rel) * (self.config.thrust_error_correlation_s * dt)
             if self.i_wave is not None:
                 x, P = self._predict_waves(x, P, dt)
         return x, P
 
-    def _sea_fraction(self) -> float:
-        """How far the low-frequency model is in a sea, 0 (flat water) .. 1: the heave against
-        `wave_slack_heave_m`, once the sea and the frequency it is met at are known (the sea-state
-        estimate: a tight model with the wrong wave frequency lost a hull thrown about by a following
-        sea), and only where the waves are met above the hull's own dynamics (`wave_slack_frequency_radps`)."""
-        c = self.config
-        if self.i_wave is None or not c.wave_slack_heave_m > 0.0 or self._wave_w0_given is None:
-            return 0.0
-        w0 = self.wave_model()[0]
-        lo, hi = c.wave_slack_frequency_radps
-        return min(1.0, self.wave_band.heave_std_m(w0) / c.wave_slack_heave_m) * min(1.0, max(0.0, (w0 - lo) / (hi - lo)))
-
     def _low_frequency_slack(self) -> tuple[np.ndarray, float]:
         """The process noise densities and the thrusters' relative force uncertainty now: the
         calm values, tightened towards the wave values as the heave grows (EkfConfig)."""
         c = self.config
-        s = self._sea_fraction()
+        if self.i_wave is None or not c.wave_slack_heave_m > 0.0 or self._wave_w0_given is None:
+            # only once the sea and the frequency it is met at are known (the sea-state estimate): a
+            # tight model with the wrong wave frequency lost a hull thrown about by a following sea
+            return self._q, c.sigma_thrust_rel
+        w0 = self.wave_model()[0]
+        lo, hi = c.wave_slack_frequency_radps
+        s = min(1.0, self.wave_band.heave_std_m(w0) / c.wave_slack_heave_m) * min(1.0, max(0.0, (w0 - lo) / (hi - lo)))
         if s <= 0.0:
             return self._q, c.sigma_thrust_rel
         q = self._q.copy()
@@ -959,7 +942,6 @@ class ModelAidedEKF:
         mag_nis = self.monitor.window_figures("mag", t)[0]
         if not mag_nis <= c.integrity.nis_limit.get("mag", 4.0) / 2.0:
             self._velocity_error_q = np.zeros(2)
-            self._velocity_error_wave_q = np.zeros(2)
             return
         dt, self._velocity_innovation_t = t - self._velocity_innovation_t, t
         if not dt > 0.0:
@@ -975,36 +957,12 @@ class ModelAidedEKF:
         limit = 1.0 + c.model_error_sigmas * math.sqrt(2.0 * k / (2.0 - k))
         ms, var = self._velocity_innovation_sq, self._velocity_innovation_var
         self._velocity_error_q = np.where(ms > limit * var, (ms - var) / dt, 0.0)
-        # in a sea, up to the waves' orbital velocity variance of it is what the wave states left
-        # (EkfConfig.wave_velocity_error_share); beyond that it is the model's
-        sea = c.wave_velocity_error_share * self._sea_fraction()
-        self._velocity_error_wave_q = (np.minimum(self._velocity_error_q, sea * self._orbital_velocity_var() / dt)
-                                       if sea > 0.0 else np.zeros(2))
 
     @property
     def model_error_q(self) -> np.ndarray:
         """Surge and sway process noise from the model's own error now ((m/s^2)^2 s): the larger of
         what the accelerometer and GNSS velocity show (one error, seen by two sensors)."""
         return np.maximum(self._accel_error_q, self._velocity_error_q_now())
-
-    def _model_error_split(self) -> tuple[np.ndarray, np.ndarray | None]:
-        """`model_error_q` split for the prediction: in a sea GNSS velocity's part up to the waves'
-        orbital velocity (`_track_velocity_error`) goes to the wave states' north and east velocity (a
-        2 x 2 process noise, turned from body axes; None: nothing), the rest to surge and sway."""
-        qv = self._velocity_error_q_now()
-        wq = np.minimum(self._velocity_error_wave_q, qv)  # none once GNSS velocity stopped showing it
-        if not np.any(wq > 0.0):
-            return self.model_error_q, None
-        low = np.maximum(self._accel_error_q, qv - wq)
-        cs, sn = math.cos(self.x[IPSI]), math.sin(self.x[IPSI])
-        Rt = np.array([[cs, -sn], [sn, cs]])  # body (surge, sway) -> north-east
-        return low, Rt @ np.diag(wq) @ Rt.T
-
-    def _orbital_velocity_var(self) -> float:
-        """The variance of the waves' orbital velocity at the wave model's frequency (m^2/s^2): the
-        heave displacement's times w0 (deep water: circular orbits)."""
-        w0 = self.wave_model()[0]
-        return (self.wave_band.heave_std_m(w0) * w0) ** 2
 
     def _velocity_error_q_now(self) -> np.ndarray:
         """GNSS velocity's share, while it keeps showing the error: not in dead reckoning (after a GNSS
