@@ -36,8 +36,8 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_hull import hull_server, lake_server_args  # noqa: E402
-from bench_waves import CURRENT, GUSTS, SEAS, WANDER_DEG, WAVES_FROM_DEG, WIND, _ratio, reversal_ratio  # noqa: E402
+from bench_hull import CURRENT, GUSTS, WANDER_DEG, WIND, hull_server, lake_server_args  # noqa: E402
+from bench_waves import SEAS, WAVES_FROM_DEG, _ratio, reversal_ratio  # noqa: E402
 
 CONFIG = REPO / "config" / "sim.yaml"
 PLANTS = ("lotsen simulator (lake boat)", "6-DOF hull over the seam (tests/physics/hull_server.py)")

@@ -36,10 +36,11 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "physics"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-CURRENT = (0.08, 30.0)
-WIND = (4.0, 250.0)
-GUSTS, WANDER_DEG = 0.2, 15.0
+# the water and air of every case: the lake case of bench hull (issue 39), defined there once
+from bench_hull import CURRENT, GUSTS, WANDER_DEG, WIND  # noqa: E402
+
 SEAS = {"calm": None, "Hs 3 cm": (0.03, 0.8), "Hs 6 cm": (0.06, 1.0), "Hs 10 cm": (0.10, 1.2)}
 WAVES_FROM_DEG = 250.0
 HOLD_S = 60.0
