@@ -6,7 +6,10 @@ the running sea-state estimate gives)."""
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -24,11 +27,16 @@ from lotsen.sim import SimConfig, Simulator
 def _turn(wave_mean_periods: float, hs_m: float, duration_s: float = 60.0) -> np.ndarray:
     """Rows (t, true yaw rate, the estimate's yaw rate) at 10 Hz of a steady port turn, azimuths at
     -4 deg and 45 rev/s (about 0.5 m/s and 8 deg/s), waves from 250 deg."""
+    return _fly_turn(hs_m, duration_s, wave_mean_periods=wave_mean_periods)[0]
+
+
+def _fly_turn(hs_m: float, duration_s: float, **ekf_config: Any) -> tuple[np.ndarray, ModelAidedEKF]:
+    """_turn's rows and the EKF (its EkfConfig with `ekf_config`) at the end."""
     sim = Simulator(config=SimConfig(environment=Environment(waves=Waves(hs_m, 1.0, 250.0) if hs_m else None), seed=3))
     gnss = sim.config.gnss
     ekf = ModelAidedEKF(VesselModel(), sim_mag_calibration(sim.config),
                         EkfConfig(origin=(gnss.origin_lat_deg, gnss.origin_lon_deg, gnss.origin_height_m),
-                                  gnss_antenna_m=sim.boat.gnss_antenna_m, wave_mean_periods=wave_mean_periods),
+                                  gnss_antenna_m=sim.boat.gnss_antenna_m, **ekf_config),
                         initial=VesselState(stamp_s=0.0, north_m=0.0, east_m=0.0, heading_rad=sim.x[2],
                                             u_mps=0.0, v_mps=0.0, r_radps=0.0))
     sea = SeaStateEstimator()
@@ -53,7 +61,7 @@ def _turn(wave_mean_periods: float, hs_m: float, duration_s: float = 60.0) -> np
             sea.estimate(t)
             ekf.set_wave_frequency(sea.encounter_frequency_radps())
             rows.append((t, r_true, est.r_radps))
-    return np.array(rows)
+    return np.array(rows), ekf
 
 
 def _slow_rate_error_deg_s(rows: np.ndarray) -> np.ndarray:
@@ -81,3 +89,36 @@ def test_flat_water_estimate_is_unchanged_by_the_wave_mean():
     the one without it, to the bit."""
     a, b = _turn(EkfConfig().wave_mean_periods, 0.0, 40.0), _turn(0.0, 0.0, 40.0)
     assert np.array_equal(a, b)
+
+
+def _velocity_step_from_one_accelerometer_mean(ekf: ModelAidedEKF, correlated_samples: float) -> float:
+    """How far one accelerometer mean 0.3 m/s^2 above the filter's own prediction (surge) moves its
+    velocity (u, v, r; m/s and rad/s), with `wave_accel_correlated_samples` set to the value given (on
+    copies of the filter)."""
+    u = []
+    for extra in (0.0, 0.3):  # the difference is the gain's: the rest of the innovation is the same in both
+        probe = copy.deepcopy(ekf)
+        probe.config = dataclasses.replace(ekf.config, wave_accel_correlated_samples=correlated_samples)
+        ax, ay = probe._accel_pred
+        if probe.i_ba is not None:
+            ax, ay = ax + float(probe.x[probe.i_ba]), ay + float(probe.x[probe.i_ba + 1])
+        probe._accel_update((ax + extra, ay))
+        u.append(probe.x[3:6].copy())
+    return float(np.linalg.norm(u[1] - u[0]))
+
+
+@pytest.mark.parametrize("hs_m", [0.0, 0.06])
+def test_one_waves_acceleration_is_not_taken_for_many_independent_samples(hs_m):
+    """In a sea the accelerometer's wave-frequency acceleration is narrow-band noise that lasts a few
+    tenths of a second, over several of its 20 Hz means: the update counts its variance that many times
+    (EkfConfig.wave_accel_correlated_samples), so one mean's pull on the velocity is a fraction of the
+    white-noise update's. In flat water (no sea state) the update is the white-noise one, to the bit."""
+    _, ekf = _fly_turn(hs_m, 45.0)
+    white = _velocity_step_from_one_accelerometer_mean(ekf, 1.0)
+    coloured = _velocity_step_from_one_accelerometer_mean(ekf, EkfConfig().wave_accel_correlated_samples)
+    assert white > 0.0
+    if hs_m:
+        assert ekf.wave_band.heave_accel_std_mps2 > 0.1  # the sea is there, and the sea state has found it
+        assert coloured < 0.35 * white, (coloured, white)
+    else:
+        assert coloured == white
