@@ -197,10 +197,14 @@ class EkfConfig:
     # treatment of time-correlated noise not carried as states inflates its variance by that count. Bench
     # waves' figure eight at 0.5 and 1.0 m/s in Hs 6 and 10 cm on both hulls, seeds 0-4 (40 missions),
     # against 1 (no inflation): 15 tracked 4 % better with 9 % less azimuth travel, 10 % fewer reversals,
-    # 5 % less energy, no failsafe; 4 and 40 did less well (docs/fusion.md "Waves"). 1: off.
+    # 5 % less energy, no failsafe; 4 and 40 did less well (docs/fusion.md "Waves"; measured with the
+    # inflation from the first sample, before the sea threshold below). 1: off.
     wave_accel_correlated_samples: float = 15.0
     # ... once the wave band's heave acceleration is above this: flat water reads <= 0.02 m/s^2 on both
-    # hulls (the 6-DOF hull turning at 1 m/s included), Hs 3 cm 0.2-0.3 within 2-5 s. Flat water: unchanged
+    # hulls (the 6-DOF hull turning at 1 m/s included), Hs 3 cm 0.2-0.3 within 2-5 s. Not the sea-state
+    # estimator's flat-water floor (`SeaStateConfig.min_heave_accel_mps2`, 0.03): that one reads a 2-min
+    # spectrum decimated to 10 Hz, this the EKF's running wave band: each sits above its own flat-water
+    # reading. Flat water: unchanged
     wave_accel_sea_heave_mps2: float = 0.05
     # ... and as GNSS velocity measures it (covariance matching on its innovation, Mehra 1972): a hull not
     # built like the model settles, in a hard turn at speed, at another sway speed than the model's, so the

@@ -95,7 +95,7 @@ def _velocity_step_from_one_accelerometer_mean(ekf: ModelAidedEKF, correlated_sa
     """How far one accelerometer mean 0.3 m/s^2 above the filter's own prediction (surge) moves its
     velocity (u, v, r; m/s and rad/s), with `wave_accel_correlated_samples` set to the value given (on
     copies of the filter)."""
-    u = []
+    velocities = []
     for extra in (0.0, 0.3):  # the difference is the gain's: the rest of the innovation is the same in both
         probe = copy.deepcopy(ekf)
         probe.config = dataclasses.replace(ekf.config, wave_accel_correlated_samples=correlated_samples)
@@ -103,8 +103,8 @@ def _velocity_step_from_one_accelerometer_mean(ekf: ModelAidedEKF, correlated_sa
         if probe.i_ba is not None:
             ax, ay = ax + float(probe.x[probe.i_ba]), ay + float(probe.x[probe.i_ba + 1])
         probe._accel_update((ax + extra, ay))
-        u.append(probe.x[3:6].copy())
-    return float(np.linalg.norm(u[1] - u[0]))
+        velocities.append(probe.x[3:6].copy())
+    return float(np.linalg.norm(velocities[1] - velocities[0]))
 
 
 @pytest.mark.parametrize("hs_m", [0.0, 0.06])
