@@ -278,6 +278,11 @@ class RealtimeExecutor(Executor):
     def stop(self) -> None:
         self._stop.set()
         self._calls.put(lambda: None)
+
+    @property
+    def stopping(self) -> bool:
+        """Told to stop: the loop is finishing (its nodes closing), so its silence is no stall."""
+        return self._stop.is_set()
         if self._background is not None:
             self._background.close()
 

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import pytest
 
 from lotsen.runtime import RealtimeExecutor
+from lotsen.runtime.executor import Node
 from lotsen.stack.roles import CoreWatchdog
 
 
@@ -46,3 +47,51 @@ def test_a_running_loop_is_never_silent_with_a_slow_watchdog_timer():
 @pytest.mark.live
 def test_a_stuck_loop_is_a_stall():
     assert _run(0.4).stalls == 1
+
+
+class _SlowToClose(Node):
+    """A node whose stop takes `close_s` (as the Zenoh bridge's close on an emulated Pi)."""
+
+    name = "slow_to_close"
+
+    def __init__(self, close_s: float) -> None:
+        self.close_s = close_s
+
+    def stop(self) -> None:
+        time.sleep(self.close_s)
+
+
+def _shut_down(close_s: float, exit_s: float) -> tuple[CoreWatchdog, list[int], list[str]]:
+    """The loop runs 0.3 s, is told to stop (as SIGTERM does) and its node takes close_s to close."""
+    ex = RealtimeExecutor()
+    neutral: list[str] = []
+    guard = SimpleNamespace(accept=lambda cmd, t: neutral.append(cmd.source))
+    stack = SimpleNamespace(executor=ex, services={}, nodes={"sim_boat": SimpleNamespace(guard=guard)})
+    exits: list[int] = []
+    dog = CoreWatchdog(stack, stall_s=0.2, exit_s=exit_s, exit_fn=exits.append)
+    ex.add_node(_SlowToClose(close_s))
+    ex.add_timer(0.01, lambda: None)
+    ex.add_timer(0.3, ex.stop)
+
+    def loop() -> None:
+        dog.start()
+        ex.run()
+
+    th = threading.Thread(target=loop)
+    th.start()
+    th.join(5.0)
+    dog.stop()
+    return dog, exits, neutral
+
+
+@pytest.mark.live
+def test_a_loop_told_to_stop_is_silent_while_its_nodes_close_and_that_is_no_stall():
+    dog, exits, neutral = _shut_down(close_s=0.6, exit_s=5.0)
+    assert dog.stalls == 0 and not exits
+    assert neutral == ["watchdog"]  # the actuators still get neutral, once
+
+
+@pytest.mark.live
+def test_a_shutdown_that_hangs_still_ends_the_process():
+    dog, exits, _ = _shut_down(close_s=1.5, exit_s=0.8)
+    assert exits == [70] and dog.stalls == 0
