@@ -278,13 +278,13 @@ class RealtimeExecutor(Executor):
     def stop(self) -> None:
         self._stop.set()
         self._calls.put(lambda: None)
+        if self._background is not None:
+            self._background.close()
 
     @property
     def stopping(self) -> bool:
         """Told to stop: the loop is finishing (its nodes closing), so its silence is no stall."""
         return self._stop.is_set()
-        if self._background is not None:
-            self._background.close()
 
     def _call(self, fn: Callable[[], None]) -> None:
         try:
