@@ -218,6 +218,9 @@ def test_background_work_runs_off_the_loop_and_its_result_comes_back_on_the_loop
     assert worker != loop and err is None and where == where2 == loop
     assert none is None and isinstance(error, ValueError) and str(error) == "bad route"
     assert max(b - a for a, b in zip(ticks, ticks[1:])) < 0.1  # the loop kept its period meanwhile
+    ex.stop()  # ... and the worker thread ends with the executor
+    ex._background._thread.join(2.0)
+    assert not ex._background._thread.is_alive()
 
     sim = SimExecutor()
     out: list = []
