@@ -12,20 +12,13 @@ from lotsen.runtime.executor import Node
 from lotsen.stack.roles import CoreWatchdog
 
 
-def _run(block_at_s: float | None, duration_s: float = 1.2) -> CoreWatchdog:
-    ex = RealtimeExecutor()
-    stack = SimpleNamespace(executor=ex, services={}, nodes={})
+def _watched(ex: RealtimeExecutor, nodes: dict, exit_s: float,
+             duration_s: float | None = None) -> tuple[CoreWatchdog, list[int]]:
+    """Run `ex`'s loop on a thread of its own under a CoreWatchdog (stall_s 0.2) until it ends;
+    the watchdog and the exit codes it would have exited with."""
+    stack = SimpleNamespace(executor=ex, services={}, nodes=nodes)
     exits: list[int] = []
-    dog = CoreWatchdog(stack, stall_s=0.2, exit_s=5.0, exit_fn=exits.append)
-    t0 = time.monotonic()
-    blocked = []
-
-    def tick() -> None:  # the loop's 100 Hz work; once it hangs for 0.5 s
-        if block_at_s is not None and not blocked and time.monotonic() - t0 > block_at_s:
-            blocked.append(True)
-            time.sleep(0.5)
-
-    ex.add_timer(0.01, tick)
+    dog = CoreWatchdog(stack, stall_s=0.2, exit_s=exit_s, exit_fn=exits.append)
 
     def loop() -> None:
         dog.start()
@@ -35,6 +28,21 @@ def _run(block_at_s: float | None, duration_s: float = 1.2) -> CoreWatchdog:
     th.start()
     th.join(5.0)
     dog.stop()
+    return dog, exits
+
+
+def _run(block_at_s: float | None, duration_s: float = 1.2) -> CoreWatchdog:
+    ex = RealtimeExecutor()
+    t0 = time.monotonic()
+    blocked = []
+
+    def tick() -> None:  # the loop's 100 Hz work; once it hangs for 0.5 s
+        if block_at_s is not None and not blocked and time.monotonic() - t0 > block_at_s:
+            blocked.append(True)
+            time.sleep(0.5)
+
+    ex.add_timer(0.01, tick)
+    dog, exits = _watched(ex, {}, exit_s=5.0, duration_s=duration_s)
     assert not exits
     return dog
 
@@ -66,21 +74,10 @@ def _shut_down(close_s: float, exit_s: float) -> tuple[CoreWatchdog, list[int], 
     ex = RealtimeExecutor()
     neutral: list[str] = []
     guard = SimpleNamespace(accept=lambda cmd, t: neutral.append(cmd.source))
-    stack = SimpleNamespace(executor=ex, services={}, nodes={"sim_boat": SimpleNamespace(guard=guard)})
-    exits: list[int] = []
-    dog = CoreWatchdog(stack, stall_s=0.2, exit_s=exit_s, exit_fn=exits.append)
     ex.add_node(_SlowToClose(close_s))
     ex.add_timer(0.01, lambda: None)
     ex.add_timer(0.3, ex.stop)
-
-    def loop() -> None:
-        dog.start()
-        ex.run()
-
-    th = threading.Thread(target=loop)
-    th.start()
-    th.join(5.0)
-    dog.stop()
+    dog, exits = _watched(ex, {"sim_boat": SimpleNamespace(guard=guard)}, exit_s)
     return dog, exits, neutral
 
 
