@@ -23,8 +23,9 @@ class PlanningBudget:
     max_route_length_m: float = field(default=5000.0, metadata=_r(1.0, 1_000_000.0))  # sum of node-to-node distances
     max_polygon_vertices: int = field(default=2000, metadata=_r(3, 100_000))  # area + obstacles, all vertices
     max_obstacles: int = field(default=50, metadata=_r(0, 10_000))
-    time_s: float = field(default=10.0, metadata=_r(0.1, 600.0))  # wall time of one request (worker)
-    # wall time of one prediction of time and energy (the page's Predict: the mission flown on the model
+    # CPU time of one request in the worker (5 x that in wall time stops it too: stuck, or starved)
+    time_s: float = field(default=10.0, metadata=_r(0.1, 600.0))
+    # CPU time of one prediction of time and energy (the page's Predict: the mission flown on the model
     # in use on simulated time, ~7 ms of CPU per simulated second here, 3-4x that on a Pi 4)
     predict_time_s: float = field(default=120.0, metadata=_r(1.0, 1800.0))
     memory_mb: float = field(default=1024.0, metadata=_r(64.0, 65536.0))  # address space of the worker

@@ -3,9 +3,13 @@ budget, so no route, however hostile, can starve the web server or the control c
 
 One worker process serves one request at a time (requests queue up to `max_pending`; beyond
 that they are refused at once: "busy"). The process runs with an address-space limit
-(RLIMIT_AS = `memory_mb`); a request that runs out of memory is refused, and one that runs longer
-than `time_s` is refused and its worker killed and replaced. Functions and arguments cross the
-process boundary by pickling: module-level functions and plain data only.
+(RLIMIT_AS = `memory_mb`); a request that runs out of memory is refused, and one that uses more
+than `time_s` of CPU time is refused and its worker killed and replaced. The budget is CPU time,
+not wall time, because the worker runs niced: on a machine the control core (or anything else)
+keeps busy a legitimate plan gets a fraction of a core, and a wall-time budget refused it for the
+machine's load, not the route's cost. A job that does not finish in `WALL_FACTOR` x its budget of
+wall time (stuck, or a machine so busy it gets almost nothing) is stopped as well. Functions and
+arguments cross the process boundary by pickling: module-level functions and plain data only.
 
     worker = PlannerWorker(PlanningBudget())
     result = await worker.run(plan_for_display, route_dict, planner_config)
@@ -17,6 +21,7 @@ import asyncio
 import multiprocessing as mp
 import os
 import threading
+import time
 from typing import Any, Callable
 
 from lotsen.errors import LotsenError, PlanningError
@@ -74,6 +79,21 @@ def _serve(conn: Any, budget: PlanningBudget, parent_pid: int | None = None) -> 
             conn.send(("error", f"{type(exc).__name__}: {exc}"[:500]))
 
 
+#: a job is stopped after this many times its CPU budget in wall time, whatever CPU it got
+WALL_FACTOR = 5.0
+_POLL_S = 0.05
+
+
+def _cpu_seconds(pid: int) -> float | None:
+    """The process's user + system CPU time from /proc (Linux, the Pi's OS); None where unreadable."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime (stat's 14, 15)
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 class PlannerWorker:
     def __init__(self, budget: PlanningBudget = PlanningBudget(), max_pending: int = 8) -> None:
         self.budget = budget
@@ -127,20 +147,34 @@ class PlannerWorker:
                 self._start()
 
     def call(self, fn: Callable[..., Any], *args: Any) -> Any:
-        """Run fn(*args) in the worker (blocking); PlanningError when over budget or busy. A job that
-        names its own budget (`fn.budget_key`, a field of PlanningBudget: `predict_time_s`) gets that."""
+        """Run fn(*args) in the worker (blocking); PlanningError when over budget (CPU time, or
+        `WALL_FACTOR` x that in wall time) or busy. A job that names its own budget (`fn.budget_key`,
+        a field of PlanningBudget: `predict_time_s`) gets that."""
         key = getattr(fn, "budget_key", "time_s")
         limit = float(getattr(self.budget, key))
         with self._lock:
             if self._proc is None or not self._proc.is_alive():
                 self._start()
             conn = self._conn
+            pid = self._proc.pid
+            cpu_0, wall_0 = _cpu_seconds(pid), time.monotonic()
             conn.send((fn, args))
-            if not conn.poll(limit):
-                self.stats["timeouts"] += 1
-                self._kill()
-                raise PlanningError(f"planning took longer than its budget of {limit:g} s and was "
-                                    f"stopped (extra.planning.{key}); simplify the route")
+            while not conn.poll(_POLL_S):
+                wall = time.monotonic() - wall_0
+                cpu_now = _cpu_seconds(pid)
+                # no /proc: wall time stands in for CPU time (the stricter measure)
+                cpu = wall if cpu_0 is None or cpu_now is None else cpu_now - cpu_0
+                if cpu > limit:
+                    self.stats["timeouts"] += 1
+                    self._kill()
+                    raise PlanningError(f"planning took longer than its budget of {limit:g} s of CPU time and "
+                                        f"was stopped (extra.planning.{key}); simplify the route")
+                if wall > WALL_FACTOR * limit:
+                    self.stats["timeouts"] += 1
+                    self._kill()
+                    raise PlanningError(f"planning took longer than its budget of {limit:g} s: {wall:.0f} s of "
+                                        f"wall time with {cpu:.1f} s of CPU (the machine is too busy, or the job "
+                                        f"is stuck) and was stopped (extra.planning.{key})")
             try:
                 kind, value = conn.recv()
             except (EOFError, OSError):

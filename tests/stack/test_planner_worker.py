@@ -1,6 +1,7 @@
 """Planning in its own process with a time and a memory budget (issue: viewers starve the loop)."""
 
 import asyncio
+import time
 
 import pytest
 
@@ -10,7 +11,7 @@ from lotsen.planning.budget import PlanningBudget, check_budget
 from lotsen.planning.io import load_route, route_from_dict
 from lotsen.stack.planner_worker import PlannerWorker
 from lotsen.stack.stack import example_route
-from tests.stack.worker_jobs import allocate, sleep
+from tests.stack.worker_jobs import allocate, sleep, spin
 
 
 @pytest.fixture
@@ -27,10 +28,32 @@ def test_plans_in_the_worker(worker):
 
 
 def test_a_request_over_the_time_budget_is_stopped_and_the_worker_replaced(worker):
-    with pytest.raises(PlanningError, match="longer than its budget of 2 s"):
-        worker.call(sleep, 30.0)
+    t0 = time.monotonic()
+    with pytest.raises(PlanningError, match="longer than its budget of 2 s of CPU time"):
+        worker.call(spin, 30.0)
+    assert time.monotonic() - t0 < 8.0  # stopped at its 2 s of CPU, not after the job's 30
     assert worker.stats["timeouts"] == 1
     assert worker.call(sleep, 0.01) == 0.01  # a fresh worker serves the next request
+
+
+def test_the_budget_is_cpu_time_so_a_busy_machine_does_not_refuse_a_plan(worker):
+    """A job that takes longer than its budget in wall time without using the CPU (a niced worker
+    on a machine the control core keeps busy gets a fraction of a core) is answered."""
+    assert worker.call(sleep, 3.0) == 3.0
+    assert worker.stats["timeouts"] == 0
+
+
+def test_a_job_that_hangs_is_stopped_after_five_times_its_budget_in_wall_time():
+    w = PlannerWorker(PlanningBudget(time_s=0.5))
+    try:
+        w.warm()
+        t0 = time.monotonic()
+        with pytest.raises(PlanningError, match=r"budget of 0.5 s: \d+ s of wall time with 0.\d s of CPU"):
+            w.call(sleep, 30.0)
+        assert 2.5 <= time.monotonic() - t0 < 10.0
+        assert w.call(sleep, 0.01) == 0.01
+    finally:
+        w.close()
 
 
 def test_a_request_over_the_memory_budget_is_refused(worker):

@@ -10,3 +10,11 @@ def sleep(seconds: float) -> float:
 
 def allocate(megabytes: float) -> int:
     return len(bytearray(int(megabytes * 1024 * 1024)))
+
+
+def spin(cpu_seconds: float) -> float:
+    """Burn CPU time (what a hard planning problem does)."""
+    t_end = time.process_time() + cpu_seconds
+    while time.process_time() < t_end:
+        pass
+    return cpu_seconds
