@@ -83,8 +83,17 @@ def wait_js(pg, expr: str, timeout: float = 8.0):
         value = pg.evaluate(f"() => ({expr})")
         if value:
             return value
-        assert time.monotonic() < t_end, f"timed out waiting for: {expr}"
+        assert time.monotonic() < t_end, f"timed out waiting for: {expr}; the page said: {page_said(pg)}"
         time.sleep(0.05)
+
+
+# what a failed wait reports: the page's status lines and its last toast (a planner's refusal, a busy worker)
+_SAID = ("#conn", "#planstatus", "#surveyinfo", "#predictinfo", "#coverageinfo", "#readback", "#toast")
+
+
+def page_said(pg) -> dict:
+    return pg.evaluate("(ids) => Object.fromEntries(ids.map(i => [i, document.querySelector(i) ? "
+                       "document.querySelector(i).textContent.slice(0, 300) : null]))", list(_SAID))
 
 
 def wait_until(pred, timeout: float = 3.0) -> None:
@@ -470,9 +479,12 @@ def test_drive_with_the_keyboard_then_emergency_stop(page, stack):
     wait_js(page, "document.querySelector('#drivepad [data-key=w]').classList.contains('on')")
     wait_js(page, "window.lotsen.telemetry.cmd && Math.abs(window.lotsen.telemetry.cmd.n1) > 5")
     shot(page, "manual")
-    time.sleep(2.0)
-    p1 = boat(page)
-    assert math.hypot(p1["n"] - p0["n"], p1["e"] - p0["e"]) > 0.3 and p1["u"] > 0.1  # ahead
+
+    def ahead() -> bool:  # 0.3 m and 0.1 m/s: about 2 s from rest here, longer when the machine is busy
+        p1 = boat(page)
+        return math.hypot(p1["n"] - p0["n"], p1["e"] - p0["e"]) > 0.3 and p1["u"] > 0.1
+
+    wait_until(ahead, timeout=10.0)
     page.keyboard.up("w")
     wait_js(page, "!document.querySelector('#drivepad [data-key=w]').classList.contains('on')")
     wait_until(lambda: stack.messages(Topic.MANUAL)[-1].surge == 0.0)  # a zero command on release

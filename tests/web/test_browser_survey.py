@@ -62,7 +62,9 @@ def test_draw_a_survey_see_its_lines_length_and_time_and_upload_it(page, stack):
     page.fill("#sv-speed_mps", "0.8")
     page.press("#sv-speed_mps", "Enter")
     wait_js(page, "window.lotsen.route.survey && window.lotsen.route.survey.speed_mps === 0.8", timeout=5)
-    wait_js(page, "document.querySelector('#surveyinfo').textContent.startsWith('survey: 4 lines')", timeout=15)
+    # planning and predicting run in the niced planner worker: on a busy machine they take several times their
+    # CPU time, and the worker stops them only after 5 x their budget of wall time (10 s: 50 s; 120 s: 600 s)
+    wait_js(page, "document.querySelector('#surveyinfo').textContent.startsWith('survey: 4 lines')", timeout=50)
     info = page.inner_text("#surveyinfo")
     assert "64 m of lines at 0.8 m/s" in info and "% of the planned time" in info   # 4 lines of 16 m
     assert page.evaluate("() => window.lotsen.map.surveyLines.length") == 4
@@ -74,14 +76,14 @@ def test_draw_a_survey_see_its_lines_length_and_time_and_upload_it(page, stack):
     assert page.evaluate("() => window.lotsen.route.survey.spacing_m") == 3
     # its time and energy, predicted by the boat's planner on the model in use
     page.click("#btn-predict")
-    wait_js(page, "document.querySelector('#predictinfo').textContent.startsWith('predicted:')", timeout=60)
+    wait_js(page, "document.querySelector('#predictinfo').textContent.startsWith('predicted:')", timeout=180)
     info = page.inner_text("#predictinfo")
     assert "at the motors" in info and "% on lines" in info and "default coefficients" in info, info
     assert re.search(r"Wh \([\d.]+-[\d.]+ over 3 flights\) at the motors", info), info  # the draws' spread
     shot(page, "survey-draft")
     n = len(stack.messages(Topic.ROUTE))
     page.click("#btn-use")
-    wait_js(page, "document.querySelector('#readback').textContent.includes('read-back matches')", timeout=15)
+    wait_js(page, "document.querySelector('#readback').textContent.includes('read-back matches')", timeout=50)
     planned = stack.messages(Topic.ROUTE)[n]
     assert planned.route["survey"]["spacing_m"] == 3 and "nodes" not in planned.route
     assert page.errors == []
@@ -108,5 +110,5 @@ def test_the_coverage_layer_shows_soundings_and_holes_and_offers_the_rerun(page,
     lines = page.evaluate("() => window.lotsen.route.survey.lines")
     assert 1 <= len(lines) <= 2
     assert all(9 <= a[0] <= 12 and 9 <= b[0] <= 12 for a, b in lines)   # over the hole's row of cells
-    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')", timeout=15)
+    wait_js(page, "document.querySelector('#planstatus').textContent.startsWith('planned')", timeout=50)
     assert page.errors == []
