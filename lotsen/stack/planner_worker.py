@@ -165,16 +165,15 @@ class PlannerWorker:
                 # no /proc: wall time stands in for CPU time (the stricter measure)
                 cpu = wall if cpu_0 is None or cpu_now is None else cpu_now - cpu_0
                 if cpu > limit:
-                    self.stats["timeouts"] += 1
-                    self._kill()
-                    raise PlanningError(f"planning took longer than its budget of {limit:g} s of CPU time and "
-                                        f"was stopped (extra.planning.{key}); simplify the route")
-                if wall > WALL_FACTOR * limit:
-                    self.stats["timeouts"] += 1
-                    self._kill()
-                    raise PlanningError(f"planning took longer than its budget of {limit:g} s: {wall:.0f} s of "
-                                        f"wall time with {cpu:.1f} s of CPU (the machine is too busy, or the job "
-                                        f"is stuck) and was stopped (extra.planning.{key})")
+                    why = f"{limit:g} s of CPU time and was stopped (extra.planning.{key}); simplify the route"
+                elif wall > WALL_FACTOR * limit:
+                    why = (f"{limit:g} s: {wall:.0f} s of wall time with {cpu:.1f} s of CPU (the machine is too "
+                           f"busy, or the job is stuck) and was stopped (extra.planning.{key})")
+                else:
+                    continue
+                self.stats["timeouts"] += 1
+                self._kill()
+                raise PlanningError(f"planning took longer than its budget of {why}")
             try:
                 kind, value = conn.recv()
             except (EOFError, OSError):

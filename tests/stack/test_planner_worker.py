@@ -1,6 +1,7 @@
 """Planning in its own process with a time and a memory budget (issue: viewers starve the loop)."""
 
 import asyncio
+import os
 import time
 
 import pytest
@@ -29,9 +30,10 @@ def test_plans_in_the_worker(worker):
 
 def test_a_request_over_the_time_budget_is_stopped_and_the_worker_replaced(worker):
     t0 = time.monotonic()
-    with pytest.raises(PlanningError, match="longer than its budget of 2 s of CPU time"):
+    # at its 2 s of CPU; on a machine busy enough to starve the niced worker, at 5 x 2 s of wall time
+    with pytest.raises(PlanningError, match=r"longer than its budget of 2 s( of CPU time|: \d+ s of wall time)"):
         worker.call(spin, 30.0)
-    assert time.monotonic() - t0 < 8.0  # stopped at its 2 s of CPU, not after the job's 30
+    assert time.monotonic() - t0 < 15.0  # not after the job's 30 s
     assert worker.stats["timeouts"] == 1
     assert worker.call(sleep, 0.01) == 0.01  # a fresh worker serves the next request
 
@@ -41,6 +43,15 @@ def test_the_budget_is_cpu_time_so_a_busy_machine_does_not_refuse_a_plan(worker)
     on a machine the control core keeps busy gets a fraction of a core) is answered."""
     assert worker.call(sleep, 3.0) == 3.0
     assert worker.stats["timeouts"] == 0
+
+
+def test_the_cpu_time_is_read_per_process():
+    from lotsen.stack.planner_worker import _cpu_seconds
+
+    before = _cpu_seconds(os.getpid())
+    spin(0.3)
+    assert before is not None and _cpu_seconds(os.getpid()) - before >= 0.25
+    assert _cpu_seconds(2 ** 22 + 12345) is None  # no such process
 
 
 def test_a_job_that_hangs_is_stopped_after_five_times_its_budget_in_wall_time():
