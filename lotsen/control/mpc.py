@@ -199,8 +199,11 @@ class MPCConfig:
     # In a sea (sea level > 0) an azimuth astern longer than this gets ahead as its direction again,
     # as `azimuth_astern_hold_s` does (which stays off in calm water): the crossing price scaled with
     # the sea made an azimuth sent astern at the start stay astern for 40-60 % of a mission while the
-    # other carried the thrust (issue 46). inf: off.
-    wave_azimuth_astern_hold_s: float = 60.0
+    # other carried the thrust (issue 46). 60 -> 30 s (2026-11-30, bench waves' 1.0 m/s figure eight in
+    # Hs 3 cm, seeds 0-2): 6-DOF hull energy 7971 -> 7855 J (1.31 -> 1.29 x calm), tracking 6.14 -> 6.12 cm,
+    # reversals 0.147 -> 0.161 per s; lake boat 11191 -> 10813 J, tracking unchanged. 10 s made 2-3 x calm
+    # reversals on the 6-DOF hull (docs/control.md "Waves"). inf: off.
+    wave_azimuth_astern_hold_s: float = 30.0
     min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
     min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
     # where stage k's reference lies on the path: "predicted" = the projection of the nominal (shifted
