@@ -32,6 +32,7 @@ On a machine shared with other work the absolute figures move with that work; th
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import secrets
@@ -45,12 +46,12 @@ import time
 import urllib.request
 from pathlib import Path
 
+from lotsen.runtime.lifetime import process_cpu_seconds
 from lotsen.stack.processes import free_port
 from lotsen.stack.soak import PilotSocket, _Clock, derive_run_config
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config" / "sim.yaml"
-CLK_TCK = os.sysconf("SC_CLK_TCK")
 PAGE = os.sysconf("SC_PAGE_SIZE")
 
 
@@ -73,12 +74,9 @@ def _clear_referenced(pid: int) -> None:
         pass
 
 
-def _cpu_ticks(pid: int) -> float:
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return float(fields[11]) + float(fields[12])  # utime + stime
-    except (OSError, IndexError):
-        return float("nan")
+def _cpu_s(pid: int) -> float:
+    cpu = process_cpu_seconds(pid)
+    return math.nan if cpu is None else cpu
 
 
 def _children(pid: int) -> list[int]:
@@ -175,11 +173,11 @@ class Run:
 
 def _cpu_window(procs: dict[int, str], seconds: float) -> dict[int, float]:
     """% of one core each process used over the next `seconds`."""
-    ticks0 = {p: _cpu_ticks(p) for p in procs}
+    cpu0 = {p: _cpu_s(p) for p in procs}
     t0 = time.monotonic()
     time.sleep(seconds)
     wall = time.monotonic() - t0
-    return {p: 100.0 * (_cpu_ticks(p) - ticks0[p]) / CLK_TCK / wall for p in procs}
+    return {p: 100.0 * (_cpu_s(p) - cpu0[p]) / wall for p in procs}
 
 
 def _go_auto(run: Run) -> tuple[PilotSocket, str]:

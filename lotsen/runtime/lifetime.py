@@ -69,6 +69,17 @@ def die_with_parent(parent_pid: int, signum: int = signal.SIGTERM, *, parent_dea
     return "ends with its launcher (" + ", ".join(how) + ")"
 
 
+def process_cpu_seconds(pid: int) -> float | None:
+    """A process's user + system CPU time so far, from /proc/PID/stat (Linux, the Pi's OS); None
+    where the process is gone or /proc cannot be read."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()  # from field 3 of proc(5): the name may hold ")"
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime (fields 14, 15)
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 # ------------------------------------------------------------------------------------------------
 # one run per boat
 # ------------------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from typing import Any, Callable
 from lotsen.errors import LotsenError, PlanningError
 from lotsen.planning.budget import PlanningBudget, check_budget
 from lotsen.planning.io import route_from_dict
-from lotsen.runtime.lifetime import die_with_parent
+from lotsen.runtime.lifetime import die_with_parent, process_cpu_seconds
 
 
 def _within_budget(args: tuple, budget: PlanningBudget) -> None:
@@ -82,16 +82,6 @@ def _serve(conn: Any, budget: PlanningBudget, parent_pid: int | None = None) -> 
 #: a job is stopped after this many times its CPU budget in wall time, whatever CPU it got
 WALL_FACTOR = 5.0
 _POLL_S = 0.05
-
-
-def _cpu_seconds(pid: int) -> float | None:
-    """The process's user + system CPU time from /proc (Linux, the Pi's OS); None where unreadable."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime (stat's 14, 15)
-    except (OSError, ValueError, IndexError):
-        return None
 
 
 class PlannerWorker:
@@ -157,11 +147,11 @@ class PlannerWorker:
                 self._start()
             conn = self._conn
             pid = self._proc.pid
-            cpu_0, wall_0 = _cpu_seconds(pid), time.monotonic()
+            cpu_0, wall_0 = process_cpu_seconds(pid), time.monotonic()
             conn.send((fn, args))
             while not conn.poll(_POLL_S):
                 wall = time.monotonic() - wall_0
-                cpu_now = _cpu_seconds(pid)
+                cpu_now = process_cpu_seconds(pid)
                 # no /proc: wall time stands in for CPU time (the stricter measure)
                 cpu = wall if cpu_0 is None or cpu_now is None else cpu_now - cpu_0
                 if cpu > limit:
