@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any, Literal
 
+import numpy as np
 from shapely.geometry import Point
 from shapely.ops import nearest_points
 
@@ -86,6 +87,11 @@ class FailsafeConfig:
     controller_overrun_count: int = field(default=5, metadata=_r(1, 1000))
     controller_failure_count: int = field(default=3, metadata=_r(1, 1000))
     fallback_controller: Literal["los", "pursuit", "lq"] = "los"
+    # no progress: while following a route, less than no_progress_fraction of the distance along it
+    # that the reference speed asked for over the last no_progress_window_s -> a warning, no action
+    # (a boat held by a strong current, a stalled start, a fouled propeller: the operator decides)
+    no_progress_window_s: float = field(default=30.0, metadata=_r(5.0, 600.0))
+    no_progress_fraction: float = field(default=0.25, metadata=_r(0.0, 1.0))
     # thruster: the tachometer disagrees with the modelled response to the commands (ESC lag, ramp
     # and arming included) by more than this fraction of the modelled speed and more than
     # thruster_mismatch_min_rps (tachometer quantisation, the speed loop's own error)
@@ -594,6 +600,54 @@ class MinDepthMonitor(Monitor):
             return False, ""
         return d.depth_m < self.min_depth_m, (f"depth {d.depth_m:.2f} m under the transducer, shallower than the "
                                               f"minimum {self.min_depth_m:g} m")
+
+
+class ProgressMonitor:
+    """The route's progress, seen after each path-follower update (`observe`, as the controller
+    monitor): over the last `no_progress_window_s` the boat got less than `no_progress_fraction` of
+    the way along the path that the follower's reference speed asked for. A warning and nothing else:
+    the boat is where its controller keeps it (in a strong current, a start that stalls; docs/control.md
+    "Limits"), and whether to wait, take over or send another route is the operator's call. Samples
+    more than `gap_s` apart (a HOLD in between) or a progress that went back (a new route or lap) begin a
+    new window; once raised, the warning clears when the window holds twice the fraction."""
+
+    name = "no_progress"
+    severity = "warning"
+    gap_s = 1.0
+
+    def __init__(self, cfg: FailsafeConfig) -> None:
+        self.window_s, self.fraction = cfg.no_progress_window_s, cfg.no_progress_fraction
+        self._samples: deque[tuple[float, float, float]] = deque()  # (t, progress m, reference speed m/s)
+        self.active = False
+
+    def idle(self, t: float) -> bool:
+        """No follower update for longer than `gap_s`: the boat is not following a route."""
+        return not self._samples or t - self._samples[-1][0] > self.gap_s
+
+    def observe(self, t: float, progress_m: float, speed_ref_mps: float) -> tuple[bool, str]:
+        """One update's progress along the path and reference speed; (no progress now, why)."""
+        if not (math.isfinite(progress_m) and math.isfinite(speed_ref_mps)):
+            return False, ""
+        if self.idle(t) or progress_m < self._samples[-1][1] - 0.5:  # a new route, lap or start
+            self._samples.clear()
+            self.active = False
+        self._samples.append((t, progress_m, max(speed_ref_mps, 0.0)))
+        while len(self._samples) > 1 and t - self._samples[1][0] >= self.window_s:
+            self._samples.popleft()
+        t0, s0, _ = self._samples[0]
+        if self.fraction <= 0.0 or t - t0 < self.window_s - self.gap_s:
+            return False, ""
+        ts, ss, vs = (np.array(c) for c in zip(*self._samples))
+        asked = float(np.sum(0.5 * (vs[1:] + vs[:-1]) * np.diff(ts)))
+        made = float(ss[-1] - s0)
+        # cleared at twice the fraction, so a boat near the threshold does not raise it again and again
+        self.active = made < self.fraction * asked * (2.0 if self.active else 1.0)
+        if not self.active:
+            return False, ""
+        span = t - t0
+        made = made if made <= -0.05 else max(made, 0.0)  # no "-0.0 m" for a boat pushed back a centimetre
+        return True, (f"{made:.1f} m along the route in {span:.0f} s where the plan asks {asked:.1f} m "
+                      f"({made / span:.2f} m/s made good, {asked / span:.2f} m/s planned)")
 
 
 def standard_monitors(cfg: FailsafeConfig, limits: ActuatorLimits = DEFAULT_LIMITS) -> list[Monitor]:

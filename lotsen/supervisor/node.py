@@ -34,8 +34,8 @@ from lotsen.planning.exchange import path_from_message
 from lotsen.planning.io import route_from_dict, route_to_dict
 from lotsen.runtime.executor import Node, NodeContext
 from lotsen.supervisor.failsafes import (
-    ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ThrusterMonitor,
-    monitor, standard_monitors, storage_problem,
+    ControllerMonitor, FailsafeAction, FailsafeConfig, FailsafeState, GeofenceMonitor, Monitor, ProgressMonitor,
+    ThrusterMonitor, monitor, standard_monitors, storage_problem,
 )
 from lotsen.supervisor.inputs import SupervisorInputs, finite_state as _finite_state
 from lotsen.supervisor.modes import Hold, Mode, all_modes, neutral
@@ -114,6 +114,7 @@ class SupervisorNode(Node):
         self.thruster: ThrusterMonitor = monitor(self.monitors, "thruster")
         self.geofence: GeofenceMonitor = monitor(self.monitors, "geofence")
         self.controller_monitor = ControllerMonitor(fs, self.period_s)
+        self.progress_monitor = ProgressMonitor(fs)
         self.failsafe_history: list[str] = []  # "name: reason at t" of every failsafe that triggered
         self.counters = {"non_finite_commands": 0, "refused_requests": 0, "controller_fallbacks": 0,
                          "routes_refused": 0}
@@ -590,6 +591,8 @@ class SupervisorNode(Node):
         return h is None or bool(h.heading_ok)
 
     def _check_failsafes(self, t: float) -> None:
+        if self.progress_monitor.idle(t):  # not following a route: no progress to miss
+            self._flag(ProgressMonitor.name, False, "", ProgressMonitor.severity)
         for mon in self.monitors:
             active = mon.update(self.inputs, t)
             if self._flag(mon.name, active, mon.reason, mon.severity, mon.realert_on_change) or \
@@ -625,7 +628,10 @@ class SupervisorNode(Node):
                 self.stop("failsafe: controller and fallback failed")
 
     def watch_controller(self, t: float, status: ControllerStatus, solve_ms: float) -> None:
-        """After each path-follower update: the controller monitor judges it (and may act)."""
+        """After each path-follower update: the progress monitor (a warning) and the controller monitor
+        (which may act) judge it."""
+        stalled, stall_why = self.progress_monitor.observe(t, status.progress_m, status.speed_ref_mps)
+        self._flag(ProgressMonitor.name, stalled, stall_why, ProgressMonitor.severity)
         mon = self.controller_monitor
         why = mon.observe(status.status, solve_ms)
         if why:

@@ -176,3 +176,39 @@ def test_a_dead_motor_driven_in_short_astern_pulses_is_declared():
         active = drive(commands, failed=(0,), delay_s=0.1)
         assert active and active[0] <= 2.0 * persist + 0.15, (pulse, active[:1])
         assert drive(commands, delay_s=0.1) == []
+
+
+def test_progress_monitor_warns_when_the_boat_does_not_get_along_its_route():
+    """A start stalled in a strong beam current (docs/control.md "Limits": 95 s at the route's first
+    point) is named to the operator; a boat at a third of its planned speed, a lap's restart and a
+    HOLD in between are not a stall."""
+    from lotsen.supervisor.failsafes import ProgressMonitor
+
+    mon = ProgressMonitor(FailsafeConfig(no_progress_window_s=30.0, no_progress_fraction=0.25))
+    dt, t, s = 0.1, 0.0, 0.0
+    said = []
+    for _ in range(600):  # 60 s at 0.02 m/s made good where 0.5 m/s is planned
+        t, s = t + dt, s + 0.02 * dt
+        said.append(mon.observe(t, s, 0.5))
+    first = next(i for i, (on, _) in enumerate(said) if on)
+    assert 29.0 <= (first + 1) * dt <= 31.0
+    assert all(on for on, _ in said[first:])
+    assert said[-1][1].startswith("0.6 m along the route in 30 s where the plan asks 15.0 m (0.02 m/s made good")
+    for _ in range(100):  # under way again: cleared only once half the asked distance is made good
+        t, s = t + dt, s + 0.5 * dt
+        on, _ = mon.observe(t, s, 0.5)
+    assert on
+    for _ in range(300):
+        t, s = t + dt, s + 0.5 * dt
+        on, _ = mon.observe(t, s, 0.5)
+    assert not on
+    slow = ProgressMonitor(FailsafeConfig())
+    assert not any(slow.observe(k * dt, 0.17 * k * dt, 0.5)[0] for k in range(1, 900))  # a third of the plan
+    lap = ProgressMonitor(FailsafeConfig())
+    for k in range(1, 900):  # a short route flown again and again: progress back to 0 every 10 s
+        assert not lap.observe(k * dt, 0.5 * ((k * dt) % 10.0), 0.5)[0]
+    held = ProgressMonitor(FailsafeConfig())
+    for k in range(1, 200):  # 20 s stalled, a HOLD of 20 s without follower updates, 20 s stalled again
+        assert not held.observe(k * dt, 0.0, 0.5)[0]
+    assert held.idle(40.0)
+    assert not any(held.observe(40.0 + k * dt, 0.0, 0.5)[0] for k in range(1, 200))

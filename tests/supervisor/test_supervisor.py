@@ -211,3 +211,22 @@ def test_non_finite_state_stops_the_boat():
     run(stack, 0.5)
     assert sup.mode.name == "MANUAL" and "no finite state" in sup.reason
     assert cmds[-1].as_tuple() == (0.0,) * 5
+
+
+def test_no_progress_along_the_route_is_a_warning_that_clears_when_no_route_is_followed():
+    """The progress monitor's warning reaches the status, the log and the failsafe history, changes no
+    mode, and is gone once the follower stops updating (a HOLD, MANUAL)."""
+    from lotsen.messages import ControllerStatus
+
+    stack, sup, logs, cmds = make_stack()
+    t0 = stack.executor.clock.now()
+    for k in range(1, 320):  # 32 s at the route's first metre, 0.5 m/s planned
+        t = t0 + 0.1 * k
+        sup.watch_controller(t, ControllerStatus(stamp_s=t, controller="mpc", progress_m=0.3 + 0.001 * k,
+                                                 speed_ref_mps=0.5), 1.0)
+    assert sup.failsafes.active["no_progress"].startswith("0.3 m along the route in 30 s where the plan asks 15.0 m")
+    assert any(h.startswith("no_progress: ") for h in sup.failsafe_history)
+    assert any("failsafe no_progress" in getattr(e, "text", "") for e in logs)
+    assert sup.mode.name == "MANUAL"  # a warning: no mode change
+    sup._check_failsafes(t + 2.0)
+    assert "no_progress" not in sup.failsafes.active
