@@ -186,7 +186,9 @@ def test_stalled_sender_drops_oldest_and_never_blocks_the_bus(monkeypatch):
         ex.add_node(bridge)
         for i in range(3000):  # a disconnected / slow peer: this loop must not wait
             ex.bus.publish(M.Topic.IMU_RAW, M.ImuSample(stamp_s=float(i), gyro_radps=(0.0,) * 3, accel_mps2=(0.0,) * 3))
-        assert bridge._out.dropped >= 3000 - 2 * 50
+        # at most the queue (50) and the sender's batch undropped: the item it took and all it took with
+        # it (up to 50 more, when its batch wait let the queue fill first): 2899 seen on a busy machine
+        assert bridge._out.dropped >= 3000 - (2 * 50 + 1)
     finally:
         gate.set()
         bridge.close()
