@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any, Literal
 
-import numpy as np
 from shapely.geometry import Point
 from shapely.ops import nearest_points
 
@@ -618,6 +617,7 @@ class ProgressMonitor:
     def __init__(self, cfg: FailsafeConfig) -> None:
         self.window_s, self.fraction = cfg.no_progress_window_s, cfg.no_progress_fraction
         self._samples: deque[tuple[float, float, float]] = deque()  # (t, progress m, reference speed m/s)
+        self._asked_m = 0.0  # the reference speed's distance over the samples (trapezoids), kept as they come and go
         self.active = False
 
     def idle(self, t: float) -> bool:
@@ -630,16 +630,20 @@ class ProgressMonitor:
             return False, ""
         if self.idle(t) or progress_m < self._samples[-1][1] - 0.5:  # a new route, lap or start
             self._samples.clear()
+            self._asked_m = 0.0
             self.active = False
-        self._samples.append((t, progress_m, max(speed_ref_mps, 0.0)))
+        v = max(speed_ref_mps, 0.0)
+        if self._samples:
+            t1, _, v1 = self._samples[-1]
+            self._asked_m += 0.5 * (v1 + v) * (t - t1)
+        self._samples.append((t, progress_m, v))
         while len(self._samples) > 1 and t - self._samples[1][0] >= self.window_s:
-            self._samples.popleft()
+            (ta, _, va), (tb, _, vb) = self._samples.popleft(), self._samples[0]
+            self._asked_m -= 0.5 * (va + vb) * (tb - ta)
         t0, s0, _ = self._samples[0]
         if self.fraction <= 0.0 or t - t0 < self.window_s - self.gap_s:
             return False, ""
-        ts, ss, vs = (np.array(c) for c in zip(*self._samples))
-        asked = float(np.sum(0.5 * (vs[1:] + vs[:-1]) * np.diff(ts)))
-        made = float(ss[-1] - s0)
+        asked, made = self._asked_m, progress_m - s0
         # cleared at twice the fraction, so a boat near the threshold does not raise it again and again
         self.active = made < self.fraction * asked * (2.0 if self.active else 1.0)
         if not self.active:
