@@ -46,7 +46,8 @@ QP (seed eq. 43-44):
       cross-track error   -sin(psi_k)(N - P_N) + cos(psi_k)(E - P_E)
       course error        psi + v / U_k - psi_k        (heading plus drift angle: crabbing in a current
                                                          is not penalised, only where the vessel goes)
-      heading error       psi - psi_k                  (small weight)
+      heading error       psi - psi_k - crab_k         (small weight; crab_k = 0 except in the crab
+                                                         alignment, `MPCConfig.align_min_crab_deg`)
       speed error         u - v_ref,k
       yaw-rate error      r - v_ref,k kappa_k          (curvature feedforward)
     rho_N = terminal_factor, else 1. w_ref = [0, 0, q_trim(v_ref), q_trim(v_ref), 0].
@@ -206,6 +207,28 @@ class MPCConfig:
     wave_azimuth_astern_hold_s: float = 30.0
     min_speed_ref_mps: float = 0.15  # leave a node whose planned speed is 0
     min_speed_course_mps: float = 0.3  # U_k floor in the drift-angle term v / U_k
+    # Crab alignment, the start procedure in a cross current: a boat that has made less than
+    # `align_stall_fraction` of the reference speed along the path for `align_stall_s`, where the
+    # estimated current asks for a crab angle (`crab_angle`: the heading of the water-relative velocity
+    # that makes the reference speed along the path) above `align_min_crab_deg`, first turns to it:
+    # until its heading is within `align_done_deg` of the path heading plus the crab angle, for at most
+    # `align_max_s`, the heading row's reference carries the crab angle (up to `max_crab_deg`) and its
+    # weight is `align_q_heading` (the course row's). ControllerStatus.status reads "aligning".
+    # The trap it breaks (issue 46, bench failsafes' current_toward_geofence in Hs 6 cm, seed 1): started
+    # at rest in a 0.2-0.28 m/s beam current with 0.17 m/s planned, the boat backed onto the path and
+    # held it for ~100 s, heading 5-20 deg downstream, the bow thruster saturated and the azimuths as a
+    # couple making a pure side force; the turn into the current that would free it costs cross-track
+    # for longer than the 2-s horizon sees the gain. With the alignment it is under way (8 m north) after
+    # 18 s, not 105 (seeds 0-6: 10-24 s, every breach caught); the crab reference in every step, or the
+    # course row faded below min_speed_course_mps, also freed it but change every mission in a current.
+    # Calm starts and a boat under way never meet the condition. inf: off.
+    align_min_crab_deg: float = 20.0
+    align_stall_s: float = 3.0
+    align_stall_fraction: float = 0.3
+    align_done_deg: float = 10.0
+    align_q_heading: float = 6.0
+    align_max_s: float = 20.0
+    max_crab_deg: float = 60.0
     # where stage k's reference lies on the path: "predicted" = the projection of the nominal (shifted
     # previous) prediction's position k (path following: the reference waits for a slow boat);
     # "time" = s0 + k U dt from the measured progress (trajectory tracking along the path; the OCP
@@ -217,7 +240,7 @@ class MPCConfig:
     # per step has converged along the trajectory (the median step stays that of one QP). 2 halves
     # the do-mpc tracking gap of a start 30 cm off the path (docs/control.md), but in the fault suite's
     # 0.3 m/s beam current it settled bow-downstream at 0.1 m/s where one QP turns into the current
-    # and follows: the default stays one until a start procedure for strong currents exists.
+    # and follows, so the default stays one (not measured again with the crab alignment, align_*).
     qp_iterations: int = 1
     reiterate_dw: float = 0.2
     n_floor_rps: float = 5.0  # |n| floor in d(kappa n)/dq
@@ -330,6 +353,16 @@ class MPCConfig:
             raise ValueError(f"MPCConfig.qp_iterations: {self.qp_iterations} must be in 1..5")
         if not (math.isfinite(self.reiterate_dw) and self.reiterate_dw >= 0.0):
             raise ValueError(f"MPCConfig.reiterate_dw: {self.reiterate_dw} must be a finite number >= 0")
+        if not self.align_min_crab_deg > 0.0:
+            raise ValueError(f"MPCConfig.align_min_crab_deg: {self.align_min_crab_deg} must be > 0 (inf: off)")
+        if not 0.0 < self.max_crab_deg < 90.0:
+            raise ValueError(f"MPCConfig.max_crab_deg: {self.max_crab_deg} must be in (0, 90)")
+        if not (self.align_stall_s > 0.0 and self.align_max_s > 0.0 and self.align_done_deg > 0.0):
+            raise ValueError(f"MPCConfig.align_stall_s ({self.align_stall_s}), align_max_s ({self.align_max_s}) and "
+                             f"align_done_deg ({self.align_done_deg}) must be > 0")
+        if not (0.0 <= self.align_stall_fraction < 1.0 and self.align_q_heading >= 0.0):
+            raise ValueError(f"MPCConfig.align_stall_fraction: {self.align_stall_fraction} must be in [0, 1) and "
+                             f"align_q_heading: {self.align_q_heading} >= 0")
         if not self.azimuth_idle_release_s > 0.0:
             raise ValueError(f"MPCConfig.azimuth_idle_release_s: {self.azimuth_idle_release_s} must be > 0 (inf: off)")
         if not self.bow_idle_release_s > 0.0:
@@ -428,6 +461,28 @@ def _path_at_py(s, S, table, dtable, ds, length, cos_end, sin_end, out):  # type
 _path_at = njit(_path_at_py)
 
 
+def _crab_angle_py(path_heading, speed, current_n, current_e, limit):  # type: ignore[no-untyped-def]
+    """The heading offset from the path (rad, + to starboard) of the water-relative velocity that makes
+    `speed` along the path in the current (current_n, current_e): into the current's cross component,
+    within +-limit; the along component is floored at 0.05 m/s (a following current as fast as the boat)."""
+    ch = np.cos(path_heading)
+    sh = np.sin(path_heading)
+    along = speed - (ch * current_n + sh * current_e)
+    across = sh * current_n - ch * current_e
+    return min(max(np.arctan2(across, max(along, 0.05)), -limit), limit)
+
+
+_crab_angle = njit(_crab_angle_py)
+
+
+def crab_angle(path_heading_rad: float, speed_mps: float, current_ne_mps: tuple[float, float],
+               limit_rad: float = math.pi / 2) -> float:
+    """The crab angle (rad, + to starboard of the path) that makes `speed_mps` along a path of
+    heading `path_heading_rad` in the earth-frame current `current_ne_mps`."""
+    return float(_crab_angle(float(path_heading_rad), float(speed_mps), float(current_ne_mps[0]),
+                             float(current_ne_mps[1]), float(limit_rad)))
+
+
 class PathTable(NamedTuple):
     """The reference path as the compiled kernels read it (PathReference's interpolation tables)."""
 
@@ -476,6 +531,7 @@ class QpWeights(NamedTuple):
     q_trim_gain: np.ndarray  # trim thrust of each azimuth at speed v: [0] v + [1] |v| v + [2] v^3
     dw_max: np.ndarray  # largest input change in one step
     min_speed_course_mps: float
+    crab_max_rad: np.ndarray  # [limit] of the heading row's crab angle, set each step (0: none)
     row_rate: int  # first row of the rate bounds in A
     # the azimuths' thrust reference per stage: trim + split[0] (q_common[k] - trim), q_common the
     # nominal plan's mean of the two azimuths (split[0] = 0 in flat water: the trim alone)
@@ -514,6 +570,7 @@ def _assemble_py(x, xb, wb, s_pred, path, scale, mq, dt, dist, cur, n_floor, w_p
     q_trim_gain, dw_max = weights.q_trim_gain, weights.dw_max
     q_common, split = weights.q_common, weights.split[0]
     min_speed_course, row_rate = weights.min_speed_course_mps, weights.row_rate
+    crab_max = weights.crab_max_rad[0]
     ad_i, ad_j, bd_i, bd_j = pattern.ad_i, pattern.ad_j, pattern.bd_i, pattern.bd_j
     a_dyn_pos, p_state_pos, iu_i, iu_j = pattern.a_dyn_pos, pattern.p_state_pos, pattern.p_i, pattern.p_j
     Ad, Bd, c, Px, Ax, q, l, u, ref = qp.Ad, qp.Bd, qp.c, qp.Px, qp.Ax, qp.q, qp.l, qp.u, qp.ref
@@ -588,6 +645,8 @@ def _assemble_py(x, xb, wb, s_pred, path, scale, mq, dt, dist, cur, n_floor, w_p
         dv[1] = -ph
         Cm[2, 2] = 1.0
         dv[2] = -ph
+        if crab_max > 0.0:
+            dv[2] -= _crab_angle(ph, ref[k, 4], cur[0], cur[1], crab_max)
         Cm[3, 3] = 1.0
         dv[3] = -ref[k, 4]
         Cm[4, 5] = 1.0
@@ -873,8 +932,10 @@ class MPCController:
                                   self._a_dyn_pos, self._p_state_pos, self._iu[0], self._iu[1])
         self._q_common = np.zeros(N)
         self._split = np.zeros(1)
+        self._crab_max = np.zeros(1)
         self._weights = QpWeights(self._Qy, self._ones_stage, self._R, self._S, self._q_trim_gain, self._dw_max,
-                                  float(cfg.min_speed_course_mps), int(self._row_rate), self._q_common, self._split)
+                                  float(cfg.min_speed_course_mps), self._crab_max, int(self._row_rate),
+                                  self._q_common, self._split)
         self._qp = QpData(self._Ad, self._Bd, self._c, self._Px, self._Ax, self._q, self._l, self._u, self._ref)
 
     def _dynamics_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -925,6 +986,8 @@ class MPCController:
         self._Ax[self._a_sigma_pos] = np.tile(self._sigma, self.N)
         self._sea = SeaLevel(self.config.sea, self.config.dt_s)
         self._set_sea_weights(1.0, 1.0, 1.0, 0.0)
+        self._stalled_s = 0.0  # how long the boat has been slow along the path where the current asks a crab
+        self._aligning_s = math.nan  # time in the crab alignment (nan: not aligning)
 
     @property
     def sea_level(self) -> float:
@@ -1103,6 +1166,36 @@ class MPCController:
         n = np.array(cmd[2:])
         return np.array([cmd[0], cmd[1], *(n * np.abs(n) / self.scale[2:])])
 
+    def _crab_alignment(self, x: np.ndarray, path_heading: float, s0: float) -> bool:
+        """The crab alignment (MPCConfig.align_*): enter after align_stall_s slow along the path where
+        the current asks a crab angle above align_min_crab_deg; while in it, the heading row's reference
+        carries the crab angle at align_q_heading. True while aligning."""
+        cfg = self.config
+        self._Qy[2] = cfg.q_heading
+        self._crab_max[0] = 0.0
+        if not math.isfinite(cfg.align_min_crab_deg):
+            return False
+        v_ref = float(self.path.sample(np.array([s0]))[4][0])
+        limit = math.radians(cfg.max_crab_deg)
+        crab = crab_angle(path_heading, v_ref, (self._current[0], self._current[1]), limit)
+        if math.isnan(self._aligning_s):
+            off = x[2] - path_heading
+            speed_along = x[3] * math.cos(off) - x[4] * math.sin(off)
+            slow = speed_along < cfg.align_stall_fraction * v_ref and abs(crab) > math.radians(cfg.align_min_crab_deg)
+            self._stalled_s = self._stalled_s + cfg.dt_s if slow else 0.0
+            if self._stalled_s < cfg.align_stall_s - 1e-9:
+                return False
+            self._stalled_s = 0.0
+            self._aligning_s = 0.0
+        self._aligning_s += cfg.dt_s
+        if abs(wrap_angle(x[2] - path_heading - crab)) < math.radians(cfg.align_done_deg) \
+                or self._aligning_s > cfg.align_max_s:
+            self._aligning_s = math.nan
+            return False
+        self._Qy[2] = cfg.align_q_heading
+        self._crab_max[0] = limit
+        return True
+
     def _current_estimate(self, state: VesselState) -> np.ndarray:
         """The estimator's water current (earth frame, m/s; zero when unknown or switched off)."""
         if not self.config.current_in_prediction:
@@ -1172,6 +1265,7 @@ class MPCController:
         s0, cte, hdg = self.path.project(x[0], x[1], self._s)
         self._s = s0
         self._Qy[0] = cross_track_weight(cfg, cte)  # self._weights.q_y is this array
+        aligning = self._crab_alignment(x, hdg, s0)
         if s0 >= self.path.length - 0.02:
             self._done = True
         self._nominal(x)
@@ -1240,7 +1334,7 @@ class MPCController:
         solve_ms = (time.perf_counter() - t0) * 1e3
         self.solve_times_ms.append(solve_ms)
         status = make_status(t, self.name, cte, wrap_angle(x[2] - hdg), state, float(pv[0]), s0, solve_ms,
-                             "ok", self.failures, (xs[:, 0], xs[:, 1]))
+                             "aligning" if aligning else "ok", self.failures, (xs[:, 0], xs[:, 1]))
         return ThrustCommand.from_tuple(t, cmd, source=self.name), status
 
     def _apply(self, w: np.ndarray) -> tuple[float, ...]:

@@ -678,3 +678,66 @@ def test_the_angles_sea_scale_is_per_newton_of_side_force(speed_mps: float) -> N
     assert c.rate_scale == pytest.approx(cfg.wave_rate_scale * k_thrust ** 2, rel=0.02)
     assert c.reversal_scale == pytest.approx(cfg.wave_reversal_scale * k_thrust, rel=0.02)
     assert c.thrust_rate_scale == pytest.approx(cfg.wave_thrust_rate_scale, rel=0.02)
+
+
+def test_the_crab_angle_heads_into_the_current_cross_component():
+    """0.17 m/s along a path to the north in 0.2 m/s of current setting east: the water-relative
+    velocity (0.17, -0.2) is 49.6 deg to port; a current along the path asks no crab; the angle is
+    limited, and a following current as fast as the boat does not turn it round."""
+    from lotsen.control.mpc import crab_angle
+
+    assert math.degrees(crab_angle(0.0, 0.17, (0.0, 0.2))) == pytest.approx(-math.degrees(math.atan2(0.2, 0.17)))
+    assert math.degrees(crab_angle(math.pi / 2, 0.17, (0.2, 0.0))) == pytest.approx(49.6, abs=0.1)  # east, current north
+    assert crab_angle(0.0, 0.5, (0.3, 0.0)) == 0.0 and crab_angle(0.0, 0.5, (-0.3, 0.0)) == 0.0
+    assert math.degrees(crab_angle(0.0, 0.17, (0.0, 0.2), math.radians(30.0))) == pytest.approx(-30.0)
+    assert math.degrees(crab_angle(0.0, 0.2, (0.5, 0.05))) == pytest.approx(-45.0)  # along floored at 0.05 m/s
+
+
+def _held(mpc: MPCController, seconds: float, heading_rad: float = 0.0, u_mps: float = 0.0,
+          current_ne: tuple[float, float] = (0.0, 0.25), t0: float = 0.0) -> list[str]:
+    """Statuses of `seconds` of updates on one held state (the boat on the path, 4 m along it)."""
+    out = []
+    for k in range(round(seconds / 0.1)):
+        state = VesselState(stamp_s=t0 + 0.1 * k, north_m=4.0, east_m=0.0, heading_rad=heading_rad,
+                            u_mps=u_mps, v_mps=0.0, r_radps=0.0, current_ne_mps=current_ne)
+        out.append(mpc.update(t0 + 0.1 * k, state)[1].status)
+    return out
+
+
+def test_a_boat_stalled_in_a_beam_current_turns_into_it_before_it_goes_on():
+    """The crab alignment (MPCConfig.align_*): at rest on a path to the north planned at 0.17 m/s in
+    a 0.25 m/s current setting east, after align_stall_s the heading's reference is the crab angle
+    (56 deg to port) and the plan turns the bow to port; within align_done_deg of it the alignment ends."""
+    c = MPCController(config=NO_TIME_LIMIT)
+    c.reset(straight_path(20.0, speed_mps=0.17))
+    statuses = _held(c, 2.9)
+    assert set(statuses) == {"ok"}
+    plan_before = c._xb[-1, 2]
+    statuses = _held(c, 0.5, t0=2.9)
+    assert statuses[-1] == "aligning"
+    assert c._xb[-1, 2] < plan_before - 0.2  # the 2-s plan turns to port, into the current
+    crab = -math.degrees(math.atan2(0.25, 0.17))  # -55.8
+    assert _held(c, 1.0, heading_rad=math.radians(crab + 20.0), t0=3.4)[-1] == "aligning"
+    assert _held(c, 0.2, heading_rad=math.radians(crab + 5.0), t0=4.4) == ["ok", "ok"]
+    # a time limit ends it too
+    c.reset(straight_path(20.0, speed_mps=0.17))
+    statuses = _held(c, 3.0 + c.config.align_max_s + 0.5)
+    assert statuses[-1] == "ok" and statuses.count("aligning") == pytest.approx(c.config.align_max_s / 0.1, abs=2)
+
+
+@pytest.mark.parametrize("case", ["light current", "under way", "off"])
+def test_no_crab_alignment_in_a_light_current_under_way_or_switched_off(case):
+    """0.05 m/s across asks 16 deg at 0.17 m/s (below align_min_crab_deg); a boat making a third of the
+    reference speed is not stalled; align_min_crab_deg = inf switches it off."""
+    config = replace(NO_TIME_LIMIT, align_min_crab_deg=math.inf) if case == "off" else NO_TIME_LIMIT
+    c = MPCController(config=config)
+    c.reset(straight_path(20.0, speed_mps=0.17))
+    kwargs = {"light current": dict(current_ne=(0.0, 0.05)), "under way": dict(u_mps=0.06), "off": {}}[case]
+    assert set(_held(c, 6.0, **kwargs)) == {"ok"}
+
+
+def test_crab_alignment_settings_are_validated():
+    for bad in (dict(align_min_crab_deg=0.0), dict(max_crab_deg=90.0), dict(align_stall_s=0.0),
+                dict(align_stall_fraction=1.0), dict(align_q_heading=-1.0), dict(align_done_deg=0.0)):
+        with pytest.raises(ValueError, match="align|crab"):
+            MPCConfig(**bad)

@@ -11,9 +11,11 @@ from lotsen.messages import ThrustCommand
 
 SCENARIOS = load_scenarios(Path(__file__).with_name("failsafe_scenarios.yaml"))
 # the estimation faults again in a wind sea (Hs 6 cm, Tp 1 s): caught by the same deadlines, no false
-# alarm (the whole table in waves, three seeds: bench failsafes)
+# alarm (the whole table in waves, three seeds: bench failsafes); and the beam current toward the fence,
+# whose seed 1 in waves stalled at the route's start for ~100 s before the MPC's crab alignment
 IN_WAVES = tuple(in_waves(s) for s in SCENARIOS
-                 if s.name in ("gnss_offset_20m_10s", "mag_disturbance", "imu_stuck", "gyro_bias_large"))
+                 if s.name in ("gnss_offset_20m_10s", "mag_disturbance", "imu_stuck", "gyro_bias_large",
+                               "current_toward_geofence"))
 
 
 @pytest.mark.parametrize("scenario", SCENARIOS + IN_WAVES, ids=[s.name for s in SCENARIOS + IN_WAVES])
