@@ -219,16 +219,22 @@ class MPCConfig:
     # held it for ~100 s, heading 5-20 deg downstream, the bow thruster saturated and the azimuths as a
     # couple making a pure side force; the turn into the current that would free it costs cross-track
     # for longer than the 2-s horizon sees the gain. With the alignment it is under way (8 m north) after
-    # 18 s, not 105 (seeds 0-6: 10-24 s, every breach caught); the crab reference in every step, or the
+    # 18 s, not 105 (seeds 0-6: 10-23 s, every breach caught); the crab reference in every step, or the
     # course row faded below min_speed_course_mps, also freed it but change every mission in a current.
-    # Calm starts and a boat under way never meet the condition. inf: off.
+    # The same trap mid-route: the harbour approach in a 0.3 m/s current (EKF, seeds 0-2) was swept 5 m
+    # off its southbound leg at 82-106 s, and completes with it; a fraction of 0.5 (0.3 tried first) caught
+    # that stall 40 s sooner (no `no_progress`). Calm starts and a boat under way never meet the
+    # condition (docs/control.md "Crab alignment"). inf: off.
     align_min_crab_deg: float = 20.0
     align_stall_s: float = 3.0
-    align_stall_fraction: float = 0.3
+    align_stall_fraction: float = 0.5
     align_done_deg: float = 10.0
     align_q_heading: float = 6.0
     align_max_s: float = 20.0
     max_crab_deg: float = 60.0
+    # only on the path: a boat farther off is joining it, and its speed along the path says nothing (lotsen
+    # run, the harbour approach in 0.3 m/s current from 17 m off: it aligned while heading for the path)
+    align_max_cross_track_m: float = 1.0
     # where stage k's reference lies on the path: "predicted" = the projection of the nominal (shifted
     # previous) prediction's position k (path following: the reference waits for a slow boat);
     # "time" = s0 + k U dt from the measured progress (trajectory tracking along the path; the OCP
@@ -357,9 +363,11 @@ class MPCConfig:
             raise ValueError(f"MPCConfig.align_min_crab_deg: {self.align_min_crab_deg} must be > 0 (inf: off)")
         if not 0.0 < self.max_crab_deg < 90.0:
             raise ValueError(f"MPCConfig.max_crab_deg: {self.max_crab_deg} must be in (0, 90)")
-        if not (self.align_stall_s > 0.0 and self.align_max_s > 0.0 and self.align_done_deg > 0.0):
-            raise ValueError(f"MPCConfig.align_stall_s ({self.align_stall_s}), align_max_s ({self.align_max_s}) and "
-                             f"align_done_deg ({self.align_done_deg}) must be > 0")
+        if not (self.align_stall_s > 0.0 and self.align_max_s > 0.0 and self.align_done_deg > 0.0
+                and self.align_max_cross_track_m > 0.0):
+            raise ValueError(f"MPCConfig.align_stall_s ({self.align_stall_s}), align_max_s ({self.align_max_s}), "
+                             f"align_done_deg ({self.align_done_deg}) and align_max_cross_track_m "
+                             f"({self.align_max_cross_track_m}) must be > 0")
         if not (0.0 <= self.align_stall_fraction < 1.0 and self.align_q_heading >= 0.0):
             raise ValueError(f"MPCConfig.align_stall_fraction: {self.align_stall_fraction} must be in [0, 1) and "
                              f"align_q_heading: {self.align_q_heading} >= 0")
@@ -1167,21 +1175,26 @@ class MPCController:
         return np.array([cmd[0], cmd[1], *(n * np.abs(n) / self.scale[2:])])
 
     def _crab_alignment(self, x: np.ndarray, path_heading: float, s0: float) -> bool:
-        """The crab alignment (MPCConfig.align_*): enter after align_stall_s slow along the path where
-        the current asks a crab angle above align_min_crab_deg; while in it, the heading row's reference
-        carries the crab angle at align_q_heading. True while aligning."""
+        """The crab alignment (MPCConfig.align_*): enter after align_stall_s slow along the path, within
+        align_max_cross_track_m of it, where the current asks a crab angle above align_min_crab_deg; while
+        in it, the heading row's reference carries the crab angle at align_q_heading. True while aligning."""
         cfg = self.config
         self._Qy[2] = cfg.q_heading
         self._crab_max[0] = 0.0
         if not math.isfinite(cfg.align_min_crab_deg):
             return False
-        v_ref = float(self.path.sample(np.array([s0]))[4][0])
+        p_n, p_e, _h, _k, v = self.path.sample(np.array([s0]))
+        v_ref = float(v[0])
         limit = math.radians(cfg.max_crab_deg)
         crab = crab_angle(path_heading, v_ref, (self._current[0], self._current[1]), limit)
         if math.isnan(self._aligning_s):
             off = x[2] - path_heading
             speed_along = x[3] * math.cos(off) - x[4] * math.sin(off)
-            slow = speed_along < cfg.align_stall_fraction * v_ref and abs(crab) > math.radians(cfg.align_min_crab_deg)
+            # the offset across the path's heading (also behind its start, where the cross-track error is the
+            # distance to the first point: a boat backed off the start is on the line, not joining it)
+            across = -math.sin(path_heading) * (x[0] - float(p_n[0])) + math.cos(path_heading) * (x[1] - float(p_e[0]))
+            slow = (speed_along < cfg.align_stall_fraction * v_ref and abs(crab) > math.radians(cfg.align_min_crab_deg)
+                    and abs(across) < cfg.align_max_cross_track_m)
             self._stalled_s = self._stalled_s + cfg.dt_s if slow else 0.0
             if self._stalled_s < cfg.align_stall_s - 1e-9:
                 return False

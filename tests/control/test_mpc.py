@@ -694,11 +694,11 @@ def test_the_crab_angle_heads_into_the_current_cross_component():
 
 
 def _held(mpc: MPCController, seconds: float, heading_rad: float = 0.0, u_mps: float = 0.0,
-          current_ne: tuple[float, float] = (0.0, 0.25), t0: float = 0.0) -> list[str]:
-    """Statuses of `seconds` of updates on one held state (the boat on the path, 4 m along it)."""
+          current_ne: tuple[float, float] = (0.0, 0.25), t0: float = 0.0, east_m: float = 0.0) -> list[str]:
+    """Statuses of `seconds` of updates on one held state (the boat 4 m along the path, east_m off it)."""
     out = []
     for k in range(round(seconds / 0.1)):
-        state = VesselState(stamp_s=t0 + 0.1 * k, north_m=4.0, east_m=0.0, heading_rad=heading_rad,
+        state = VesselState(stamp_s=t0 + 0.1 * k, north_m=4.0, east_m=east_m, heading_rad=heading_rad,
                             u_mps=u_mps, v_mps=0.0, r_radps=0.0, current_ne_mps=current_ne)
         out.append(mpc.update(t0 + 0.1 * k, state)[1].status)
     return out
@@ -725,19 +725,22 @@ def test_a_boat_stalled_in_a_beam_current_turns_into_it_before_it_goes_on():
     assert statuses[-1] == "ok" and statuses.count("aligning") == pytest.approx(c.config.align_max_s / 0.1, abs=2)
 
 
-@pytest.mark.parametrize("case", ["light current", "under way", "off"])
-def test_no_crab_alignment_in_a_light_current_under_way_or_switched_off(case):
-    """0.05 m/s across asks 16 deg at 0.17 m/s (below align_min_crab_deg); a boat making a third of the
-    reference speed is not stalled; align_min_crab_deg = inf switches it off."""
+@pytest.mark.parametrize("case", ["light current", "under way", "joining", "off"])
+def test_no_crab_alignment_in_a_light_current_under_way_joining_or_switched_off(case):
+    """0.05 m/s across asks 16 deg at 0.17 m/s (below align_min_crab_deg); a boat making more than half
+    the reference speed is not stalled; one 2 m off the path is joining it (align_max_cross_track_m);
+    align_min_crab_deg = inf switches it off."""
     config = replace(NO_TIME_LIMIT, align_min_crab_deg=math.inf) if case == "off" else NO_TIME_LIMIT
     c = MPCController(config=config)
     c.reset(straight_path(20.0, speed_mps=0.17))
-    kwargs = {"light current": dict(current_ne=(0.0, 0.05)), "under way": dict(u_mps=0.06), "off": {}}[case]
+    kwargs = {"light current": dict(current_ne=(0.0, 0.05)), "under way": dict(u_mps=0.09),
+              "joining": dict(east_m=2.0), "off": {}}[case]
     assert set(_held(c, 6.0, **kwargs)) == {"ok"}
 
 
 def test_crab_alignment_settings_are_validated():
     for bad in (dict(align_min_crab_deg=0.0), dict(max_crab_deg=90.0), dict(align_stall_s=0.0),
-                dict(align_stall_fraction=1.0), dict(align_q_heading=-1.0), dict(align_done_deg=0.0)):
+                dict(align_stall_fraction=1.0), dict(align_q_heading=-1.0), dict(align_done_deg=0.0),
+                dict(align_max_cross_track_m=0.0)):
         with pytest.raises(ValueError, match="align|crab"):
             MPCConfig(**bad)
