@@ -941,6 +941,7 @@ class MPCController:
         self._q_common = np.zeros(N)
         self._split = np.zeros(1)
         self._crab_max = np.zeros(1)
+        self._align_point = np.zeros(5)  # the path (north, east, heading, curvature, speed) at the progress
         self._weights = QpWeights(self._Qy, self._ones_stage, self._R, self._S, self._q_trim_gain, self._dw_max,
                                   float(cfg.min_speed_course_mps), self._crab_max, int(self._row_rate),
                                   self._q_common, self._split)
@@ -1183,8 +1184,9 @@ class MPCController:
         self._crab_max[0] = 0.0
         if not math.isfinite(cfg.align_min_crab_deg):
             return False
-        p_n, p_e, _h, _k, v = self.path.sample(np.array([s0]))
-        v_ref = float(v[0])
+        pt, at = self._path_table, self._align_point
+        _path_at(s0, pt.s_m, pt.table, pt.dtable, pt.ds_m, pt.end[0], pt.end[1], pt.end[2], at)  # compiled: ~1 us
+        v_ref = float(at[4])
         limit = math.radians(cfg.max_crab_deg)
         crab = crab_angle(path_heading, v_ref, (self._current[0], self._current[1]), limit)
         if math.isnan(self._aligning_s):
@@ -1192,7 +1194,7 @@ class MPCController:
             speed_along = x[3] * math.cos(off) - x[4] * math.sin(off)
             # the offset across the path's heading (also behind its start, where the cross-track error is the
             # distance to the first point: a boat backed off the start is on the line, not joining it)
-            across = -math.sin(path_heading) * (x[0] - float(p_n[0])) + math.cos(path_heading) * (x[1] - float(p_e[0]))
+            across = -math.sin(path_heading) * (x[0] - float(at[0])) + math.cos(path_heading) * (x[1] - float(at[1]))
             slow = (speed_along < cfg.align_stall_fraction * v_ref and abs(crab) > math.radians(cfg.align_min_crab_deg)
                     and abs(across) < cfg.align_max_cross_track_m)
             self._stalled_s = self._stalled_s + cfg.dt_s if slow else 0.0
