@@ -154,6 +154,21 @@ class EkfConfig:
     current_states: bool = True  # water current north / east
     # body force X, Y and moment N (wind and the model's force error); off by default: docs/fusion.md
     disturbance_states: bool = False
+    # ... and the same states in a sea only (without `disturbance_states`): they sleep at zero in flat water
+    # and walk at `sigma_tau_walk` while the wave band's heave acceleration is above
+    # `wave_accel_sea_heave_mps2`. The waves' mean drift force is not a current: it pushes along the waves
+    # and turns with the hull's heading to them, so as a current it moves by the damping's anisotropy (sway
+    # ~3 x surge) through every turn, and the current's slow walk cannot follow (figure eight 0.5 m/s, Hs 6
+    # cm, the drift force alone: slow cross-track 1.2 cm against 0.4 calm, in phase with twice the heading
+    # to the waves; docs/fusion.md "Waves")
+    # These sea-only states are the filter's own: `VesselState.disturbance_tau` reports the force only
+    # with `disturbance_states` (the station keeper feeds it forward, and fed a force that follows the
+    # waves' groups it reversed its thrusters 3 x as often as in calm water).
+    wave_disturbance_states: bool = True
+    # The force states learn only while a GNSS fix was accepted within this many seconds: in dead reckoning
+    # the accelerometer alone cannot part a force from its own bias and the waves', and a force walking
+    # there drifted the position (10 m GNSS jump, 20 s of dead reckoning: 2.6-2.9 m against the limit 2)
+    force_learning_gnss_age_s: float = 1.0
     max_current_mps: float = 1.0  # the current estimate is clipped to this (a safety net, not a model)
     # wave-frequency motion (module docstring): its states, their model and how they adapt
     wave_states: bool = True
@@ -276,15 +291,16 @@ class ModelAidedEKF:
         n += 2 if c.accel_bias_states else 0
         self.i_cur = n if c.current_states else None
         n += 2 if c.current_states else 0
-        self.i_tau = n if c.disturbance_states else None
-        n += 3 if c.disturbance_states else 0
+        tau_states = c.disturbance_states or (c.wave_disturbance_states and c.wave_states)
+        self.i_tau = n if tau_states else None
+        n += 3 if tau_states else 0
         self.i_wave = n if c.wave_states else None
         n += 6 if c.wave_states else 0
         self.n = n
         self.x = np.zeros(n)
         std = list(c.P0_std[:7]) + (list(c.P0_std[7:9]) if c.accel_bias_states else [])
         std += [c.P0_current_std_mps] * 2 if c.current_states else []
-        std += list(c.P0_tau_std) if c.disturbance_states else []
+        std += list(c.P0_tau_std) if c.disturbance_states else [0.0] * 3 if tau_states else []
         w0 = 2.0 * math.pi / c.wave_period_s
         if c.wave_states:
             ps, hs = c.P0_wave_std
@@ -317,7 +333,7 @@ class ModelAidedEKF:
              c.sigma_nu_dot[0] ** 2, c.sigma_nu_dot[1] ** 2, c.sigma_nu_dot[2] ** 2, c.sigma_gyro_bias_walk ** 2]
         q += [c.sigma_accel_bias_walk ** 2] * 2 if c.accel_bias_states else []
         q += [c.sigma_current_walk_mps ** 2] * 2 if c.current_states else []
-        q += [s ** 2 for s in c.sigma_tau_walk] if c.disturbance_states else []
+        q += [s ** 2 for s in c.sigma_tau_walk] if c.disturbance_states else [0.0] * 3 if tau_states else []
         q += [0.0] * 6 if c.wave_states else []  # the wave states' noise: `_wave_transition`
         self._q = np.array(q)
         self.tilt = TiltFilter(c.tilt)
@@ -339,6 +355,7 @@ class ModelAidedEKF:
         self._velocity_innovation_var = np.zeros(2)
         self._velocity_innovation_t = -math.inf
         self._velocity_error_q = np.zeros(2)
+        self._gnss_accepted_t = -math.inf  # the last accepted GNSS position (EkfConfig.force_learning_gnss_age_s)
         # the wave states' running mean over wave_mean_periods periods (`_track_wave_mean`)
         self._wave_mean = np.zeros(6)
         self._wave_mean_t = -math.inf
@@ -479,19 +496,31 @@ class ModelAidedEKF:
         """The process noise densities and the thrusters' relative force uncertainty now: the
         calm values, tightened towards the wave values as the heave grows (EkfConfig)."""
         c = self.config
+        q = self._q
+        if self.i_tau is not None:
+            walks = self._force_learns() and (
+                c.disturbance_states or self.wave_band.heave_accel_std_mps2 > c.wave_accel_sea_heave_mps2)
+            q = q.copy()  # EkfConfig.disturbance_states, or wave_disturbance_states: only in a sea
+            q[self.i_tau:self.i_tau + 3] = np.square(c.sigma_tau_walk) if walks else 0.0
         if self.i_wave is None or not c.wave_slack_heave_m > 0.0 or self._wave_w0_given is None:
             # only once the sea and the frequency it is met at are known (the sea-state estimate): a
             # tight model with the wrong wave frequency lost a hull thrown about by a following sea
-            return self._q, c.sigma_thrust_rel
+            return q, c.sigma_thrust_rel
         w0 = self.wave_model()[0]
         lo, hi = c.wave_slack_frequency_radps
         s = min(1.0, self.wave_band.heave_std_m(w0) / c.wave_slack_heave_m) * min(1.0, max(0.0, (w0 - lo) / (hi - lo)))
         if s <= 0.0:
-            return self._q, c.sigma_thrust_rel
-        q = self._q.copy()
+            return q, c.sigma_thrust_rel
+        q = q.copy()
         for i in range(3):
             q[3 + i] = ((1.0 - s) * c.sigma_nu_dot[i] + s * c.wave_sigma_nu_dot[i]) ** 2
         return q, (1.0 - s) * c.sigma_thrust_rel + s * c.wave_sigma_thrust_rel
+
+    def _force_learns(self) -> bool:
+        """Whether the body-force states may learn now: a GNSS fix accepted within
+        EkfConfig.force_learning_gnss_age_s (not in dead reckoning)."""
+        t = self.t if self.t is not None else 0.0
+        return t - self._gnss_accepted_t <= self.config.force_learning_gnss_age_s
 
     # -- waves -----------------------------------------------------------------------------------
     def set_wave_frequency(self, w_radps: float | None) -> None:
@@ -673,6 +702,11 @@ class ModelAidedEKF:
             return False
         self._rejects[sensor] = 0
         self._jump.pop(sensor, None)
+        it = self.i_tau
+        if it is not None and not self._force_learns() and P[it, it] + P[it + 1, it + 1] + P[it + 2, it + 2] > 0.0:
+            # dead reckoning: the force (if it has learnt at all) is considered, held
+            moves = np.ones(self.n, dtype=bool) if moves is None else moves.copy()
+            moves[it:it + 3] = False
         K = PHt @ Sinv  # K = P H' S^-1
         if moves is not None:  # the considered states' gain is zero: P - K PHt' - PHt K' + K S K'
             K = K * moves[:, None]
@@ -1052,7 +1086,8 @@ class ModelAidedEKF:
             H[0, iw + 4], H[1, iw + 4] = -de, dn
             H[0, iw], H[1, iw + 2] = 1.0, 1.0
         y = np.array([n - (self.x[IN] + self._wave(0) + dn + swing[0]), e - (self.x[IE] + self._wave(2) + de + swing[1])])
-        self._update("gnss", y, H, np.eye(2) * s * s, reopen=(IN, IE))
+        if self._update("gnss", y, H, np.eye(2) * s * s, reopen=(IN, IE)):
+            self._gnss_accepted_t = self.t
         if not (self.config.use_gnss_velocity and finite(fix.vel_n_mps, fix.vel_e_mps)):
             return
         if mon.rejecting("gnss") or mon.inconsistent("gnss"):
@@ -1120,7 +1155,10 @@ class ModelAidedEKF:
         return VesselState(stamp_s=float(stamp), north_m=float(lf[0]), east_m=float(lf[1]),
                            heading_rad=float(wrap_angle(lf[2])), u_mps=float(lf[3]), v_mps=float(lf[4]),
                            r_radps=float(lf[5]), source=self.source, std=tuple(float(s) for s in std),
-                           gyro_bias_radps=float(x[IBG]), current_ne_mps=(cn, ce), disturbance_tau=(tx, ty, tn),
+                           gyro_bias_radps=float(x[IBG]), current_ne_mps=(cn, ce),
+                           # the sea-only force (wave_disturbance_states) stays the filter's own: fed forward by
+                           # the station keeper it followed the waves' groups (reversals 1.0 -> 3.3 x calm)
+                           disturbance_tau=(tx, ty, tn) if self.config.disturbance_states else (0.0, 0.0, 0.0),
                            wave_motion=wave)
 
     def health(self, t: float | None = None) -> EstimatorHealth:

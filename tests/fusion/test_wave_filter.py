@@ -18,7 +18,7 @@ from lotsen.fusion.common import feed
 from lotsen.fusion.ekf import EkfConfig, ModelAidedEKF
 from lotsen.fusion.seastate import SeaStateEstimator
 from lotsen.harness.mission import sim_mag_calibration
-from lotsen.messages import ImuSample, VesselState
+from lotsen.messages import GnssFix, ImuSample, VesselState
 from lotsen.model import Environment, VesselModel
 from lotsen.model.environment import Waves
 from lotsen.sim import SimConfig, Simulator
@@ -30,8 +30,10 @@ def _turn(wave_mean_periods: float, hs_m: float, duration_s: float = 60.0) -> np
     return _fly_turn(hs_m, duration_s, wave_mean_periods=wave_mean_periods)[0]
 
 
-def _fly_turn(hs_m: float, duration_s: float, **ekf_config: Any) -> tuple[np.ndarray, ModelAidedEKF]:
-    """_turn's rows and the EKF (its EkfConfig with `ekf_config`) at the end."""
+def _fly_turn(hs_m: float, duration_s: float, gnss_gap_s: tuple[float, float] | None = None,
+              **ekf_config: Any) -> tuple[np.ndarray, ModelAidedEKF]:
+    """_turn's rows, with the filter's body-force states (X, Y, N) after them, and the EKF (its EkfConfig with
+    `ekf_config`) at the end; no GNSS fix reaches the filter within `gnss_gap_s`."""
     sim = Simulator(config=SimConfig(environment=Environment(waves=Waves(hs_m, 1.0, 250.0) if hs_m else None), seed=3))
     gnss = sim.config.gnss
     ekf = ModelAidedEKF(VesselModel(), sim_mag_calibration(sim.config),
@@ -52,6 +54,8 @@ def _fly_turn(hs_m: float, duration_s: float, **ekf_config: Any) -> tuple[np.nda
             act.stamp_s = t
             ekf.on_command(act)
         for m in msgs:
+            if gnss_gap_s and isinstance(m, GnssFix) and gnss_gap_s[0] <= m.stamp_s < gnss_gap_s[1]:
+                continue
             feed(ekf, m)
             if isinstance(m, ImuSample):
                 sea.on_imu(m)
@@ -60,7 +64,8 @@ def _fly_turn(hs_m: float, duration_s: float, **ekf_config: Any) -> tuple[np.nda
             sea.on_state(est)
             sea.estimate(t)
             ekf.set_wave_frequency(sea.encounter_frequency_radps())
-            rows.append((t, r_true, est.r_radps))
+            force = ekf.x[ekf.i_tau:ekf.i_tau + 3] if ekf.i_tau is not None else np.zeros(3)
+            rows.append((t, r_true, est.r_radps, *force))
     return np.array(rows), ekf
 
 
@@ -122,3 +127,33 @@ def test_one_waves_acceleration_is_not_taken_for_many_independent_samples(hs_m):
         assert coloured < 0.35 * white, (coloured, white)
     else:
         assert coloured == white
+
+
+def test_in_flat_water_the_force_states_sleep_and_the_estimate_is_the_one_without_them():
+    """EkfConfig.wave_disturbance_states: the body force's states are there, but in flat water they
+    neither walk nor learn: the force stays exactly zero and the estimate is the one without the states
+    (to round-off: the filter's matrices are three rows wider)."""
+    a, ekf = _fly_turn(0.0, 30.0)
+    b, _ = _fly_turn(0.0, 30.0, wave_disturbance_states=False)
+    assert ekf.i_tau is not None
+    assert np.all(a[:, 3:] == 0.0)
+    np.testing.assert_allclose(a[:, :3], b[:, :3], rtol=0.0, atol=1e-9)
+
+
+def test_in_a_sea_the_force_states_learn_while_gnss_vouches_and_hold_in_dead_reckoning():
+    """In a sea the body force walks and takes up what the model lacks there (the waves' mean drift,
+    which a current cannot stand for: it turns with the hull's heading to the waves). Without GNSS the
+    accelerometer alone cannot part a force from its own bias and the waves': from
+    EkfConfig.force_learning_gnss_age_s after the last fix the force is held, to the bit (the control
+    case, learning on without GNSS, moves it)."""
+    rows, ekf = _fly_turn(0.06, 60.0, gnss_gap_s=(45.0, 60.0))
+    assert ekf.wave_band.heave_accel_std_mps2 > EkfConfig().wave_accel_sea_heave_mps2
+    before = rows[rows[:, 0] < 45.0]
+    assert np.max(np.abs(before[-1, 3:5])) > 0.1, before[-1]  # newtons learnt in the sea
+    held = rows[rows[:, 0] >= 45.0 + EkfConfig().force_learning_gnss_age_s + 0.1, 3:]
+    assert np.all(held == held[0]), held[[0, -1]]
+    unheld = _fly_turn(0.06, 60.0, gnss_gap_s=(45.0, 60.0), force_learning_gnss_age_s=math.inf)[0]
+    moved = unheld[unheld[:, 0] >= 46.1, 3:]
+    assert np.max(np.abs(moved[-1] - moved[0])) > 0.05, moved[[0, -1]]
+    # the filter's own: the state it reports carries no force (only `disturbance_states` reports one)
+    assert ekf.estimate(ekf.t).disturbance_tau == (0.0, 0.0, 0.0)
