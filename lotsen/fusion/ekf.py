@@ -498,8 +498,7 @@ class ModelAidedEKF:
         c = self.config
         q = self._q
         if self.i_tau is not None:
-            walks = self._force_learns() and (
-                c.disturbance_states or self.wave_band.heave_accel_std_mps2 > c.wave_accel_sea_heave_mps2)
+            walks = self._force_learns() and (c.disturbance_states or self._in_sea())
             q = q.copy()  # EkfConfig.disturbance_states, or wave_disturbance_states: only in a sea
             q[self.i_tau:self.i_tau + 3] = np.square(c.sigma_tau_walk) if walks else 0.0
         if self.i_wave is None or not c.wave_slack_heave_m > 0.0 or self._wave_w0_given is None:
@@ -515,6 +514,11 @@ class ModelAidedEKF:
         for i in range(3):
             q[3 + i] = ((1.0 - s) * c.sigma_nu_dot[i] + s * c.wave_sigma_nu_dot[i]) ** 2
         return q, (1.0 - s) * c.sigma_thrust_rel + s * c.wave_sigma_thrust_rel
+
+    def _in_sea(self) -> bool:
+        """Whether the wave band's heave acceleration says there is a sea (EkfConfig.wave_accel_sea_heave_mps2):
+        the one test behind the coloured accelerometer noise and the sea-only force states."""
+        return self.i_wave is not None and self.wave_band.heave_accel_std_mps2 > self.config.wave_accel_sea_heave_mps2
 
     def _force_learns(self) -> bool:
         """Whether the body-force states may learn now: a GNSS fix accepted within
@@ -927,7 +931,7 @@ class ModelAidedEKF:
             R += np.eye(2) * heave ** 2
             # ... and narrow-band: one wave's acceleration is in many updates in a row (EkfConfig.
             # wave_accel_correlated_samples), which a white-noise update takes for independent evidence
-            if heave > self.config.wave_accel_sea_heave_mps2:
+            if self._in_sea():
                 R_coloured = np.eye(2) * (max(self.config.wave_accel_correlated_samples, 1.0) - 1.0) * heave ** 2
         # a model force error GNSS velocity has shown is in the model's acceleration too: else the
         # accelerometer pulls the velocity back to where the wrong model's forces balance (hull B: the
