@@ -16,20 +16,12 @@ filter's model would turn its own force errors into tilt).
     level_x = f_x - g sin(pitch'),  level_y = f_y + g cos(pitch') sin(roll')
 
 is then the acceleration of the body origin in the plane (u_dot - v r, v_dot + u r), what a level
-boat's accelerometer would read (`level`), where roll' and pitch' are only the tilt the gyro sees
-move: the raw p, q through the Euler kinematics, integrated with a leak (`level_time_constant_s`)
-and its own offset integral, on top of the tilt's slow part (an exponential average over
-`slow_time_constant_s`, which cancels in the difference). A constant heel or trim is
-indistinguishable from an accelerometer offset, and the navigation filter's offset states hold
-both (levelling with the whole tilt made a dead-reckoning crash stop on a level hull drift 1.7 m
-instead of 0.65 m in 10 s). Wave-frequency roll and pitch and heel that changes in turns are
-levelled. A tilt the accelerometer comparison alone sees is most likely the known acceleration's
-error (the differenced GNSS velocity's noise and lag, 0.1 m/s^2 in sharp turns): levelling with the
-tilt filter's own estimate less its slow part passed that into the accelerometer for seconds, and a
-10-s GNSS outage drifted 1.05 m on the lake boat and 0.86 m on the ideal one (worst of nine starts),
-against 0.95 and 0.19 m now and 0.94 and 0.10 m without levelling (bench fusion). The price: a
-heel held longer than the leak is no longer levelled, and a gyro x/y offset is taken out only by
-the moving tilt's own integral (~7 tau_level times the offset at 2 tau_level after it appears).
+boat's accelerometer would read (`level`), where roll' and pitch' are the tilt less its slow part
+(an exponential average over `slow_time_constant_s`): a constant heel or trim is indistinguishable
+from an accelerometer offset, and the navigation filter's offset states hold both (levelling with
+the whole tilt made a dead-reckoning crash stop on a level hull drift 1.7 m instead of 0.65 m in
+10 s: the tilt filter's slow errors are not better than the offset states'). Heel that changes in
+turns and wave-frequency roll and pitch are levelled.
 
 Pure: time only from the sample stamps.
 """
@@ -49,7 +41,6 @@ class TiltConfig:
     max_gap_s: float = 0.5  # a longer gap between samples: the tilt is held, not integrated
     max_tilt_rad: float = math.radians(45.0)  # a correction never takes the estimate beyond this
     slow_time_constant_s: float = 60.0  # the slow part of the tilt, left to the accelerometer offset states
-    level_time_constant_s: float = 10.0  # the gyro-seen (moving) tilt's leak; 0: level with tilt - slow tilt
 
 
 class TiltFilter:
@@ -63,10 +54,6 @@ class TiltFilter:
         self.bias_q = 0.0
         self.slow_roll_rad = 0.0
         self.slow_pitch_rad = 0.0
-        self.moving_roll_rad = 0.0  # the tilt `level` takes out (`_integrate_moving`)
-        self.moving_pitch_rad = 0.0
-        self.moving_bias_p = 0.0
-        self.moving_bias_q = 0.0
         self._t: float | None = None
         self._k = 1.0 / config.time_constant_s
         self._ki = self._k / config.bias_time_constant_s
@@ -102,27 +89,6 @@ class TiltFilter:
         a = dt / self.config.slow_time_constant_s
         self.slow_roll_rad += a * (self.roll_rad - self.slow_roll_rad)
         self.slow_pitch_rad += a * (self.pitch_rad - self.slow_pitch_rad)
-        if self.config.level_time_constant_s > 0.0:
-            self._integrate_moving(dt, p, q, r)
-
-    def _integrate_moving(self, dt: float, p: float, q: float, r: float) -> None:
-        """The tilt `level` takes out: the raw body rates through the Euler kinematics, leaking to zero
-        (module docstring). The coupling angles are the moving tilt's own: the slow tilt, an offset of
-        the accelerometer as much as a trim, would turn the yaw rate into a false roll and pitch rate in
-        every turn. The gyro offsets are its own too, an integral of the moving tilt (which averages
-        zero): the tilt filter's are pulled by the known acceleration's errors (4e-4 rad/s on a level
-        hull, 0.25 deg at a 10-s leak)."""
-        tau = self.config.level_time_constant_s
-        hr, hq = self.moving_roll_rad, self.moving_pitch_rad
-        kb = 1.0 / (4.0 * tau * tau)  # with the leak a critically damped pair: an offset leaves no tilt
-        self.moving_bias_p += kb * hr * dt
-        self.moving_bias_q += kb * hq * dt
-        pc, qc = p - self.moving_bias_p, q - self.moving_bias_q
-        roll_rate = pc + (qc * math.sin(hr) + r * math.cos(hr)) * math.tan(hq)
-        pitch_rate = qc * math.cos(hr) - r * math.sin(hr)
-        lim = self.config.max_tilt_rad
-        self.moving_roll_rad = min(max(hr + (roll_rate - hr / tau) * dt, -lim), lim)
-        self.moving_pitch_rad = min(max(hq + (pitch_rate - hq / tau) * dt, -lim), lim)
 
     @staticmethod
     def gravity_tilt(accel_mps2: tuple[float, float, float], known_accel_xy: tuple[float, float]) -> tuple[float, float]:
@@ -138,10 +104,7 @@ class TiltFilter:
     def level(self, accel_mps2: tuple[float, float, float]) -> tuple[float, float]:
         """The specific force's horizontal axes without gravity's share of the tilt's moving part
         (the module docstring: the slow part stays, for the navigation filter's offset states)."""
+        th, ph = self.pitch_rad, self.roll_rad
         th0, ph0 = self.slow_pitch_rad, self.slow_roll_rad
-        if self.config.level_time_constant_s > 0.0:
-            th, ph = th0 + self.moving_pitch_rad, ph0 + self.moving_roll_rad
-        else:
-            th, ph = self.pitch_rad, self.roll_rad
         return (accel_mps2[0] - GRAVITY_MPS2 * (math.sin(th) - math.sin(th0)),
                 accel_mps2[1] + GRAVITY_MPS2 * (math.cos(th) * math.sin(ph) - math.cos(th0) * math.sin(ph0)))
