@@ -108,6 +108,13 @@ def shot(pg, name: str) -> None:
     pg.screenshot(path=str(ARTIFACTS / f"web-{name}.png"))
 
 
+def set_view(pg, scale: float, north: float, east: float) -> None:
+    """Zoom and pan as the operator would: a moved view is the operator's, so the first-screen fit
+    (which fires on telemetry until the view is touched) must not move it between two clicks."""
+    pg.evaluate(f"() => {{ const m = window.lotsen.map; m.scale = {scale}; m.n0 = {north}; m.e0 = {east};"
+                " m.invalidate(); window.lotsen.viewTouched = true; }")
+
+
 def click_map(pg, north: float, east: float) -> None:
     x, y = pg.evaluate(f"() => window.lotsen.map.toScreen({north}, {east})")
     box = pg.locator("#map").bounding_box()
@@ -207,7 +214,7 @@ def arm(pg) -> None:
 def test_draw_a_route_by_clicking_and_see_the_plan_and_its_errors(page):
     take_controls(page)
     page.evaluate("() => window.lotsen.map.fit()")
-    page.evaluate("() => { const m = window.lotsen.map; m.scale = 14; m.n0 = 8; m.e0 = 4; m.invalidate(); }")
+    set_view(page, 14, 8, 4)
     page.click("[data-tool=harbour]")
     click_map(page, 0, 0)
     page.click("[data-tool=node]")
@@ -301,7 +308,7 @@ def test_edit_area_corners_and_draw_an_obstacle(page):
     take_controls(page)
     page.click("[data-tab=plan]")
     page.click("[data-tool=select]")
-    page.evaluate("() => { const m = window.lotsen.map; m.scale = 14; m.n0 = 7; m.e0 = 4; m.invalidate(); }")
+    set_view(page, 14, 7, 4)
     area = lambda: page.evaluate("() => window.lotsen.route.area")  # noqa: E731
     assert area() == [[-4, -4], [18, -4], [18, 12], [-4, 12]]
     drag_map(page, 18, 12, 20, 14)

@@ -13,7 +13,7 @@ import pytest
 from lotsen.messages import Sounding, Topic
 
 from .conftest import start_stack, stop_stack
-from .test_browser import CHROMIUM, LAUNCH_ARGS, click_map, shot, take_controls, wait_js
+from .test_browser import CHROMIUM, LAUNCH_ARGS, click_map, set_view, shot, take_controls, wait_js
 
 pytestmark = [
     pytest.mark.browser,
@@ -52,7 +52,7 @@ def draw(pg, tool: str, corners) -> None:
 
 def test_draw_a_survey_see_its_lines_length_and_time_and_upload_it(page, stack):
     take_controls(page)
-    page.evaluate("() => { const m = window.lotsen.map; m.scale = 9; m.n0 = 2; m.e0 = 8; m.invalidate(); }")
+    set_view(page, 9, 2, 8)
     draw(page, "area", [(-20, -15), (28, -15), (28, 32), (-20, 32)])
     page.click("[data-tool=harbour]")
     click_map(page, -8, -6)
