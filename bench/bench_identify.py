@@ -8,7 +8,10 @@ alone, one BLAS thread as the command sets it):
      random boats 20 % off the defaults, 10 min each (quick: 3 records): answered (ok / weak /
      predictive, exit 0), a physical answer right by issue 25's rule (core within 5 %, the rest within
      15 % unless named weak, every coefficient within 3 sigma), the 10-s held-out prediction against the
-     defaults', CPU. Targets: >= 90 % answered, no wrong physical answer, <= 20 s CPU.
+     defaults', CPU. Targets: >= 90 % answered, no wrong physical answer, CPU <= 18 x the median of the
+     same run's calm identifications (row 3). The bar was <= 20 s on the machine it was set on, where a
+     calm identification took a median 1.1 s (2026-11-29); a lone timing moves with the machine (a later
+     one ran the unchanged calm path 2.2x slower), a ratio to a peer in the same run does not.
   2. following the old advice "fix some of them": eight weakly determined coefficients fixed at the
      documented defaults (11-31 % off the boat's) on a lake record of lotsen's own generator: never a
      wrong physical answer (the issue's case gave verdict ok, Y_v 9 % off at 7.7 sigma).
@@ -23,8 +26,9 @@ alone, one BLAS thread as the command sets it):
      widest intervals: on 29 records it read 1.20-1.42 where every record's own error / sigma had an RMS
      of 0.85-1.21 (2026-11-29). 90 records, not 30: the ratio of n records scatters by about
      1 / sqrt(2 n) (0.13 at 30, 0.075 at 90), too much at 30 for a bar of +-25 %: seeds 100-129 gave N_r
-     1.25, seeds 130-159 0.88, seeds 160-189 0.99, all 90 1.01 (0.87-1.19) (2026-12-02). The per-record form is what an interval claims; a fresh-noise Monte
-     Carlo on one record (40 draws) gave the plain covariance 0.92-1.18 of the spread. Only physical
+     1.25, seeds 130-159 0.88, seeds 160-189 0.99, all 90 1.01 (0.88-1.18) (2026-12-02). The
+     per-record form is what an interval claims; a fresh-noise Monte Carlo on one record (40 draws) gave
+     the plain covariance 0.92-1.18 of the spread. Only physical
      answers (ok, weak) have intervals to judge: a record answered otherwise is counted and named, not
      averaged in; undetermined coefficients (no interval) are left out and counted. Then, shown and not
      judged, the same records with the yaw-rate offsets estimated (`--gyro-offset`: one per minute;
@@ -76,7 +80,12 @@ def _lake_cases(quick: bool) -> list[tuple[int, dict]]:
     return cases
 
 
-def lake_rows(quick: bool = False) -> list[dict]:
+#: issue 39's <= 20 s, over the calm median of the machine it was set on (1.1 s): row 1's CPU bar
+LAKE_OVER_CALM_CPU = 18.0
+
+
+def lake_rows(calm_cpu_s: float, quick: bool = False) -> list[dict]:
+    """Row 1 of the module docstring; `calm_cpu_s`: the median CPU of the same run's calm identifications."""
     from independent_sim import NAMES, Lake, generate, perturbed
 
     from lotsen.model import DEFAULT_PARAMETERS, VesselParameters
@@ -116,8 +125,10 @@ def lake_rows(quick: bool = False) -> list[dict]:
     n = len(cases)
     rows.append({"table": "lake records of the model's structure, wind of another form (independent generator)",
                  "seed": "all", "verdict": f"{answered} of {n} answered", "physical answer right": wrong == 0,
-                 "cpu_s": round(max(cpus), 1), "target": ">= 90 % answered, no wrong physical answer, <= 20 s CPU",
-                 "pass": answered >= 0.9 * n and wrong == 0 and max(cpus) <= 20.0})
+                 "cpu_s": round(max(cpus), 1), "calm cpu_s (median, row 3)": round(calm_cpu_s, 2),
+                 "cpu over calm": round(max(cpus) / calm_cpu_s, 1),
+                 "target": f">= 90 % answered, no wrong physical answer, CPU <= {LAKE_OVER_CALM_CPU:.0f} x calm",
+                 "pass": answered >= 0.9 * n and wrong == 0 and max(cpus) <= LAKE_OVER_CALM_CPU * calm_cpu_s})
     return rows
 
 
@@ -211,7 +222,7 @@ def _interval_rows(table: str, answers: list, boat, cpus: list[float] | None) ->
                  "undetermined (left out)": undetermined,
                  "not physical answers (left out)": ", ".join(other) or "none",
                  "verdicts": ", ".join(sorted({i.verdict.verdict for _, i in answers})),
-                 "cpu_s (median)": round(float(np.median(cpus)), 1) if cpus else None,
+                 "cpu_s (median)": round(float(np.median(cpus)), 2) if cpus else None,
                  "target": ">= 97 % within 3 sigma", "pass": inside >= 0.97 * total})
     return rows
 
@@ -219,4 +230,6 @@ def _interval_rows(table: str, answers: list, boat, cpus: list[float] | None) ->
 def run(quick: bool = False) -> list[dict]:
     from bench_identify_waves import run as waves_rows  # 4. records in waves (its own module docstring)
 
-    return lake_rows(quick) + fixed_rows(quick) + repeated_records_rows(quick) + waves_rows(quick)
+    repeated = repeated_records_rows(quick)
+    calm_cpu_s = next(r["cpu_s (median)"] for r in repeated if r.get("cpu_s (median)") is not None)
+    return lake_rows(calm_cpu_s, quick) + fixed_rows(quick) + repeated + waves_rows(quick)
