@@ -38,7 +38,8 @@ coefficients), and the question is what such a model is worth in closed loop.
    shown), and tighter turns with the planner's lateral limit at 0.8 m/s^2 (the hull turns at over
    1 m/s^2): the figure eight at 1.5 m/s, and scaled to half (20 m, turn radii down to 1.1 m) at
    1.0 m/s. Current 0.08 m/s towards 30 deg, wind 4 m/s from 250 deg with 20 % gusts and a 15-deg
-   wandering direction; seeds 0 and 1 (quick: seed 0 and fewer cases). Models: the defaults, the lab
+   wandering direction; seeds 0 and 1, the judged cases at >= 1.2 m/s seeds 0-3 (issue 47's >= 4 seeds:
+   on two, seed 0's bad luck decided the mean; quick: seed 0 and fewer cases). Models: the defaults, the lab
    loop's answer, and (full mode) the answers from the 10-min calm and lake records below. Target
    (issue 39): at nominal >= 1.2 m/s the lab loop's model tracks >= 20 % better than the defaults.
 3. Identification records (`hull6dof.record`, a 10-min PRBS on all five channels, lotsen's lake
@@ -593,12 +594,14 @@ def record_rows(work: Path, quick: bool) -> tuple[list[dict], dict[str, Any]]:
 
 def tracking_rows(models: dict[str, Any], quick: bool) -> list[dict]:
     """Module docstring, 2: every case with every model, per seed, then the ratio per case."""
-    seeds = (0,) if quick else (0, 1)
     cases = QUICK_CASES if quick else CASES
     rows: list[dict] = []
     table = ("2. tracking on the hull by model (EKF + MPC; current 0.08 m/s, wind 4 m/s gusty, wandering)")
     summary = "2. the identified model against the defaults per case (mean over seeds)"
     for case in cases:
+        # the judged cases (>= 1.2 m/s) on four seeds, as issue 47's bar (1c) has it: seed 0 alone is the
+        # unlucky one over the seam in every loop of 1d (0.93-1.06 against 0.59-0.78 for seeds 1-3)
+        seeds = (0,) if quick else (0, 1, 2, 3) if case[2] >= 1.2 else (0, 1)
         cte: dict[str, list[float]] = {}
         for name, params in models.items():
             for seed in seeds:
