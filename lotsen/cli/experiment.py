@@ -176,7 +176,7 @@ def _say_sea(waves: Any) -> None:
     """The experiment's check of the sea it runs in (lotsen.sysid.waves.experiment_sea_warning)."""
     from lotsen.sysid.waves import experiment_sea_warning
 
-    msg = experiment_sea_warning(waves.hs_m, waves.tp_s, waves.from_deg) if waves is not None else None
+    msg = experiment_sea_warning(waves.hs_m, waves.tp_s, waves.from_deg, measured=False) if waves is not None else None
     if msg:
         print(msg, file=sys.stderr)
 

@@ -12,7 +12,8 @@ Gusts (made in the simulator, seeded): the wind speed is W + w(t), w a first-ord
 Wind waves (`Waves`, made in the simulator: `lotsen.sim.waves`): a directional JONSWAP sea given by
 its significant wave height, peak period, the direction it comes from and its spreading. A 1 m boat
 on a lake meets Hs 3-10 cm at Tp 0.7-1.2 s (fetch-limited growth: 4 m/s over 300 m gives about
-Hs 0.035 m, Tp 0.66 s; 5 m/s over 500 m about Hs 0.06 m, Tp 1.0 s).
+Hs 0.035 m, Tp 0.66 s; 5 m/s over 500 m about Hs 0.06 m, Tp 1.0 s). Growth ties height to period:
+a wind sea of a long period is a high one (`wind_sea_hs_floor_m`).
 """
 
 from __future__ import annotations
@@ -45,6 +46,26 @@ class Waves:
     def describe(self) -> str:
         crest = "long-crested" if self.spreading == 0.0 else f"spreading s={self.spreading:g}"
         return f"Hs {self.hs_m * 100:.0f} cm, Tp {self.tp_s:.2g} s, from {self.from_deg:.0f} deg, {crest}"
+
+
+GRAVITY_MPS2 = 9.81
+#: JONSWAP's fetch-limited growth (Hasselmann et al. 1973; US Army Coastal Engineering Manual II-2):
+#: g Hs / U^2 = 0.0016 (g F / U^2)^(1/2) and g Tp / U = 0.286 (g F / U^2)^(1/3), wind U, fetch F
+JONSWAP_HS_GROWTH = 0.0016
+JONSWAP_TP_GROWTH = 0.286
+#: Pierson-Moskowitz's fully developed sea: its peak frequency w_p = 0.877 g / U
+PM_PEAK = 0.877
+
+
+def wind_sea_hs_floor_m(tp_s: float) -> float:
+    """The lowest significant wave height a wind sea of peak period `tp_s` has. With the fetch eliminated
+    from JONSWAP's growth laws, Hs = 0.0016 (g Tp / 0.286)^(3/2) U^(1/2) / g grows with the wind U, and a
+    wind raises waves of period Tp only up to a fully developed sea (w_p = 0.877 g / U), so
+    U >= 0.877 g Tp / (2 pi). Tp 0.66 s: 1.7 cm (the module docstring's 4 m/s over 300 m: 3.5 cm); 0.8 s:
+    2.4 cm; 1.0 s: 3.8 cm; 1.2 s: 5.5 cm; 2.8 s: 30 cm. Motion a hull's IMU reads at a long period and a
+    small height is not a wind sea: the hull's own trim and heel in manoeuvres, or a passing wake."""
+    u_min = PM_PEAK * GRAVITY_MPS2 * tp_s / (2.0 * math.pi)
+    return JONSWAP_HS_GROWTH * (GRAVITY_MPS2 * tp_s / JONSWAP_TP_GROWTH) ** 1.5 * math.sqrt(u_min) / GRAVITY_MPS2
 
 
 @dataclass(frozen=True)

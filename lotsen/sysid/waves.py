@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from lotsen.messages import SeaState
+from lotsen.model.environment import wind_sea_hs_floor_m
 from lotsen.sysid.data import IdRecord
 
 #: from this significant height on the record is "in waves" and gets no effective coefficients (module
@@ -39,6 +40,13 @@ from lotsen.sysid.data import IdRecord
 #: calm water (calm records read 0 on lotsen's simulator; Hs 3 cm read 2.8 cm). The calmest wind sea of
 #: issue 46 is Hs 3 cm (4 m/s over 300 m of fetch)
 IN_WAVES_HS_M = 0.02
+#: a reading below this share of the lowest height a wind sea of its period has
+#: (lotsen.model.environment.wind_sea_hs_floor_m) is no wind sea: the growth laws scatter by tens of
+#: percent and the IMU's Tp reads short (bench identify's records in waves: Hs 6 cm, Tp 1.0 s read 6.8-7.8
+#: cm at 0.78-0.95 s, 2.0-3.0 x the floor; Hs 3 cm, Tp 0.8 s read 2.7-3.6 cm at 0.78-0.85 s, 0.97-1.5 x,
+#: on lotsen's simulator and the 6-DOF hull alike). The 6-DOF hull's own manoeuvres in calm water (a
+#: designed experiment, bench hull's lab loop) read Hs 2.1 cm at Tp 2.8 s: 0.07 x
+WIND_SEA_FLOOR_SHARE = 0.25
 SPEED_SPAN_S = 1.0  # the speed over ground from fixes this far apart
 
 
@@ -72,8 +80,16 @@ def heading_and_velocity(record: IdRecord) -> tuple[np.ndarray, np.ndarray]:
     return psi, velocity
 
 
+def wind_sea(hs_m: float, tp_s: float) -> bool:
+    """A height and period a wind sea can have together (WIND_SEA_FLOOR_SHARE; an unknown period: yes)."""
+    return not math.isfinite(tp_s) or tp_s <= 0.0 or hs_m >= WIND_SEA_FLOOR_SHARE * wind_sea_hs_floor_m(tp_s)
+
+
 def in_waves(sea: SeaState | None) -> bool:
-    return sea is not None and sea.valid and math.isfinite(sea.hs_m) and sea.hs_m >= IN_WAVES_HS_M
+    """The record was taken in a wind sea: its IMU reads IN_WAVES_HS_M or more, at a period a sea of that
+    height can have."""
+    return (sea is not None and sea.valid and math.isfinite(sea.hs_m) and sea.hs_m >= IN_WAVES_HS_M
+            and wind_sea(sea.hs_m, sea.tp_s))
 
 
 def describe(sea: SeaState | None) -> str:
@@ -83,6 +99,10 @@ def describe(sea: SeaState | None) -> str:
     if not sea.valid:
         return f"sea state unknown (the record's IMU holds {sea.window_s:.0f} s, too little)"
     if not in_waves(sea):
+        if math.isfinite(sea.hs_m) and sea.hs_m >= IN_WAVES_HS_M:  # no wind sea at that period (`wind_sea`)
+            return (f"calm water (the record's IMU reads Hs {100 * sea.hs_m:.1f} cm at Tp {sea.tp_s:.1f} s, no "
+                    f"wind sea: one of that period stands {100 * wind_sea_hs_floor_m(sea.tp_s):.0f} cm or more; "
+                    "the hull's own motion in its manoeuvres, or a passing wake)")
         return f"calm water (Hs {100 * max(sea.hs_m, 0.0):.1f} cm from the record's IMU)"
     frm = f", from {sea.from_deg:.0f} deg" if math.isfinite(sea.from_deg) else ""
     tp = f", Tp {sea.tp_s:.1f} s" if math.isfinite(sea.tp_s) else ""
@@ -110,11 +130,14 @@ def sea_to_json(sea: SeaState | None) -> dict | None:
             "window_s": num(sea.window_s, 0), "source": "the record's IMU"}
 
 
-def experiment_sea_warning(hs_m: float, tp_s: float = math.nan, from_deg: float = math.nan) -> str | None:
-    """The experiment's check of the sea it will run in (`lotsen experiment run --waves`, `check --sea`):
-    None in calm water (below IN_WAVES_HS_M); in waves a warning with what to do (identification will give
-    no effective coefficients from the record, and a physical answer only if every check of one passes)."""
-    if not (math.isfinite(hs_m) and hs_m >= IN_WAVES_HS_M):
+def experiment_sea_warning(hs_m: float, tp_s: float = math.nan, from_deg: float = math.nan,
+                           measured: bool = True) -> str | None:
+    """The experiment's check of the sea it will run in (`lotsen experiment run --waves`, `check --sea`)
+    or ran in (`measured`: read by the boat's IMU, where a long period at a small height is the hull's own
+    motion, `wind_sea`): None in calm water (below IN_WAVES_HS_M); in waves a warning with what to do
+    (identification will give no effective coefficients from the record, and a physical answer only if
+    every check of one passes)."""
+    if not (math.isfinite(hs_m) and hs_m >= IN_WAVES_HS_M) or (measured and not wind_sea(hs_m, tp_s)):
         return None
     sea = SeaState(stamp_s=0.0, valid=True, hs_m=hs_m, tp_s=tp_s, tp_encounter_s=math.nan, from_deg=from_deg,
                    heave_std_m=math.nan, roll_std_deg=math.nan, pitch_std_deg=math.nan)

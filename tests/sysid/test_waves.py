@@ -179,3 +179,30 @@ def test_heading_and_velocity_of_a_record():
     np.testing.assert_allclose(np.nanmedian(velocity, axis=0), [0.5, -0.2], atol=1e-9)
     rec.outputs[:, 2] = np.where(np.isfinite(rec.outputs[:, 2]), math.pi / 2, np.nan)  # heading east: the same
     np.testing.assert_allclose(np.nanmedian(sea_words.heading_and_velocity(rec)[1], axis=0), [0.5, -0.2], atol=1e-9)
+
+
+def test_a_long_low_motion_is_not_a_wind_sea():
+    """The 6-DOF test hull's own manoeuvres in calm water read Hs 2.1 cm at Tp 2.8 s from its IMU (a
+    designed experiment of bench hull's lab loop); a wind sea of that period stands 30 cm or more
+    (JONSWAP's growth), so the record is calm water and the run is not warned about. A configured
+    (simulated) sea of that height and period is taken as given; the wind seas the benches measure are
+    in waves."""
+    from lotsen.messages import SeaState
+    from lotsen.model.environment import wind_sea_hs_floor_m
+
+    # the growth laws against the fetch examples of lotsen.model.environment's docstring
+    assert wind_sea_hs_floor_m(0.66) < 0.035 and wind_sea_hs_floor_m(1.0) < 0.06
+    assert wind_sea_hs_floor_m(2.8) == pytest.approx(0.30, rel=0.05)
+
+    def sea(hs: float, tp: float) -> SeaState:
+        return SeaState(stamp_s=0.0, valid=True, hs_m=hs, tp_s=tp, tp_encounter_s=math.nan, from_deg=167.0,
+                        heave_std_m=math.nan, roll_std_deg=math.nan, pitch_std_deg=math.nan)
+
+    manoeuvres = sea(0.021, 2.8)
+    assert not sea_words.in_waves(manoeuvres)
+    assert sea_words.describe(manoeuvres).startswith("calm water") and "no wind sea" in sea_words.describe(manoeuvres)
+    assert sea_words.experiment_sea_warning(0.021, 2.8, 167.0) is None
+    assert sea_words.experiment_sea_warning(0.021, 2.8, 167.0, measured=False) is not None
+    for hs, tp in ((0.027, 0.85), (0.036, 0.80), (0.068, 0.95), (0.078, 0.78)):  # bench identify's readings
+        assert sea_words.in_waves(sea(hs, tp)), (hs, tp)
+        assert sea_words.experiment_sea_warning(hs, tp) is not None
