@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-GRAVITY_MPS2 = 9.81
+from lotsen.model.environment import GRAVITY_MPS2
 
 
 @dataclass(frozen=True)

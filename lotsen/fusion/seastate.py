@@ -52,8 +52,7 @@ import numpy as np
 
 from lotsen.messages import ImuSample, SeaState, VesselState
 from lotsen.model.angles import ground_velocity
-
-GRAVITY_MPS2 = 9.81
+from lotsen.model.environment import GRAVITY_MPS2
 
 
 @dataclass(frozen=True)

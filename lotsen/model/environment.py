@@ -48,7 +48,7 @@ class Waves:
         return f"Hs {self.hs_m * 100:.0f} cm, Tp {self.tp_s:.2g} s, from {self.from_deg:.0f} deg, {crest}"
 
 
-GRAVITY_MPS2 = 9.81
+GRAVITY_MPS2 = 9.81  # the one g of the package (sensors, tilt, waves)
 #: JONSWAP's fetch-limited growth (Hasselmann et al. 1973; US Army Coastal Engineering Manual II-2):
 #: g Hs / U^2 = 0.0016 (g F / U^2)^(1/2) and g Tp / U = 0.286 (g F / U^2)^(1/3), wind U, fetch F
 JONSWAP_HS_GROWTH = 0.0016

@@ -24,12 +24,12 @@ import socket
 import threading
 from typing import Any, Callable
 
+from lotsen.model.environment import GRAVITY_MPS2
 from lotsen.physics.config import ChannelMap
 from lotsen.physics.protocol import (
     PhysicsState, ProtocolError, decode_place, decode_servo, encode_state,
 )
 from lotsen.sim.plant import Plant
-from lotsen.sim.sensors import GRAVITY_MPS2
 
 
 def plant_state(plant: Plant, t_s: float) -> PhysicsState:

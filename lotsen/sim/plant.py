@@ -35,11 +35,10 @@ from lotsen.errors import LotsenError
 from lotsen.model._jit import njit
 from lotsen.model.actuators import actuator_step
 from lotsen.model.dynamics import VesselModel, rk4_step
-from lotsen.model.environment import Environment, WindCoefficients, wind_force
+from lotsen.model.environment import GRAVITY_MPS2, Environment, WindCoefficients, wind_force
 from lotsen.model.parameters import DEFAULT_LIMITS, ActuatorLimits
 from lotsen.sim.actuators import ActuatorDynamics
 from lotsen.sim.boat import DEFAULT_BOAT, SimulatedBoat
-from lotsen.sim.sensors import GRAVITY_MPS2
 from lotsen.sim.waves import LOADS, BodyMotion, Seakeeping, WaveField
 
 #: how many independent random streams a simulator spawns from its seed (sensors 0-3, plant 4-6:

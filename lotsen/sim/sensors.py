@@ -15,9 +15,8 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from lotsen.messages import GnssFix, GnssFixType, ImuSample, MagSample, RpmSample
+from lotsen.model.environment import GRAVITY_MPS2
 from lotsen.model.geodetic import LocalFrame
-
-GRAVITY_MPS2 = 9.81
 
 
 class NoiseBlock:

@@ -65,10 +65,9 @@ from typing import NamedTuple
 import numpy as np
 
 from lotsen.model._jit import njit
-from lotsen.model.environment import Waves
+from lotsen.model.environment import GRAVITY_MPS2, Waves
 
 RHO_WATER = 1000.0
-GRAVITY_MPS2 = 9.81
 
 # rows of `WaveField.components` (one column per component)
 _W, _K, _COS, _SIN, _AMP, _PHASE, _D_ACC, _D_P, _DRIFT = range(9)
