@@ -80,6 +80,11 @@ def heading_and_velocity(record: IdRecord) -> tuple[np.ndarray, np.ndarray]:
     return psi, velocity
 
 
+def high_enough(hs_m: float) -> bool:
+    """A significant height that counts as waves (IN_WAVES_HS_M or more), whatever its period."""
+    return math.isfinite(hs_m) and hs_m >= IN_WAVES_HS_M
+
+
 def wind_sea(hs_m: float, tp_s: float) -> bool:
     """A height and period a wind sea can have together (WIND_SEA_FLOOR_SHARE; an unknown period: yes)."""
     return not math.isfinite(tp_s) or tp_s <= 0.0 or hs_m >= WIND_SEA_FLOOR_SHARE * wind_sea_hs_floor_m(tp_s)
@@ -88,8 +93,7 @@ def wind_sea(hs_m: float, tp_s: float) -> bool:
 def in_waves(sea: SeaState | None) -> bool:
     """The record was taken in a wind sea: its IMU reads IN_WAVES_HS_M or more, at a period a sea of that
     height can have."""
-    return (sea is not None and sea.valid and math.isfinite(sea.hs_m) and sea.hs_m >= IN_WAVES_HS_M
-            and wind_sea(sea.hs_m, sea.tp_s))
+    return sea is not None and sea.valid and high_enough(sea.hs_m) and wind_sea(sea.hs_m, sea.tp_s)
 
 
 def describe(sea: SeaState | None) -> str:
@@ -99,7 +103,7 @@ def describe(sea: SeaState | None) -> str:
     if not sea.valid:
         return f"sea state unknown (the record's IMU holds {sea.window_s:.0f} s, too little)"
     if not in_waves(sea):
-        if math.isfinite(sea.hs_m) and sea.hs_m >= IN_WAVES_HS_M:  # no wind sea at that period (`wind_sea`)
+        if high_enough(sea.hs_m):  # no wind sea at that period (`wind_sea`)
             return (f"calm water (the record's IMU reads Hs {100 * sea.hs_m:.1f} cm at Tp {sea.tp_s:.1f} s, no "
                     f"wind sea: one of that period stands {100 * wind_sea_hs_floor_m(sea.tp_s):.0f} cm or more; "
                     "the hull's own motion in its manoeuvres, or a passing wake)")
@@ -137,7 +141,7 @@ def experiment_sea_warning(hs_m: float, tp_s: float = math.nan, from_deg: float 
     motion, `wind_sea`): None in calm water (below IN_WAVES_HS_M); in waves a warning with what to do
     (identification will give no effective coefficients from the record, and a physical answer only if
     every check of one passes)."""
-    if not (math.isfinite(hs_m) and hs_m >= IN_WAVES_HS_M) or (measured and not wind_sea(hs_m, tp_s)):
+    if not high_enough(hs_m) or (measured and not wind_sea(hs_m, tp_s)):
         return None
     sea = SeaState(stamp_s=0.0, valid=True, hs_m=hs_m, tp_s=tp_s, tp_encounter_s=math.nan, from_deg=from_deg,
                    heave_std_m=math.nan, roll_std_deg=math.nan, pitch_std_deg=math.nan)
